@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Installs the Debian packages fissure needs to build and to run headless:
+# a software Vulkan driver (Mesa lavapipe), Xvfb for the window test, udev and
+# pkg-config for gilrs, and the X libraries winit loads. Idempotent and quiet
+# when everything is present. Without root (and no sudo) it prints exactly
+# which packages are missing and exits 1.
+set -euo pipefail
+packages=(mesa-vulkan-drivers libvulkan1 xvfb xauth libx11-xcb1 libxkbcommon-x11-0 libxcursor1 libxi6
+          libxrandr2 libudev-dev pkg-config libfontconfig1-dev)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+if [ "$(id -u)" -eq 0 ]; then SUDO=""; elif command -v sudo >/dev/null; then SUDO="sudo"; else
+  echo "fissure needs these Debian packages: ${missing[*]}" >&2
+  echo "install them with: apt-get install ${missing[*]}" >&2
+  exit 1
+fi
+echo "installing: ${missing[*]}" >&2
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq >&2
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2

@@ -1,0 +1,9 @@
+//! Rigid geometry: spatula shape and pose, source-node layouts, ray–triangle tests.
+//!
+//! In: spatula dimensions (m), a layout, a pose. Out: source nodes in pairs on the
+//! two large faces, world-space rays, ray hits. Stays true: poses hold a finite
+//! position and a unit quaternion; hits never carry NaN.
+
+pub mod spatula;
+
+pub use spatula::{NodeLayout, Pose, SpatulaShape};

@@ -1,0 +1,18 @@
+//! fissure: a real-time simulator for opening a brain fissure with two spatulas.
+//!
+//! Data flows input -> spatula poses -> collision (rays, His-flag culling) ->
+//! enforced displacements -> skull constraints -> FEM (exact constrained solve)
+//! -> deformed surface, reaction forces -> renderer / replay metrics.
+//! See `DESIGN.md` for the map. The simulation core (`mesh`, `geometry`,
+//! `collision`, `fem`, `sim`, `scenario`) never imports `render`, `ui` or `input`.
+
+pub mod collision;
+pub mod fem;
+pub mod geometry;
+pub mod input;
+pub mod math;
+pub mod mesh;
+pub mod render;
+pub mod scenario;
+pub mod sim;
+pub mod ui;

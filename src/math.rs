@@ -1,0 +1,17 @@
+//! Shared small math types. SI units everywhere inside the library (m, Pa, N).
+//!
+//! `Vec3` is an f64 column vector; poses use a unit quaternion. GPU code converts
+//! to f32 at its boundary and states the error it introduces.
+
+pub use nalgebra::{Matrix3, Point3, UnitQuaternion, Vector3};
+
+/// A 3-vector in metres (or a direction), f64.
+pub type Vec3 = Vector3<f64>;
+/// A rotation, unit quaternion, f64.
+pub type Quat = UnitQuaternion<f64>;
+
+/// True when every component is finite (not NaN, not ±Inf).
+#[inline]
+pub fn is_finite3(v: &Vec3) -> bool {
+    v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
+}
