@@ -1,1 +1,34 @@
-//! (being written)
+//! The FEM stage: linear tetrahedral elasticity solved exactly with enforced
+//! displacements, skull spheres and reaction forces, in real time.
+//!
+//! In: a [`crate::mesh::TetMesh`] (m), materials per region, fixed nodes; each
+//! frame a list of [`Constraint`]s. Out: per frame a [`FrameSolution`]
+//! (surface displacements, reactions per constraint and per owner); on demand
+//! interior displacements and per-tet stress.
+//! Stays true: `K_FF` is factored once ([`FemModel`]); the surface compliance
+//! is precomputed once ([`Compliance`], cached on disk); a frame is a gather,
+//! a small dense Cholesky and one dense product (see DESIGN.md, "The FEM,
+//! precisely"). Phases, one file each: `element` (tet stiffness) ->
+//! `assembly` -> `factor` -> `model` -> `compliance` -> `constrained`
+//! (+ `dense`, skull rows inside) -> `stress`, `contact`.
+
+pub mod assembly;
+pub mod compliance;
+pub mod constrained;
+pub mod contact;
+pub mod dense;
+pub mod element;
+pub mod error;
+pub mod factor;
+pub mod model;
+pub mod reference;
+pub mod fixtures;
+pub mod stress;
+
+pub use compliance::{Compliance, ComplianceStats, ComplianceStorage};
+pub use constrained::{ConstrainedSolver, Constraint, ConstraintKind, ConstraintRow, FrameSolution};
+pub use contact::{ContactPatch, PA_PER_MMHG, RETRACTION_DANGER_PA, contact_patches};
+pub use element::{Material, RegionMaterials};
+pub use error::FemError;
+pub use model::{BodyForce, FemModel, FemOptions, FemStats};
+pub use stress::{ElementStress, element_stress};

@@ -4,6 +4,8 @@
 //! two large faces, world-space rays, ray hits. Stays true: poses hold a finite
 //! position and a unit quaternion; hits never carry NaN.
 
+pub mod ray;
 pub mod spatula;
 
-pub use spatula::{NodeLayout, Pose, SpatulaShape};
+pub use ray::{LineHit, LineQuery, moller_trumbore};
+pub use spatula::{LayoutError, NodeLayout, Pose, SpatulaShape, face_normal_local};

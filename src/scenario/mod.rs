@@ -1,1 +1,68 @@
-//! (being written)
+//! Scenarios: what a simulation is, read from a RON file in two steps.
+//!
+//! In: a `.ron` file (human units: `_mm`, `_pa`, `_s`, `_deg` in the field
+//! names; see `config/*.ron` and the README), and `--set PATH=VALUE` overrides.
+//! Step 1 ([`file`]): serde into [`ScenarioFile`] with `deny_unknown_fields`
+//! (after the overrides are spliced into the text, [`overrides`]). Step 2
+//! ([`validate`]): ranges and cross-field rules, conversion to SI, into a
+//! [`Scenario`]. Out: a [`Scenario`] or one [`ScenarioError`] naming the file
+//! (or the `--set` argument), line, column, field path and problem.
+//! Also here: recorded pose tracks ([`trajectory`]).
+//! Stays true: nothing here panics on any input text; a `Scenario` holds only
+//! checked, finite SI values. This module reads no mesh and builds no stage.
+
+pub mod error;
+pub mod file;
+pub mod overrides;
+pub mod trajectory;
+pub mod tree;
+pub mod validate;
+
+use std::path::Path;
+
+pub use error::{Location, Origin, ScenarioError};
+pub use file::{CollisionBackend, ComplianceStorage, Effect, LengthUnit, ScenarioFile};
+pub use overrides::Document;
+pub use trajectory::{Sample, Trajectory, TrajectoryError, TrajectoryRecorder};
+pub use validate::{
+    EffectSet, FixedRegion, InputBinding, Material, MeshSource, Outputs, PHANTOM_PRESETS, RegionMaterial, RegionOfInterest,
+    Scenario, Skull, SolverOptions, SpatulaConfig, Sphere,
+};
+
+impl Scenario {
+    /// Reads, overrides (`PATH=VALUE` each) and validates a scenario file.
+    pub fn load(path: &Path, overrides: &[String]) -> Result<Scenario, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Read { path: path.to_path_buf(), source })?;
+        Self::from_str(&text, path, overrides)
+    }
+
+    /// Like [`Scenario::load`] for text already in memory; `origin_path` names
+    /// it in errors and anchors its relative paths (its folder).
+    pub fn from_str(text: &str, origin_path: &Path, overrides: &[String]) -> Result<Scenario, ScenarioError> {
+        let document = Self::parse_document(text, origin_path, overrides)?;
+        let file = parse_typed(&document)?;
+        Self::validate(file, &document)
+    }
+
+    /// Step 1 only, as text: the document with its overrides applied (the file's
+    /// syntax is checked first, so a broken file is reported before any override).
+    pub fn parse_document(text: &str, origin_path: &Path, overrides: &[String]) -> Result<Document, ScenarioError> {
+        let mut document = Document::new(origin_path, text.to_string());
+        if !overrides.is_empty() && tree::parse(text).is_err() {
+            // Report the file's own syntax error, with ron's message and position.
+            parse_typed(&document)?;
+        }
+        for o in overrides {
+            document.apply(o)?;
+        }
+        Ok(document)
+    }
+}
+
+/// The serde step on a document's text, with ron's errors mapped to file/argument, line, column and field.
+pub fn parse_typed(document: &Document) -> Result<ScenarioFile, ScenarioError> {
+    ron::Options::default().from_str::<ScenarioFile>(&document.text).map_err(|e| {
+        let offset = tree::offset_of(&document.text, e.span.start.line, e.span.start.col);
+        ScenarioError::Parse { location: document.locate(offset), field: document.path_at(offset), message: e.code.to_string() }
+    })
+}

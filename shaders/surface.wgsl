@@ -1,0 +1,54 @@
+// Brain surface: per-vertex colour (plain pink or a scalar field), two-sided
+// lighting (the opened fissure shows inner walls), a key light plus a
+// headlight, soft wrap diffuse and a faint wet specular.
+// Positions arrive relative to the camera target (metres, f32).
+
+struct Globals {
+    view_proj: mat4x4<f32>,
+    eye: vec4<f32>,
+    light_dir: vec4<f32>,
+    params: vec4<f32>, // x ambient, y specular strength, z shininess
+};
+
+@group(0) @binding(0) var<uniform> globals: Globals;
+
+struct VsIn {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) color: vec4<f32>,
+};
+
+struct VsOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) color: vec4<f32>,
+};
+
+@vertex
+fn vs_main(v: VsIn) -> VsOut {
+    var out: VsOut;
+    out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
+    out.world = v.position;
+    out.normal = v.normal;
+    out.color = v.color;
+    return out;
+}
+
+@fragment
+fn fs_main(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+    var n = normalize(in.normal);
+    if (!front) {
+        n = -n;
+    }
+    let v = normalize(globals.eye.xyz - in.world);
+    let l = normalize(globals.light_dir.xyz);
+    let wrap = 0.35;
+    let key = max((dot(n, l) + wrap) / (1.0 + wrap), 0.0);
+    let head = max(dot(n, v), 0.0);
+    let h = normalize(l + v);
+    let spec = pow(max(dot(n, h), 0.0), globals.params.z) * globals.params.y;
+    let albedo = in.color.rgb;
+    let rgb = albedo * (globals.params.x + 0.55 * key + 0.35 * head) + vec3<f32>(spec);
+    return vec4<f32>(rgb, 1.0);
+}

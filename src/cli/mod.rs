@@ -1,0 +1,44 @@
+//! Binary-only CLI: clap definitions and one function per subcommand.
+//!
+//! In: parsed arguments. Out: text on stdout (or JSON where asked) and an
+//! `anyhow::Result` whose chain `main` prints. Library errors are typed; this
+//! layer only adds context (which file, which command).
+
+mod check;
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+/// The default scene, run by a bare `fissure`.
+pub const DEFAULT_SCENARIO: &str = "config/sylvian.ron";
+
+/// fissure: a real-time simulator for opening a brain fissure with two spatulas.
+///
+/// With no subcommand, checks the default scene (config/sylvian.ron).
+#[derive(Debug, Parser)]
+#[command(name = "fissure", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Validate a scenario file and print a summary (exit 0 when valid).
+    Check {
+        /// The scenario (.ron).
+        scenario: PathBuf,
+        /// Override one field: PATH=VALUE, e.g. material.poisson_ratio=0.49 (repeatable).
+        #[arg(long = "set", value_name = "PATH=VALUE")]
+        set: Vec<String>,
+    },
+}
+
+/// Runs one parsed command line.
+pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        None => check::default_scene(),
+        Some(Command::Check { scenario, set }) => check::run(&scenario, &set),
+    }
+}

@@ -1,0 +1,138 @@
+//! Enforced displacements (paper Eq. 6): vertices of feasible triangles projected
+//! onto their face's plane along its normal; U_enf = V_proj - V_rest.
+//!
+//! In: feasible pairs, the frame's rays (a node's origin lies on its face plane, its
+//! direction is the face normal N), current and rest positions. Out: one
+//! [`VertexTarget`] per claimed vertex, ascending by vertex.
+//! Stays true (rules of the module `collision`, item 4): a vertex is claimed only
+//! when it lies on or behind the face plane (depth d = (S - V) · N >= -e, e the
+//! contact tolerance, so a vertex held on the plane last frame stays held; no adhesion);
+//! the deepest claim wins, exact ties go to the lower (spatula, face, node); the
+//! result does not depend on the order of the pairs.
+
+use super::Pair;
+use super::backend::SourceRay;
+use crate::math::Vec3;
+use std::cmp::Ordering;
+
+/// A target for one surface vertex.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VertexTarget {
+    /// Surface-vertex index.
+    pub vertex: u32,
+    /// Target displacement from REST, metres: V_proj - V_rest.
+    pub displacement: Vec3,
+    pub spatula: u8,
+    /// 0: the +z face, 1: the -z face.
+    pub face: u8,
+    /// The claiming face's outward unit normal, world.
+    pub normal: Vec3,
+    /// How far the vertex lay behind the face plane this frame, metres (>= 0).
+    pub depth: f64,
+    /// The source node (within its spatula) whose pair claimed it.
+    pub node: u32,
+}
+
+/// One claim on a vertex (scratch).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Claim(VertexTarget);
+
+fn claim_order(a: &Claim, b: &Claim) -> Ordering {
+    let (a, b) = (&a.0, &b.0);
+    a.vertex
+        .cmp(&b.vertex)
+        .then(b.depth.total_cmp(&a.depth))
+        .then(a.spatula.cmp(&b.spatula))
+        .then(a.face.cmp(&b.face))
+        .then(a.node.cmp(&b.node))
+}
+
+/// Builds the targets of the feasible pairs into `targets` (cleared first).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn resolve_targets(
+    triangles: &[[u32; 3]],
+    current: &[Vec3],
+    rest: &[Vec3],
+    rays: &[SourceRay],
+    feasible: &[Pair],
+    spatula_offsets: &[usize],
+    contact_tolerances: &[f64],
+    claims: &mut Vec<Claim>,
+    targets: &mut Vec<VertexTarget>,
+) {
+    claims.clear();
+    for p in feasible {
+        let ray = &rays[spatula_offsets[p.spatula as usize] + p.node as usize];
+        let n = ray.direction;
+        for &vertex in &triangles[p.triangle as usize] {
+            let v = current[vertex as usize];
+            let depth = (ray.origin - v).dot(&n);
+            if depth >= -contact_tolerances[p.spatula as usize] {
+                let projected = v + n * depth;
+                claims.push(Claim(VertexTarget {
+                    vertex,
+                    displacement: projected - rest[vertex as usize],
+                    spatula: p.spatula,
+                    face: p.face,
+                    normal: n,
+                    depth,
+                    node: p.node,
+                }));
+            }
+        }
+    }
+    claims.sort_unstable_by(claim_order);
+    targets.clear();
+    for c in claims.iter() {
+        if targets.last().is_none_or(|t| t.vertex != c.0.vertex) {
+            targets.push(c.0);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn deepest_claim_wins_and_front_vertices_stay_free() {
+        // Triangle 0 straddles the plane z = 0 (face normal +z at the origin); vertex 2 is in front.
+        let current = vec![Vec3::new(0.0, 0.0, -0.002), Vec3::new(0.001, 0.0, -0.001), Vec3::new(0.0, 0.001, 0.001)];
+        let rest = vec![Vec3::new(0.0, 0.0, -0.001), Vec3::new(0.001, 0.0, -0.001), Vec3::new(0.0, 0.001, 0.0)];
+        let triangles = vec![[0, 1, 2]];
+        let rays = vec![
+            SourceRay { origin: Vec3::zeros(), direction: Vec3::z() },
+            // A second spatula's face at z = -0.0015 also claims the triangle: shallower for vertex 0.
+            SourceRay { origin: Vec3::new(0.0, 0.0, -0.0015), direction: Vec3::z() },
+        ];
+        let feasible = vec![
+            Pair { spatula: 1, face: 0, node: 0, triangle: 0, t: -0.001 },
+            Pair { spatula: 0, face: 0, node: 0, triangle: 0, t: -0.001 },
+        ];
+        let (mut claims, mut targets) = (Vec::new(), Vec::new());
+        resolve_targets(&triangles, &current, &rest, &rays, &feasible, &[0, 1, 2], &[0.0, 0.0], &mut claims, &mut targets);
+        assert_eq!(targets.len(), 2, "vertex 2 lies in front of both planes and must stay free: {targets:?}");
+        let t0 = targets[0];
+        assert_eq!((t0.vertex, t0.spatula), (0, 0), "the deeper claim (spatula 0, depth 2 mm) must win vertex 0");
+        assert!((t0.displacement - Vec3::new(0.0, 0.0, 0.001)).norm() < 1e-15, "U = V_proj - V_rest = (0,0,0) - (0,0,-1mm)");
+        assert_eq!(targets[1].vertex, 1);
+        // Order independence.
+        let reversed: Vec<Pair> = feasible.iter().rev().copied().collect();
+        let mut again = Vec::new();
+        resolve_targets(&triangles, &current, &rest, &rays, &reversed, &[0, 1, 2], &[0.0, 0.0], &mut claims, &mut again);
+        assert_eq!(again, targets, "targets must not depend on the order of the feasible pairs");
+    }
+
+    #[test]
+    fn exact_tie_goes_to_lower_spatula() {
+        let current = vec![Vec3::new(0.0, 0.0, -0.001), Vec3::new(1.0, 0.0, -0.001), Vec3::new(0.0, 1.0, -0.001)];
+        let rays = vec![SourceRay { origin: Vec3::zeros(), direction: Vec3::z() }; 2];
+        let feasible = vec![
+            Pair { spatula: 1, face: 0, node: 0, triangle: 0, t: -0.001 },
+            Pair { spatula: 0, face: 0, node: 0, triangle: 0, t: -0.001 },
+        ];
+        let (mut claims, mut targets) = (Vec::new(), Vec::new());
+        resolve_targets(&[[0, 1, 2]], &current, &current, &rays, &feasible, &[0, 1, 2], &[0.0, 0.0], &mut claims, &mut targets);
+        assert!(targets.iter().all(|t| t.spatula == 0), "equal depth: the lower spatula index must win: {targets:?}");
+    }
+}

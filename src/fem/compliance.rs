@@ -1,0 +1,454 @@
+//! Precomputed compliance: `K^-1` restricted to the surface (rows) and a region
+//! of interest (columns), stored once per model and reused every frame.
+//!
+//! In: a [`FemModel`], the ROI nodes, a storage precision, an optional cache
+//! folder. Out: a [`Compliance`] that returns the 3x3 block `K^-1[node_i, node_j]`
+//! for a surface (or ROI) node i and a ROI node j, and accumulates
+//! `u_rows += K^-1[rows, cols] F` for a few nodal forces.
+//!
+//! Layout (symmetric storage): rows are the free ROI nodes (ascending) followed
+//! by every other free surface node (ascending); columns are the ROI nodes. Only
+//! the blocks with row >= column are stored, column after column, each 3x3 block
+//! column-major: `(col_start(j) + i - j) * 9`, `col_start(j) = j n - j (j-1) / 2`.
+//! A ROI x ROI block above the diagonal is the transpose of its mirror.
+//! Stays true: entries are `K^-1` to round-off (f64) or rounded once to f32; a
+//! cache file is used only when its key (blake3 of model fingerprint, ROI,
+//! precision) and its checksum match; otherwise it is rebuilt and rewritten.
+
+use super::FemError;
+use super::model::FemModel;
+use crate::math::{Matrix3, Vec3};
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+const NO_ROW: u32 = u32::MAX;
+const CACHE_MAGIC: &[u8; 8] = b"FISSCOMP";
+const CACHE_VERSION: u32 = 1;
+/// ROI nodes solved together (3 right-hand sides each).
+const BATCH_NODES: usize = 32;
+
+/// Precision of the stored compliance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub enum ComplianceStorage {
+    /// 8 bytes an entry; the fast path matches a direct solve to about 1e-12.
+    F64,
+    /// 4 bytes an entry; relative error of the solution measured in `tests/fem_fast_path.rs` (below 1e-5).
+    F32,
+}
+
+#[derive(Debug, Clone)]
+enum Values {
+    F64(Vec<f64>),
+    F32(Vec<f32>),
+}
+
+/// What building or loading the compliance cost.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ComplianceStats {
+    /// Seconds to compute (0 when loaded) and to load (0 when computed).
+    pub compute_seconds: f64,
+    pub load_seconds: f64,
+    /// Bytes of stored entries.
+    pub bytes: usize,
+    /// True when the entries came from the disk cache.
+    pub from_cache: bool,
+    /// Stored rows (surface + ROI nodes) and columns (ROI nodes).
+    pub rows: usize,
+    pub cols: usize,
+}
+
+/// `K^-1` over (surface ∪ ROI) x ROI nodes, symmetric storage.
+#[derive(Debug, Clone)]
+pub struct Compliance {
+    values: Values,
+    row_nodes: Vec<u32>,
+    n_cols: usize,
+    node_row: Vec<u32>,
+    key: [u8; 32],
+    model_fingerprint: [u8; 32],
+    stats: ComplianceStats,
+}
+
+#[inline]
+fn col_start(j: usize, n_rows: usize) -> usize {
+    j * n_rows - j * j.saturating_sub(1) / 2
+}
+
+impl Compliance {
+    /// Computes (or loads from `cache_dir`) the compliance for `roi_nodes`.
+    /// Fixed nodes in the ROI are skipped; duplicates are ignored.
+    /// `progress(done, total)` is called after every batch of columns.
+    pub fn compute(
+        model: &FemModel,
+        roi_nodes: &[u32],
+        storage: ComplianceStorage,
+        cache_dir: Option<&Path>,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<Self, FemError> {
+        let count = model.mesh.node_count();
+        let mut roi: Vec<u32> = Vec::with_capacity(roi_nodes.len());
+        for &n in roi_nodes {
+            if n as usize >= count {
+                return Err(FemError::NodeOutOfRange { what: "ROI", node: n, count });
+            }
+            if !model.is_fixed(n) {
+                roi.push(n);
+            }
+        }
+        roi.sort_unstable();
+        roi.dedup();
+        let n_cols = roi.len();
+        let mut row_nodes = roi.clone();
+        for &n in &model.surface.vertices {
+            if !model.is_fixed(n) && roi.binary_search(&n).is_err() {
+                row_nodes.push(n);
+            }
+        }
+        let mut node_row = vec![NO_ROW; count];
+        for (r, &n) in row_nodes.iter().enumerate() {
+            node_row[n as usize] = r as u32;
+        }
+        let key = cache_key(model, &roi, storage);
+        let mut this = Self {
+            values: Values::F64(Vec::new()),
+            row_nodes,
+            n_cols,
+            node_row,
+            key,
+            model_fingerprint: model.fingerprint,
+            stats: ComplianceStats::default(),
+        };
+        let path = cache_dir.map(|d| d.join(format!("compliance-{}.bin", hex(&key[..16]))));
+        if let Some(p) = &path {
+            let t = Instant::now();
+            match this.load(p, storage) {
+                Ok(values) => {
+                    this.values = values;
+                    this.stats = this.make_stats(0.0, t.elapsed().as_secs_f64(), true);
+                    progress(n_cols, n_cols);
+                    return Ok(this);
+                }
+                Err(reason) => {
+                    if p.exists() {
+                        tracing::warn!("compliance cache {} not used ({reason}); rebuilding", p.display());
+                    }
+                }
+            }
+        }
+        let t = Instant::now();
+        this.values = this.build(model, storage, progress)?;
+        this.stats = this.make_stats(t.elapsed().as_secs_f64(), 0.0, false);
+        if let Some(p) = &path {
+            this.save(p)?;
+        }
+        Ok(this)
+    }
+
+    fn make_stats(&self, compute_seconds: f64, load_seconds: f64, from_cache: bool) -> ComplianceStats {
+        let bytes = match &self.values {
+            Values::F64(v) => v.len() * 8,
+            Values::F32(v) => v.len() * 4,
+        };
+        ComplianceStats { compute_seconds, load_seconds, bytes, from_cache, rows: self.row_nodes.len(), cols: self.n_cols }
+    }
+
+    fn entry_count(&self) -> usize {
+        col_start(self.n_cols, self.row_nodes.len()) * 9
+    }
+
+    fn build(&self, model: &FemModel, storage: ComplianceStorage, progress: &mut dyn FnMut(usize, usize)) -> Result<Values, FemError> {
+        let len = self.entry_count();
+        let mut values = match storage {
+            ComplianceStorage::F64 => {
+                let mut v: Vec<f64> = Vec::new();
+                v.try_reserve_exact(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 8 })?;
+                v.resize(len, 0.0);
+                Values::F64(v)
+            }
+            ComplianceStorage::F32 => {
+                let mut v: Vec<f32> = Vec::new();
+                v.try_reserve_exact(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 4 })?;
+                v.resize(len, 0.0);
+                Values::F32(v)
+            }
+        };
+        let n_free = model.dofs.dof_count();
+        let n_rows = self.row_nodes.len();
+        let row_dofs: Vec<usize> = self.row_nodes.iter().map(|&n| model.dofs.dof(n).unwrap_or(0)).collect();
+        let mut rhs = faer::Mat::<f64>::zeros(n_free, 3 * BATCH_NODES);
+        let mut scratch = model.chol.scratch(3 * BATCH_NODES)?;
+        let mut j0 = 0;
+        progress(0, self.n_cols);
+        while j0 < self.n_cols {
+            let nb = BATCH_NODES.min(self.n_cols - j0);
+            rhs.fill(0.0);
+            for b in 0..nb {
+                let d = row_dofs[j0 + b];
+                for c in 0..3 {
+                    rhs[(d + c, 3 * b + c)] = 1.0;
+                }
+            }
+            model.chol.solve_in_place(rhs.as_mut().subcols_mut(0, 3 * nb), &mut scratch);
+            for b in 0..nb {
+                let j = j0 + b;
+                let base = col_start(j, n_rows) * 9;
+                let cols = [rhs.col(3 * b), rhs.col(3 * b + 1), rhs.col(3 * b + 2)];
+                let cols = cols.map(|c| c.try_as_col_major().map(|c| c.as_slice()).unwrap_or(&[]));
+                let count = (n_rows - j) * 9;
+                match &mut values {
+                    Values::F64(v) => fill_column(&mut v[base..base + count], &row_dofs[j..], &cols, |x| x),
+                    Values::F32(v) => fill_column(&mut v[base..base + count], &row_dofs[j..], &cols, |x| x as f32),
+                }
+            }
+            j0 += nb;
+            progress(j0, self.n_cols);
+        }
+        Ok(values)
+    }
+
+    /// Statistics of the last build or load.
+    pub fn stats(&self) -> ComplianceStats {
+        self.stats
+    }
+
+    /// The cache key (blake3 of the model fingerprint, ROI and precision).
+    pub fn key(&self) -> [u8; 32] {
+        self.key
+    }
+
+    /// Fingerprint of the model this compliance belongs to.
+    pub fn model_fingerprint(&self) -> [u8; 32] {
+        self.model_fingerprint
+    }
+
+    /// Precision of the stored entries.
+    pub fn storage(&self) -> ComplianceStorage {
+        match self.values {
+            Values::F64(_) => ComplianceStorage::F64,
+            Values::F32(_) => ComplianceStorage::F32,
+        }
+    }
+
+    /// Row nodes: ROI nodes first (they are also the columns), then the other free surface nodes.
+    pub fn row_nodes(&self) -> &[u32] {
+        &self.row_nodes
+    }
+
+    /// Number of ROI (column) nodes.
+    pub fn column_count(&self) -> usize {
+        self.n_cols
+    }
+
+    /// Row index of a node, or `None` when it is neither a free surface node nor in the ROI.
+    #[inline]
+    pub fn row_of(&self, node: u32) -> Option<usize> {
+        match self.node_row.get(node as usize) {
+            Some(&r) if r != NO_ROW => Some(r as usize),
+            _ => None,
+        }
+    }
+
+    /// Column index of a node, or `None` when it is outside the ROI.
+    #[inline]
+    pub fn col_of(&self, node: u32) -> Option<usize> {
+        self.row_of(node).filter(|&r| r < self.n_cols)
+    }
+
+    /// `K^-1[row node, col node]` by row and column index (`col < column_count()`).
+    #[inline]
+    pub fn block(&self, row: usize, col: usize) -> Matrix3<f64> {
+        if row >= col {
+            self.stored(row, col)
+        } else {
+            self.stored(col, row).transpose()
+        }
+    }
+
+    #[inline]
+    fn stored(&self, row: usize, col: usize) -> Matrix3<f64> {
+        let o = (col_start(col, self.row_nodes.len()) + row - col) * 9;
+        match &self.values {
+            Values::F64(v) => Matrix3::from_column_slice(&v[o..o + 9]),
+            Values::F32(v) => Matrix3::from_iterator(v[o..o + 9].iter().map(|&x| x as f64)),
+        }
+    }
+
+    /// `u[row] += sum_k K^-1[row, col_k] F_k` over every row, for forces
+    /// `(col, F)` sorted by ascending column.
+    pub fn accumulate(&self, forces: &[(usize, Vec3)], u: &mut [Vec3]) {
+        match &self.values {
+            Values::F64(v) => accumulate_impl(v, self.row_nodes.len(), self.n_cols, forces, u),
+            Values::F32(v) => accumulate_impl(v, self.row_nodes.len(), self.n_cols, forces, u),
+        }
+    }
+
+    fn save(&self, path: &Path) -> Result<(), FemError> {
+        let err = |e: std::io::Error| FemError::Cache { path: path.to_path_buf(), reason: e.to_string() };
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir).map_err(err)?;
+        }
+        let tmp: PathBuf = path.with_extension(format!("tmp{}", std::process::id()));
+        let file = std::fs::File::create(&tmp).map_err(err)?;
+        let mut w = std::io::BufWriter::with_capacity(1 << 22, file);
+        let mut hasher = blake3::Hasher::new();
+        let mut put = |w: &mut std::io::BufWriter<std::fs::File>, bytes: &[u8]| -> Result<(), FemError> {
+            hasher.update(bytes);
+            w.write_all(bytes).map_err(err)
+        };
+        put(&mut w, &self.header())?;
+        put(&mut w, bytemuck::cast_slice(&self.row_nodes))?;
+        match &self.values {
+            Values::F64(v) => put(&mut w, bytemuck::cast_slice(v))?,
+            Values::F32(v) => put(&mut w, bytemuck::cast_slice(v))?,
+        }
+        let sum = *hasher.finalize().as_bytes();
+        w.write_all(&sum).map_err(err)?;
+        w.flush().map_err(err)?;
+        drop(w);
+        std::fs::rename(&tmp, path).map_err(err)?;
+        Ok(())
+    }
+
+    fn header(&self) -> Vec<u8> {
+        let mut h = Vec::with_capacity(72);
+        h.extend_from_slice(CACHE_MAGIC);
+        h.extend_from_slice(&CACHE_VERSION.to_le_bytes());
+        h.extend_from_slice(&[match self.values { Values::F64(_) => 8u8, Values::F32(_) => 4u8 }, 0, 0, 0]);
+        h.extend_from_slice(&self.key);
+        h.extend_from_slice(&(self.row_nodes.len() as u64).to_le_bytes());
+        h.extend_from_slice(&(self.n_cols as u64).to_le_bytes());
+        h
+    }
+
+    /// Reads a cache file; any mismatch or corruption is an `Err(reason)`.
+    fn load(&self, path: &Path, storage: ComplianceStorage) -> Result<Values, String> {
+        let mut file = std::fs::File::open(path).map_err(|e| e.to_string())?;
+        let len = self.entry_count();
+        let width = match storage { ComplianceStorage::F64 => 8, ComplianceStorage::F32 => 4 };
+        let mut want = self.header();
+        want[12] = width as u8;
+        let expected_size = want.len() + 4 * self.row_nodes.len() + width * len + 32;
+        let size = file.metadata().map_err(|e| e.to_string())?.len() as usize;
+        if size != expected_size {
+            return Err(format!("size {size} bytes, expected {expected_size}"));
+        }
+        let mut hasher = blake3::Hasher::new();
+        let mut header = vec![0u8; want.len()];
+        file.read_exact(&mut header).map_err(|e| e.to_string())?;
+        if header != want {
+            return Err("header or key mismatch".into());
+        }
+        hasher.update(&header);
+        let mut rows = vec![0u32; self.row_nodes.len()];
+        file.read_exact(bytemuck::cast_slice_mut(&mut rows)).map_err(|e| e.to_string())?;
+        hasher.update(bytemuck::cast_slice(&rows));
+        if rows != self.row_nodes {
+            return Err("row nodes mismatch".into());
+        }
+        let mut read_hashed = |bytes: &mut [u8]| -> Result<(), String> {
+            for chunk in bytes.chunks_mut(1 << 24) {
+                file.read_exact(chunk).map_err(|e| e.to_string())?;
+                hasher.update(chunk);
+            }
+            Ok(())
+        };
+        let values = match storage {
+            ComplianceStorage::F64 => {
+                let mut v: Vec<f64> = Vec::new();
+                v.try_reserve_exact(len).map_err(|_| "out of memory".to_string())?;
+                v.resize(len, 0.0);
+                read_hashed(bytemuck::cast_slice_mut(&mut v))?;
+                Values::F64(v)
+            }
+            ComplianceStorage::F32 => {
+                let mut v: Vec<f32> = Vec::new();
+                v.try_reserve_exact(len).map_err(|_| "out of memory".to_string())?;
+                v.resize(len, 0.0);
+                read_hashed(bytemuck::cast_slice_mut(&mut v))?;
+                Values::F32(v)
+            }
+        };
+        let mut sum = [0u8; 32];
+        file.read_exact(&mut sum).map_err(|e| e.to_string())?;
+        if &sum != hasher.finalize().as_bytes() {
+            return Err("checksum mismatch (corrupt file)".into());
+        }
+        Ok(values)
+    }
+}
+
+fn fill_column<T: Copy>(out: &mut [T], row_dofs: &[usize], cols: &[&[f64]; 3], conv: impl Fn(f64) -> T) {
+    for (k, &d) in row_dofs.iter().enumerate() {
+        let o = 9 * k;
+        for c in 0..3 {
+            for r in 0..3 {
+                out[o + 3 * c + r] = conv(cols[c][d + r]);
+            }
+        }
+    }
+}
+
+trait Entry: Copy {
+    fn f(self) -> f64;
+}
+impl Entry for f64 {
+    #[inline(always)]
+    fn f(self) -> f64 {
+        self
+    }
+}
+impl Entry for f32 {
+    #[inline(always)]
+    fn f(self) -> f64 {
+        self as f64
+    }
+}
+
+fn accumulate_impl<T: Entry>(v: &[T], n_rows: usize, n_cols: usize, forces: &[(usize, Vec3)], u: &mut [Vec3]) {
+    // Lower part: contiguous runs of blocks (i >= c) of each forced column c.
+    for &(c, f) in forces {
+        let base = col_start(c, n_rows) * 9;
+        let run = &v[base..base + (n_rows - c) * 9];
+        for (b, ui) in run.chunks_exact(9).zip(u[c..].iter_mut()) {
+            ui.x += b[0].f() * f.x + b[3].f() * f.y + b[6].f() * f.z;
+            ui.y += b[1].f() * f.x + b[4].f() * f.y + b[7].f() * f.z;
+            ui.z += b[2].f() * f.x + b[5].f() * f.y + b[8].f() * f.z;
+        }
+    }
+    // Upper part: rows i < c (both ROI), block (c, i)^T stored in column i.
+    let mut first = 0;
+    for i in 0..n_cols {
+        while first < forces.len() && forces[first].0 <= i {
+            first += 1;
+        }
+        if first == forces.len() {
+            break;
+        }
+        let base = col_start(i, n_rows);
+        let mut acc = Vec3::zeros();
+        for &(c, f) in &forces[first..] {
+            let o = (base + c - i) * 9;
+            let b = &v[o..o + 9];
+            acc.x += b[0].f() * f.x + b[1].f() * f.y + b[2].f() * f.z;
+            acc.y += b[3].f() * f.x + b[4].f() * f.y + b[5].f() * f.z;
+            acc.z += b[6].f() * f.x + b[7].f() * f.y + b[8].f() * f.z;
+        }
+        u[i] += acc;
+    }
+}
+
+fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage) -> [u8; 32] {
+    let mut h = blake3::Hasher::new();
+    h.update(b"fissure-compliance");
+    h.update(&CACHE_VERSION.to_le_bytes());
+    h.update(&model.fingerprint);
+    h.update(&(roi.len() as u64).to_le_bytes());
+    h.update(bytemuck::cast_slice(roi));
+    h.update(&[match storage { ComplianceStorage::F64 => 8u8, ComplianceStorage::F32 => 4u8 }]);
+    *h.finalize().as_bytes()
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}

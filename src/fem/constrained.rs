@@ -1,0 +1,739 @@
+//! The per-frame exact constrained solve (Schur complement on the constraint rows).
+//!
+//! In: a [`FemModel`], its [`Compliance`], and each frame a slice of
+//! [`Constraint`]s (enforced vertex displacements from the spatulas; unilateral
+//! skull-sphere candidates). Out: a [`FrameSolution`]: displacement of every
+//! surface vertex, reaction per constraint, force per spatula and per sphere.
+//!
+//! Method: `K u = f + C^T lambda`, `C u = g`. With `u0 = K^-1 f` (gravity) and
+//! `W = C K^-1 C^T` gathered from the compliance, `lambda = W^-1 (g - C u0)` and
+//! `u = u0 + K^-1 C^T lambda`. Exact (no penalty) up to round-off and the
+//! compliance storage precision. `C^T lambda` is the force ON the tissue.
+//!
+//! Conflict rules (documented, deterministic):
+//! - a constraint on a fixed node is ignored; its reaction is zero;
+//! - several enforced constraints on one node (two spatulas): one 3-row block
+//!   with the mean of their targets; the node's reaction is split equally among them;
+//! - an enforced node also claimed by a sphere: the enforced displacement wins,
+//!   the sphere row is not used (reaction zero);
+//! - rows that are still linearly dependent (e.g. two spheres with a common
+//!   centre at one node) are dropped by the pivoting fallback of
+//!   [`super::dense`] (the earlier row is kept) and counted in
+//!   [`FrameSolution::dropped_rows`]; their reaction is zero. Never NaN.
+//!
+//! Skull spheres: a row `d . u >= b` with `d` the feasible radial direction,
+//! linearized at the node's current position; active-set loop: add violated
+//! candidates, else drop the most adhesive active row (lambda < 0), else
+//! re-linearize active rows whose true distance misses the sphere, until no
+//! candidate is outside by more than `1e-9 R` and no active force pulls.
+//!
+//! Stays true: no allocation once the scratch has grown to the frame size
+//! (except lazily computed columns); fixed iteration order everywhere.
+
+use super::FemError;
+use super::compliance::Compliance;
+use super::dense::{self, DenseWorkspace};
+use super::model::FemModel;
+use crate::math::{Matrix3, Vec3, is_finite3};
+
+/// Relative tolerance of a sphere constraint (times its radius).
+pub const SPHERE_TOLERANCE: f64 = 1e-9;
+/// Lazily computed columns kept between frames (each is 3 x free DOFs f64).
+pub const LAZY_CAPACITY: usize = 128;
+
+/// What a constraint asks of its node.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ConstraintKind {
+    /// Displacement from rest (m): three bilateral rows.
+    Enforced { displacement: Vec3 },
+    /// The node stays inside the sphere (centre m, radius m > 0): one unilateral radial row.
+    SphereInside { center: Vec3, radius: f64 },
+    /// The node stays outside the sphere (centre m, radius m > 0): one unilateral radial row.
+    SphereOutside { center: Vec3, radius: f64 },
+}
+
+/// One constraint on one mesh node.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Constraint {
+    /// Mesh node index.
+    pub node: u32,
+    /// Spatula index (Enforced) or sphere index (Sphere*), for per-owner sums.
+    pub owner: u16,
+    pub kind: ConstraintKind,
+}
+
+/// Result of one frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameSolution {
+    /// Per surface vertex (order of `model.surface().vertices`): displacement from rest, m.
+    pub displacement_surface: Vec<Vec3>,
+    /// Per constraint (same order as the input): force ON the tissue, N.
+    pub reactions: Vec<Vec3>,
+    /// Per spatula owner (ascending): sum of the enforced reactions, N.
+    pub owner_forces: Vec<(u16, Vec3)>,
+    /// Per sphere owner (ascending): sum of the sphere reactions, N.
+    pub sphere_forces: Vec<(u16, Vec3)>,
+    /// Sphere rows active at the end of the frame.
+    pub active_sphere_contacts: usize,
+    /// Largest surface displacement, m.
+    pub max_displacement: f64,
+    /// Estimate of cond(W) (`(max L_ii / min L_ii)^2`, a lower bound).
+    pub conditioning: f64,
+    /// Rows of W (3 per enforced node + active sphere rows).
+    pub rows: usize,
+    /// Rows dropped as linearly dependent.
+    pub dropped_rows: usize,
+    /// Active-set iterations (1 without spheres).
+    pub iterations: usize,
+    /// Nodes whose K^-1 columns had to be solved this frame (outside the ROI).
+    pub lazy_solves: usize,
+}
+
+/// One row of C: `dir . u[node] = target`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConstraintRow {
+    /// Index into the frame's node list.
+    pub slot: usize,
+    /// Unit direction.
+    pub dir: Vec3,
+    /// Target of `dir . u`, m.
+    pub target: f64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    constraint: usize,
+    node: u32,
+    owner: u16,
+    center: Vec3,
+    radius: f64,
+    inside: bool,
+    active: bool,
+    /// Linearization point (deformed position), m.
+    at: Vec3,
+}
+
+struct LazyColumn {
+    node: u32,
+    /// 3 columns of length n_free, column major.
+    values: Vec<f64>,
+    last_used: u64,
+}
+
+/// Exact constrained solver; holds the model, the compliance and all scratch.
+pub struct ConstrainedSolver {
+    model: FemModel,
+    compliance: Compliance,
+    frame: u64,
+    lazy: Vec<LazyColumn>,
+    // --- per frame scratch ---
+    order: Vec<(u32, usize)>,
+    /// Distinct constrained nodes of the frame (enforced first, then active spheres).
+    nodes: Vec<u32>,
+    /// Enforced node k: rows 3k..3k+3, claimants `claims[claim_ptr[k]..claim_ptr[k+1]]`.
+    claim_ptr: Vec<usize>,
+    claims: Vec<usize>,
+    claim_owner: Vec<u16>,
+    enforced_nodes: usize,
+    enforced_targets: Vec<Vec3>,
+    lazy_computed: usize,
+    candidates: Vec<Candidate>,
+    prev_active: Vec<(u32, u16, bool)>,
+    rows: Vec<ConstraintRow>,
+    /// Candidate index of each sphere row (row - enforced rows).
+    row_candidate: Vec<usize>,
+    w: Vec<f64>,
+    w_factor: Vec<f64>,
+    lambda: Vec<f64>,
+    node_force: Vec<Vec3>,
+    col_forces: Vec<(usize, Vec3)>,
+    u_rows: Vec<Vec3>,
+    prev_u_rows: Vec<Vec3>,
+    dense: DenseWorkspace,
+    solve_scratch: Option<faer::dyn_stack::MemBuffer>,
+    /// Nodal forces of the last frame (node, force) for interior displacements.
+    last_forces: Vec<(u32, Vec3)>,
+}
+
+impl ConstrainedSolver {
+    /// Takes ownership of the model and its compliance.
+    pub fn new(model: FemModel, compliance: Compliance) -> Result<Self, FemError> {
+        if compliance.model_fingerprint() != model.fingerprint() {
+            return Err(FemError::InvalidOption { field: "compliance", value: f64::NAN, reason: "was computed for another model" });
+        }
+        let rows = compliance.row_nodes().len();
+        Ok(Self {
+            model,
+            compliance,
+            frame: 0,
+            lazy: Vec::new(),
+            order: Vec::new(),
+            nodes: Vec::new(),
+            claim_ptr: Vec::new(),
+            claims: Vec::new(),
+            claim_owner: Vec::new(),
+            enforced_nodes: 0,
+            enforced_targets: Vec::new(),
+            lazy_computed: 0,
+            candidates: Vec::new(),
+            prev_active: Vec::new(),
+            rows: Vec::new(),
+            row_candidate: Vec::new(),
+            w: Vec::new(),
+            w_factor: Vec::new(),
+            lambda: Vec::new(),
+            node_force: Vec::new(),
+            col_forces: Vec::new(),
+            u_rows: vec![Vec3::zeros(); rows],
+            prev_u_rows: vec![Vec3::zeros(); rows],
+            dense: DenseWorkspace::default(),
+            solve_scratch: None,
+            last_forces: Vec::new(),
+        })
+    }
+
+    /// The model.
+    pub fn model(&self) -> &FemModel {
+        &self.model
+    }
+
+    /// The compliance.
+    pub fn compliance(&self) -> &Compliance {
+        &self.compliance
+    }
+
+    /// Rows of the last frame's constraint system.
+    pub fn constraint_rows(&self) -> &[ConstraintRow] {
+        &self.rows
+    }
+
+    /// Nodes of the last frame's system (`ConstraintRow::slot` indexes this).
+    pub fn constraint_nodes(&self) -> &[u32] {
+        &self.nodes
+    }
+
+    /// `W = C K^-1 C^T` of the last frame (n x n column major, lower triangle
+    /// and diagonal valid), n = `constraint_rows().len()`. For a haptic thread
+    /// that wants its own copy.
+    pub fn contact_compliance(&self) -> &[f64] {
+        let n = self.rows.len();
+        &self.w[..n * n]
+    }
+
+    /// Change of the force ON the tissue from spatula `owner` when all of its
+    /// enforced vertices move by `delta` (m) and the active set stays as in the
+    /// last frame: `delta_lambda = W^-1 delta_g`. Exact for the linear model;
+    /// costs two triangular solves (O(rows^2)), no allocation once `scratch`
+    /// has grown. The haptic force on the tool is the negative of this.
+    pub fn spatula_force_delta(&self, owner: u16, delta: Vec3, scratch: &mut Vec<f64>) -> Vec3 {
+        let n = self.rows.len();
+        scratch.clear();
+        scratch.resize(n, 0.0);
+        let mut any = false;
+        for k in 0..self.enforced_nodes {
+            let share = self.owner_share(k, owner);
+            if share > 0.0 {
+                scratch[3 * k] = delta.x;
+                scratch[3 * k + 1] = delta.y;
+                scratch[3 * k + 2] = delta.z;
+                any = true;
+            }
+        }
+        if !any {
+            return Vec3::zeros();
+        }
+        dense::solve_in_place(&self.w_factor[..n * n], n, &self.dense.dropped, scratch);
+        let mut f = Vec3::zeros();
+        for k in 0..self.enforced_nodes {
+            let share = self.owner_share(k, owner);
+            if share > 0.0 {
+                f += Vec3::new(scratch[3 * k], scratch[3 * k + 1], scratch[3 * k + 2]) * share;
+            }
+        }
+        f
+    }
+
+    /// Fraction of enforced node k's reaction that belongs to `owner`.
+    fn owner_share(&self, k: usize, owner: u16) -> f64 {
+        let claims = &self.claim_owner[self.claim_ptr[k]..self.claim_ptr[k + 1]];
+        let mine = claims.iter().filter(|&&o| o == owner).count();
+        mine as f64 / claims.len().max(1) as f64
+    }
+
+    /// Solves one frame. `out` is overwritten (its buffers are reused).
+    pub fn step(&mut self, constraints: &[Constraint], out: &mut FrameSolution) -> Result<(), FemError> {
+        self.frame += 1;
+        self.validate(constraints)?;
+        self.group_enforced(constraints);
+        self.collect_candidates(constraints);
+        let lazy_before = self.lazy_computed;
+        // Candidates that are neither surface nor ROI rows need their own columns to be evaluated.
+        let mut extra: Vec<u32> = Vec::new();
+        for c in &self.candidates {
+            if self.compliance.row_of(c.node).is_none() {
+                extra.push(c.node);
+            }
+        }
+        self.ensure_lazy(&extra)?;
+        let max_iterations = 100 + 2 * self.candidates.len();
+        let mut iterations = 0;
+        loop {
+            iterations += 1;
+            self.build_rows();
+            let nodes = std::mem::take(&mut self.nodes);
+            let ensured = self.ensure_lazy(&nodes);
+            self.nodes = nodes;
+            ensured?;
+            self.solve_rows();
+            if self.candidates.is_empty() {
+                break;
+            }
+            // Evaluate every candidate at the current solution.
+            let mut worst_inactive: f64 = 0.0;
+            let mut worst_active: f64 = 0.0;
+            let mut any_add = false;
+            for ci in 0..self.candidates.len() {
+                let c = self.candidates[ci];
+                let x = self.model.mesh.positions[c.node as usize] + self.displacement_of(c.node);
+                let dist = (x - c.center).norm();
+                let violation = if c.inside { dist - c.radius } else { c.radius - dist };
+                let tol = SPHERE_TOLERANCE * c.radius;
+                if !c.active && violation > tol {
+                    any_add = true;
+                    worst_inactive = worst_inactive.max(violation);
+                    self.candidates[ci].active = true;
+                    self.candidates[ci].at = x;
+                } else if c.active && violation.abs() > tol {
+                    worst_active = worst_active.max(violation.abs());
+                }
+            }
+            if any_add {
+                if iterations >= max_iterations {
+                    return Err(self.not_converged(iterations, worst_inactive));
+                }
+                continue;
+            }
+            // Most adhesive active row (lambda < 0 pulls the tissue toward the skull).
+            let enforced_rows = 3 * self.enforced_nodes;
+            let scale = self.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()));
+            let mut most: Option<(usize, f64)> = None;
+            for (k, &ci) in self.row_candidate.iter().enumerate() {
+                let l = self.lambda[enforced_rows + k];
+                if l < -1e-12 * scale && most.is_none_or(|(_, m)| l < m) {
+                    most = Some((ci, l));
+                }
+            }
+            if let Some((ci, _)) = most {
+                self.candidates[ci].active = false;
+                if iterations >= max_iterations {
+                    return Err(self.not_converged(iterations, worst_active));
+                }
+                continue;
+            }
+            if worst_active > 0.0 {
+                // Re-linearize active rows at the current positions.
+                for ci in 0..self.candidates.len() {
+                    if self.candidates[ci].active {
+                        let node = self.candidates[ci].node;
+                        self.candidates[ci].at = self.model.mesh.positions[node as usize] + self.displacement_of(node);
+                    }
+                }
+                if iterations >= max_iterations {
+                    return Err(self.not_converged(iterations, worst_active));
+                }
+                continue;
+            }
+            break;
+        }
+        self.update_surface();
+        self.write_solution(constraints, out, iterations, self.lazy_computed - lazy_before);
+        Ok(())
+    }
+
+    fn not_converged(&self, iterations: usize, max_violation: f64) -> FemError {
+        let enforced_rows = 3 * self.enforced_nodes;
+        let min_force = self.lambda.get(enforced_rows..).map(|l| l.iter().fold(0.0_f64, |m, &x| m.min(x))).unwrap_or(0.0);
+        FemError::ActiveSetNotConverged { iterations, max_violation, min_force }
+    }
+
+    fn validate(&self, constraints: &[Constraint]) -> Result<(), FemError> {
+        let count = self.model.mesh.node_count();
+        for (index, c) in constraints.iter().enumerate() {
+            if c.node as usize >= count {
+                return Err(FemError::NodeOutOfRange { what: "constraint", node: c.node, count });
+            }
+            let ok = match c.kind {
+                ConstraintKind::Enforced { displacement } => is_finite3(&displacement),
+                ConstraintKind::SphereInside { center, radius } | ConstraintKind::SphereOutside { center, radius } => {
+                    is_finite3(&center) && radius.is_finite() && radius > 0.0
+                }
+            };
+            if !ok {
+                return Err(FemError::InvalidConstraint {
+                    index,
+                    node: c.node,
+                    reason: "non-finite displacement or centre, or radius not > 0",
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Groups enforced constraints by node (ascending), averaging their targets.
+    fn group_enforced(&mut self, constraints: &[Constraint]) {
+        self.order.clear();
+        for (i, c) in constraints.iter().enumerate() {
+            if matches!(c.kind, ConstraintKind::Enforced { .. }) && !self.model.is_fixed(c.node) {
+                self.order.push((c.node, i));
+            }
+        }
+        self.order.sort_unstable();
+        self.nodes.clear();
+        self.claims.clear();
+        self.claim_owner.clear();
+        self.claim_ptr.clear();
+        self.claim_ptr.push(0);
+        self.enforced_targets.clear();
+        let mut k = 0;
+        while k < self.order.len() {
+            let node = self.order[k].0;
+            let mut sum = Vec3::zeros();
+            let start = k;
+            while k < self.order.len() && self.order[k].0 == node {
+                let i = self.order[k].1;
+                if let ConstraintKind::Enforced { displacement } = constraints[i].kind {
+                    sum += displacement;
+                }
+                self.claims.push(i);
+                self.claim_owner.push(constraints[i].owner);
+                k += 1;
+            }
+            self.nodes.push(node);
+            self.claim_ptr.push(self.claims.len());
+            self.enforced_targets.push(sum / (k - start) as f64);
+        }
+        self.enforced_nodes = self.nodes.len();
+    }
+
+    fn collect_candidates(&mut self, constraints: &[Constraint]) {
+        self.candidates.clear();
+        for (i, c) in constraints.iter().enumerate() {
+            let (center, radius, inside) = match c.kind {
+                ConstraintKind::Enforced { .. } => continue,
+                ConstraintKind::SphereInside { center, radius } => (center, radius, true),
+                ConstraintKind::SphereOutside { center, radius } => (center, radius, false),
+            };
+            if self.model.is_fixed(c.node) || self.nodes[..self.enforced_nodes].binary_search(&c.node).is_ok() {
+                continue;
+            }
+            let rest = self.model.mesh.positions[c.node as usize];
+            let at = match self.compliance.row_of(c.node) {
+                Some(r) => rest + self.prev_u_rows[r],
+                None => rest,
+            };
+            let active = self.prev_active.binary_search(&(c.node, c.owner, inside)).is_ok();
+            self.candidates.push(Candidate { constraint: i, node: c.node, owner: c.owner, center, radius, inside, active, at });
+        }
+    }
+
+    /// Rows: 3 per enforced node, then one per active candidate.
+    fn build_rows(&mut self) {
+        self.rows.clear();
+        self.nodes.truncate(self.enforced_nodes);
+        for k in 0..self.enforced_nodes {
+            let g = self.enforced_targets[k];
+            self.rows.push(ConstraintRow { slot: k, dir: Vec3::x(), target: g.x });
+            self.rows.push(ConstraintRow { slot: k, dir: Vec3::y(), target: g.y });
+            self.rows.push(ConstraintRow { slot: k, dir: Vec3::z(), target: g.z });
+        }
+        self.row_candidate.clear();
+        for (ci, c) in self.candidates.iter().enumerate() {
+            if !c.active {
+                continue;
+            }
+            let slot = match self.nodes[self.enforced_nodes..].iter().position(|&n| n == c.node) {
+                Some(p) => self.enforced_nodes + p,
+                None => {
+                    self.nodes.push(c.node);
+                    self.nodes.len() - 1
+                }
+            };
+            let rest = self.model.mesh.positions[c.node as usize];
+            let radial = c.at - c.center;
+            let len = radial.norm();
+            // A point at the centre has no radial direction: use the rest direction, else +z.
+            let n = if len > 0.0 {
+                radial / len
+            } else {
+                let r = rest - c.center;
+                if r.norm() > 0.0 { r.normalize() } else { Vec3::z() }
+            };
+            // inside: n.(X+u-c) <= R  <=>  (-n).u >= n.(X-c) - R;  outside: n.u >= r - n.(X-c)
+            let (dir, target) = if c.inside { (-n, n.dot(&(rest - c.center)) - c.radius) } else { (n, c.radius - n.dot(&(rest - c.center))) };
+            self.rows.push(ConstraintRow { slot, dir, target });
+            self.row_candidate.push(ci);
+        }
+    }
+
+    /// K^-1 block between two nodes (both free; lazy columns ensured).
+    fn kinv(&self, p: u32, q: u32) -> Matrix3<f64> {
+        if let (Some(rp), Some(cq)) = (self.compliance.row_of(p), self.compliance.col_of(q)) {
+            return self.compliance.block(rp, cq);
+        }
+        if let (Some(rq), Some(cp)) = (self.compliance.row_of(q), self.compliance.col_of(p)) {
+            return self.compliance.block(rq, cp).transpose();
+        }
+        let dofs = &self.model.dofs;
+        let n_free = dofs.dof_count();
+        if let (Ok(l), Some(dp)) = (self.lazy.binary_search_by_key(&q, |c| c.node), dofs.dof(p)) {
+            let v = &self.lazy[l].values;
+            return Matrix3::from_fn(|r, c| v[c * n_free + dp + r]);
+        }
+        if let (Ok(l), Some(dq)) = (self.lazy.binary_search_by_key(&p, |c| c.node), dofs.dof(q)) {
+            let v = &self.lazy[l].values;
+            return Matrix3::from_fn(|r, c| v[r * n_free + dq + c]);
+        }
+        Matrix3::zeros()
+    }
+
+    /// Computes K^-1 columns for the listed nodes that are not ROI columns.
+    fn ensure_lazy(&mut self, nodes: &[u32]) -> Result<(), FemError> {
+        let frame = self.frame;
+        let mut missing: Vec<u32> = Vec::new();
+        for &n in nodes {
+            if self.compliance.col_of(n).is_some() || self.model.is_fixed(n) {
+                continue;
+            }
+            match self.lazy.binary_search_by_key(&n, |c| c.node) {
+                Ok(i) => self.lazy[i].last_used = frame,
+                Err(_) => {
+                    if !missing.contains(&n) {
+                        missing.push(n);
+                    }
+                }
+            }
+        }
+        if missing.is_empty() {
+            return Ok(());
+        }
+        missing.sort_unstable();
+        // Evict least recently used columns not needed this frame.
+        while self.lazy.len() + missing.len() > LAZY_CAPACITY {
+            let victim = self
+                .lazy
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| c.last_used < frame)
+                .min_by_key(|(_, c)| (c.last_used, c.node))
+                .map(|(i, _)| i);
+            match victim {
+                Some(i) => {
+                    self.lazy.remove(i);
+                }
+                None => break,
+            }
+        }
+        let n_free = self.model.dofs.dof_count();
+        let m = missing.len();
+        let mut rhs = faer::Mat::<f64>::zeros(n_free, 3 * m);
+        for (b, &n) in missing.iter().enumerate() {
+            if let Some(d) = self.model.dofs.dof(n) {
+                for c in 0..3 {
+                    rhs[(d + c, 3 * b + c)] = 1.0;
+                }
+            }
+        }
+        let mut scratch = self.model.chol.scratch(3 * m)?;
+        self.model.chol.solve_in_place(rhs.as_mut(), &mut scratch);
+        for (b, &n) in missing.iter().enumerate() {
+            let mut values = Vec::with_capacity(3 * n_free);
+            for c in 0..3 {
+                values.extend((0..n_free).map(|i| rhs[(i, 3 * b + c)]));
+            }
+            let at = self.lazy.binary_search_by_key(&n, |c| c.node).unwrap_or_else(|e| e);
+            self.lazy.insert(at, LazyColumn { node: n, values, last_used: frame });
+        }
+        self.lazy_computed += m;
+        Ok(())
+    }
+
+    /// Gathers W, factors it, solves for lambda and the nodal forces.
+    fn solve_rows(&mut self) {
+        let n = self.rows.len();
+        let enforced_rows = 3 * self.enforced_nodes;
+        self.w.clear();
+        self.w.resize(n * n, 0.0);
+        // enforced x enforced: one block per node pair
+        for l in 0..self.enforced_nodes {
+            for k in l..self.enforced_nodes {
+                let b = self.kinv(self.nodes[k], self.nodes[l]);
+                for c in 0..3 {
+                    for r in 0..3 {
+                        let (i, j) = (3 * k + r, 3 * l + c);
+                        self.w[j * n + i] = b[(r, c)];
+                        self.w[i * n + j] = b[(r, c)];
+                    }
+                }
+            }
+        }
+        // sphere rows against every earlier row
+        for i in enforced_rows..n {
+            let ri = self.rows[i];
+            let pi = self.nodes[ri.slot];
+            for l in 0..self.enforced_nodes {
+                let b = self.kinv(pi, self.nodes[l]);
+                let v = b.transpose() * ri.dir;
+                for c in 0..3 {
+                    let j = 3 * l + c;
+                    self.w[j * n + i] = v[c];
+                    self.w[i * n + j] = v[c];
+                }
+            }
+            for j in enforced_rows..=i {
+                let rj = self.rows[j];
+                let value = ri.dir.dot(&(self.kinv(pi, self.nodes[rj.slot]) * rj.dir));
+                self.w[j * n + i] = value;
+                self.w[i * n + j] = value;
+            }
+        }
+        dense::factor(&self.w, &mut self.w_factor, n, &mut self.dense);
+        self.lambda.clear();
+        for row in &self.rows {
+            let u0 = self.model.gravity_displacement(self.nodes[row.slot]);
+            self.lambda.push(row.target - row.dir.dot(&u0));
+        }
+        dense::solve_in_place(&self.w_factor, n, &self.dense.dropped, &mut self.lambda);
+        self.node_force.clear();
+        self.node_force.resize(self.nodes.len(), Vec3::zeros());
+        for (row, l) in self.rows.iter().zip(&self.lambda) {
+            self.node_force[row.slot] += row.dir * *l;
+        }
+    }
+
+    /// Displacement of one node at the current forces (gravity included).
+    fn displacement_of(&self, node: u32) -> Vec3 {
+        let mut u = self.model.gravity_displacement(node);
+        for (slot, f) in self.node_force.iter().enumerate() {
+            if *f != Vec3::zeros() {
+                u += self.kinv(node, self.nodes[slot]) * f;
+            }
+        }
+        u
+    }
+
+    /// u_rows = u0 + K^-1[rows, nodes] F.
+    fn update_surface(&mut self) {
+        let row_nodes = self.compliance.row_nodes();
+        for (u, &n) in self.u_rows.iter_mut().zip(row_nodes) {
+            *u = self.model.gravity_displacement(n);
+        }
+        self.col_forces.clear();
+        for (slot, f) in self.node_force.iter().enumerate() {
+            if let Some(c) = self.compliance.col_of(self.nodes[slot]) {
+                self.col_forces.push((c, *f));
+            }
+        }
+        self.col_forces.sort_unstable_by_key(|x| x.0);
+        self.compliance.accumulate(&self.col_forces, &mut self.u_rows);
+        let n_free = self.model.dofs.dof_count();
+        for (slot, f) in self.node_force.iter().enumerate() {
+            let node = self.nodes[slot];
+            if self.compliance.col_of(node).is_some() {
+                continue;
+            }
+            if let Ok(l) = self.lazy.binary_search_by_key(&node, |c| c.node) {
+                let v = &self.lazy[l].values;
+                for (u, &rn) in self.u_rows.iter_mut().zip(row_nodes) {
+                    if let Some(d) = self.model.dofs.dof(rn) {
+                        for r in 0..3 {
+                            u[r] += v[d + r] * f.x + v[n_free + d + r] * f.y + v[2 * n_free + d + r] * f.z;
+                        }
+                    }
+                }
+            }
+        }
+        std::mem::swap(&mut self.u_rows, &mut self.prev_u_rows);
+    }
+
+    fn write_solution(&mut self, constraints: &[Constraint], out: &mut FrameSolution, iterations: usize, lazy_solves: usize) {
+        let surface = &self.model.surface;
+        out.displacement_surface.clear();
+        out.displacement_surface.extend(surface.vertices.iter().map(|&n| match self.compliance.row_of(n) {
+            Some(r) => self.prev_u_rows[r],
+            None => Vec3::zeros(),
+        }));
+        out.max_displacement = out.displacement_surface.iter().fold(0.0_f64, |m, u| m.max(u.norm()));
+        out.reactions.clear();
+        out.reactions.resize(constraints.len(), Vec3::zeros());
+        for k in 0..self.enforced_nodes {
+            let claims = &self.claims[self.claim_ptr[k]..self.claim_ptr[k + 1]];
+            let share = self.node_force[k] / claims.len() as f64;
+            for &c in claims {
+                out.reactions[c] = share;
+            }
+        }
+        let enforced_rows = 3 * self.enforced_nodes;
+        for (k, &ci) in self.row_candidate.iter().enumerate() {
+            let row = enforced_rows + k;
+            out.reactions[self.candidates[ci].constraint] = self.rows[row].dir * self.lambda[row];
+        }
+        out.owner_forces.clear();
+        out.sphere_forces.clear();
+        for (c, r) in constraints.iter().zip(&out.reactions) {
+            let list = if matches!(c.kind, ConstraintKind::Enforced { .. }) { &mut out.owner_forces } else { &mut out.sphere_forces };
+            match list.binary_search_by_key(&c.owner, |x| x.0) {
+                Ok(i) => list[i].1 += r,
+                Err(i) => list.insert(i, (c.owner, *r)),
+            }
+        }
+        self.prev_active.clear();
+        for c in &self.candidates {
+            if c.active {
+                self.prev_active.push((c.node, c.owner, c.inside));
+            }
+        }
+        self.prev_active.sort_unstable();
+        out.active_sphere_contacts = self.row_candidate.len();
+        let n = self.rows.len();
+        out.rows = n;
+        out.dropped_rows = self.dense.dropped.iter().filter(|d| **d).count();
+        out.conditioning = dense::conditioning_estimate(&self.w_factor, n, &self.dense.dropped);
+        out.iterations = iterations;
+        out.lazy_solves = lazy_solves;
+        self.last_forces.clear();
+        for (slot, f) in self.node_force.iter().enumerate() {
+            self.last_forces.push((self.nodes[slot], *f));
+        }
+    }
+
+    /// Displacement of every node (m) for the last frame's forces: one sparse
+    /// solve. Fixed nodes get zero. Errors only when the solve scratch cannot be allocated.
+    pub fn interior_displacements(&mut self, out: &mut Vec<Vec3>) -> Result<(), FemError> {
+        let dofs = &self.model.dofs;
+        let mut rhs = if self.model.body_force.is_empty() { vec![0.0; dofs.dof_count()] } else { self.model.body_force.clone() };
+        for &(node, f) in &self.last_forces {
+            if let Some(d) = dofs.dof(node) {
+                rhs[d] += f.x;
+                rhs[d + 1] += f.y;
+                rhs[d + 2] += f.z;
+            }
+        }
+        if self.solve_scratch.is_none() {
+            self.solve_scratch = Some(self.model.chol.scratch(1)?);
+        }
+        if let Some(scratch) = self.solve_scratch.as_mut() {
+            self.model.chol.solve_vec_in_place(&mut rhs, scratch);
+        }
+        out.clear();
+        out.resize(self.model.mesh.node_count(), Vec3::zeros());
+        for (k, &n) in dofs.free_nodes.iter().enumerate() {
+            out[n as usize] = Vec3::new(rhs[3 * k], rhs[3 * k + 1], rhs[3 * k + 2]);
+        }
+        Ok(())
+    }
+
+    /// Nodal forces (node, N, on the tissue) of the last frame.
+    pub fn last_forces(&self) -> &[(u32, Vec3)] {
+        &self.last_forces
+    }
+}

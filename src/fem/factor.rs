@@ -1,0 +1,94 @@
+//! Sparse Cholesky of the free-DOF stiffness (faer, supernodal, AMD ordering).
+//!
+//! In: the lower triangle of `K_FF` ([`LowerCsc`]). Out: a [`SparseCholesky`]
+//! that solves `K_FF X = B` in place for any number of right-hand sides.
+//! Stays true: symbolic analysis happens once, the numeric factor once per
+//! material set; solves run on one core (`Par::Seq`, see DESIGN.md) and allocate
+//! only the scratch sized for their column count.
+
+use super::FemError;
+use super::assembly::{DofMap, LowerCsc};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
+use faer::sparse::linalg::cholesky::{CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky};
+use faer::{Conj, MatMut, Par, Side, Spec};
+use std::time::Instant;
+
+/// A factored `K_FF`.
+pub struct SparseCholesky {
+    symbolic: SymbolicCholesky<usize>,
+    values: Vec<f64>,
+    /// Seconds spent in the symbolic analysis.
+    pub symbolic_seconds: f64,
+    /// Seconds spent in the numeric factorization.
+    pub numeric_seconds: f64,
+}
+
+impl std::fmt::Debug for SparseCholesky {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SparseCholesky").field("dim", &self.dim()).field("nnz_l", &self.values.len()).finish()
+    }
+}
+
+impl SparseCholesky {
+    /// Analyzes and factors `k`. A non-positive pivot is reported with the free
+    /// DOF (in the caller's numbering) and its node.
+    pub fn new(k: &LowerCsc, dofs: &DofMap) -> Result<Self, FemError> {
+        Self::with_names(k, &|dof| (dofs.free_nodes.get(dof / 3).copied().unwrap_or(u32::MAX), dof % 3))
+    }
+
+    /// As [`SparseCholesky::new`], naming a DOF's (node, component) with `name`.
+    pub fn with_names(k: &LowerCsc, name: &dyn Fn(usize) -> (u32, usize)) -> Result<Self, FemError> {
+        let a = k.as_faer();
+        let t0 = Instant::now();
+        let symbolic = factorize_symbolic_cholesky(a.symbolic(), Side::Lower, SymmetricOrdering::Amd, CholeskySymbolicParams::default())
+            .map_err(|e| FemError::Factorization { reason: format!("symbolic analysis: {e:?}") })?;
+        let symbolic_seconds = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        let len = symbolic.len_val();
+        let mut values = Vec::new();
+        values.try_reserve_exact(len).map_err(|_| FemError::OutOfMemory { what: "Cholesky factor", bytes: len * 8 })?;
+        values.resize(len, 0.0);
+        let req = symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Spec::default());
+        let mut mem = MemBuffer::try_new(req).map_err(|_| FemError::OutOfMemory { what: "factorization scratch", bytes: 0 })?;
+        let stack = MemStack::new(&mut mem);
+        let result = symbolic.factorize_numeric_llt(&mut values, a, Side::Lower, LltRegularization::default(), Par::Seq, stack, Spec::default());
+        if let Err(LltError::NonPositivePivot { index }) = result {
+            // `index` is in the permuted order: map back to our DOF numbering.
+            let dof = symbolic.perm().map(|p| p.arrays().0[index]).unwrap_or(index);
+            let (node, component) = name(dof);
+            return Err(FemError::NotPositiveDefinite { dof, node, component });
+        }
+        let numeric_seconds = t1.elapsed().as_secs_f64();
+        Ok(Self { symbolic, values, symbolic_seconds, numeric_seconds })
+    }
+
+    /// Dimension (free DOFs).
+    pub fn dim(&self) -> usize {
+        self.symbolic.nrows()
+    }
+
+    /// Stored entries of the factor L.
+    pub fn nnz_l(&self) -> usize {
+        self.values.len()
+    }
+
+    /// Scratch a solve with `ncols` right-hand sides needs.
+    pub fn scratch(&self, ncols: usize) -> Result<MemBuffer, FemError> {
+        let req = self.symbolic.solve_in_place_scratch::<f64>(ncols, Par::Seq);
+        MemBuffer::try_new(req).map_err(|_| FemError::OutOfMemory { what: "solve scratch", bytes: 0 })
+    }
+
+    /// Solves `K_FF X = B` in place (`rhs` is dim x k, column major).
+    pub fn solve_in_place(&self, rhs: MatMut<'_, f64>, scratch: &mut MemBuffer) {
+        let llt = LltRef::new(&self.symbolic, &self.values);
+        llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(scratch));
+    }
+
+    /// Solves for one right-hand side stored in a slice.
+    pub fn solve_vec_in_place(&self, rhs: &mut [f64], scratch: &mut MemBuffer) {
+        let n = rhs.len();
+        let m = faer::MatMut::from_column_major_slice_mut(rhs, n, 1);
+        self.solve_in_place(m, scratch);
+    }
+}

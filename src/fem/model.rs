@@ -1,0 +1,233 @@
+//! The assembled and factored FEM model.
+//!
+//! In: a [`TetMesh`] (m), [`RegionMaterials`], per-node fixed flags, [`FemOptions`].
+//! Out: a [`FemModel`] holding `K_FF` (lower), its Cholesky factor, the boundary
+//! surface, the optional gravity displacement `u0 = K^-1 f`, build statistics and
+//! a fingerprint (blake3 of mesh, materials and fixed set) that keys caches.
+//! Stays true: immutable after `new`; every solve is exact up to round-off.
+
+use super::FemError;
+use super::assembly::{DofMap, LowerCsc, assemble_lower, body_force, check_components};
+use super::element::RegionMaterials;
+use super::factor::SparseCholesky;
+use crate::math::{Vec3, is_finite3};
+use crate::mesh::{BoundarySurface, TetMesh};
+use std::time::Instant;
+
+/// Gravity as a body force.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct BodyForce {
+    /// Mass density, kg/m^3, finite and >= 0 (brain: about 1040).
+    pub density: f64,
+    /// Acceleration, m/s^2, finite (e.g. (0, 0, -9.81)).
+    pub acceleration: Vec3,
+}
+
+/// Options of the model build.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FemOptions {
+    /// Optional gravity; when present the rest state of every frame is the sagged one.
+    pub gravity: Option<BodyForce>,
+}
+
+/// What building the model cost and produced.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FemStats {
+    /// Free degrees of freedom (3 per free node).
+    pub free_dofs: usize,
+    /// Stored entries of the lower triangle of K_FF.
+    pub nnz_k: usize,
+    /// Stored entries of the Cholesky factor L.
+    pub nnz_l: usize,
+    /// Seconds: assembly, symbolic analysis, numeric factorization.
+    pub assembly_seconds: f64,
+    pub symbolic_seconds: f64,
+    pub numeric_seconds: f64,
+    /// Nodes used by no tetrahedron (no DOF, displacement 0).
+    pub unused_nodes: usize,
+}
+
+/// Assembled stiffness over the free DOFs and its Cholesky factor.
+#[derive(Debug)]
+pub struct FemModel {
+    pub(crate) mesh: TetMesh,
+    pub(crate) surface: BoundarySurface,
+    pub(crate) dofs: DofMap,
+    pub(crate) lame: Vec<(f64, f64)>,
+    pub(crate) k: LowerCsc,
+    pub(crate) chol: SparseCholesky,
+    /// Body force per free DOF (N), empty without gravity.
+    pub(crate) body_force: Vec<f64>,
+    /// K^-1 body force per free DOF (m), empty without gravity.
+    pub(crate) u0: Vec<f64>,
+    pub(crate) fingerprint: [u8; 32],
+    stats: FemStats,
+}
+
+impl FemModel {
+    /// Builds and factors the model.
+    ///
+    /// Errors: wrong `fixed` length, invalid material, a connected component
+    /// with no fixed node ([`FemError::UnfixedComponent`]), no free DOF, a
+    /// non-positive pivot, invalid gravity.
+    pub fn new(mesh: &TetMesh, materials: &RegionMaterials, fixed: &[bool], options: &FemOptions) -> Result<Self, FemError> {
+        if fixed.len() != mesh.node_count() {
+            return Err(FemError::FixedLength { expected: mesh.node_count(), got: fixed.len() });
+        }
+        let sorted = materials.validated()?;
+        if let Some(g) = &options.gravity {
+            if !(g.density.is_finite() && g.density >= 0.0) {
+                return Err(FemError::InvalidOption { field: "gravity.density", value: g.density, reason: "must be finite and >= 0 kg/m^3" });
+            }
+            if !is_finite3(&g.acceleration) {
+                return Err(FemError::InvalidOption { field: "gravity.acceleration", value: f64::NAN, reason: "must be finite" });
+            }
+        }
+        check_components(mesh, fixed)?;
+        let t0 = Instant::now();
+        let dofs = DofMap::new(mesh, fixed);
+        if dofs.dof_count() == 0 {
+            return Err(FemError::NoFreeDofs);
+        }
+        let lame: Vec<(f64, f64)> =
+            mesh.regions.iter().map(|&r| RegionMaterials::lookup(&sorted, materials.default, r).lame()).collect();
+        let k = assemble_lower(mesh, &lame, &dofs);
+        let assembly_seconds = t0.elapsed().as_secs_f64();
+        let chol = SparseCholesky::new(&k, &dofs)?;
+        let (body, u0) = match &options.gravity {
+            Some(g) => {
+                let f = body_force(mesh, &dofs, g.density, g.acceleration);
+                let mut u = f.clone();
+                let mut scratch = chol.scratch(1)?;
+                chol.solve_vec_in_place(&mut u, &mut scratch);
+                (f, u)
+            }
+            None => (Vec::new(), Vec::new()),
+        };
+        let fingerprint = fingerprint(mesh, &sorted, materials, fixed);
+        let stats = FemStats {
+            free_dofs: dofs.dof_count(),
+            nnz_k: k.values.len(),
+            nnz_l: chol.nnz_l(),
+            assembly_seconds,
+            symbolic_seconds: chol.symbolic_seconds,
+            numeric_seconds: chol.numeric_seconds,
+            unused_nodes: dofs.unused_nodes,
+        };
+        Ok(Self { surface: mesh.boundary(), mesh: mesh.clone(), dofs, lame, k, chol, body_force: body, u0, fingerprint, stats })
+    }
+
+    /// Build statistics.
+    pub fn stats(&self) -> FemStats {
+        self.stats
+    }
+
+    /// The mesh the model was built from.
+    pub fn mesh(&self) -> &TetMesh {
+        &self.mesh
+    }
+
+    /// Its boundary surface (defines the surface-vertex order of every output).
+    pub fn surface(&self) -> &BoundarySurface {
+        &self.surface
+    }
+
+    /// Node <-> free DOF numbering.
+    pub fn dofs(&self) -> &DofMap {
+        &self.dofs
+    }
+
+    /// Lamé parameters (lambda, mu) per tet, Pa.
+    pub fn lame(&self) -> &[(f64, f64)] {
+        &self.lame
+    }
+
+    /// blake3 of mesh, materials and fixed set.
+    pub fn fingerprint(&self) -> [u8; 32] {
+        self.fingerprint
+    }
+
+    /// True when the node is fixed or unused (zero displacement, no DOF).
+    pub fn is_fixed(&self, node: u32) -> bool {
+        self.dofs.dof(node).is_none()
+    }
+
+    /// The sparse factor of K_FF.
+    pub fn factor(&self) -> &SparseCholesky {
+        &self.chol
+    }
+
+    /// Lower triangle of K_FF.
+    pub fn stiffness(&self) -> &LowerCsc {
+        &self.k
+    }
+
+    /// Solves `K u = f` for nodal forces `f` (N, one per node; fixed nodes'
+    /// entries are ignored) and returns nodal displacements (m), gravity included.
+    pub fn solve_nodal_forces(&self, forces: &[Vec3]) -> Result<Vec<Vec3>, FemError> {
+        if forces.len() != self.mesh.node_count() {
+            return Err(FemError::LengthMismatch { what: "nodal forces", expected: self.mesh.node_count(), got: forces.len() });
+        }
+        let mut rhs = if self.body_force.is_empty() { vec![0.0; self.dofs.dof_count()] } else { self.body_force.clone() };
+        for (node, f) in forces.iter().enumerate() {
+            if let Some(d) = self.dofs.dof(node as u32) {
+                rhs[d] += f.x;
+                rhs[d + 1] += f.y;
+                rhs[d + 2] += f.z;
+            }
+        }
+        let mut scratch = self.chol.scratch(1)?;
+        self.chol.solve_vec_in_place(&mut rhs, &mut scratch);
+        Ok(self.free_to_nodal(&rhs))
+    }
+
+    /// Expands a free-DOF vector to one Vec3 per node (zero where fixed).
+    pub fn free_to_nodal(&self, free: &[f64]) -> Vec<Vec3> {
+        let mut out = vec![Vec3::zeros(); self.mesh.node_count()];
+        for (k, &n) in self.dofs.free_nodes.iter().enumerate() {
+            out[n as usize] = Vec3::new(free[3 * k], free[3 * k + 1], free[3 * k + 2]);
+        }
+        out
+    }
+
+    /// Gravity displacement of a node (zero without gravity or when fixed).
+    #[inline]
+    pub(crate) fn gravity_displacement(&self, node: u32) -> Vec3 {
+        match (self.u0.is_empty(), self.dofs.dof(node)) {
+            (false, Some(d)) => Vec3::new(self.u0[d], self.u0[d + 1], self.u0[d + 2]),
+            _ => Vec3::zeros(),
+        }
+    }
+}
+
+fn fingerprint(mesh: &TetMesh, sorted: &[(u32, super::Material)], materials: &RegionMaterials, fixed: &[bool]) -> [u8; 32] {
+    let mut h = blake3::Hasher::new();
+    h.update(b"fissure-fem-model-v1");
+    h.update(&(mesh.positions.len() as u64).to_le_bytes());
+    for p in &mesh.positions {
+        for c in [p.x, p.y, p.z] {
+            h.update(&c.to_bits().to_le_bytes());
+        }
+    }
+    h.update(&(mesh.tets.len() as u64).to_le_bytes());
+    for t in &mesh.tets {
+        for n in t {
+            h.update(&n.to_le_bytes());
+        }
+    }
+    for r in &mesh.regions {
+        h.update(&r.to_le_bytes());
+    }
+    fn mat(h: &mut blake3::Hasher, m: &super::Material) {
+        h.update(&m.young_modulus.to_bits().to_le_bytes());
+        h.update(&m.poisson_ratio.to_bits().to_le_bytes());
+    }
+    mat(&mut h, &materials.default);
+    for (r, m) in sorted {
+        mat(&mut h, m);
+        h.update(&r.to_le_bytes());
+    }
+    let bits: Vec<u8> = fixed.iter().map(|&f| f as u8).collect();
+    h.update(&bits);
+    *h.finalize().as_bytes()
+}

@@ -1,0 +1,101 @@
+//! Colour maps for scalar fields (displacement, strain, contact pressure).
+//!
+//! In: a value, a range (min, max), a [`ColorMap`]. Out: a linear-RGB colour
+//! (each 0..1) for the GPU. Stays true: values outside the range clamp to the
+//! ends; a non-finite value or an empty/invalid range gives [`NO_DATA`].
+//! The tables are sampled from matplotlib's viridis and inferno (sRGB), then
+//! interpolated piecewise-linearly in sRGB and converted to linear RGB.
+
+/// Linear-RGB colour of a vertex with no valid value (mid grey).
+pub const NO_DATA: [f32; 3] = [0.2, 0.2, 0.2];
+
+/// Named colour maps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ColorMap {
+    /// Perceptually uniform, dark blue -> green -> yellow.
+    Viridis,
+    /// Perceptually uniform, black -> red -> yellow (pressure).
+    Inferno,
+    /// Diverging blue -> white -> red (signed quantities).
+    BlueWhiteRed,
+}
+
+const VIRIDIS: [[f32; 3]; 9] = [
+    [0.267, 0.005, 0.329],
+    [0.283, 0.141, 0.458],
+    [0.254, 0.265, 0.530],
+    [0.207, 0.372, 0.553],
+    [0.164, 0.471, 0.558],
+    [0.128, 0.567, 0.551],
+    [0.135, 0.659, 0.518],
+    [0.478, 0.821, 0.318],
+    [0.993, 0.906, 0.144],
+];
+const INFERNO: [[f32; 3]; 9] = [
+    [0.001, 0.000, 0.014],
+    [0.122, 0.047, 0.282],
+    [0.333, 0.059, 0.427],
+    [0.532, 0.134, 0.416],
+    [0.729, 0.212, 0.333],
+    [0.894, 0.352, 0.193],
+    [0.978, 0.557, 0.035],
+    [0.976, 0.788, 0.197],
+    [0.988, 0.998, 0.645],
+];
+const BLUE_WHITE_RED: [[f32; 3]; 3] = [[0.230, 0.299, 0.754], [0.865, 0.865, 0.865], [0.706, 0.016, 0.150]];
+
+/// sRGB component (0..1) to linear.
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
+impl ColorMap {
+    fn table(self) -> &'static [[f32; 3]] {
+        match self {
+            ColorMap::Viridis => &VIRIDIS,
+            ColorMap::Inferno => &INFERNO,
+            ColorMap::BlueWhiteRed => &BLUE_WHITE_RED,
+        }
+    }
+
+    /// Linear-RGB colour of `value` within `range`.
+    pub fn color(self, value: f64, range: (f64, f64)) -> [f32; 3] {
+        let (lo, hi) = range;
+        if !value.is_finite() || !lo.is_finite() || !hi.is_finite() || !(hi > lo) {
+            return NO_DATA;
+        }
+        let t = ((value - lo) / (hi - lo)).clamp(0.0, 1.0) as f32;
+        let table = self.table();
+        let x = t * (table.len() - 1) as f32;
+        let i = (x.floor() as usize).min(table.len() - 2);
+        let f = x - i as f32;
+        let a = table[i];
+        let b = table[i + 1];
+        [0, 1, 2].map(|k| srgb_to_linear(a[k] + (b[k] - a[k]) * f))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ends_clamp_and_bad_values_are_grey() {
+        let m = ColorMap::Viridis;
+        assert_eq!(m.color(-5.0, (0.0, 1.0)), m.color(0.0, (0.0, 1.0)), "below range clamps to the low end");
+        assert_eq!(m.color(7.0, (0.0, 1.0)), m.color(1.0, (0.0, 1.0)));
+        assert_eq!(m.color(f64::NAN, (0.0, 1.0)), NO_DATA);
+        assert_eq!(m.color(0.5, (1.0, 1.0)), NO_DATA, "empty range");
+    }
+
+    #[test]
+    fn inferno_brightens_monotonically() {
+        let lum = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+        let mut last = -1.0;
+        for k in 0..=20 {
+            let l = lum(ColorMap::Inferno.color(k as f64, (0.0, 20.0)));
+            assert!(l > last, "inferno luminance must increase: step {k} gave {l} after {last}");
+            last = l;
+        }
+    }
+}

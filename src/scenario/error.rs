@@ -1,0 +1,101 @@
+//! Scenario errors: each names where the problem is (the file with line and
+//! column, or the `--set` argument), the field path, and the problem.
+//!
+//! In: positions from the RON outline and from `ron`'s own errors. Out: one
+//! [`ScenarioError`] whose `Display` reads
+//! `config/sylvian.ron:12:22: material.poisson_ratio: must be in (-1, 0.5), got 0.5`.
+
+use std::fmt;
+use std::path::PathBuf;
+
+/// Where a piece of scenario text came from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Origin {
+    /// The scenario file (as the user named it).
+    File(PathBuf),
+    /// A `--set PATH=VALUE` argument, verbatim.
+    Override(String),
+}
+
+/// A position in a scenario: origin, 1-based line and column (chars).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Location {
+    /// File or `--set` argument.
+    pub origin: Origin,
+    /// 1-based line (always 1 for a `--set` argument).
+    pub line: usize,
+    /// 1-based column in characters.
+    pub column: usize,
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.origin {
+            Origin::File(p) => write!(f, "{}:{}:{}", p.display(), self.line, self.column),
+            Origin::Override(arg) => write!(f, "--set {arg} (column {})", self.column),
+        }
+    }
+}
+
+/// Everything that can be wrong with a scenario.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The scenario file could not be read.
+    #[error("cannot read scenario file {}: {source}", path.display())]
+    Read {
+        /// The path as given.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// RON syntax, a wrong type, an unknown or missing field (from the typed parse).
+    #[error("{location}: {}{message}", field_prefix(field))]
+    Parse {
+        /// Where.
+        location: Location,
+        /// Field path, when the position lies inside a field (`spatulas[0].shape`).
+        field: String,
+        /// `ron`'s message.
+        message: String,
+    },
+    /// A value out of range or inconsistent with the rest of the scene.
+    #[error("{location}: {field}: {problem}")]
+    Invalid {
+        /// Where (the field's value, or the nearest enclosing one that exists).
+        location: Location,
+        /// Field path (`spatulas[1].shape.thickness_mm`).
+        field: String,
+        /// What is wrong, with the value found.
+        problem: String,
+    },
+    /// A `--set` argument that cannot be applied.
+    #[error("--set {argument}: {problem}")]
+    Override {
+        /// The argument verbatim.
+        argument: String,
+        /// What is wrong (malformed, unknown path with the keys valid there, ...).
+        problem: String,
+    },
+}
+
+fn field_prefix(field: &str) -> String {
+    if field.is_empty() { String::new() } else { format!("{field}: ") }
+}
+
+impl ScenarioError {
+    /// The field path the error is about, when there is one.
+    pub fn field(&self) -> Option<&str> {
+        match self {
+            ScenarioError::Parse { field, .. } | ScenarioError::Invalid { field, .. } => Some(field),
+            _ => None,
+        }
+    }
+
+    /// The location the error is about, when there is one.
+    pub fn location(&self) -> Option<&Location> {
+        match self {
+            ScenarioError::Parse { location, .. } | ScenarioError::Invalid { location, .. } => Some(location),
+            _ => None,
+        }
+    }
+}

@@ -1,0 +1,386 @@
+//! The scenario file as written: serde types in human units (`_mm`, `_pa`, `_s`,
+//! `_deg` in the names), every struct with `deny_unknown_fields`.
+//!
+//! In: RON text (see `config/*.ron` and the README for every field). Out: a
+//! [`ScenarioFile`] that has the right shape but is not yet checked for ranges
+//! or consistency: [`crate::scenario::Scenario::validate`] does that and converts
+//! to SI. Optional fields have the defaults documented on each.
+
+use serde::{Deserialize, Serialize};
+
+/// A whole scenario file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioFile {
+    /// Human name of the scene (non-empty).
+    pub name: String,
+    /// Where the brain mesh comes from.
+    pub mesh: MeshSourceFile,
+    /// Linear elastic material of the brain.
+    pub material: MaterialFile,
+    /// Nodes held fixed (at least one entry; their union is fixed).
+    pub fixed: Vec<FixedFile>,
+    /// Skull spheres (needed when `effects` has `SkullSpheres`). Default `None`.
+    #[serde(default)]
+    pub skull: Option<SkullFile>,
+    /// The spatulas (one or more; names unique).
+    pub spatulas: Vec<SpatulaFile>,
+    /// The stages the scene wants; the pipeline builds only these.
+    pub effects: Vec<Effect>,
+    /// Collision options. Default `(backend: Bvh)`.
+    #[serde(default)]
+    pub collision: CollisionFile,
+    /// Solver options. Default `(compliance_storage: F64, region_of_interest: Auto, cache_dir: None)`.
+    #[serde(default)]
+    pub solver: SolverFile,
+    /// Gravity vector, m/s^2 (finite). Default `(0.0, 0.0, -9.81)`; used only with the `Gravity` effect.
+    #[serde(default = "default_gravity")]
+    pub gravity_m_s2: [f64; 3],
+    /// Tissue density, kg/m^3 (> 0). Default 1040 (brain tissue); used only with `Gravity`.
+    #[serde(default = "default_density")]
+    pub density_kg_m3: f64,
+    /// Fixed simulation step, s (> 0, <= duration_s).
+    pub time_step_s: f64,
+    /// Length of a headless run, s (> 0).
+    pub duration_s: f64,
+    /// A recorded pose track (CSV, see the README), relative to this file's folder. Default `None`.
+    #[serde(default)]
+    pub trajectory: Option<String>,
+    /// Where results go. Default `(dir: "out", vtk: false, frames: false)`.
+    #[serde(default)]
+    pub outputs: OutputsFile,
+}
+
+fn default_gravity() -> [f64; 3] {
+    [0.0, 0.0, -9.81]
+}
+
+fn default_density() -> f64 {
+    1040.0
+}
+
+/// Mesh source.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum MeshSourceFile {
+    /// A procedural phantom: `Phantom(preset: "paper-12k")`.
+    Phantom {
+        /// One of "small", "paper-9k", "paper-12k", "v-valley", "u-shape".
+        preset: String,
+    },
+    /// A mesh file: `File(path: "brain.msh", units: Millimetres)`.
+    File {
+        /// Path, relative to the scenario file's folder unless absolute.
+        path: String,
+        /// Length unit of the file's coordinates.
+        units: LengthUnit,
+    },
+}
+
+/// Length unit of a mesh file's coordinates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum LengthUnit {
+    /// Coordinates in millimetres (scaled by 1e-3 on load).
+    Millimetres,
+    /// Coordinates in metres.
+    Metres,
+}
+
+impl LengthUnit {
+    /// Factor that turns the file's coordinates into metres.
+    pub fn to_metres(self) -> f64 {
+        match self {
+            LengthUnit::Millimetres => 1e-3,
+            LengthUnit::Metres => 1.0,
+        }
+    }
+}
+
+/// Material: `(young_modulus_pa: 3000.0, poisson_ratio: 0.45, regions: [...])`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialFile {
+    /// Young's modulus E, Pa (finite, > 0).
+    pub young_modulus_pa: f64,
+    /// Poisson's ratio nu, in (-1, 0.5).
+    pub poisson_ratio: f64,
+    /// Per-region overrides (region ids unique). Default empty.
+    #[serde(default)]
+    pub regions: Vec<RegionMaterialFile>,
+}
+
+/// A per-region material: `(id: 2, young_modulus_pa: 5000.0, poisson_ratio: 0.45)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionMaterialFile {
+    /// Region id (the mesh's physical volume number).
+    pub id: u32,
+    /// Young's modulus E, Pa (finite, > 0).
+    pub young_modulus_pa: f64,
+    /// Poisson's ratio nu, in (-1, 0.5).
+    pub poisson_ratio: f64,
+}
+
+/// One fixed-node selector.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum FixedFile {
+    /// Every node of the tets with this region id: `RegionId(3)`.
+    RegionId(u32),
+    /// Nodes inside an axis-aligned box: `Box(min_mm: (..), max_mm: (..))`, min < max.
+    Box {
+        /// Lower corner, mm.
+        min_mm: [f64; 3],
+        /// Upper corner, mm.
+        max_mm: [f64; 3],
+    },
+    /// Nodes inside a sphere: `Sphere(center_mm: (..), radius_mm: 10.0)`.
+    Sphere {
+        /// Centre, mm.
+        center_mm: [f64; 3],
+        /// Radius, mm (> 0).
+        radius_mm: f64,
+    },
+    /// The lowest `height_mm` (along -z) of each connected component: `LowestPerComponent(height_mm: 5.0)`.
+    LowestPerComponent {
+        /// Height of the fixed slab above each component's lowest point, mm (> 0).
+        height_mm: f64,
+    },
+}
+
+/// Skull spheres: `(containing: Some((center_mm: .., radius_mm: ..)), excluding: None)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SkullFile {
+    /// The brain stays inside this sphere. Default `None`.
+    #[serde(default)]
+    pub containing: Option<SphereFile>,
+    /// The brain stays outside this sphere. Default `None`.
+    #[serde(default)]
+    pub excluding: Option<SphereFile>,
+}
+
+/// A sphere: `(center_mm: (x, y, z), radius_mm: r)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereFile {
+    /// Centre, mm.
+    pub center_mm: [f64; 3],
+    /// Radius, mm (> 0).
+    pub radius_mm: f64,
+}
+
+/// One spatula.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpatulaFile {
+    /// Unique, non-empty name ("left", "Spatula1", ...).
+    pub name: String,
+    /// Blade dimensions.
+    pub shape: ShapeFile,
+    /// Source-node layout on each large face.
+    pub layout: LayoutFile,
+    /// Initial pose.
+    pub pose: PoseFile,
+    /// What moves it.
+    pub input: InputFile,
+}
+
+/// Blade dimensions: `(length_mm: 60.0, width_mm: 8.0, thickness_mm: 0.5)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShapeFile {
+    /// Length along the blade (x), mm (> 0).
+    pub length_mm: f64,
+    /// Width across the blade (y), mm (> 0).
+    pub width_mm: f64,
+    /// Thickness (z), mm (> 0).
+    pub thickness_mm: f64,
+}
+
+/// Source-node layout.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum LayoutFile {
+    /// `Grid(along: 15, across: 10)`: along >= 1, across >= 1 nodes a face.
+    Grid {
+        /// Nodes along the blade (>= 1).
+        along: u32,
+        /// Nodes across the blade (>= 1).
+        across: u32,
+    },
+    /// `TipConcentrated(count: 30, tip_fraction: 0.3)`: count >= 1, fraction in (0, 1].
+    TipConcentrated {
+        /// Nodes a face (>= 1).
+        count: u32,
+        /// Part of the blade length, from the tip, that holds the nodes, in (0, 1].
+        tip_fraction: f64,
+    },
+    /// `Explicit([(x_mm, y_mm), ...])`: positions in the spatula frame, mm,
+    /// 0 <= x <= length, |y| <= width / 2; at least one.
+    Explicit(Vec<[f64; 2]>),
+}
+
+/// Initial pose: `(position_mm: (x, y, z), rotation: AxisAngle(axis: (0, 0, 1), angle_deg: 90))`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseFile {
+    /// Origin of the spatula frame (handle end of the blade's centre line), mm.
+    pub position_mm: [f64; 3],
+    /// Orientation of the spatula frame.
+    pub rotation: RotationFile,
+}
+
+/// An orientation, three ways.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum RotationFile {
+    /// Rotation by `angle_deg` about `axis` (non-zero; normalised).
+    AxisAngle {
+        /// Axis, any non-zero length.
+        axis: [f64; 3],
+        /// Angle, degrees (finite).
+        angle_deg: f64,
+    },
+    /// A unit quaternion `Quaternion(w, x, y, z)` (norm within 1e-4 of 1; normalised).
+    Quaternion(f64, f64, f64, f64),
+    /// The blade (spatula x) points along `direction`; the face normal (+z) is the
+    /// part of `up` perpendicular to it. Both non-zero and not parallel.
+    LookAt {
+        /// Blade direction, any non-zero length.
+        direction: [f64; 3],
+        /// Approximate +z (face normal) direction.
+        up: [f64; 3],
+    },
+}
+
+/// What drives a spatula.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum InputFile {
+    /// Keyboard and mouse.
+    Keyboard,
+    /// A gamepad (gilrs).
+    Gamepad,
+    /// An OpenIGTLink TRANSFORM stream from the named device.
+    OpenIgtLink {
+        /// Device name in the OpenIGTLink messages (non-empty), e.g. "Spatula1".
+        device: String,
+    },
+    /// The scenario's recorded `trajectory` (which must then be given).
+    Trajectory,
+}
+
+/// The stages a scene can ask for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub enum Effect {
+    /// Spatula–surface collision by rays (the paper's method).
+    Collision,
+    /// His-flag culling of infeasible pairs (needs `Collision`).
+    Culling,
+    /// Unilateral skull-sphere constraints (needs `skull`).
+    SkullSpheres,
+    /// Body force of gravity (uses `gravity_m_s2`, `density_kg_m3`).
+    Gravity,
+    /// Reaction force per spatula (haptic output).
+    ForceOutput,
+    /// Per-element stress and strain (costs an interior solve when read).
+    StressField,
+    /// Contact (retraction) pressure per spatula (needs `Collision`).
+    ContactPressure,
+}
+
+/// Collision options: `(backend: Bvh)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CollisionFile {
+    /// Which backend answers the ray queries. Default `Bvh`.
+    #[serde(default)]
+    pub backend: CollisionBackend,
+}
+
+impl Default for CollisionFile {
+    fn default() -> Self {
+        Self { backend: CollisionBackend::Bvh }
+    }
+}
+
+/// Collision backends (all give the same answers).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum CollisionBackend {
+    /// Brute-force Möller–Trumbore on the CPU (the reference).
+    Reference,
+    /// Bounding-volume hierarchy on the CPU.
+    #[default]
+    Bvh,
+    /// wgpu compute.
+    Gpu,
+}
+
+/// Solver options.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverFile {
+    /// Storage of the precomputed surface compliance. Default `F64`.
+    #[serde(default)]
+    pub compliance_storage: ComplianceStorage,
+    /// Which surface vertices get precomputed compliance. Default `Auto`.
+    #[serde(default)]
+    pub region_of_interest: RegionOfInterestFile,
+    /// Folder for the compliance cache (relative to the working directory); `None`: no cache.
+    #[serde(default)]
+    pub cache_dir: Option<String>,
+}
+
+/// Number format of the stored compliance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum ComplianceStorage {
+    /// f64 (exact path, 1e-8 relative to the direct solve).
+    #[default]
+    F64,
+    /// f32 (half the memory; the solver states its measured error).
+    F32,
+}
+
+/// Region of interest for the precomputed compliance.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum RegionOfInterestFile {
+    /// Chosen by the solver from the spatulas' reach.
+    #[default]
+    Auto,
+    /// Every surface vertex.
+    All,
+    /// Surface vertices inside a sphere: `Sphere(center_mm: (..), radius_mm: r)`.
+    Sphere {
+        /// Centre, mm.
+        center_mm: [f64; 3],
+        /// Radius, mm (> 0).
+        radius_mm: f64,
+    },
+}
+
+/// Outputs: `(dir: "out/sylvian", vtk: false, frames: false)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputsFile {
+    /// Output folder (relative to the working directory). Default "out".
+    #[serde(default = "default_out_dir")]
+    pub dir: String,
+    /// Write a `.pvd` + `.vtu` series. Default false.
+    #[serde(default)]
+    pub vtk: bool,
+    /// Write PNG frames (needs the renderer). Default false.
+    #[serde(default)]
+    pub frames: bool,
+}
+
+fn default_out_dir() -> String {
+    "out".to_string()
+}
+
+impl Default for OutputsFile {
+    fn default() -> Self {
+        Self { dir: default_out_dir(), vtk: false, frames: false }
+    }
+}

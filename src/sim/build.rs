@@ -1,0 +1,256 @@
+//! Scenario -> pipeline: load the mesh, choose fixed nodes and the region of
+//! interest, and construct exactly the stages the scene's effects ask for.
+//!
+//! In: a validated [`Scenario`] (and optionally the trajectory it will play, to
+//! widen the automatic region of interest). Out: a [`Pipeline`] with all
+//! one-time work done (assembly, factorization, compliance precompute or cache
+//! load) and the initial [`SimState`]. Stays true: a stage whose effect is not
+//! in the scene is `None` and costs nothing per frame.
+
+use super::pipeline::{Pipeline, SimState, SkullStage};
+use super::report::StageId;
+use crate::collision::{BackendKind, CollisionConfig, CollisionStage, SpatulaSpec};
+use crate::fem::{self, BodyForce, Compliance, ConstrainedSolver, FemModel, FemOptions, RegionMaterials};
+use crate::geometry::Pose;
+use crate::math::Vec3;
+use crate::mesh::TetMesh;
+use crate::mesh::quality::components;
+use crate::scenario::{
+    CollisionBackend, ComplianceStorage as ScenarioStorage, Effect, FixedRegion, MeshSource, RegionOfInterest, Scenario,
+};
+use std::path::PathBuf;
+
+/// Errors building a pipeline; each says which input is at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    #[error("loading the mesh: {0}")]
+    MeshFile(#[from] crate::mesh::io::MeshFileError),
+    #[error("generating phantom `{preset}`: {message}")]
+    Phantom { preset: String, message: String },
+    #[error("scenario `{scenario}`: the fixed regions select no node")]
+    NothingFixed { scenario: PathBuf },
+    #[error("scenario `{scenario}`: {message}")]
+    Scene { scenario: PathBuf, message: String },
+    #[error("FEM: {0}")]
+    Fem(#[from] fem::FemError),
+    #[error("collision: {0}")]
+    Collision(#[from] crate::collision::CollisionError),
+}
+
+/// How far (m) from a spatula blade's centre line the automatic region of
+/// interest reaches, beyond half the blade's width.
+pub const AUTO_ROI_MARGIN_M: f64 = 0.020;
+
+/// Loads the scene's mesh in metres.
+pub fn load_mesh(scenario: &Scenario) -> Result<TetMesh, BuildError> {
+    match &scenario.mesh {
+        MeshSource::Phantom { preset } => {
+            let p: crate::mesh::phantom::Preset = preset
+                .parse()
+                .map_err(|e: crate::mesh::phantom::UnknownPreset| BuildError::Phantom { preset: preset.clone(), message: e.to_string() })?;
+            let phantom = crate::mesh::phantom::generate(p)
+                .map_err(|e| BuildError::Phantom { preset: preset.clone(), message: e.to_string() })?;
+            Ok(phantom.mesh)
+        }
+        MeshSource::File { path, units } => {
+            let mut mesh = crate::mesh::io::load_tet_mesh(path)?;
+            mesh.scale(units.to_metres());
+            Ok(mesh)
+        }
+    }
+}
+
+/// The fixed-node mask: the union of the scenario's selectors.
+pub fn fixed_nodes(mesh: &TetMesh, fixed: &[FixedRegion]) -> Vec<bool> {
+    let mut mask = vec![false; mesh.node_count()];
+    for f in fixed {
+        match *f {
+            FixedRegion::RegionId(id) => {
+                for (t, tet) in mesh.tets.iter().enumerate() {
+                    if mesh.regions[t] == id {
+                        for &n in tet {
+                            mask[n as usize] = true;
+                        }
+                    }
+                }
+            }
+            FixedRegion::Box { min, max } => {
+                for (m, p) in mask.iter_mut().zip(&mesh.positions) {
+                    *m |= (0..3).all(|k| p[k] >= min[k] && p[k] <= max[k]);
+                }
+            }
+            FixedRegion::Sphere(s) => {
+                for (m, p) in mask.iter_mut().zip(&mesh.positions) {
+                    *m |= (p - s.center).norm() <= s.radius;
+                }
+            }
+            FixedRegion::LowestPerComponent { height } => {
+                let comps = components(mesh);
+                let mut lowest = vec![f64::INFINITY; comps.count];
+                for (n, p) in mesh.positions.iter().enumerate() {
+                    let c = comps.node_component[n] as usize;
+                    if c < comps.count {
+                        lowest[c] = lowest[c].min(p.z);
+                    }
+                }
+                for (n, p) in mesh.positions.iter().enumerate() {
+                    let c = comps.node_component[n] as usize;
+                    if c < comps.count && p.z <= lowest[c] + height {
+                        mask[n] = true;
+                    }
+                }
+            }
+        }
+    }
+    mask
+}
+
+/// Distance from `p` to the segment a-b.
+fn distance_to_segment(p: &Vec3, a: &Vec3, b: &Vec3) -> f64 {
+    let ab = b - a;
+    let len2 = ab.norm_squared();
+    let s = if len2 > 0.0 { ((p - a).dot(&ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    (p - (a + ab * s)).norm()
+}
+
+/// Surface nodes (mesh node ids) of the region of interest.
+///
+/// `Auto`: every surface vertex within `width/2 + AUTO_ROI_MARGIN_M` of a blade's
+/// centre line at any of `poses` (the initial poses and the trajectory's samples).
+pub fn region_of_interest(
+    scenario: &Scenario,
+    mesh: &TetMesh,
+    surface_nodes: &[u32],
+    poses: &[Vec<Pose>],
+) -> Vec<u32> {
+    match scenario.solver.region_of_interest {
+        RegionOfInterest::All => surface_nodes.to_vec(),
+        RegionOfInterest::Sphere(s) => {
+            surface_nodes.iter().copied().filter(|&n| (mesh.positions[n as usize] - s.center).norm() <= s.radius).collect()
+        }
+        RegionOfInterest::Auto => {
+            let mut segments = Vec::new();
+            for set in poses {
+                for (pose, sp) in set.iter().zip(&scenario.spatulas) {
+                    let a = pose.transform_point(&Vec3::zeros());
+                    let b = pose.transform_point(&Vec3::new(sp.shape.length, 0.0, 0.0));
+                    segments.push((a, b, 0.5 * sp.shape.width + AUTO_ROI_MARGIN_M));
+                }
+            }
+            surface_nodes
+                .iter()
+                .copied()
+                .filter(|&n| {
+                    let p = mesh.positions[n as usize];
+                    segments.iter().any(|(a, b, r)| distance_to_segment(&p, a, b) <= *r)
+                })
+                .collect()
+        }
+    }
+}
+
+/// Options of the build that are not in the scenario.
+#[derive(Default)]
+pub struct BuildOptions<'a> {
+    /// Pose sets the spatulas will visit (e.g. trajectory samples), for `Auto` ROI.
+    pub expected_poses: Vec<Vec<Pose>>,
+    /// Called with (done, total) while the compliance is computed.
+    pub progress: Option<&'a mut dyn FnMut(usize, usize)>,
+}
+
+impl Pipeline {
+    /// Builds the pipeline the scenario asks for, and the initial state.
+    pub fn build(scenario: &Scenario, options: BuildOptions<'_>) -> Result<(Pipeline, SimState), BuildError> {
+        let mesh = load_mesh(scenario)?;
+        Self::build_with_mesh(scenario, mesh, options)
+    }
+
+    /// As [`Pipeline::build`], with the mesh already loaded (in metres).
+    pub fn build_with_mesh(scenario: &Scenario, mesh: TetMesh, mut options: BuildOptions<'_>) -> Result<(Pipeline, SimState), BuildError> {
+        let effects = scenario.effects;
+        let fixed = fixed_nodes(&mesh, &scenario.fixed);
+        if !fixed.iter().any(|&f| f) {
+            return Err(BuildError::NothingFixed { scenario: scenario.source_path.clone() });
+        }
+        let to_fem = |m: crate::scenario::Material| fem::Material { young_modulus: m.young_modulus, poisson_ratio: m.poisson_ratio };
+        let materials = RegionMaterials {
+            default: to_fem(scenario.material),
+            by_region: scenario.region_materials.iter().map(|r| (r.region, to_fem(r.material))).collect(),
+        };
+        let fem_options = FemOptions {
+            gravity: effects
+                .contains(Effect::Gravity)
+                .then_some(BodyForce { density: scenario.density, acceleration: scenario.gravity }),
+        };
+        let model = FemModel::new(&mesh, &materials, &fixed, &fem_options)?;
+        let surface = model.surface().clone();
+        let rest: Vec<Vec3> = surface.gather_positions(&mesh.positions);
+
+        let initial: Vec<Pose> = scenario.spatulas.iter().map(|s| s.initial_pose).collect();
+        let mut pose_sets = vec![initial.clone()];
+        pose_sets.extend(options.expected_poses.drain(..));
+        let roi = region_of_interest(scenario, &mesh, &surface.vertices, &pose_sets);
+        let storage = match scenario.solver.compliance_storage {
+            ScenarioStorage::F64 => fem::ComplianceStorage::F64,
+            ScenarioStorage::F32 => fem::ComplianceStorage::F32,
+        };
+        let mut no_progress = |_: usize, _: usize| {};
+        let progress: &mut dyn FnMut(usize, usize) = match options.progress {
+            Some(p) => p,
+            None => &mut no_progress,
+        };
+        let compliance = Compliance::compute(&model, &roi, storage, scenario.solver.cache_dir.as_deref(), progress)?;
+        let solver = ConstrainedSolver::new(model, compliance)?;
+
+        let collision = if effects.contains(Effect::Collision) {
+            let config = CollisionConfig {
+                backend: match scenario.collision_backend {
+                    CollisionBackend::Reference => BackendKind::Reference,
+                    CollisionBackend::Bvh => BackendKind::Bvh,
+                    CollisionBackend::Gpu => BackendKind::Gpu,
+                },
+                culling: effects.contains(Effect::Culling),
+            };
+            let specs: Vec<SpatulaSpec> =
+                scenario.spatulas.iter().map(|s| SpatulaSpec { shape: s.shape, layout: s.layout.clone() }).collect();
+            Some(CollisionStage::new(config, &surface.triangles, &rest, &specs)?)
+        } else {
+            None
+        };
+        let skull = if effects.contains(Effect::SkullSpheres) {
+            let skull = scenario.skull.ok_or_else(|| BuildError::Scene {
+                scenario: scenario.source_path.clone(),
+                message: "the SkullSpheres effect needs a `skull`".into(),
+            })?;
+            Some(SkullStage::new(skull, &surface.vertices, &rest, scenario.spatulas.len()))
+        } else {
+            None
+        };
+        let pipeline = Pipeline::assemble(scenario, mesh, surface, rest, solver, collision, skull)?;
+        let state = pipeline.initial_state(&initial);
+        Ok((pipeline, state))
+    }
+}
+
+/// The stages a scenario's effects build, in frame order (for output columns).
+pub fn stages_for(scenario: &Scenario) -> Vec<StageId> {
+    let e = scenario.effects;
+    let mut v = Vec::new();
+    if e.contains(Effect::Collision) {
+        v.push(StageId::Collision);
+    }
+    if e.contains(Effect::SkullSpheres) {
+        v.push(StageId::Skull);
+    }
+    v.push(StageId::Solve);
+    if e.contains(Effect::ForceOutput) || e.contains(Effect::ContactPressure) {
+        v.push(StageId::Forces);
+    }
+    if e.contains(Effect::StressField) {
+        v.push(StageId::Stress);
+    }
+    if e.contains(Effect::Collision) {
+        v.push(StageId::Monitor);
+    }
+    v
+}

@@ -1,0 +1,266 @@
+//! Replay outputs: `metrics.csv` (one row a frame) and `summary.json`.
+//!
+//! In: [`FrameReport`]s in frame order. Out: a CSV whose every row is flushed as
+//! it is written (an error or Ctrl-C leaves the rows so far valid) and a summary
+//! with percentiles per stage, peak pressures, pressure-time above the 20 mmHg
+//! line and the final-state hash. Stays true: the non-timing columns are a pure
+//! function of the reports (bitwise deterministic replays give identical bytes);
+//! timing columns end in `_ms`.
+
+use super::report::{FrameReport, PASCALS_PER_MMHG, RETRACTION_DANGER_MMHG, StageId};
+use serde::Serialize;
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// Errors writing outputs; each names the file.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {source}")]
+pub struct OutputError {
+    pub path: PathBuf,
+    #[source]
+    pub source: io::Error,
+}
+
+impl OutputError {
+    pub fn new(path: &Path, source: io::Error) -> Self {
+        Self { path: path.to_path_buf(), source }
+    }
+}
+
+/// Writes `metrics.csv` row by row.
+pub struct MetricsWriter {
+    out: BufWriter<File>,
+    path: PathBuf,
+    stages: Vec<StageId>,
+    spatulas: usize,
+    line: String,
+}
+
+impl MetricsWriter {
+    /// Creates the file and writes the header. `stages` are the built stages;
+    /// `spatula_names` name the per-spatula columns.
+    pub fn create(path: &Path, stages: &[StageId], spatula_names: &[String]) -> Result<Self, OutputError> {
+        let file = File::create(path).map_err(|e| OutputError::new(path, e))?;
+        let mut w = Self { out: BufWriter::new(file), path: path.to_path_buf(), stages: stages.to_vec(), spatulas: spatula_names.len(), line: String::new() };
+        let mut header = vec!["frame".to_string(), "time_s".to_string()];
+        header.extend(stages.iter().map(|s| format!("{}_ms", s.name())));
+        header.push("frame_ms".into());
+        for name in spatula_names {
+            for col in ["candidate_pairs", "culled_pairs", "feasible_pairs", "constrained_vertices", "force_n", "force_x_n", "force_y_n", "force_z_n", "contact_area_mm2", "mean_pressure_mmhg"] {
+                header.push(format!("{name}_{col}"));
+            }
+        }
+        header.extend(
+            ["constrained_vertices", "skull_contacts", "max_displacement_mm", "inverted_elements", "inverted_scope", "crossed_vertices", "penetrating_vertices", "max_penetration_mm", "rejected_poses", "max_von_mises_pa"]
+                .map(String::from),
+        );
+        w.line = header.join(",");
+        w.write_line()?;
+        Ok(w)
+    }
+
+    fn write_line(&mut self) -> Result<(), OutputError> {
+        self.line.push('\n');
+        let r = self.out.write_all(self.line.as_bytes()).and_then(|_| self.out.flush());
+        self.line.clear();
+        r.map_err(|e| OutputError::new(&self.path, e))
+    }
+
+    /// Appends one frame and flushes it to the file.
+    pub fn write(&mut self, r: &FrameReport) -> Result<(), OutputError> {
+        use std::fmt::Write as _;
+        let l = &mut self.line;
+        let _ = write!(l, "{},{}", r.frame, r.time_s);
+        for s in &self.stages {
+            let _ = write!(l, ",{:.4}", r.times.get(*s).unwrap_or(0.0) * 1e3);
+        }
+        let _ = write!(l, ",{:.4}", r.times.total() * 1e3);
+        for k in 0..self.spatulas {
+            let s = r.spatulas.get(k).copied().unwrap_or_default();
+            let _ = write!(
+                l,
+                ",{},{},{},{},{},{},{},{},{},{}",
+                s.candidate_pairs,
+                s.culled_pairs,
+                s.feasible_pairs,
+                s.constrained_vertices,
+                s.force.norm(),
+                s.force.x,
+                s.force.y,
+                s.force.z,
+                s.contact_area_m2 * 1e6,
+                s.mean_pressure_mmhg()
+            );
+        }
+        let _ = write!(
+            l,
+            ",{},{},{},{},{},{},{},{},{},{}",
+            r.constrained_vertices,
+            r.skull_contacts,
+            r.max_displacement_m * 1e3,
+            r.inverted_elements,
+            if r.inverted_scope_all { "all" } else { "surface" },
+            r.crossed_vertices,
+            r.penetrating_vertices,
+            r.max_penetration_m * 1e3,
+            r.rejected_poses,
+            r.max_von_mises_pa.map(|v| v.to_string()).unwrap_or_default()
+        );
+        self.write_line()
+    }
+}
+
+/// p50 / p95 / max of a sample, milliseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Percentiles {
+    pub p50_ms: f64,
+    pub p95_ms: f64,
+    pub max_ms: f64,
+}
+
+impl Percentiles {
+    /// Nearest-rank percentiles of `seconds` (empty -> zeros).
+    pub fn of(seconds: &[f64]) -> Self {
+        if seconds.is_empty() {
+            return Self::default();
+        }
+        let mut v = seconds.to_vec();
+        v.sort_by(|a, b| a.total_cmp(b));
+        let rank = |p: f64| v[((p * v.len() as f64).ceil() as usize).clamp(1, v.len()) - 1] * 1e3;
+        Self { p50_ms: rank(0.5), p95_ms: rank(0.95), max_ms: v[v.len() - 1] * 1e3 }
+    }
+}
+
+/// Per-spatula summary numbers.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct SpatulaSummary {
+    pub name: String,
+    pub peak_force_n: f64,
+    pub peak_pressure_mmhg: f64,
+    /// Time the mean pressure spent above 20 mmHg, s.
+    pub time_above_20mmhg_s: f64,
+    /// Integral of (pressure - 20 mmHg) over the time above it, mmHg*s.
+    pub pressure_time_above_20mmhg_mmhg_s: f64,
+}
+
+/// `summary.json`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Summary {
+    pub scenario: String,
+    pub frames: u64,
+    pub simulated_s: f64,
+    /// Percentiles per built stage.
+    pub stages: Vec<(StageId, Percentiles)>,
+    /// Percentiles of the whole frame.
+    pub frame: Percentiles,
+    pub spatulas: Vec<SpatulaSummary>,
+    pub max_displacement_mm: f64,
+    pub max_crossed_vertices: u32,
+    pub max_penetrating_vertices: u32,
+    pub max_inverted_elements: u32,
+    pub rejected_poses: u64,
+    /// blake3 of the final surface displacements (f64 bits) and His-flags: equal for bitwise-equal replays.
+    pub final_state_hash: String,
+    /// True when the run stopped early (error or interruption); the rows so far are valid.
+    pub interrupted: bool,
+}
+
+/// Accumulates the summary as frames arrive.
+#[derive(Debug, Default)]
+pub struct SummaryBuilder {
+    stages: Vec<StageId>,
+    stage_seconds: Vec<Vec<f64>>,
+    frame_seconds: Vec<f64>,
+    summary: Summary,
+    last_time: f64,
+}
+
+impl SummaryBuilder {
+    pub fn new(scenario: &str, stages: &[StageId], spatula_names: &[String]) -> Self {
+        Self {
+            stages: stages.to_vec(),
+            stage_seconds: vec![Vec::new(); stages.len()],
+            summary: Summary {
+                scenario: scenario.to_string(),
+                spatulas: spatula_names.iter().map(|n| SpatulaSummary { name: n.clone(), ..Default::default() }).collect(),
+                ..Default::default()
+            },
+            ..Default::default()
+        }
+    }
+
+    /// Adds a frame; `dt` is the frame's simulated duration.
+    pub fn add(&mut self, r: &FrameReport, dt: f64) {
+        for (k, s) in self.stages.iter().enumerate() {
+            if let Some(t) = r.times.get(*s) {
+                self.stage_seconds[k].push(t);
+            }
+        }
+        self.frame_seconds.push(r.times.total());
+        let danger_pa = RETRACTION_DANGER_MMHG * PASCALS_PER_MMHG;
+        for (acc, s) in self.summary.spatulas.iter_mut().zip(&r.spatulas) {
+            acc.peak_force_n = acc.peak_force_n.max(s.force.norm());
+            acc.peak_pressure_mmhg = acc.peak_pressure_mmhg.max(s.mean_pressure_mmhg());
+            if s.mean_pressure_pa > danger_pa {
+                acc.time_above_20mmhg_s += dt;
+                acc.pressure_time_above_20mmhg_mmhg_s += (s.mean_pressure_mmhg() - RETRACTION_DANGER_MMHG) * dt;
+            }
+        }
+        let m = &mut self.summary;
+        m.frames += 1;
+        m.max_displacement_mm = m.max_displacement_mm.max(r.max_displacement_m * 1e3);
+        m.max_crossed_vertices = m.max_crossed_vertices.max(r.crossed_vertices);
+        m.max_penetrating_vertices = m.max_penetrating_vertices.max(r.penetrating_vertices);
+        m.max_inverted_elements = m.max_inverted_elements.max(r.inverted_elements);
+        m.rejected_poses += r.rejected_poses as u64;
+        self.last_time = r.time_s;
+    }
+
+    /// Frames added so far.
+    pub fn frames(&self) -> u64 {
+        self.summary.frames
+    }
+
+    /// The finished summary.
+    pub fn finish(mut self, final_state_hash: String, interrupted: bool) -> Summary {
+        self.summary.stages = self.stages.iter().zip(&self.stage_seconds).map(|(s, v)| (*s, Percentiles::of(v))).collect();
+        self.summary.frame = Percentiles::of(&self.frame_seconds);
+        self.summary.simulated_s = self.last_time;
+        self.summary.final_state_hash = final_state_hash;
+        self.summary.interrupted = interrupted;
+        self.summary
+    }
+}
+
+/// Writes `summary` as pretty JSON.
+pub fn write_summary(path: &Path, summary: &Summary) -> Result<(), OutputError> {
+    let text = serde_json::to_string_pretty(summary).map_err(|e| OutputError::new(path, io::Error::other(e)))?;
+    std::fs::write(path, text + "\n").map_err(|e| OutputError::new(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_use_nearest_rank() {
+        let v: Vec<f64> = (1..=100).map(|k| k as f64 * 1e-3).collect();
+        let p = Percentiles::of(&v);
+        assert_eq!((p.p50_ms, p.p95_ms, p.max_ms), (50.0, 95.0, 100.0));
+    }
+
+    #[test]
+    fn pressure_time_accumulates_only_above_the_line() {
+        let mut b = SummaryBuilder::new("t", &[], &["a".into()]);
+        let mut r = FrameReport { spatulas: vec![Default::default()], ..Default::default() };
+        r.spatulas[0].mean_pressure_pa = 30.0 * PASCALS_PER_MMHG;
+        b.add(&r, 0.1);
+        r.spatulas[0].mean_pressure_pa = 10.0 * PASCALS_PER_MMHG;
+        b.add(&r, 0.1);
+        let s = b.finish(String::new(), false);
+        assert!((s.spatulas[0].time_above_20mmhg_s - 0.1).abs() < 1e-12);
+        assert!((s.spatulas[0].pressure_time_above_20mmhg_mmhg_s - 1.0).abs() < 1e-9);
+        assert!((s.spatulas[0].peak_pressure_mmhg - 30.0).abs() < 1e-9);
+    }
+}

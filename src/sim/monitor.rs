@@ -1,0 +1,112 @@
+//! Tunnelling and penetration monitor: is any tissue on the wrong side of a blade?
+//!
+//! In: the surface before and after a frame, the spatula poses before and after.
+//! Out: per frame, the surface vertices inside a blade's footprint that changed
+//! side of its mid-plane (tissue pulled *through* the spatula: the paper's
+//! Fig. 11b failure) and those left strictly inside the blade (penetration,
+//! with the deepest depth). Stays true: read-only on the simulation; O(vertices x
+//! spatulas) per frame, no allocation.
+
+use crate::geometry::{Pose, SpatulaShape};
+use crate::math::Vec3;
+
+/// Counts of one frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MonitorCounts {
+    /// Vertices that crossed a blade's mid-plane inside its footprint.
+    pub crossed: u32,
+    /// Vertices strictly inside a blade (beyond a tolerance).
+    pub penetrating: u32,
+    /// Deepest penetration, m.
+    pub max_depth_m: f64,
+}
+
+/// Penetration tolerance: a vertex projected onto a face sits on it up to
+/// rounding; deeper than this is counted.
+pub const PENETRATION_TOLERANCE_M: f64 = 1e-7;
+
+/// Local coordinates of `p` in the spatula frame of `pose`.
+#[inline]
+fn local(pose: &Pose, p: &Vec3) -> Vec3 {
+    pose.rotation.inverse_transform_vector(&(p - pose.position))
+}
+
+#[inline]
+fn in_footprint(shape: &SpatulaShape, q: &Vec3) -> bool {
+    q.x >= 0.0 && q.x <= shape.length && q.y.abs() <= 0.5 * shape.width
+}
+
+/// Measures one frame. `before`/`after` are surface-vertex positions, `poses_*`
+/// one per spatula.
+pub fn measure(
+    shapes: &[SpatulaShape],
+    poses_before: &[Pose],
+    poses_after: &[Pose],
+    before: &[Vec3],
+    after: &[Vec3],
+) -> MonitorCounts {
+    let mut counts = MonitorCounts::default();
+    for ((shape, pb), pa) in shapes.iter().zip(poses_before).zip(poses_after) {
+        let half = 0.5 * shape.thickness;
+        for (p0, p1) in before.iter().zip(after) {
+            let q1 = local(pa, p1);
+            if !in_footprint(shape, &q1) {
+                continue;
+            }
+            let depth = half - q1.z.abs();
+            if depth > PENETRATION_TOLERANCE_M {
+                counts.penetrating += 1;
+                counts.max_depth_m = counts.max_depth_m.max(depth);
+            }
+            let q0 = local(pb, p0);
+            // A side is only meaningful outside the blade on both frames.
+            if in_footprint(shape, &q0) && q0.z.abs() >= half - PENETRATION_TOLERANCE_M && q1.z.abs() >= half - PENETRATION_TOLERANCE_M && q0.z.signum() != q1.z.signum() {
+                counts.crossed += 1;
+            }
+        }
+    }
+    counts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn blade() -> SpatulaShape {
+        SpatulaShape { length: 0.05, width: 0.01, thickness: 0.001 }
+    }
+
+    #[test]
+    fn vertex_pulled_through_the_blade_is_counted_as_crossed() {
+        let pose = Pose::default();
+        let before = [Vec3::new(0.02, 0.0, 0.002), Vec3::new(0.02, 0.0, -0.003)];
+        let after = [Vec3::new(0.02, 0.0, -0.0005), Vec3::new(0.02, 0.0, -0.003)];
+        let c = measure(&[blade()], &[pose], &[pose], &before, &after);
+        assert_eq!(c.crossed, 1, "the first vertex went from +z to -z through the blade");
+        assert_eq!(c.penetrating, 0, "z = -0.5 mm lies on the face, not inside");
+    }
+
+    #[test]
+    fn vertex_inside_the_blade_is_penetrating_and_outside_footprint_is_ignored() {
+        let pose = Pose::default();
+        let before = [Vec3::new(0.02, 0.0, 0.0002), Vec3::new(0.2, 0.0, 0.0)];
+        let after = before;
+        let c = measure(&[blade()], &[pose], &[pose], &before, &after);
+        assert_eq!(c.penetrating, 1);
+        assert!((c.max_depth_m - 0.0003).abs() < 1e-12, "depth is half-thickness minus |z|: {}", c.max_depth_m);
+        assert_eq!(c.crossed, 0);
+    }
+
+    #[test]
+    fn pushed_wall_moving_with_the_blade_does_not_cross() {
+        // The blade moves +z by 3 thicknesses; the wall ahead of it is pushed to its front face.
+        let b = blade();
+        let p0 = Pose::default();
+        let p1 = Pose { position: Vec3::new(0.0, 0.0, 0.003), ..p0 };
+        let before = [Vec3::new(0.02, 0.0, 0.001)];
+        let after = [Vec3::new(0.02, 0.0, 0.003 + 0.0005)];
+        assert_eq!(measure(&[b], &[p0], &[p1], &before, &after).crossed, 0);
+        // Left behind (not pushed) it would have crossed.
+        assert_eq!(measure(&[b], &[p0], &[p1], &before, &before).crossed, 1);
+    }
+}

@@ -1,0 +1,438 @@
+//! One fixed-step frame: poses -> collision -> skull rows -> exact solve ->
+//! forces -> (stress) -> monitor, each stage timed.
+//!
+//! In: the [`SimState`] (passed explicitly, never global) and a [`FrameInput`]
+//! (a pose per spatula, or none to keep the last). Out: the updated state and a
+//! [`FrameReport`]. Stays true: stages the scene did not ask for are `None` and
+//! report no time; a bad pose is rejected (the last good one holds) and counted;
+//! nothing here panics on bad data — errors come back as [`StepError`].
+
+use super::monitor;
+use super::report::{FrameReport, SpatulaReport, StageId};
+use crate::collision::CollisionStage;
+use crate::fem::{ConstrainedSolver, Constraint, ConstraintKind, ContactPatch, ElementStress, FrameSolution};
+use crate::geometry::{Pose, SpatulaShape};
+use crate::math::Vec3;
+use crate::mesh::{BoundarySurface, TetMesh, signed_volume};
+use crate::scenario::{Effect, EffectSet, Scenario, Skull};
+use std::time::Instant;
+
+/// Errors of one frame. The state is left as it was before the failing stage.
+#[derive(Debug, thiserror::Error)]
+pub enum StepError {
+    #[error("frame {frame}: collision: {source}")]
+    Collision { frame: u64, source: crate::collision::CollisionError },
+    #[error("frame {frame}: solve: {source}")]
+    Solve { frame: u64, source: crate::fem::FemError },
+    #[error("frame {frame}: {count} poses given for {expected} spatulas")]
+    PoseCount { frame: u64, count: usize, expected: usize },
+}
+
+/// What drives one frame: a pose per spatula (`None` keeps the last good one).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameInput {
+    pub poses: Vec<Option<Pose>>,
+}
+
+/// The simulation's state between frames.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimState {
+    /// Frames done.
+    pub frame: u64,
+    /// Simulated time, s.
+    pub time_s: f64,
+    /// The last good pose per spatula.
+    pub poses: Vec<Pose>,
+    /// Current (deformed) surface-vertex positions, m.
+    pub surface_positions: Vec<Vec3>,
+    /// Displacement of each surface vertex from rest, m.
+    pub surface_displacement: Vec<Vec3>,
+    /// Displacement of every node (only with the stress stage), m.
+    pub node_displacement: Vec<Vec3>,
+    /// Per-tet stress and strain (only with the stress stage).
+    pub stress: Vec<ElementStress>,
+}
+
+/// Unilateral skull spheres: which surface vertices get rows this frame.
+#[derive(Debug, Clone)]
+pub struct SkullStage {
+    skull: Skull,
+    /// Surface vertex -> mesh node.
+    nodes: Vec<u32>,
+}
+
+/// A surface vertex becomes a skull candidate when its current position is
+/// within this distance of violating a sphere (m). The active-set solve then
+/// keeps only the rows that must push.
+pub const SKULL_CANDIDATE_BAND_M: f64 = 0.005;
+
+impl SkullStage {
+    pub fn new(skull: Skull, surface_nodes: &[u32], _rest: &[Vec3], _spatulas: usize) -> Self {
+        Self { skull, nodes: surface_nodes.to_vec() }
+    }
+
+    /// Appends the candidate rows for the current positions; returns how many.
+    fn push_rows(&self, positions: &[Vec3], out: &mut Vec<Constraint>) -> usize {
+        let before = out.len();
+        for (v, p) in positions.iter().enumerate() {
+            let node = self.nodes[v];
+            if let Some(s) = self.skull.containing {
+                if (p - s.center).norm() > s.radius - SKULL_CANDIDATE_BAND_M {
+                    out.push(Constraint { node, owner: 0, kind: ConstraintKind::SphereInside { center: s.center, radius: s.radius } });
+                }
+            }
+            if let Some(s) = self.skull.excluding {
+                if (p - s.center).norm() < s.radius + SKULL_CANDIDATE_BAND_M {
+                    out.push(Constraint { node, owner: 1, kind: ConstraintKind::SphereOutside { center: s.center, radius: s.radius } });
+                }
+            }
+        }
+        out.len() - before
+    }
+
+    pub fn skull(&self) -> &Skull {
+        &self.skull
+    }
+}
+
+/// The built pipeline: precomputed data and per-frame scratch.
+pub struct Pipeline {
+    name: String,
+    effects: EffectSet,
+    time_step: f64,
+    mesh: TetMesh,
+    surface: BoundarySurface,
+    rest: Vec<Vec3>,
+    shapes: Vec<SpatulaShape>,
+    names: Vec<String>,
+    solver: ConstrainedSolver,
+    collision: Option<CollisionStage>,
+    skull: Option<SkullStage>,
+    /// Tets whose four nodes are on the surface (inverted check without an interior solve).
+    surface_tets: Vec<u32>,
+    // scratch
+    constraints: Vec<Constraint>,
+    solution: FrameSolution,
+    patches: Vec<ContactPatch>,
+    vertex_owner: Vec<u32>,
+    previous_positions: Vec<Vec3>,
+    previous_poses: Vec<Pose>,
+    report: FrameReport,
+}
+
+impl Pipeline {
+    pub(super) fn assemble(
+        scenario: &Scenario,
+        mesh: TetMesh,
+        surface: BoundarySurface,
+        rest: Vec<Vec3>,
+        solver: ConstrainedSolver,
+        collision: Option<CollisionStage>,
+        skull: Option<SkullStage>,
+    ) -> Result<Self, super::build::BuildError> {
+        let surface_tets = mesh
+            .tets
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| t.iter().all(|&n| surface.node_to_vertex[n as usize] != crate::mesh::surface::NOT_ON_SURFACE))
+            .map(|(k, _)| k as u32)
+            .collect();
+        let n = scenario.spatulas.len();
+        Ok(Self {
+            name: scenario.name.clone(),
+            effects: scenario.effects,
+            time_step: scenario.time_step,
+            shapes: scenario.spatulas.iter().map(|s| s.shape).collect(),
+            names: scenario.spatulas.iter().map(|s| s.name.clone()).collect(),
+            previous_positions: rest.clone(),
+            previous_poses: scenario.spatulas.iter().map(|s| s.initial_pose).collect(),
+            mesh,
+            surface,
+            rest,
+            solver,
+            collision,
+            skull,
+            surface_tets,
+            constraints: Vec::new(),
+            solution: FrameSolution::default(),
+            patches: Vec::new(),
+            vertex_owner: Vec::new(),
+            report: FrameReport { spatulas: vec![SpatulaReport::default(); n], ..Default::default() },
+        })
+    }
+
+    /// The state at time 0: the brain at rest, spatulas at `poses`.
+    pub fn initial_state(&self, poses: &[Pose]) -> SimState {
+        SimState {
+            frame: 0,
+            time_s: 0.0,
+            poses: poses.to_vec(),
+            surface_positions: self.rest.clone(),
+            surface_displacement: vec![Vec3::zeros(); self.rest.len()],
+            node_displacement: Vec::new(),
+            stress: Vec::new(),
+        }
+    }
+
+    /// The scenario's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// The fixed step, s.
+    pub fn time_step(&self) -> f64 {
+        self.time_step
+    }
+    /// The effects this pipeline was built for.
+    pub fn effects(&self) -> EffectSet {
+        self.effects
+    }
+    /// The mesh (rest positions, metres).
+    pub fn mesh(&self) -> &TetMesh {
+        &self.mesh
+    }
+    /// The boundary surface (triangles in surface-vertex indices).
+    pub fn surface(&self) -> &BoundarySurface {
+        &self.surface
+    }
+    /// Rest positions of the surface vertices.
+    pub fn rest_positions(&self) -> &[Vec3] {
+        &self.rest
+    }
+    /// Spatula blades, in scenario order.
+    pub fn spatula_shapes(&self) -> &[SpatulaShape] {
+        &self.shapes
+    }
+    /// Spatula names, in scenario order.
+    pub fn spatula_names(&self) -> &[String] {
+        &self.names
+    }
+    /// The collision stage, when the scene asked for collision.
+    pub fn collision(&self) -> Option<&CollisionStage> {
+        self.collision.as_ref()
+    }
+    /// The skull stage, when the scene asked for skull spheres.
+    pub fn skull(&self) -> Option<&SkullStage> {
+        self.skull.as_ref()
+    }
+    /// The exact solver (for the haptic thread's contact compliance).
+    pub fn solver(&self) -> &ConstrainedSolver {
+        &self.solver
+    }
+    /// The solver's last frame solution.
+    pub fn last_solution(&self) -> &FrameSolution {
+        &self.solution
+    }
+    /// The constraints of the last frame.
+    pub fn last_constraints(&self) -> &[Constraint] {
+        &self.constraints
+    }
+    /// Which stages are built, in frame order.
+    pub fn built_stages(&self) -> Vec<StageId> {
+        let mut v = Vec::new();
+        if self.collision.is_some() {
+            v.push(StageId::Collision);
+        }
+        if self.skull.is_some() {
+            v.push(StageId::Skull);
+        }
+        v.push(StageId::Solve);
+        if self.forces_built() {
+            v.push(StageId::Forces);
+        }
+        if self.effects.contains(Effect::StressField) {
+            v.push(StageId::Stress);
+        }
+        if self.collision.is_some() {
+            v.push(StageId::Monitor);
+        }
+        v
+    }
+
+    fn forces_built(&self) -> bool {
+        self.effects.contains(Effect::ForceOutput) || self.effects.contains(Effect::ContactPressure)
+    }
+
+    /// Clears the collision history (His-flags).
+    pub fn reset_history(&mut self) {
+        if let Some(c) = &mut self.collision {
+            c.reset_history();
+        }
+    }
+
+    /// Runs one frame.
+    pub fn step(&mut self, state: &mut SimState, input: &FrameInput) -> Result<&FrameReport, StepError> {
+        let frame = state.frame;
+        if input.poses.len() != state.poses.len() {
+            return Err(StepError::PoseCount { frame, count: input.poses.len(), expected: state.poses.len() });
+        }
+        let r = &mut self.report;
+        r.times = Default::default();
+        r.rejected_poses = 0;
+        self.previous_poses.clear();
+        self.previous_poses.extend_from_slice(&state.poses);
+        for (slot, new) in state.poses.iter_mut().zip(&input.poses) {
+            match new {
+                Some(p) if p.is_valid() => *slot = *p,
+                Some(_) => r.rejected_poses += 1,
+                None => {}
+            }
+        }
+        self.constraints.clear();
+        for s in r.spatulas.iter_mut() {
+            *s = SpatulaReport::default();
+        }
+
+        // Collision: pairs, culling, enforced displacements.
+        if let Some(collision) = &mut self.collision {
+            let t = Instant::now();
+            let out = collision.step(&state.surface_positions, &state.poses).map_err(|source| StepError::Collision { frame, source })?;
+            for target in &out.targets {
+                self.constraints.push(Constraint {
+                    node: self.surface.vertices[target.vertex as usize],
+                    owner: target.spatula as u16,
+                    kind: ConstraintKind::Enforced { displacement: target.displacement },
+                });
+            }
+            for (s, c) in r.spatulas.iter_mut().zip(&out.per_spatula) {
+                s.candidate_pairs = c.candidates;
+                s.culled_pairs = c.culled;
+                s.feasible_pairs = c.feasible;
+                s.constrained_vertices = c.constrained_vertices;
+            }
+            r.times.set(StageId::Collision, t.elapsed().as_secs_f64());
+        }
+        r.constrained_vertices = self.constraints.len() as u32;
+
+        // Skull: unilateral candidate rows.
+        if let Some(skull) = &self.skull {
+            let t = Instant::now();
+            skull.push_rows(&state.surface_positions, &mut self.constraints);
+            r.times.set(StageId::Skull, t.elapsed().as_secs_f64());
+        }
+
+        // Exact constrained solve and surface update.
+        let t = Instant::now();
+        self.solver.step(&self.constraints, &mut self.solution).map_err(|source| StepError::Solve { frame, source })?;
+        self.previous_positions.clear();
+        self.previous_positions.extend_from_slice(&state.surface_positions);
+        state.surface_displacement.clear();
+        state.surface_displacement.extend_from_slice(&self.solution.displacement_surface);
+        for ((p, rest), u) in state.surface_positions.iter_mut().zip(&self.rest).zip(&state.surface_displacement) {
+            *p = rest + u;
+        }
+        r.max_displacement_m = self.solution.max_displacement;
+        r.skull_contacts = self.solution.active_sphere_contacts as u32;
+        r.times.set(StageId::Solve, t.elapsed().as_secs_f64());
+
+        // Forces, contact areas and pressures.
+        if self.effects.contains(Effect::ForceOutput) || self.effects.contains(Effect::ContactPressure) {
+            let t = Instant::now();
+            for (owner, f) in &self.solution.owner_forces {
+                if let Some(s) = r.spatulas.get_mut(*owner as usize) {
+                    s.force = *f;
+                }
+            }
+            if self.effects.contains(Effect::ContactPressure) {
+                crate::fem::contact_patches(
+                    &self.surface,
+                    &state.surface_positions,
+                    &self.constraints,
+                    &self.solution.reactions,
+                    &mut self.vertex_owner,
+                    &mut self.patches,
+                );
+                for p in &self.patches {
+                    if let Some(s) = r.spatulas.get_mut(p.owner as usize) {
+                        s.contact_area_m2 = p.area;
+                        s.mean_pressure_pa = p.mean_pressure_pa;
+                    }
+                }
+            }
+            r.times.set(StageId::Forces, t.elapsed().as_secs_f64());
+        }
+
+        // Interior displacements and stress, only when the scene asks.
+        if self.effects.contains(Effect::StressField) {
+            let t = Instant::now();
+            self.solver.interior_displacements(&mut state.node_displacement).map_err(|source| StepError::Solve { frame, source })?;
+            crate::fem::element_stress(self.solver.model(), &state.node_displacement, &mut state.stress)
+                .map_err(|source| StepError::Solve { frame, source })?;
+            r.max_von_mises_pa = Some(state.stress.iter().map(|s| s.von_mises).fold(0.0, f64::max));
+            r.inverted_elements = count_inverted_all(&self.mesh, &state.node_displacement);
+            r.inverted_scope_all = true;
+            r.times.set(StageId::Stress, t.elapsed().as_secs_f64());
+        } else {
+            r.inverted_elements = count_inverted_surface_tets(&self.mesh, &self.surface, &self.surface_tets, &state.surface_displacement);
+            r.inverted_scope_all = false;
+        }
+
+        // Tunnelling / penetration monitor.
+        if self.collision.is_some() {
+            let t = Instant::now();
+            let m = monitor::measure(&self.shapes, &self.previous_poses, &state.poses, &self.previous_positions, &state.surface_positions);
+            r.crossed_vertices = m.crossed;
+            r.penetrating_vertices = m.penetrating;
+            r.max_penetration_m = m.max_depth_m;
+            r.times.set(StageId::Monitor, t.elapsed().as_secs_f64());
+        }
+
+        state.frame += 1;
+        state.time_s = state.frame as f64 * self.time_step;
+        r.frame = frame;
+        r.time_s = state.time_s;
+        Ok(&self.report)
+    }
+
+    /// Displacement of every node for the current state: the stress stage's
+    /// when it ran this frame, else one sparse solve now (VTK output, on demand).
+    pub fn node_displacement(&mut self, state: &SimState) -> Result<Vec<Vec3>, StepError> {
+        if self.effects.contains(Effect::StressField) && state.node_displacement.len() == self.mesh.node_count() {
+            return Ok(state.node_displacement.clone());
+        }
+        let mut u = Vec::new();
+        self.solver.interior_displacements(&mut u).map_err(|source| StepError::Solve { frame: state.frame, source })?;
+        Ok(u)
+    }
+
+    /// blake3 over the surface displacement bits and the His-flags: equal for bitwise-equal states.
+    pub fn state_hash(&self, state: &SimState) -> String {
+        let mut h = blake3::Hasher::new();
+        for u in &state.surface_displacement {
+            for c in u.iter() {
+                h.update(&c.to_bits().to_le_bytes());
+            }
+        }
+        if let Some(c) = &self.collision {
+            let flags = c.his_flags();
+            for k in 0..c.node_count() {
+                h.update(&[flags.get(k) as u8]);
+            }
+        }
+        h.finalize().to_hex().to_string()
+    }
+}
+
+fn count_inverted_surface_tets(mesh: &TetMesh, surface: &BoundarySurface, tets: &[u32], surface_displacement: &[Vec3]) -> u32 {
+    let mut count = 0;
+    for &t in tets {
+        let tet = mesh.tets[t as usize];
+        let p = tet.map(|n| {
+            let v = surface.node_to_vertex[n as usize] as usize;
+            mesh.positions[n as usize] + surface_displacement[v]
+        });
+        if signed_volume(&p[0], &p[1], &p[2], &p[3]) <= 0.0 {
+            count += 1;
+        }
+    }
+    count
+}
+
+fn count_inverted_all(mesh: &TetMesh, u: &[Vec3]) -> u32 {
+    mesh.tets
+        .iter()
+        .filter(|t| {
+            let p = t.map(|n| mesh.positions[n as usize] + u[n as usize]);
+            signed_volume(&p[0], &p[1], &p[2], &p[3]) <= 0.0
+        })
+        .count() as u32
+}

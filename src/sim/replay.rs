@@ -1,0 +1,188 @@
+//! Headless replay: a scenario and a trajectory in, metrics, a summary and
+//! optionally a ParaView series out.
+//!
+//! In: a validated [`Scenario`], an optional trajectory (else the scenario's,
+//! else the spatulas hold their initial poses), an output folder. Out:
+//! `metrics.csv` (a row a frame, flushed as written), `summary.json`, and with
+//! `vtk` a `series.pvd` + `frame_NNNNN.vtu` per frame (deformed mesh with point
+//! displacement and cell stress / strain / region). Stays true: an error or an
+//! interruption (the `interrupt` flag, set by Ctrl-C in the CLI) stops the loop
+//! with every row written so far valid; the summary is still written, marked
+//! `interrupted`.
+
+use super::build::BuildOptions;
+use super::metrics::{MetricsWriter, OutputError, Summary, SummaryBuilder, write_summary};
+use super::pipeline::{FrameInput, Pipeline, SimState, StepError};
+use crate::geometry::Pose;
+use crate::mesh::io::{Field, FieldData, save_tet_mesh, write_pvd};
+use crate::scenario::{Scenario, Trajectory, TrajectoryError};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Errors of a replay.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    #[error(transparent)]
+    Build(#[from] super::build::BuildError),
+    #[error(transparent)]
+    Trajectory(#[from] TrajectoryError),
+    #[error("trajectory {path}: it has {tracks} tracks but the scenario has {spatulas} spatulas")]
+    TrackCount { path: PathBuf, tracks: usize, spatulas: usize },
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    #[error("writing VTK output: {0}")]
+    Vtk(#[from] crate::mesh::io::MeshFileError),
+    #[error("{source} (the {frames} frames before it are in {dir}/metrics.csv)")]
+    Step { source: StepError, frames: u64, dir: PathBuf },
+    #[error("{0}")]
+    Frames(String),
+}
+
+/// What to write beyond `metrics.csv` and `summary.json`.
+#[derive(Debug, Clone, Default)]
+pub struct ReplayOptions {
+    /// Output folder (created).
+    pub out_dir: PathBuf,
+    /// A trajectory file overriding the scenario's.
+    pub trajectory: Option<PathBuf>,
+    /// Write the ParaView series.
+    pub vtk: bool,
+}
+
+/// The pose track a replay plays: a trajectory, or the initial poses held.
+pub struct PoseSource {
+    trajectory: Option<Trajectory>,
+    initial: Vec<Pose>,
+}
+
+impl PoseSource {
+    /// Loads `path` (or the scenario's trajectory) and checks its tracks.
+    pub fn for_scenario(scenario: &Scenario, path: Option<&Path>) -> Result<Self, ReplayError> {
+        let path = path.map(Path::to_path_buf).or_else(|| scenario.trajectory.clone());
+        let initial = scenario.spatulas.iter().map(|s| s.initial_pose).collect::<Vec<_>>();
+        let trajectory = match path {
+            Some(p) => {
+                let t = Trajectory::load(&p)?;
+                if t.spatula_count() > initial.len() {
+                    return Err(ReplayError::TrackCount { path: p, tracks: t.spatula_count(), spatulas: initial.len() });
+                }
+                Some(t)
+            }
+            None => None,
+        };
+        Ok(Self { trajectory, initial })
+    }
+
+    /// Poses at `time_s` into `out` (a track missing for a spatula holds its initial pose).
+    pub fn poses_at(&self, time_s: f64, out: &mut FrameInput) {
+        out.poses.clear();
+        for (k, p0) in self.initial.iter().enumerate() {
+            let p = self.trajectory.as_ref().and_then(|t| t.sample(k, time_s)).unwrap_or(*p0);
+            out.poses.push(Some(p));
+        }
+    }
+
+    /// Pose sets over the run (at most `count`), to size the automatic region of interest.
+    pub fn samples(&self, duration: f64, count: usize) -> Vec<Vec<Pose>> {
+        let mut input = FrameInput::default();
+        (0..=count)
+            .map(|k| {
+                self.poses_at(duration * k as f64 / count.max(1) as f64, &mut input);
+                input.poses.iter().flatten().copied().collect()
+            })
+            .collect()
+    }
+}
+
+/// Writes one `.vtu` of the current state (interior solved here if the
+/// pipeline has no stress stage).
+pub fn write_vtu(pipeline: &mut Pipeline, state: &mut SimState, path: &Path) -> Result<(), ReplayError> {
+    let frame = state.frame;
+    let node_u = pipeline.node_displacement(state).map_err(|source| ReplayError::Step { source, frames: frame, dir: path.to_path_buf() })?;
+    let mut mesh = pipeline.mesh().clone();
+    for (p, u) in mesh.positions.iter_mut().zip(&node_u) {
+        *p += u;
+    }
+    let mut fields = FieldData::default();
+    fields.point.push(("displacement".into(), Field::Vector(node_u)));
+    if !state.stress.is_empty() {
+        fields.cell.push(("von_mises_pa".into(), Field::Scalar(state.stress.iter().map(|s| s.von_mises).collect())));
+        fields.cell.push(("max_principal_strain".into(), Field::Scalar(state.stress.iter().map(|s| s.max_principal_strain).collect())));
+    }
+    save_tet_mesh(path, &mesh, &fields)?;
+    Ok(())
+}
+
+/// Runs a whole replay. `on_frame(done, total)` is called after every frame
+/// (progress bars, PNG frames); returning an error stops the replay like any other.
+pub fn replay(
+    scenario: &Scenario,
+    options: &ReplayOptions,
+    interrupt: &AtomicBool,
+    on_frame: &mut dyn FnMut(&Pipeline, &SimState, u64, u64) -> Result<(), String>,
+    compliance_progress: Option<&mut dyn FnMut(usize, usize)>,
+) -> Result<Summary, ReplayError> {
+    let source = PoseSource::for_scenario(scenario, options.trajectory.as_deref())?;
+    let (mut pipeline, mut state) = Pipeline::build(
+        scenario,
+        BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: compliance_progress },
+    )?;
+    std::fs::create_dir_all(&options.out_dir).map_err(|e| OutputError::new(&options.out_dir, e))?;
+    let stages = pipeline.built_stages();
+    let names = pipeline.spatula_names().to_vec();
+    let mut writer = MetricsWriter::create(&options.out_dir.join("metrics.csv"), &stages, &names)?;
+    let mut summary = SummaryBuilder::new(&scenario.name, &stages, &names);
+    let total = scenario.step_count();
+    let dt = scenario.time_step;
+    let mut input = FrameInput::default();
+    let mut pvd: Vec<(f64, String)> = Vec::new();
+    let mut failure: Option<ReplayError> = None;
+    for k in 0..total {
+        if interrupt.load(Ordering::Relaxed) {
+            break;
+        }
+        source.poses_at((k + 1) as f64 * dt, &mut input);
+        let report = match pipeline.step(&mut state, &input) {
+            Ok(r) => r.clone(),
+            Err(e) => {
+                failure = Some(ReplayError::Step { source: e, frames: k, dir: options.out_dir.clone() });
+                break;
+            }
+        };
+        if let Err(e) = writer.write(&report) {
+            failure = Some(e.into());
+            break;
+        }
+        summary.add(&report, dt);
+        if options.vtk {
+            let name = format!("frame_{k:05}.vtu");
+            if let Err(e) = write_vtu(&mut pipeline, &mut state, &options.out_dir.join(&name)) {
+                failure = Some(e);
+                break;
+            }
+            pvd.push((state.time_s, name));
+            if let Err(e) = write_pvd(&options.out_dir.join("series.pvd"), &pvd) {
+                failure = Some(e.into());
+                break;
+            }
+        }
+        if let Err(e) = on_frame(&pipeline, &state, k + 1, total) {
+            failure = Some(ReplayError::Frames(e));
+            break;
+        }
+    }
+    let interrupted = failure.is_some() || summary_frames(&summary) < total;
+    let result = summary.finish(pipeline.state_hash(&state), interrupted);
+    let written = write_summary(&options.out_dir.join("summary.json"), &result);
+    match failure {
+        Some(e) => Err(e),
+        None => {
+            written?;
+            Ok(result)
+        }
+    }
+}
+
+fn summary_frames(s: &SummaryBuilder) -> u64 {
+    s.frames()
+}
