@@ -1,10 +1,10 @@
 //! Backend parity: `reference` and `bvh` give bit-identical outputs (pairs, culling,
 //! targets) on every scene and on random poses; `gpu` (f32) gives the same per-node
-//! nearest triangles except where the f64 answer is a near-tie (barycentric within
-//! 1e-5 of an edge, or two hits within 1e-5 x model size in t). Scenes: a sphere,
+//! nearest triangles except at near-ties: the f64 or the f32 hit has a barycentric
+//! within 1e-5 of an edge or vertex (f32 may pick the neighbour, or see a grazing
+//! touch the f64 test rejects), or two f64 hits lie within 1e-5 x model size in t. Scenes: a sphere,
 //! the fissure boxes, and the real brain surface (skipped when ../shared is absent).
 
-use fissure::collision::backend::bvh::BvhCaster;
 use fissure::collision::backend::gpu::GpuCaster;
 use fissure::collision::backend::reference::ReferenceCaster;
 use fissure::collision::backend::{PairHits, PairLine, RayCaster, TriangleHit};
@@ -147,7 +147,7 @@ fn gpu_agrees_with_reference_except_at_documented_near_ties() {
             .collect();
         let PairHits { face0, face1 } = *rh;
         for (name, rs, gs) in [("f0 behind", face0.behind, gh.face0.behind), ("f0 front", face0.front, gh.face0.front), ("f1 behind", face1.behind, gh.face1.behind), ("f1 front", face1.front, gh.face1.front)] {
-            if near_tie(&all, rs, 1e-5, 60.0 * MM) {
+            if near_tie(&all, rs, 1e-5, 60.0 * MM) || gs.is_some_and(|h| edge_close(&h, 1e-5)) {
                 ties += 1;
                 continue;
             }

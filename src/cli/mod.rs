@@ -5,6 +5,7 @@
 //! layer only adds context (which file, which command).
 
 mod check;
+mod mesh;
 
 use std::path::PathBuf;
 
@@ -33,6 +34,28 @@ pub enum Command {
         #[arg(long = "set", value_name = "PATH=VALUE")]
         set: Vec<String>,
     },
+    /// Mesh tools: inspect, convert.
+    #[command(subcommand)]
+    Mesh(MeshCommand),
+}
+
+#[derive(Debug, Subcommand)]
+pub enum MeshCommand {
+    /// Counts, connected components and element quality of a tet mesh (.msh, .vtk, .vtu, .node/.ele).
+    Info {
+        /// The mesh file.
+        path: PathBuf,
+        /// Print JSON (keys nodes, tets, surface_triangles, components, inverted, min_dihedral_deg, ...).
+        #[arg(long)]
+        json: bool,
+    },
+    /// Convert a tet mesh (.msh, .vtk, .vtu, .node/.ele) or a surface (.obj, .stl); formats by extension.
+    Convert {
+        /// Input file.
+        input: PathBuf,
+        /// Output file.
+        output: PathBuf,
+    },
 }
 
 /// Runs one parsed command line.
@@ -40,5 +63,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         None => check::default_scene(),
         Some(Command::Check { scenario, set }) => check::run(&scenario, &set),
+        Some(Command::Mesh(MeshCommand::Info { path, json })) => mesh::info(&path, json),
+        Some(Command::Mesh(MeshCommand::Convert { input, output })) => mesh::convert(&input, &output),
     }
 }

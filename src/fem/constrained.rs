@@ -38,6 +38,9 @@ use crate::math::{Matrix3, Vec3, is_finite3};
 
 /// Relative tolerance of a sphere constraint (times its radius).
 pub const SPHERE_TOLERANCE: f64 = 1e-9;
+/// Under-relaxation of the linearization point of active sphere rows (damps the
+/// period-2 oscillation that soft tissue under large contact forces shows).
+pub const RELINEARIZE_RELAXATION: f64 = 0.5;
 /// Lazily computed columns kept between frames (each is 3 x free DOFs f64).
 pub const LAZY_CAPACITY: usize = 128;
 
@@ -307,6 +310,7 @@ impl ConstrainedSolver {
                     worst_active = worst_active.max(violation.abs());
                 }
             }
+            if std::env::var("FEM_DEBUG").is_ok() { eprintln!("it {iterations}: add {any_add} worst_inactive {worst_inactive:e} worst_active {worst_active:e}"); }
             if any_add {
                 if iterations >= max_iterations {
                     return Err(self.not_converged(iterations, worst_inactive));
@@ -323,6 +327,7 @@ impl ConstrainedSolver {
                     most = Some((ci, l));
                 }
             }
+            if std::env::var("FEM_DEBUG").is_ok() { eprintln!("   most adhesive {most:?} scale {scale:e}"); }
             if let Some((ci, _)) = most {
                 self.candidates[ci].active = false;
                 if iterations >= max_iterations {
@@ -335,7 +340,9 @@ impl ConstrainedSolver {
                 for ci in 0..self.candidates.len() {
                     if self.candidates[ci].active {
                         let node = self.candidates[ci].node;
-                        self.candidates[ci].at = self.model.mesh.positions[node as usize] + self.displacement_of(node);
+                        let x = self.model.mesh.positions[node as usize] + self.displacement_of(node);
+                        let at = self.candidates[ci].at;
+                        self.candidates[ci].at = at + (x - at) * RELINEARIZE_RELAXATION;
                     }
                 }
                 if iterations >= max_iterations {

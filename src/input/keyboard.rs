@@ -44,6 +44,7 @@ pub enum Key {
     Shift,
 }
 
+#[cfg(test)]
 const KEY_COUNT: usize = 14;
 
 impl Key {

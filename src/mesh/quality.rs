@@ -232,7 +232,7 @@ mod tests {
 
     #[test]
     fn sliver_has_small_mean_ratio_and_extreme_angles() {
-        let p = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(1.0, 0.0, 0.01), Vec3::new(0.0, 1.0, 0.01)];
+        let p = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(1.0, 0.0, 0.001), Vec3::new(0.0, 1.0, 0.001)];
         let (angles, q) = tet_shape(&p[0], &p[1], &p[2], &p[3]);
         assert!(q.abs() < 0.05, "sliver mean ratio {q}");
         let max = angles.iter().cloned().fold(0.0, f64::max).to_degrees();

@@ -41,12 +41,12 @@ impl fmt::Display for Location {
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
     /// The scenario file could not be read.
-    #[error("cannot read scenario file {}: {source}", path.display())]
+    #[error("cannot read scenario file {}: {io}", path.display())]
     Read {
         /// The path as given.
         path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
+        /// The I/O error (shown in the message, so not repeated as a cause).
+        io: std::io::Error,
     },
     /// RON syntax, a wrong type, an unknown or missing field (from the typed parse).
     #[error("{location}: {}{message}", field_prefix(field))]

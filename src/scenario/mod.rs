@@ -32,7 +32,7 @@ pub use validate::{
 impl Scenario {
     /// Reads, overrides (`PATH=VALUE` each) and validates a scenario file.
     pub fn load(path: &Path, overrides: &[String]) -> Result<Scenario, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Read { path: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|io| ScenarioError::Read { path: path.to_path_buf(), io })?;
         Self::from_str(&text, path, overrides)
     }
 
@@ -61,7 +61,10 @@ impl Scenario {
 
 /// The serde step on a document's text, with ron's errors mapped to file/argument, line, column and field.
 pub fn parse_typed(document: &Document) -> Result<ScenarioFile, ScenarioError> {
-    ron::Options::default().from_str::<ScenarioFile>(&document.text).map_err(|e| {
+    // IMPLICIT_SOME: an optional field may be written `Some(x)` or just `x`
+    // (so `--set skull.containing=(...)` can create a field the file left out).
+    let options = ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
+    options.from_str::<ScenarioFile>(&document.text).map_err(|e| {
         let offset = tree::offset_of(&document.text, e.span.start.line, e.span.start.col);
         ScenarioError::Parse { location: document.locate(offset), field: document.path_at(offset), message: e.code.to_string() }
     })

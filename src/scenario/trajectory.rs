@@ -40,12 +40,12 @@ pub const UNIT_TOLERANCE: f64 = 1e-4;
 #[derive(Debug, thiserror::Error)]
 pub enum TrajectoryError {
     /// File system error.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {io}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
+        /// The I/O error (shown in the message, so not repeated as a cause).
+        io: std::io::Error,
     },
     /// A malformed or invalid row (line is 1-based).
     #[error("{}:{line}: {problem}", path.display())]
@@ -139,7 +139,7 @@ impl Trajectory {
 
     /// Reads a trajectory file.
     pub fn load(path: &Path) -> Result<Self, TrajectoryError> {
-        let text = std::fs::read_to_string(path).map_err(|source| TrajectoryError::Io { path: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|io| TrajectoryError::Io { path: path.to_path_buf(), io })?;
         Self::parse(&text, path)
     }
 
@@ -235,7 +235,7 @@ impl Trajectory {
 
     /// Writes the trajectory to a file (see [`Trajectory::to_csv`]).
     pub fn save(&self, path: &Path) -> Result<(), TrajectoryError> {
-        std::fs::write(path, self.to_csv()).map_err(|source| TrajectoryError::Io { path: path.to_path_buf(), source })
+        std::fs::write(path, self.to_csv()).map_err(|io| TrajectoryError::Io { path: path.to_path_buf(), io })
     }
 
     /// Number of track slots (highest spatula index with rows + 1).
@@ -335,7 +335,7 @@ pub struct TrajectoryRecorder {
 impl TrajectoryRecorder {
     /// Creates (truncates) the file and writes the comment block and header.
     pub fn create(path: &Path) -> Result<Self, TrajectoryError> {
-        let io = |source| TrajectoryError::Io { path: path.to_path_buf(), source };
+        let io = |io| TrajectoryError::Io { path: path.to_path_buf(), io };
         let mut file = File::create(path).map_err(io)?;
         file.write_all(Trajectory::new().to_csv().as_bytes()).map_err(io)?;
         file.flush().map_err(io)?;
@@ -359,7 +359,7 @@ impl TrajectoryRecorder {
         }
         self.row.clear();
         write_row(&mut self.row, spatula, &sample);
-        let io = |source| TrajectoryError::Io { path: self.path.clone(), source };
+        let io = |io| TrajectoryError::Io { path: self.path.clone(), io };
         self.file.write_all(self.row.as_bytes()).map_err(io)?;
         self.file.flush().map_err(io)?;
         self.last_time[spatula] = time_s;

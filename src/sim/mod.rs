@@ -1,11 +1,16 @@
 //! The simulation loop that the window, the headless replay and the tests all drive.
 //!
-//! In: a validated scenario. Out: a pipeline built from the scene's effects
-//! (a stage not asked for is never constructed), stepped at a fixed time step,
-//! each stage timed, reporting a [`FrameReport`].
+//! In: a validated scenario. Out: a [`Pipeline`] built from the scene's effects
+//! (a stage not asked for is never constructed), stepped at a fixed time step by
+//! [`Pipeline::step`], each stage timed, reporting a [`FrameReport`].
 
+pub mod build;
 pub mod metrics;
 pub mod monitor;
+pub mod pipeline;
+pub mod replay;
 pub mod report;
 
+pub use build::{BuildError, BuildOptions};
+pub use pipeline::{FrameInput, Pipeline, SimState, SkullStage, StepError};
 pub use report::{FrameReport, SpatulaReport, StageId, StageTimes};

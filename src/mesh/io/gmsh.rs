@@ -627,7 +627,7 @@ mod tests {
         assert!(e.to_string().contains("malformed number \"1.2.3\" (y coordinate of node 3)"), "{e}");
         let hex = TWO_TETS.replace("4 4 2 8 2 2 3 5 4", "4 5 2 8 2 2 3 5 4 1 2 3 4");
         let e = parse(Path::new("a.msh"), hex.as_bytes()).expect_err("hexahedron");
-        assert_eq!(e.to_string(), "a.msh:15: unsupported element type 5");
+        assert_eq!(e.to_string(), "a.msh:17: unsupported element type 5");
     }
 
     #[test]

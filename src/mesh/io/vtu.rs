@@ -306,14 +306,20 @@ pub fn parse_with_fields(path: &Path, data: &[u8]) -> Result<(TetMesh, FieldData
             continue;
         }
         let v = decode_array(path, a, &layout)?;
+        let ragged = v.len() % a.components != 0;
         let field = if a.components == 1 {
             Field::Scalar(v)
         } else {
             Field::Vector(v.chunks_exact(3).map(|c| crate::math::Vec3::new(c[0], c[1], c[2])).collect())
         };
+        let expected = if a.section == b"PointData" { mesh.positions.len() } else { mesh.tets.len() };
+        if field.len() != expected || ragged {
+            let of = if a.section == b"PointData" { "nodes" } else { "tetrahedra" };
+            let name = String::from_utf8_lossy(&a.name).into_owned();
+            return Err(MeshFileError::at_line(path, a.line, K::FieldLength { name, expected, found: field.len(), of }));
+        }
         list.push((String::from_utf8_lossy(&a.name).into_owned(), field));
     }
-    fields.check(path, mesh.positions.len(), mesh.tets.len())?;
     Ok((mesh, fields))
 }
 

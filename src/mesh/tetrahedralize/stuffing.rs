@@ -190,6 +190,8 @@ pub(crate) fn edge_root(g: &dyn Fn(f64) -> f64, g0: f64, g1: f64) -> f64 {
 pub(crate) struct Stuffed {
     pub positions: Vec<Vec3>,
     pub tets: Vec<[u32; 4]>,
+    /// Violated vertices made zero in place instead of warped (bound repair).
+    pub snapped: usize,
 }
 
 /// Runs cut points, warping, stencils and compaction on lattice values.
@@ -232,52 +234,57 @@ pub(crate) fn stuff(
         })
         .collect();
 
-    // Warping: a vertex violated by a cut point (closer than alpha * edge) moves
-    // to its closest violating cut point and becomes zero; its cut points go.
     let mut incident: Vec<(u32, u32)> = Vec::with_capacity(cuts.len() * 2);
     for (c, cut) in cuts.iter().enumerate() {
         incident.push((cut.a, c as u32));
         incident.push((cut.b, c as u32));
     }
     incident.sort_unstable();
-    let mut position: Vec<Option<Vec3>> = vec![None; nv]; // warped position
-    let mut warped = vec![false; nv];
-    let mut i = 0;
-    while i < incident.len() {
-        let v = incident[i].0;
-        let mut j = i;
-        let mut best: Option<(f64, u32)> = None;
-        while j < incident.len() && incident[j].0 == v {
-            let c = incident[j].1;
-            let cut = &cuts[c as usize];
-            let other = if cut.a == v { cut.b } else { cut.a };
-            if !warped[other as usize] {
-                let frac = if cut.a == v { cut.t } else { 1.0 - cut.t };
-                let alpha = if cut.black { ALPHA_LONG } else { ALPHA_SHORT };
-                if frac < alpha {
-                    let length = if cut.black { 1.0 } else { 0.75_f64.sqrt() };
-                    let d = frac * length;
-                    if best.is_none_or(|(bd, _)| d < bd) {
-                        best = Some((d, c));
-                    }
-                }
-            }
-            j += 1;
-        }
-        if let Some((_, c)) = best {
-            warped[v as usize] = true;
-            position[v as usize] = Some(cuts[c as usize].position);
-        }
-        i = j;
-    }
-    let state: Vec<i8> = (0..nv).map(|v| if warped[v] { 0 } else { sign[v] }).collect();
     let cut_node = |a: u32, b: u32| -> u32 {
         let key = (a.min(b), a.max(b));
         nv as u32 + cut_of[&key]
     };
 
-    // Stencils.
-    let mut virt: Vec<[u32; 4]> = Vec::new();
+    // Warping and stencils, repeated while a stencil tet breaks the bound: the
+    // warped vertices of such a lattice tet are then "snapped" instead (made
+    // zero where they stand) and everything is redone. Snapped vertices only
+    // accumulate, so this ends; with none snapped it is the paper's algorithm.
+    let mut snapped = vec![false; nv];
+    let mut rounds = 0;
+    let (position, virt) = loop {
+        rounds += 1;
+        let (position, zero) = warp(&cuts, &incident, &snapped, nv);
+        let state: Vec<i8> = (0..nv).map(|v| if zero[v] { 0 } else { sign[v] }).collect();
+        let pos_of = |id: u32| -> Vec3 {
+            if (id as usize) < nv {
+                position[id as usize].unwrap_or_else(|| lattice.position(id))
+            } else {
+                cuts[id as usize - nv].position
+            }
+        };
+        let mut virt: Vec<[u32; 4]> = Vec::new();
+        let mut repaired = false;
+        for t in &bcc {
+            let before = virt.len();
+            fill(lattice, t, &state, &cut_node, &pos_of, &mut virt);
+            let bad = virt[before..].iter().any(|tet| {
+                let (lo, hi) = super::dihedral_range_deg(&tet.map(|v| pos_of(v)));
+                !(lo >= super::MIN_DIHEDRAL_DEG && hi <= super::MAX_DIHEDRAL_DEG)
+            });
+            if bad {
+                for &v in t {
+                    if position[v as usize].is_some() && !snapped[v as usize] {
+                        snapped[v as usize] = true;
+                        repaired = true;
+                    }
+                }
+            }
+        }
+        if !repaired || rounds >= 16 {
+            break (position, virt);
+        }
+    };
+    let snapped_count = snapped.iter().filter(|&&s| s).count();
     let pos_of = |id: u32| -> Vec3 {
         if (id as usize) < nv {
             position[id as usize].unwrap_or_else(|| lattice.position(id))
@@ -285,88 +292,6 @@ pub(crate) fn stuff(
             cuts[id as usize - nv].position
         }
     };
-    for t in &bcc {
-        let before = virt.len();
-        let s = t.map(|v| state[v as usize]);
-        let dbg_s = s; let dbg_t = *t;
-        let ins: Vec<u32> = (0..4).filter(|&k| s[k] < 0).map(|k| t[k]).collect();
-        let outs: Vec<u32> = (0..4).filter(|&k| s[k] > 0).map(|k| t[k]).collect();
-        let zeros: Vec<u32> = (0..4).filter(|&k| s[k] == 0).map(|k| t[k]).collect();
-        match (ins.len(), outs.len()) {
-            // No inside vertex (all four on the surface included: such a tet is
-            // flattened onto the surface and is not part of the stencils).
-            (0, _) => {}
-            (_, 0) => virt.push(*t),
-            (1, _) => {
-                let a = ins[0];
-                let mut tet = [a, 0, 0, 0];
-                let mut k = 1;
-                for &z in &zeros {
-                    tet[k] = z;
-                    k += 1;
-                }
-                for &o in &outs {
-                    tet[k] = cut_node(a, o);
-                    k += 1;
-                }
-                virt.push(tet);
-            }
-            (2, 1) => {
-                // Pyramid: apex the zero vertex, base quad (a, b, c(b,o), c(a,o)).
-                let (a, b, o, z) = (ins[0], ins[1], outs[0], zeros[0]);
-                let (ca, cb) = (cut_node(a, o), cut_node(b, o));
-                if diagonal_from_first(lattice, a, b, o) {
-                    virt.push([z, a, b, cb]);
-                    virt.push([z, a, cb, ca]);
-                } else {
-                    virt.push([z, a, b, ca]);
-                    virt.push([z, b, cb, ca]);
-                }
-            }
-            (2, 2) => {
-                // Prism: columns a->b, c(a,o1)->c(b,o1), c(a,o2)->c(b,o2).
-                let (a, b, o1, o2) = (ins[0], ins[1], outs[0], outs[1]);
-                let bottom = [a, cut_node(a, o1), cut_node(a, o2)];
-                let top = [b, cut_node(b, o1), cut_node(b, o2)];
-                // diag[q] for quad (column q, column q+1): true = bottom_q - top_{q+1}.
-                let d01 = diagonal_from_first(lattice, a, b, o1);
-                let d20 = !diagonal_from_first(lattice, a, b, o2);
-                // Quad (1,2) lies on the surface: free; avoid a cycle, else shorter.
-                let free = {
-                    let cyc_true = d01 && d20; // all "bottom_q - top_{q+1}" = cycle
-                    let cyc_false = !d01 && !d20;
-                    if cyc_true {
-                        false
-                    } else if cyc_false {
-                        true
-                    } else {
-                        let l_true = (pos_of(bottom[1]) - pos_of(top[2])).norm();
-                        let l_false = (pos_of(bottom[2]) - pos_of(top[1])).norm();
-                        l_true <= l_false
-                    }
-                };
-                prism(&bottom, &top, [d01, free, d20], &mut virt);
-            }
-            (3, 1) => {
-                let o = outs[0];
-                let bottom = [ins[0], ins[1], ins[2]];
-                let top = bottom.map(|v| cut_node(v, o));
-                let d = [0, 1, 2].map(|q| diagonal_from_first(lattice, bottom[q], bottom[(q + 1) % 3], o));
-                prism(&bottom, &top, d, &mut virt);
-            }
-            _ => unreachable!("sign counts of a tet sum to four"),
-        }
-        for q in before..virt.len() {
-            let p = virt[q].map(|v| pos_of(v));
-            let (lo, hi) = super::dihedral_range_deg(&p);
-            if lo < 10.7 || hi > 164.8 {
-                let w: Vec<bool> = dbg_t.iter().map(|&v| warped[v as usize]).collect();
-                let blacks: Vec<bool> = [(0,1),(0,2),(0,3),(1,2),(1,3),(2,3)].iter().map(|&(i,j)| lattice.is_black(dbg_t[i], dbg_t[j])).collect();
-                eprintln!("BAD {lo:.2}..{hi:.2} signs {dbg_s:?} warped {w:?} black {blacks:?} tet {:?} virt {:?}", dbg_t, virt[q]);
-                for &v in &dbg_t { eprintln!("  v {v} coord {:?} val {} pos {:?}", lattice.coord(v), values[v as usize], pos_of(v)); }
-            }
-        }
-    }
 
     // Compaction: used lattice vertices ascending, then used cuts ascending.
     let total = nv + cuts.len();
@@ -394,7 +319,127 @@ pub(crate) fn stuff(
             m
         })
         .collect();
-    Stuffed { positions, tets }
+    Stuffed { positions, tets, snapped: snapped_count }
+}
+
+/// Warping: a vertex violated by a cut point (closer than alpha times the edge)
+/// moves to its closest violating cut point and becomes zero; the cut points on
+/// its edges are dropped. Vertices in lattice order. A `snapped` vertex that is
+/// violated becomes zero where it stands. Returns (moved position, zero flag).
+fn warp(cuts: &[Cut], incident: &[(u32, u32)], snapped: &[bool], nv: usize) -> (Vec<Option<Vec3>>, Vec<bool>) {
+    let mut position: Vec<Option<Vec3>> = vec![None; nv];
+    let mut zero = vec![false; nv];
+    let mut i = 0;
+    while i < incident.len() {
+        let v = incident[i].0;
+        let mut j = i;
+        let mut best: Option<(f64, u32)> = None;
+        while j < incident.len() && incident[j].0 == v {
+            let c = incident[j].1;
+            let cut = &cuts[c as usize];
+            let other = if cut.a == v { cut.b } else { cut.a };
+            if !zero[other as usize] {
+                let frac = if cut.a == v { cut.t } else { 1.0 - cut.t };
+                let alpha = if cut.black { ALPHA_LONG } else { ALPHA_SHORT };
+                if frac < alpha {
+                    let length = if cut.black { 1.0 } else { 0.75_f64.sqrt() };
+                    let d = frac * length;
+                    if best.is_none_or(|(bd, _)| d < bd) {
+                        best = Some((d, c));
+                    }
+                }
+            }
+            j += 1;
+        }
+        if let Some((_, c)) = best {
+            zero[v as usize] = true;
+            if !snapped[v as usize] {
+                position[v as usize] = Some(cuts[c as usize].position);
+            }
+        }
+        i = j;
+    }
+    (position, zero)
+}
+
+/// The stencils: the part of lattice tet `t` inside the surface, by the signs
+/// of its vertices after warping (-1 inside, 0 on, +1 outside).
+fn fill(
+    lattice: &Lattice,
+    t: &[u32; 4],
+    state: &[i8],
+    cut_node: &dyn Fn(u32, u32) -> u32,
+    pos_of: &dyn Fn(u32) -> Vec3,
+    out: &mut Vec<[u32; 4]>,
+) {
+    let s = t.map(|v| state[v as usize]);
+    let ins: Vec<u32> = (0..4).filter(|&k| s[k] < 0).map(|k| t[k]).collect();
+    let outs: Vec<u32> = (0..4).filter(|&k| s[k] > 0).map(|k| t[k]).collect();
+    let zeros: Vec<u32> = (0..4).filter(|&k| s[k] == 0).map(|k| t[k]).collect();
+    match (ins.len(), outs.len()) {
+        // No inside vertex (all four on the surface included: such a tet is
+        // flattened onto the surface and is not part of the stencils).
+        (0, _) => {}
+        (_, 0) => out.push(*t),
+        (1, _) => {
+            let a = ins[0];
+            let mut tet = [a, 0, 0, 0];
+            let mut k = 1;
+            for &z in &zeros {
+                tet[k] = z;
+                k += 1;
+            }
+            for &o in &outs {
+                tet[k] = cut_node(a, o);
+                k += 1;
+            }
+            out.push(tet);
+        }
+        (2, 1) => {
+            // Pyramid: apex the zero vertex, base quad (a, b, c(b,o), c(a,o)).
+            let (a, b, o, z) = (ins[0], ins[1], outs[0], zeros[0]);
+            let (ca, cb) = (cut_node(a, o), cut_node(b, o));
+            if diagonal_from_first(lattice, a, b, o) {
+                out.push([z, a, b, cb]);
+                out.push([z, a, cb, ca]);
+            } else {
+                out.push([z, a, b, ca]);
+                out.push([z, b, cb, ca]);
+            }
+        }
+        (2, 2) => {
+            // Prism: columns a->b, c(a,o1)->c(b,o1), c(a,o2)->c(b,o2).
+            let (a, b, o1, o2) = (ins[0], ins[1], outs[0], outs[1]);
+            let bottom = [a, cut_node(a, o1), cut_node(a, o2)];
+            let top = [b, cut_node(b, o1), cut_node(b, o2)];
+            // diag[q] for quad (column q, column q+1): true = bottom_q - top_{q+1}.
+            let d01 = diagonal_from_first(lattice, a, b, o1);
+            let d20 = !diagonal_from_first(lattice, a, b, o2);
+            // Quad (1,2) lies on the surface: free; avoid a cycle, else shorter.
+            let free = {
+                let cyc_true = d01 && d20; // all "bottom_q - top_{q+1}" = cycle
+                let cyc_false = !d01 && !d20;
+                if cyc_true {
+                    false
+                } else if cyc_false {
+                    true
+                } else {
+                    let l_true = (pos_of(bottom[1]) - pos_of(top[2])).norm();
+                    let l_false = (pos_of(bottom[2]) - pos_of(top[1])).norm();
+                    l_true <= l_false
+                }
+            };
+            prism(&bottom, &top, [d01, free, d20], out);
+        }
+        (3, 1) => {
+            let o = outs[0];
+            let bottom = [ins[0], ins[1], ins[2]];
+            let top = bottom.map(|v| cut_node(v, o));
+            let d = [0, 1, 2].map(|q| diagonal_from_first(lattice, bottom[q], bottom[(q + 1) % 3], o));
+            prism(&bottom, &top, d, out);
+        }
+        _ => unreachable!("sign counts of a tet sum to four"),
+    }
 }
 
 /// The six edges of a tet by local index.

@@ -1,0 +1,140 @@
+//! The fast path (precomputed compliance + Schur complement) against a direct
+//! re-factorization with the constrained DOFs eliminated.
+
+#[path = "fem_common/mod.rs"]
+mod common;
+
+use common::*;
+use fissure::fem::reference::solve_direct;
+use fissure::fem::{
+    BodyForce, Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution,
+};
+use fissure::math::Vec3;
+use fissure::mesh::TetMesh;
+
+/// Enforced displacements on the top-face nodes within a disc: a push down and sideways.
+fn top_constraints(mesh: &TetMesh, center: (f64, f64), radius: f64, owner: u16, d: Vec3) -> Vec<Constraint> {
+    mesh.positions
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| (p.z - 0.03).abs() < 1e-12 && ((p.x - center.0).powi(2) + (p.y - center.1).powi(2)).sqrt() <= radius)
+        .map(|(n, p)| Constraint { node: n as u32, owner, kind: ConstraintKind::Enforced { displacement: d + Vec3::new(0.0, 0.0, -0.05 * p.x) } })
+        .collect()
+}
+
+/// Direct reference: fixed nodes and every enforced node prescribed.
+fn reference(mesh: &TetMesh, model: &FemModel, fixed: &[bool], constraints: &[Constraint], forces: &[Vec3]) -> (Vec<Vec3>, Vec<Vec3>) {
+    let mut prescribed = Vec::new();
+    for (n, &f) in fixed.iter().enumerate() {
+        if f {
+            for c in 0..3 {
+                prescribed.push((3 * n, 0.0));
+                prescribed.last_mut().unwrap().0 += c;
+            }
+        }
+    }
+    let first = prescribed.len();
+    for c in constraints {
+        if let ConstraintKind::Enforced { displacement } = c.kind {
+            for k in 0..3 {
+                prescribed.push((3 * c.node as usize + k, displacement[k]));
+            }
+        }
+    }
+    let sol = solve_direct(mesh, model.lame(), &prescribed, forces).expect("reference solve");
+    let reactions =
+        (0..constraints.len()).map(|i| Vec3::new(sol.reactions[first + 3 * i], sol.reactions[first + 3 * i + 1], sol.reactions[first + 3 * i + 2])).collect();
+    (sol.displacement, reactions)
+}
+
+fn surface_of(model: &FemModel, nodal: &[Vec3]) -> Vec<Vec3> {
+    model.surface().vertices.iter().map(|&n| nodal[n as usize]).collect()
+}
+
+fn run(storage: ComplianceStorage, roi_fraction: f64, gravity: bool) -> (f64, f64, FrameSolution) {
+    let mesh = block(6, 4, 4);
+    let fixed = bottom_fixed(&mesh);
+    let options = FemOptions { gravity: gravity.then_some(BodyForce { density: 1040.0, acceleration: Vec3::new(0.0, 0.0, -9.81) }) };
+    let model = FemModel::new(&mesh, &uniform(BRAIN), &fixed, &options).expect("model");
+    // ROI: surface nodes with x below a fraction of the length (the rest gets lazy columns)
+    let roi: Vec<u32> = model.surface().vertices.iter().copied().filter(|&n| mesh.positions[n as usize].x <= 0.06 * roi_fraction + 1e-12).collect();
+    let compliance = Compliance::compute(&model, &roi, storage, None, &mut |_, _| {}).expect("compliance");
+    let mut solver = ConstrainedSolver::new(model, compliance).expect("solver");
+    let mut constraints = top_constraints(&mesh, (0.02, 0.02), 0.012, 0, Vec3::new(0.001, 0.0, -0.002));
+    constraints.extend(top_constraints(&mesh, (0.045, 0.02), 0.011, 1, Vec3::new(-0.001, 0.0005, -0.001)));
+    let mut out = FrameSolution::default();
+    solver.step(&constraints, &mut out).expect("step");
+    let forces: Vec<Vec3> = if gravity {
+        let mut f = vec![Vec3::zeros(); mesh.node_count()];
+        for t in &mesh.tets {
+            let w = Vec3::new(0.0, 0.0, -9.81) * (1040.0 * mesh.tet_volume(t) / 4.0);
+            for &n in t {
+                f[n as usize] += w;
+            }
+        }
+        f
+    } else {
+        vec![]
+    };
+    let (u_ref, r_ref) = reference(&mesh, solver.model(), &fixed, &constraints, &forces);
+    let e_u = rel_error(&out.displacement_surface, &surface_of(solver.model(), &u_ref));
+    let e_r = rel_error(&out.reactions, &r_ref);
+    // interior displacements agree too
+    let mut all = Vec::new();
+    solver.interior_displacements(&mut all).expect("interior");
+    let e_i = rel_error(&all, &u_ref);
+    assert!(e_i < 1e-6, "interior displacements differ from the direct solve: {e_i:e}");
+    (e_u, e_r, out)
+}
+
+#[test]
+fn f64_fast_path_matches_direct_refactorization() {
+    let (e_u, e_r, out) = run(ComplianceStorage::F64, 1.0, false);
+    println!("f64 full-surface ROI: displacement rel. error {e_u:e}, reaction rel. error {e_r:e}, cond(W) >= {:e}", out.conditioning);
+    assert!(e_u < 1e-8, "surface displacement relative error {e_u:e} exceeds 1e-8");
+    assert!(e_r < 1e-8, "reaction relative error {e_r:e} exceeds 1e-8");
+    assert_eq!(out.lazy_solves, 0, "every constrained node is in the ROI");
+    assert_eq!(out.owner_forces.len(), 2, "two spatulas, two force sums");
+    let total: Vec3 = out.reactions.iter().sum();
+    let by_owner: Vec3 = out.owner_forces.iter().map(|x| x.1).sum();
+    assert!((total - by_owner).norm() < 1e-12 * total.norm(), "owner sums must add to the total");
+}
+
+#[test]
+fn nodes_outside_the_roi_are_still_exact() {
+    let (e_u, e_r, out) = run(ComplianceStorage::F64, 0.5, false);
+    println!("f64 half ROI: displacement rel. error {e_u:e}, reaction {e_r:e}, lazy solves {}", out.lazy_solves);
+    assert!(out.lazy_solves > 0, "the second spatula lies outside the ROI: its columns must be solved lazily");
+    assert!(e_u < 1e-8 && e_r < 1e-8, "lazy columns must keep the solve exact: {e_u:e}, {e_r:e}");
+}
+
+#[test]
+fn f32_storage_error_is_stated_and_small() {
+    let (e_u, e_r, _) = run(ComplianceStorage::F32, 1.0, false);
+    println!("f32 storage: displacement rel. error {e_u:e}, reaction rel. error {e_r:e}");
+    assert!(e_u < 1e-5 && e_r < 1e-5, "f32 compliance errors {e_u:e} / {e_r:e} must stay under 1e-5");
+    assert!(e_u > 1e-12, "f32 storage cannot be exact to f64 round-off; got {e_u:e} (is the f32 path used?)");
+}
+
+#[test]
+fn gravity_is_included_exactly() {
+    let (e_u, e_r, _) = run(ComplianceStorage::F64, 1.0, true);
+    assert!(e_u < 1e-8 && e_r < 1e-8, "with gravity: {e_u:e}, {e_r:e}");
+}
+
+#[test]
+fn repeated_steps_are_bitwise_deterministic() {
+    let mesh = block(4, 3, 3);
+    let fixed = bottom_fixed(&mesh);
+    let model = FemModel::new(&mesh, &uniform(BRAIN), &fixed, &FemOptions::default()).unwrap();
+    let roi = model.surface().vertices.clone();
+    let c = Compliance::compute(&model, &roi, ComplianceStorage::F64, None, &mut |_, _| {}).unwrap();
+    let mut solver = ConstrainedSolver::new(model, c).unwrap();
+    let cons = top_constraints(&mesh, (0.03, 0.02), 0.02, 0, Vec3::new(0.0, 0.0, -0.003));
+    let (mut a, mut b) = (FrameSolution::default(), FrameSolution::default());
+    solver.step(&cons, &mut a).unwrap();
+    solver.step(&[], &mut b).unwrap();
+    assert!(b.max_displacement == 0.0, "no constraints and no gravity: rest state");
+    solver.step(&cons, &mut b).unwrap();
+    assert_eq!(a, b, "the same constraints must give bitwise the same solution");
+}

@@ -1,0 +1,283 @@
+//! Scenario files: the shipped configs validate, every bad input gives one
+//! error naming the file (or `--set` argument), line, column and field, and
+//! `--set` overrides are applied and validated like the file.
+
+use std::path::{Path, PathBuf};
+
+use fissure::geometry::NodeLayout;
+use fissure::math::Vec3;
+use fissure::scenario::{
+    CollisionBackend, Effect, FixedRegion, InputBinding, MeshSource, Origin, Scenario, ScenarioError,
+};
+
+fn config_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("config")
+}
+
+fn sylvian_text() -> String {
+    std::fs::read_to_string(config_dir().join("sylvian.ron")).expect("config/sylvian.ron is shipped")
+}
+
+/// 1-based line and column of the first occurrence of `needle` in `text`.
+fn position_of(text: &str, needle: &str) -> (usize, usize) {
+    let at = text.find(needle).unwrap_or_else(|| panic!("`{needle}` not in the text"));
+    let before = &text[..at];
+    let line = before.matches('\n').count() + 1;
+    let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+    (line, col)
+}
+
+/// Writes `text` as a scenario file and loads it.
+fn load_text(text: &str) -> (tempfile::TempDir, PathBuf, Result<Scenario, ScenarioError>) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("scene.ron");
+    std::fs::write(&path, text).expect("write scenario");
+    let result = Scenario::load(&path, &[]);
+    (dir, path, result)
+}
+
+/// Replaces `from` by `to` in the Sylvian scene, loads it, and checks the error
+/// names the file, the line and column of `to`, the field, and the problem.
+fn assert_bad(from: &str, to: &str, field: &str, problem: &str) {
+    let text = sylvian_text();
+    assert!(text.contains(from), "the Sylvian scene must contain `{from}`");
+    let text = text.replacen(from, to, 1);
+    let (_dir, path, result) = load_text(&text);
+    let err = result.expect_err(&format!("`{to}` must be rejected"));
+    let message = err.to_string();
+    let location = err.location().unwrap_or_else(|| panic!("`{to}`: the error must carry a location: {message}"));
+    assert_eq!(location.origin, Origin::File(path.clone()), "`{to}`: error must name the file: {message}");
+    let (line, _) = position_of(&text, to);
+    assert_eq!(location.line, line, "`{to}`: error must name line {line}: {message}");
+    assert!(message.contains(&format!("{}:{line}:", path.display())), "message must show file:line:column: {message}");
+    assert_eq!(err.field(), Some(field), "`{to}`: field path in {message}");
+    assert!(message.contains(problem), "`{to}`: message `{message}` should say `{problem}`");
+}
+
+#[test]
+fn every_shipped_config_validates() {
+    let mut count = 0;
+    let mut entries: Vec<_> = std::fs::read_dir(config_dir()).expect("config/").map(|e| e.expect("entry").path()).collect();
+    entries.sort();
+    for path in entries.iter().filter(|p| p.extension().is_some_and(|e| e == "ron")) {
+        let scenario = Scenario::load(path, &[]).unwrap_or_else(|e| panic!("{} must validate: {e}", path.display()));
+        assert!(!scenario.spatulas.is_empty(), "{}: at least one spatula", path.display());
+        count += 1;
+    }
+    for name in ["sylvian.ron", "interhemispheric.ron", "v_valley.ron", "u_shape.ron"] {
+        assert!(entries.iter().any(|p| p.ends_with(name)), "config/{name} must be shipped");
+    }
+    assert!(count >= 4);
+}
+
+#[test]
+fn sylvian_scene_is_converted_to_si() {
+    let s = Scenario::load(&config_dir().join("sylvian.ron"), &[]).expect("valid");
+    assert_eq!(s.mesh, MeshSource::Phantom { preset: "paper-12k".into() });
+    assert_eq!(s.spatulas.len(), 2, "two spatulas open the Sylvian fissure");
+    assert!(s.effects.contains(Effect::SkullSpheres) && s.skull.is_some(), "the default scene has skull spheres");
+    assert!(!s.effects.contains(Effect::Gravity), "effects not listed are not in the set");
+    let sp = &s.spatulas[0];
+    assert!((sp.shape.thickness - 1.0e-3).abs() < 1e-15, "thickness 1 mm -> 1e-3 m, got {}", sp.shape.thickness);
+    assert_eq!(sp.layout, NodeLayout::Grid { along: 15, across: 10 });
+    assert!((sp.initial_pose.position - Vec3::new(-0.110, 0.010, 0.002)).norm() < 1e-15, "position in metres");
+    // LookAt(direction: +x, up: +z) is the identity: blade along +x, face normal +z.
+    let x = sp.initial_pose.transform_vector(&Vec3::x());
+    let z = sp.initial_pose.transform_vector(&Vec3::z());
+    assert!((x - Vec3::x()).norm() < 1e-12 && (z - Vec3::z()).norm() < 1e-12, "LookAt axes: x {x:?}, z {z:?}");
+    assert!((s.material.young_modulus - 3000.0).abs() < 1e-12 && (s.material.poisson_ratio - 0.45).abs() < 1e-15);
+    assert!(matches!(s.fixed[0], FixedRegion::Sphere(sp) if (sp.radius - 0.020).abs() < 1e-15), "fixed sphere radius in m");
+    assert_eq!(s.collision_backend, CollisionBackend::Bvh);
+    assert_eq!(s.step_count(), 500, "5 s at 10 ms");
+}
+
+#[test]
+fn look_at_builds_a_right_handed_frame() {
+    let text = sylvian_text().replacen(
+        "rotation: LookAt(direction: (1.0, 0.0, 0.0), up: (0.0, 0.0, 1.0))",
+        "rotation: LookAt(direction: (0.0, 0.0, -2.0), up: (1.0, 0.0, 0.3))",
+        1,
+    );
+    let (_d, _p, r) = load_text(&text);
+    let s = r.expect("valid LookAt");
+    let pose = s.spatulas[0].initial_pose;
+    let x = pose.transform_vector(&Vec3::x());
+    let y = pose.transform_vector(&Vec3::y());
+    let z = pose.transform_vector(&Vec3::z());
+    assert!((x - Vec3::new(0.0, 0.0, -1.0)).norm() < 1e-12, "blade along the direction: {x:?}");
+    assert!((z - Vec3::new(1.0, 0.0, 0.0)).norm() < 1e-12, "normal = up without its part along x: {z:?}");
+    assert!((x.cross(&y) - z).norm() < 1e-12, "right-handed");
+}
+
+#[test]
+fn misspelt_field_names_the_field_and_the_valid_keys() {
+    assert_bad("thickness_mm: 1.0)", "thicknes_mm: 1.0)", "spatulas[0].shape.thicknes_mm", "expected one of `length_mm`, `width_mm`, or `thickness_mm`");
+}
+
+#[test]
+fn wrong_type_names_the_field() {
+    assert_bad("young_modulus_pa: 3000.0", "young_modulus_pa: \"soft\"", "material.young_modulus_pa", "Expected float");
+}
+
+#[test]
+fn poisson_ratio_at_one_half_is_rejected() {
+    assert_bad("poisson_ratio: 0.45", "poisson_ratio: 0.5", "material.poisson_ratio", "poisson_ratio must be in (-1, 0.5), got 0.5");
+}
+
+#[test]
+fn non_positive_young_modulus_is_rejected() {
+    assert_bad("young_modulus_pa: 3000.0", "young_modulus_pa: 0.0", "material.young_modulus_pa", "must be > 0, got 0");
+    assert_bad("young_modulus_pa: 3000.0", "young_modulus_pa: -5.0", "material.young_modulus_pa", "must be > 0, got -5");
+}
+
+#[test]
+fn negative_radius_is_rejected() {
+    assert_bad("radius_mm: 95.0", "radius_mm: -95.0", "skull.containing.radius_mm", "must be > 0, got -95");
+    assert_bad("radius_mm: 20.0", "radius_mm: -1.0", "fixed[0].radius_mm", "must be > 0, got -1");
+}
+
+#[test]
+fn negative_thickness_is_rejected() {
+    assert_bad("thickness_mm: 1.0)", "thickness_mm: -0.5)", "spatulas[0].shape.thickness_mm", "must be > 0");
+}
+
+#[test]
+fn unknown_preset_lists_the_presets() {
+    assert_bad("preset: \"paper-12k\"", "preset: \"paper-13k\"", "mesh.preset", "expected one of \"small\", \"paper-9k\"");
+}
+
+#[test]
+fn skull_spheres_without_skull_is_rejected() {
+    let text = sylvian_text();
+    let start = text.find("    skull: Some((").expect("skull block");
+    let end = start + text[start..].find("    )),\n").expect("end of skull block") + "    )),\n".len();
+    let text = format!("{}{}", &text[..start], &text[end..]);
+    let (_d, path, r) = load_text(&text);
+    let err = r.expect_err("SkullSpheres without skull");
+    let msg = err.to_string();
+    let (line, _) = position_of(&text, "effects:");
+    assert_eq!(err.location().map(|l| l.line), Some(line), "points at the effects line: {msg}");
+    assert_eq!(err.field(), Some("effects[2]"), "{msg}");
+    assert!(msg.contains("SkullSpheres needs") && msg.contains(&path.display().to_string()), "{msg}");
+}
+
+#[test]
+fn missing_mesh_file_names_the_resolved_path() {
+    assert_bad(
+        "mesh: Phantom(preset: \"paper-12k\")",
+        "mesh: File(path: \"no-such-brain.msh\", units: Millimetres)",
+        "mesh.path",
+        "no-such-brain.msh",
+    );
+}
+
+#[test]
+fn missing_scenario_file_names_it() {
+    let path = Path::new("/nonexistent/fissure/scene.ron");
+    let err = Scenario::load(path, &[]).expect_err("missing file");
+    assert!(matches!(err, ScenarioError::Read { .. }), "{err:?}");
+    assert!(err.to_string().contains("/nonexistent/fissure/scene.ron"), "{err}");
+}
+
+#[test]
+fn syntax_error_names_line_and_column() {
+    let text = sylvian_text().replacen("duration_s: 5.0,", "duration_s: 5.0 oops,", 1);
+    let (_d, path, r) = load_text(&text);
+    let err = r.expect_err("syntax error");
+    let (line, _) = position_of(&text, "oops");
+    let loc = err.location().expect("location");
+    assert_eq!((loc.origin.clone(), loc.line), (Origin::File(path), line), "{err}");
+}
+
+#[test]
+fn mesh_file_resolves_against_the_scenario_folder() {
+    let dir = tempfile::tempdir().expect("tmp");
+    std::fs::create_dir(dir.path().join("meshes")).expect("mkdir");
+    std::fs::write(dir.path().join("meshes/b.msh"), "not checked here").expect("write");
+    let text = sylvian_text().replacen(
+        "mesh: Phantom(preset: \"paper-12k\")",
+        "mesh: File(path: \"meshes/b.msh\", units: Millimetres)",
+        1,
+    );
+    let path = dir.path().join("scene.ron");
+    std::fs::write(&path, text).expect("write");
+    let s = Scenario::load(&path, &[]).expect("valid");
+    assert_eq!(s.mesh, MeshSource::File { path: dir.path().join("meshes/b.msh"), units: fissure::scenario::LengthUnit::Millimetres });
+}
+
+#[test]
+fn overrides_change_values() {
+    let path = config_dir().join("sylvian.ron");
+    let sets = [
+        "collision.backend=Gpu".to_string(),
+        "material.poisson_ratio=0.49".to_string(),
+        "spatulas[0].layout=Grid(along: 20, across: 4)".to_string(),
+        "spatulas[1].pose.position_mm[2] = -7.5".to_string(),
+        "effects=[Collision, Gravity]".to_string(),
+        "density_kg_m3=1000".to_string(),
+    ];
+    let s = Scenario::load(&path, &sets).expect("overrides are valid");
+    assert_eq!(s.collision_backend, CollisionBackend::Gpu);
+    assert_eq!(s.material.poisson_ratio, 0.49);
+    assert_eq!(s.spatulas[0].layout, NodeLayout::Grid { along: 20, across: 4 });
+    assert!((s.spatulas[1].initial_pose.position.z + 0.0075).abs() < 1e-15);
+    assert!(s.effects.contains(Effect::Gravity) && !s.effects.contains(Effect::SkullSpheres));
+    assert_eq!(s.density, 1000.0, "an optional field absent from the file is inserted");
+}
+
+#[test]
+fn overrides_are_validated_like_the_file() {
+    let path = config_dir().join("sylvian.ron");
+    let arg = "material.poisson_ratio=0.5".to_string();
+    let err = Scenario::load(&path, std::slice::from_ref(&arg)).expect_err("nu = 0.5");
+    let loc = err.location().expect("location");
+    assert_eq!(loc.origin, Origin::Override(arg.clone()), "the error names the --set argument: {err}");
+    assert_eq!(loc.column, 24, "column of the value inside the argument: {err}");
+    assert_eq!(err.field(), Some("material.poisson_ratio"));
+
+    let arg = "spatulas[0].shape.thickness_mm=thick".to_string();
+    let err = Scenario::load(&path, &[arg]).expect_err("wrong type");
+    assert!(err.to_string().contains("--set spatulas[0].shape.thickness_mm=thick"), "{err}");
+}
+
+#[test]
+fn unknown_override_path_lists_the_valid_keys() {
+    let path = config_dir().join("sylvian.ron");
+    let err = Scenario::load(&path, &["colision.backend=Gpu".to_string()]).expect_err("typo");
+    let msg = err.to_string();
+    assert!(msg.contains("colision.backend=Gpu") && msg.contains("`colision`"), "{msg}");
+    assert!(msg.contains("`collision`") && msg.contains("`spatulas`"), "the keys valid at the top level: {msg}");
+
+    let err = Scenario::load(&path, &["collision.backnd=Gpu".to_string()]).expect_err("typo");
+    assert!(err.to_string().contains("expected `backend`"), "{err}");
+
+    let err = Scenario::load(&path, &["spatulas[5].name=x".to_string()]).expect_err("index");
+    assert!(matches!(err, ScenarioError::Override { .. }) && err.to_string().contains("has 2 element"), "{err}");
+}
+
+#[test]
+fn trajectory_input_needs_a_trajectory_with_that_track() {
+    let dir = tempfile::tempdir().expect("tmp");
+    std::fs::write(
+        dir.path().join("t.csv"),
+        "# test\ntime_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,0,0,1,0,0,0\n1,0,10,0,0,1,0,0,0\n",
+    )
+    .expect("write");
+    let base = sylvian_text().replacen("input: Keyboard", "input: Trajectory", 1);
+    let path = dir.path().join("scene.ron");
+    std::fs::write(&path, &base).expect("write");
+    let err = Scenario::load(&path, &[]).expect_err("no trajectory given");
+    assert_eq!(err.field(), Some("spatulas[0].input"), "{err}");
+
+    let s = Scenario::load(&path, &["trajectory=\"t.csv\"".to_string()]).expect("valid with trajectory");
+    assert_eq!(s.spatulas[0].input, InputBinding::Trajectory);
+    assert_eq!(s.trajectory.as_deref(), Some(dir.path().join("t.csv").as_path()));
+
+    let err = Scenario::load(&path, &["trajectory=\"t.csv\"".to_string(), "spatulas[1].input=Trajectory".to_string()])
+        .expect_err("track 1 missing");
+    assert!(err.to_string().contains("no rows for spatula 1"), "{err}");
+
+    std::fs::write(dir.path().join("bad.csv"), "time_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,0,0,2,0,0,0\n").expect("write");
+    let err = Scenario::load(&path, &["trajectory=\"bad.csv\"".to_string()]).expect_err("bad trajectory");
+    assert!(err.to_string().contains("bad.csv:2:") && err.to_string().contains("unit"), "names the trajectory line: {err}");
+}

@@ -1,0 +1,79 @@
+//! Property tests: random and truncated bytes fed to the scenario parser, the
+//! `--set` machinery and the trajectory parser give errors, never panics.
+
+use std::path::Path;
+
+use fissure::scenario::{Scenario, Trajectory};
+use proptest::prelude::*;
+
+const SYLVIAN: &str = include_str!("../config/sylvian.ron");
+
+const TRAJECTORY: &str = "# t\ntime_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0.0,0,1.5,-2.0,3.0,1.0,0.0,0.0,0.0\n\
+0.5,1,1.5,-2.0,3.0,0.7071067811865476,0.7071067811865476,0.0,0.0\n1.0,0,4.0,2.0,-1.0,0.0,0.0,1.0,0.0\n";
+
+fn origin() -> &'static Path {
+    Path::new("/nonexistent/prop.ron")
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    #[test]
+    fn random_bytes_never_panic_the_scenario_parser(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+        let text = String::from_utf8_lossy(&bytes);
+        let _ = Scenario::from_str(&text, origin(), &[]);
+    }
+
+    #[test]
+    fn truncated_scenarios_never_panic(cut in 0usize..SYLVIAN.len()) {
+        let mut cut = cut;
+        while !SYLVIAN.is_char_boundary(cut) { cut -= 1; }
+        let result = Scenario::from_str(&SYLVIAN[..cut], origin(), &[]);
+        prop_assert!(result.is_err(), "a truncated scenario ({cut} bytes) must not validate");
+    }
+
+    #[test]
+    fn corrupted_scenarios_never_panic(at in 0usize..SYLVIAN.len(), byte in any::<u8>()) {
+        let mut bytes = SYLVIAN.as_bytes().to_vec();
+        bytes[at] = byte;
+        let text = String::from_utf8_lossy(&bytes);
+        let _ = Scenario::from_str(&text, origin(), &[]);
+    }
+
+    #[test]
+    fn random_overrides_never_panic(path in "[a-z_\\[\\]0-9.]{0,24}", value in "[ -~]{0,24}") {
+        let arg = format!("{path}={value}");
+        let _ = Scenario::from_str(SYLVIAN, origin(), &[arg]);
+    }
+
+    #[test]
+    fn random_bytes_never_panic_the_trajectory_parser(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+        let text = String::from_utf8_lossy(&bytes);
+        let _ = Trajectory::parse(&text, Path::new("prop.csv"));
+    }
+
+    #[test]
+    fn truncated_or_corrupted_trajectories_never_panic(cut in 0usize..TRAJECTORY.len(), at in 0usize..TRAJECTORY.len(), byte in any::<u8>()) {
+        let _ = Trajectory::parse(&TRAJECTORY[..cut], Path::new("prop.csv"));
+        let mut bytes = TRAJECTORY.as_bytes().to_vec();
+        bytes[at] = byte;
+        if let Ok(t) = Trajectory::parse(&String::from_utf8_lossy(&bytes), Path::new("prop.csv")) {
+            for k in 0..t.spatula_count() {
+                for time in [-1.0, 0.0, 0.25, 0.75, 2.0] {
+                    if let Some(p) = t.sample(k, time) {
+                        prop_assert!(p.is_valid(), "a parsed trajectory samples valid poses");
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_untouched_inputs_are_valid() {
+    // The properties above mutate these; the originals must parse, or the
+    // truncation property would pass for the wrong reason.
+    Scenario::from_str(SYLVIAN, &Path::new(env!("CARGO_MANIFEST_DIR")).join("config/sylvian.ron"), &[]).expect("sylvian.ron");
+    let t = Trajectory::parse(TRAJECTORY, Path::new("prop.csv")).expect("trajectory");
+    assert_eq!(t.spatula_count(), 2);
+}
