@@ -63,8 +63,6 @@ struct Counts {
     nodes: usize,
     tets: usize,
     surface: usize,
-    min_deg: f64,
-    max_deg: f64,
 }
 
 fn check(preset: Preset) -> Counts {
@@ -95,7 +93,7 @@ fn check(preset: Preset) -> Counts {
     }
     assert!(lo >= MIN_DIHEDRAL_DEG, "{preset}: min dihedral {lo} below the stated bound {MIN_DIHEDRAL_DEG}");
     assert!(hi <= MAX_DIHEDRAL_DEG, "{preset}: max dihedral {hi} above the stated bound {MAX_DIHEDRAL_DEG}");
-    let c = Counts { nodes: m.node_count(), tets: m.tets.len(), surface: s.triangles.len(), min_deg: lo, max_deg: hi };
+    let c = Counts { nodes: m.node_count(), tets: m.tets.len(), surface: s.triangles.len() };
     println!(
         "{preset}: {} nodes, {} tets, {} surface triangles, dihedral {:.2}..{:.2} deg, volume {:.1} cm^3",
         c.nodes, c.tets, c.surface, lo, hi, tet_volume * 1e6

@@ -14,8 +14,14 @@ fn config_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("config")
 }
 
+/// The Sylvian scene's text, its trajectory path made absolute so the text
+/// can be written anywhere.
 fn sylvian_text() -> String {
-    std::fs::read_to_string(config_dir().join("sylvian.ron")).expect("config/sylvian.ron is shipped")
+    let text = std::fs::read_to_string(config_dir().join("sylvian.ron")).expect("config/sylvian.ron is shipped");
+    let relative = "\"../assets/trajectories/sylvian_open.csv\"";
+    assert!(text.contains(relative), "sylvian.ron plays {relative}");
+    let absolute = config_dir().join("../assets/trajectories/sylvian_open.csv");
+    text.replacen(relative, &format!("{:?}", absolute.display().to_string()), 1)
 }
 
 /// 1-based line and column of the first occurrence of `needle` in `text`.
@@ -47,8 +53,13 @@ fn assert_bad(from: &str, to: &str, field: &str, problem: &str) {
     let message = err.to_string();
     let location = err.location().unwrap_or_else(|| panic!("`{to}`: the error must carry a location: {message}"));
     assert_eq!(location.origin, Origin::File(path.clone()), "`{to}`: error must name the file: {message}");
-    let (line, _) = position_of(&text, to);
+    let (line, column) = position_of(&text, to);
     assert_eq!(location.line, line, "`{to}`: error must name line {line}: {message}");
+    assert!(
+        location.column >= column && location.column < column + to.len(),
+        "`{to}`: the column must point inside `{to}` (columns {column}..{}): {message}",
+        column + to.len()
+    );
     assert!(message.contains(&format!("{}:{line}:", path.display())), "message must show file:line:column: {message}");
     assert_eq!(err.field(), Some(field), "`{to}`: field path in {message}");
     assert!(message.contains(problem), "`{to}`: message `{message}` should say `{problem}`");
@@ -80,21 +91,42 @@ fn sylvian_scene_is_converted_to_si() {
     let sp = &s.spatulas[0];
     assert!((sp.shape.thickness - 1.0e-3).abs() < 1e-15, "thickness 1 mm -> 1e-3 m, got {}", sp.shape.thickness);
     assert_eq!(sp.layout, NodeLayout::Grid { along: 15, across: 10 });
-    assert!((sp.initial_pose.position - Vec3::new(-0.110, 0.010, 0.002)).norm() < 1e-15, "position in metres");
-    // LookAt(direction: +x, up: +z) is the identity: blade along +x, face normal +z.
+    let p = sp.initial_pose.position;
+    assert!((p - Vec3::new(-0.1251, 0.010686216, -0.009821408)).norm() < 1e-15, "position in metres: {p:?}");
+    // LookAt(direction: +x, up: (0, 0.343, 0.939)): blade along +x, face normal the fissure's normal.
     let x = sp.initial_pose.transform_vector(&Vec3::x());
     let z = sp.initial_pose.transform_vector(&Vec3::z());
-    assert!((x - Vec3::x()).norm() < 1e-12 && (z - Vec3::z()).norm() < 1e-12, "LookAt axes: x {x:?}, z {z:?}");
+    let normal = Vec3::new(0.0, 0.343, 0.939).normalize();
+    assert!((x - Vec3::x()).norm() < 1e-12 && (z - normal).norm() < 1e-12, "LookAt axes: x {x:?}, z {z:?}");
     assert!((s.material.young_modulus - 3000.0).abs() < 1e-12 && (s.material.poisson_ratio - 0.45).abs() < 1e-15);
-    assert!(matches!(s.fixed[0], FixedRegion::Sphere(sp) if (sp.radius - 0.020).abs() < 1e-15), "fixed sphere radius in m");
+    assert_eq!(s.fixed, vec![FixedRegion::RegionId(3)], "fixed near the brain stem");
+    let containing = s.skull.and_then(|k| k.containing).expect("containing sphere");
+    assert!((containing.radius - 0.101).abs() < 1e-15, "skull radius in m: {}", containing.radius);
     assert_eq!(s.collision_backend, CollisionBackend::Bvh);
     assert_eq!(s.step_count(), 500, "5 s at 10 ms");
 }
 
 #[test]
+fn initial_poses_match_the_trajectories_at_time_zero() {
+    // A scene whose spatulas jump at the first frame would open with a spike.
+    for name in ["sylvian.ron", "interhemispheric.ron", "v_valley.ron", "u_shape.ron"] {
+        let s = Scenario::load(&config_dir().join(name), &[]).expect("valid");
+        let path = s.trajectory.as_ref().unwrap_or_else(|| panic!("{name} ships a trajectory"));
+        let track = fissure::scenario::Trajectory::load(path).expect("trajectory loads");
+        for (i, sp) in s.spatulas.iter().enumerate() {
+            let start = track.sample(i, 0.0).unwrap_or_else(|| panic!("{name}: no track for spatula {i}"));
+            let gap = (start.position - sp.initial_pose.position).norm();
+            assert!(gap < 1e-9, "{name}: spatula {i} starts {gap} m away from its initial pose");
+            let angle = start.rotation.angle_to(&sp.initial_pose.rotation);
+            assert!(angle < 1e-6, "{name}: spatula {i} starts turned {angle} rad from its initial pose");
+        }
+    }
+}
+
+#[test]
 fn look_at_builds_a_right_handed_frame() {
     let text = sylvian_text().replacen(
-        "rotation: LookAt(direction: (1.0, 0.0, 0.0), up: (0.0, 0.0, 1.0))",
+        "rotation: LookAt(direction: (1.0, 0.0, 0.0), up: (0.0, 0.343, 0.939))",
         "rotation: LookAt(direction: (0.0, 0.0, -2.0), up: (1.0, 0.0, 0.3))",
         1,
     );
@@ -132,8 +164,9 @@ fn non_positive_young_modulus_is_rejected() {
 
 #[test]
 fn negative_radius_is_rejected() {
-    assert_bad("radius_mm: 95.0", "radius_mm: -95.0", "skull.containing.radius_mm", "must be > 0, got -95");
-    assert_bad("radius_mm: 20.0", "radius_mm: -1.0", "fixed[0].radius_mm", "must be > 0, got -1");
+    assert_bad("radius_mm: 101.0", "radius_mm: -101.0", "skull.containing.radius_mm", "must be > 0, got -101");
+    assert_bad("radius_mm: 23.2", "radius_mm: 0.0", "skull.excluding.radius_mm", "must be > 0, got 0");
+    assert_bad("fixed: [RegionId(3)]", "fixed: [Sphere(center_mm: (0, 0, 0), radius_mm: -1.0)]", "fixed[0].radius_mm", "must be > 0, got -1");
 }
 
 #[test]
@@ -266,7 +299,7 @@ fn trajectory_input_needs_a_trajectory_with_that_track() {
     let base = sylvian_text().replacen("input: Keyboard", "input: Trajectory", 1);
     let path = dir.path().join("scene.ron");
     std::fs::write(&path, &base).expect("write");
-    let err = Scenario::load(&path, &[]).expect_err("no trajectory given");
+    let err = Scenario::load(&path, &["trajectory=None".to_string()]).expect_err("no trajectory given");
     assert_eq!(err.field(), Some("spatulas[0].input"), "{err}");
 
     let s = Scenario::load(&path, &["trajectory=\"t.csv\"".to_string()]).expect("valid with trajectory");

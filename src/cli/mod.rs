@@ -6,6 +6,7 @@
 
 mod check;
 mod mesh;
+mod units;
 
 use std::path::PathBuf;
 
@@ -34,7 +35,7 @@ pub enum Command {
         #[arg(long = "set", value_name = "PATH=VALUE")]
         set: Vec<String>,
     },
-    /// Mesh tools: inspect, convert.
+    /// Mesh tools: inspect, generate phantoms, tetrahedralize surfaces, convert.
     #[command(subcommand)]
     Mesh(MeshCommand),
 }
@@ -49,6 +50,32 @@ pub enum MeshCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Generate a procedural phantom (coordinates in metres) and print its landmarks.
+    Phantom {
+        /// small, paper-9k, paper-12k, v-valley or u-shape.
+        #[arg(long)]
+        preset: String,
+        /// Output mesh (.msh, .vtk, .vtu, .node/.ele).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Print only the quality report, as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Fill a closed surface (.obj, .stl) with quality tetrahedra (isosurface stuffing).
+    Tetrahedralize {
+        /// The closed surface.
+        surface: PathBuf,
+        /// Output mesh (.msh, .vtk, .vtu, .node/.ele), in the surface's unit.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Lattice edge length with its unit, e.g. 2.5mm.
+        #[arg(long, value_parser = units::parse_length)]
+        edge: f64,
+        /// Unit of the surface's coordinates.
+        #[arg(long, value_enum, default_value = "mm")]
+        surface_units: SurfaceUnits,
+    },
     /// Convert a tet mesh (.msh, .vtk, .vtu, .node/.ele) or a surface (.obj, .stl); formats by extension.
     Convert {
         /// Input file.
@@ -58,12 +85,29 @@ pub enum MeshCommand {
     },
 }
 
+/// Length unit of a surface file.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum SurfaceUnits {
+    /// Millimetres.
+    Mm,
+    /// Metres.
+    M,
+}
+
 /// Runs one parsed command line.
 pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         None => check::default_scene(),
         Some(Command::Check { scenario, set }) => check::run(&scenario, &set),
         Some(Command::Mesh(MeshCommand::Info { path, json })) => mesh::info(&path, json),
+        Some(Command::Mesh(MeshCommand::Phantom { preset, output, json })) => mesh::phantom(&preset, &output, json),
+        Some(Command::Mesh(MeshCommand::Tetrahedralize { surface, output, edge, surface_units })) => {
+            let units = match surface_units {
+                SurfaceUnits::Mm => fissure::scenario::LengthUnit::Millimetres,
+                SurfaceUnits::M => fissure::scenario::LengthUnit::Metres,
+            };
+            mesh::tetrahedralize(&surface, &output, edge, units)
+        }
         Some(Command::Mesh(MeshCommand::Convert { input, output })) => mesh::convert(&input, &output),
     }
 }

@@ -310,7 +310,6 @@ impl ConstrainedSolver {
                     worst_active = worst_active.max(violation.abs());
                 }
             }
-            if std::env::var("FEM_DEBUG").is_ok() { eprintln!("it {iterations}: add {any_add} worst_inactive {worst_inactive:e} worst_active {worst_active:e}"); }
             if any_add {
                 if iterations >= max_iterations {
                     return Err(self.not_converged(iterations, worst_inactive));
@@ -327,7 +326,6 @@ impl ConstrainedSolver {
                     most = Some((ci, l));
                 }
             }
-            if std::env::var("FEM_DEBUG").is_ok() { eprintln!("   most adhesive {most:?} scale {scale:e}"); }
             if let Some((ci, _)) = most {
                 self.candidates[ci].active = false;
                 if iterations >= max_iterations {

@@ -25,7 +25,7 @@ pub use file::{CollisionBackend, ComplianceStorage, Effect, LengthUnit, Scenario
 pub use overrides::Document;
 pub use trajectory::{Sample, Trajectory, TrajectoryError, TrajectoryRecorder};
 pub use validate::{
-    EffectSet, FixedRegion, InputBinding, Material, MeshSource, Outputs, PHANTOM_PRESETS, RegionMaterial, RegionOfInterest,
+    EffectSet, FixedRegion, InputBinding, Material, MeshSource, Outputs, RegionMaterial, RegionOfInterest,
     Scenario, Skull, SolverOptions, SpatulaConfig, Sphere,
 };
 
@@ -65,7 +65,9 @@ pub fn parse_typed(document: &Document) -> Result<ScenarioFile, ScenarioError> {
     // (so `--set skull.containing=(...)` can create a field the file left out).
     let options = ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
     options.from_str::<ScenarioFile>(&document.text).map_err(|e| {
-        let offset = tree::offset_of(&document.text, e.span.start.line, e.span.start.col);
+        // ron's span starts where its cursor was: before the whitespace that
+        // precedes the offending token. Point at the token.
+        let offset = tree::skip_trivia(&document.text, tree::offset_of(&document.text, e.span.start.line, e.span.start.col));
         ScenarioError::Parse { location: document.locate(offset), field: document.path_at(offset), message: e.code.to_string() }
     })
 }

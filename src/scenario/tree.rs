@@ -512,6 +512,16 @@ impl Node {
     }
 }
 
+/// The offset of the next token at or after `offset` (whitespace and comments
+/// skipped); `offset` itself when a comment is unterminated.
+pub fn skip_trivia(text: &str, offset: usize) -> usize {
+    let mut p = Parser { text, bytes: text.as_bytes(), pos: offset.min(text.len()) };
+    match p.skip_ws() {
+        Ok(()) => p.pos,
+        Err(_) => offset,
+    }
+}
+
 /// 1-based line and column (in chars) of a byte offset, as `ron` counts them.
 pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
     let mut offset = offset.min(text.len());

@@ -22,9 +22,7 @@ use super::overrides::Document;
 use super::trajectory::Trajectory;
 use crate::geometry::{NodeLayout, Pose, SpatulaShape};
 use crate::math::{Quat, Vec3};
-
-/// Phantom preset names (`fissure::mesh::phantom`'s presets).
-pub const PHANTOM_PRESETS: [&str; 5] = ["small", "paper-9k", "paper-12k", "v-valley", "u-shape"];
+use crate::mesh::phantom::Preset;
 
 /// Most source nodes a layout may put on one face.
 pub const MAX_NODES_PER_FACE: u64 = 1_000_000;
@@ -34,9 +32,10 @@ const MM: f64 = 1e-3;
 /// Where the brain mesh comes from.
 #[derive(Debug, Clone, PartialEq)]
 pub enum MeshSource {
-    /// A procedural phantom, by preset name (one of [`PHANTOM_PRESETS`]).
+    /// A procedural phantom, by preset name (checked: it parses as a
+    /// [`Preset`]; kept as the name the file gave).
     Phantom {
-        /// The preset name.
+        /// The preset name ("small", "paper-9k", "paper-12k", "v-valley", "u-shape").
         preset: String,
     },
     /// A mesh file.
@@ -364,12 +363,10 @@ impl Scenario {
 
         let mesh = match &file.mesh {
             MeshSourceFile::Phantom { preset } => {
-                if !PHANTOM_PRESETS.contains(&preset.as_str()) {
-                    return Err(c.invalid(
-                        "mesh.preset",
-                        format!("unknown phantom preset \"{preset}\", expected one of {}", quoted(&PHANTOM_PRESETS)),
-                    ));
-                }
+                let _: Preset = preset.parse().map_err(|_| {
+                    let names: Vec<&str> = Preset::ALL.iter().map(|p| p.name()).collect();
+                    c.invalid("mesh.preset", format!("unknown phantom preset \"{preset}\", expected one of {}", quoted(&names)))
+                })?;
                 MeshSource::Phantom { preset: preset.clone() }
             }
             MeshSourceFile::File { path, units } => MeshSource::File { path: c.existing_file("mesh.path", path)?, units: *units },

@@ -44,7 +44,14 @@ pub const AUTO_ROI_MARGIN_M: f64 = 0.020;
 /// Loads the scene's mesh in metres.
 pub fn load_mesh(scenario: &Scenario) -> Result<TetMesh, BuildError> {
     match &scenario.mesh {
-        MeshSource::Phantom { preset } => Err(BuildError::Phantom { preset: preset.clone(), message: "TEMPORARY: phantom generator not merged yet".into() }),
+        MeshSource::Phantom { preset } => {
+            let p: crate::mesh::phantom::Preset = preset
+                .parse()
+                .map_err(|e: crate::mesh::phantom::UnknownPreset| BuildError::Phantom { preset: preset.clone(), message: e.to_string() })?;
+            let phantom = crate::mesh::phantom::generate(p)
+                .map_err(|e| BuildError::Phantom { preset: preset.clone(), message: e.to_string() })?;
+            Ok(phantom.mesh)
+        }
         MeshSource::File { path, units } => {
             let mut mesh = crate::mesh::io::load_tet_mesh(path)?;
             mesh.scale(units.to_metres());

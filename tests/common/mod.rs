@@ -1,6 +1,8 @@
 //! Shared helpers for the integration tests: small structured meshes and scenario text.
 #![allow(dead_code)]
 
+pub mod scenes;
+
 use fissure::math::Vec3;
 use fissure::mesh::TetMesh;
 use std::path::{Path, PathBuf};

@@ -1,0 +1,195 @@
+//! FEM stage benchmark: assembly, factorization, compliance precompute and
+//! reload, per-frame constrained solve (100 / 300 constrained vertices, 10 / 30
+//! new a frame), interior solve, memory peak. For `paper-12k` (the phantom
+//! generator) and the real brain (`../shared/data/brain/brain_pial_coarse.msh`,
+//! skipped when absent).
+//!
+//! Run: `cargo bench --bench fem` (add `-- brain` or `-- paper` to run one model).
+//! A plain `main` (harness = false) with explicit percentiles: the one-shot
+//! phases take seconds and cannot be repeated criterion-style.
+
+use fissure::fem::{
+    Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, Material,
+    RegionMaterials, element_stress,
+};
+use fissure::math::Vec3;
+use fissure::mesh::TetMesh;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+fn peak_rss_mb() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("VmHWM")).and_then(|l| l.split_whitespace().nth(1)).and_then(|v| v.parse::<f64>().ok()))
+        .map(|kb| kb / 1024.0)
+        .unwrap_or(f64::NAN)
+}
+
+/// Fixes the lowest `depth` metres of every connected component.
+fn fix_bottom_of_each_component(mesh: &TetMesh, depth: f64) -> Vec<bool> {
+    let n = mesh.node_count();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn find(p: &mut [usize], mut x: usize) -> usize {
+        while p[x] != x {
+            p[x] = p[p[x]];
+            x = p[x];
+        }
+        x
+    }
+    for t in &mesh.tets {
+        for k in 1..4 {
+            let (a, b) = (find(&mut parent, t[0] as usize), find(&mut parent, t[k] as usize));
+            if a != b {
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let mut min_z = vec![f64::INFINITY; n];
+    for v in 0..n {
+        let r = find(&mut parent, v);
+        min_z[r] = min_z[r].min(mesh.positions[v].z);
+    }
+    (0..n).map(|v| mesh.positions[v].z <= min_z[find(&mut parent, v)] + depth).collect()
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+}
+
+fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Path) {
+    println!("== {name}: {} nodes, {} tets", mesh.node_count(), mesh.tets.len());
+    let fixed = fix_bottom_of_each_component(mesh, 0.010);
+    let materials = RegionMaterials::uniform(Material { young_modulus: 3.0e3, poisson_ratio: 0.45 });
+    let t = Instant::now();
+    let model = match FemModel::new(mesh, &materials, &fixed, &FemOptions::default()) {
+        Ok(m) => m,
+        Err(e) => {
+            println!("model failed: {e}");
+            return;
+        }
+    };
+    let s = model.stats();
+    println!(
+        "model: {} free DOFs, nnz(K lower) {}, nnz(L) {} ({:.0} MB); assembly {:.3} s, symbolic {:.3} s, numeric {:.3} s (total {:.3} s)",
+        s.free_dofs,
+        s.nnz_k,
+        s.nnz_l,
+        s.nnz_l as f64 * 8.0 / 1e6,
+        s.assembly_seconds,
+        s.symbolic_seconds,
+        s.numeric_seconds,
+        t.elapsed().as_secs_f64()
+    );
+    let surface = model.surface().vertices.clone();
+    let roi: Vec<u32> = surface.iter().copied().filter(|&n| roi_pred(&mesh.positions[n as usize]) && !model.is_fixed(n)).collect();
+    println!("surface vertices {}, ROI vertices {}", surface.len(), roi.len());
+    let _ = std::fs::remove_dir_all(cache);
+    let t = Instant::now();
+    let mut last = 0;
+    let compliance = Compliance::compute(&model, &roi, ComplianceStorage::F32, Some(cache), &mut |done, total| {
+        if done * 10 / total.max(1) > last {
+            last = done * 10 / total.max(1);
+            eprint!("{}% ", last * 10);
+        }
+    })
+    .expect("compliance");
+    eprintln!();
+    let cs = compliance.stats();
+    println!(
+        "compliance (f32): {} rows x {} cols, {:.0} MB, precompute {:.2} s (incl. cache write {:.2} s total)",
+        cs.rows,
+        cs.cols,
+        cs.bytes as f64 / 1e6,
+        cs.compute_seconds,
+        t.elapsed().as_secs_f64()
+    );
+    drop(compliance);
+    let t = Instant::now();
+    let compliance = Compliance::compute(&model, &roi, ComplianceStorage::F32, Some(cache), &mut |_, _| {}).expect("reload");
+    println!("compliance reload from disk cache: {:.3} s (from_cache = {})", t.elapsed().as_secs_f64(), compliance.stats().from_cache);
+    // Frame sequence: a window sliding over ROI vertices near the ROI's top, ordered by x.
+    let top = roi.iter().copied().max_by(|a, b| mesh.positions[*a as usize].z.total_cmp(&mesh.positions[*b as usize].z)).unwrap();
+    let p0 = mesh.positions[top as usize];
+    let mut near: Vec<u32> = roi.clone();
+    near.sort_by(|a, b| (mesh.positions[*a as usize] - p0).norm().total_cmp(&(mesh.positions[*b as usize] - p0).norm()).then(a.cmp(b)));
+    near.truncate(2400.min(near.len()));
+    near.sort_by(|a, b| mesh.positions[*a as usize].x.total_cmp(&mesh.positions[*b as usize].x).then(a.cmp(b)));
+    let mut solver = ConstrainedSolver::new(model, compliance).expect("solver");
+    for (count, fresh) in [(100usize, 10usize), (300, 30)] {
+        if near.len() < count + fresh {
+            println!("not enough ROI vertices for {count} constrained");
+            continue;
+        }
+        let frames = ((near.len() - count) / fresh).min(60);
+        let mut times = Vec::new();
+        let mut out = FrameSolution::default();
+        let mut cons: Vec<Constraint> = Vec::new();
+        for k in 0..frames {
+            cons.clear();
+            cons.extend(near[k * fresh..k * fresh + count].iter().map(|&n| Constraint {
+                node: n,
+                owner: 0,
+                kind: ConstraintKind::Enforced { displacement: Vec3::new(0.0, 0.0, -0.002) },
+            }));
+            let t = Instant::now();
+            solver.step(&cons, &mut out).expect("step");
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        let mut sorted = times[1..].to_vec();
+        sorted.sort_by(|a, b| a.total_cmp(b));
+        println!(
+            "frame solve + surface update, {count} constrained ({} rows), {fresh} new/frame, {} frames: p50 {:.2} ms, p95 {:.2} ms, max {:.2} ms; cond(W) est. {:.2e}, max |u| {:.2} mm",
+            out.rows,
+            sorted.len(),
+            percentile(&sorted, 0.5),
+            percentile(&sorted, 0.95),
+            sorted.last().unwrap(),
+            out.conditioning,
+            out.max_displacement * 1e3
+        );
+    }
+    let mut all = Vec::new();
+    let t = Instant::now();
+    solver.interior_displacements(&mut all).expect("interior");
+    let ti = t.elapsed().as_secs_f64() * 1e3;
+    let mut stress = Vec::new();
+    let t = Instant::now();
+    element_stress(solver.model(), &all, &mut stress).expect("stress");
+    println!("interior displacements (one sparse solve) {ti:.1} ms; element stress {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
+    println!("peak resident memory so far: {:.0} MB", peak_rss_mb());
+}
+
+fn main() {
+    let filter: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    let want = |n: &str| filter.is_empty() || filter.iter().any(|f| n.contains(f.as_str()));
+    let cache: PathBuf = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/target/fem-bench-cache"));
+    if want("paper-12k") {
+        let t = Instant::now();
+        match fissure::mesh::phantom::generate(fissure::mesh::phantom::Preset::Paper12k) {
+            Ok(p) => {
+                println!("phantom generated in {:.1} s", t.elapsed().as_secs_f64());
+                let (lo, hi) = p.mesh.bounding_box();
+                let zmid = 0.5 * (lo.z + hi.z);
+                run("paper-12k", &p.mesh, &move |x: &Vec3| x.z > zmid, &cache.join("paper"));
+            }
+            Err(e) => println!("paper-12k phantom unavailable: {e}"),
+        }
+    }
+    if want("brain") {
+        let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/brain/brain_pial_coarse.msh"));
+        if !path.exists() {
+            println!("real brain mesh absent ({}), skipped", path.display());
+            return;
+        }
+        match fissure::mesh::io::load_tet_mesh(path) {
+            Ok(mut mesh) => {
+                mesh.scale(1e-3); // the file is in mm
+                let (_, hi) = mesh.bounding_box();
+                // ROI: the upper medial region around the inter-hemispheric fissure (|x| < 20 mm, top 40 mm)
+                let roi = move |x: &Vec3| x.x.abs() < 0.020 && x.z > hi.z - 0.040;
+                run("brain_pial_coarse", &mesh, &roi, &cache.join("brain"));
+            }
+            Err(e) => println!("brain mesh failed to load: {e}"),
+        }
+    }
+}

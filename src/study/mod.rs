@@ -1,0 +1,305 @@
+//! `fissure study`: what accuracy costs in time.
+//!
+//! In: [`StudyOptions`] (a preset, an optional scene file, an output folder)
+//! or a hand-made [`StudyPlan`]. Each run replays the study motion (insert a
+//! spatula into a fissure, open it sideways, close, withdraw; see [`motion`])
+//! with one knob changed: source nodes and layout, mesh resolution, speed a
+//! frame in blade thicknesses, collision backend and culling, compliance
+//! storage, region of interest. Out: in the folder, `results.csv` (a row a
+//! run: stage medians and p95s, build cost, every error), `report.md` (tables,
+//! the paper's numbers beside ours) and the plots (`pareto`,
+//! `fig13_collision_vs_nodes`, `speed_vs_error`, each `.png` and `.svg`); the
+//! same rows come back as [`StudyResults`]. Stays true: a run's accuracy is
+//! measured against its sweep's reference run (the most accurate value of the
+//! knob), so the reference row's error is exactly 0; a run that cannot be done
+//! (no GPU adapter, a missing mesh) becomes a row that says why, never a
+//! silent gap; the simulation is deterministic, only the times vary.
+
+pub mod accuracy;
+pub mod motion;
+pub mod output;
+pub mod plan;
+pub mod plot;
+pub mod runner;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+pub use accuracy::{Accuracy, Comparison};
+pub use motion::{FrameKey, Motion};
+pub use plan::{Knob, MeshChoice, RoiChoice, RunSpec, Settings, StudyPlan, Sweep};
+pub use runner::{RunError, RunTrace};
+
+use crate::scenario::{Scenario, ScenarioError};
+use crate::sim::StageId;
+
+/// The built-in study scene (`config/study_fissure.ron`), used when no scene is given.
+pub const DEFAULT_SCENE: &str = include_str!("../../config/study_fissure.ron");
+
+/// Which set of sweeps to run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StudyPreset {
+    /// The paper-9k phantom, every knob, a few values (minutes).
+    Quick,
+    /// The paper-12k phantom, more values, all meshes (for the README's numbers).
+    Full,
+}
+
+/// What `fissure study` was asked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StudyOptions {
+    pub preset: StudyPreset,
+    /// A scenario file to study instead of the built-in scene (its first spatula moves).
+    pub scene: Option<PathBuf>,
+    /// Output folder (created).
+    pub out_dir: PathBuf,
+}
+
+/// Progress: `done` of `total` runs finished; `label` names the run starting (or "done").
+#[derive(Debug, Clone, PartialEq)]
+pub struct StudyProgress {
+    pub done: usize,
+    pub total: usize,
+    pub label: String,
+}
+
+/// Errors that stop a study (a single run's failure does not: its row says why).
+#[derive(Debug, thiserror::Error)]
+pub enum StudyError {
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    #[error("study scene {scene}: {message}")]
+    Scene { scene: PathBuf, message: String },
+    #[error("writing {}: {source}", path.display())]
+    Output { path: PathBuf, source: std::io::Error },
+    #[error("drawing {}: {message}", path.display())]
+    Plot { path: PathBuf, message: String },
+    #[error("the plan has no runs")]
+    EmptyPlan,
+}
+
+/// Median and 95th percentile (nearest rank), seconds.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Percentiles {
+    pub p50: f64,
+    pub p95: f64,
+}
+
+impl Percentiles {
+    /// Of `values` (any order); zeros when empty.
+    pub fn of(values: &mut [f64]) -> Self {
+        if values.is_empty() {
+            return Self::default();
+        }
+        values.sort_by(f64::total_cmp);
+        let rank = |q: f64| values[((q * values.len() as f64).ceil() as usize).clamp(1, values.len()) - 1];
+        Self { p50: rank(0.5), p95: rank(0.95) }
+    }
+}
+
+/// What a successful run measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunMeasure {
+    pub frames: usize,
+    pub mesh_nodes: usize,
+    pub surface_triangles: usize,
+    /// Build (assembly, factorization, compliance or its cache), s.
+    pub build_s: f64,
+    pub compliance_bytes: usize,
+    pub compliance_cached: bool,
+    /// Per built stage, in frame order.
+    pub stages: Vec<(StageId, Percentiles)>,
+    /// The whole frame (sum of the stages, monitor included).
+    pub frame: Percentiles,
+    /// Against the sweep's reference; `None` when there is none to compare with.
+    pub accuracy: Option<Accuracy>,
+    /// Why `accuracy` is `None`.
+    pub no_accuracy: Option<String>,
+    /// Vertices pulled through a blade, summed over frames (tunnelling).
+    pub crossed_total: u64,
+    /// Most vertices inside a blade in one frame.
+    pub penetrating_max: u32,
+    /// Deepest penetration over the run, m.
+    pub penetration_max_m: f64,
+}
+
+impl RunMeasure {
+    /// The p50/p95 of a stage, if it was built.
+    pub fn stage(&self, id: StageId) -> Option<Percentiles> {
+        self.stages.iter().find(|(s, _)| *s == id).map(|(_, p)| *p)
+    }
+}
+
+/// One row of the results.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunRow {
+    pub knob: Knob,
+    pub label: String,
+    pub value: f64,
+    pub settings: Settings,
+    pub is_reference: bool,
+    /// The measurement, or why the run could not be done.
+    pub outcome: Result<RunMeasure, String>,
+}
+
+/// Everything a study produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StudyResults {
+    pub plan_name: String,
+    pub scene_name: String,
+    pub rows: Vec<RunRow>,
+    /// Files written, in order.
+    pub files: Vec<PathBuf>,
+    /// Wall time of the whole study, s.
+    pub elapsed_s: f64,
+}
+
+/// Runs a preset study (the CLI's entry point).
+pub fn run_study(options: &StudyOptions, progress: &mut dyn FnMut(StudyProgress)) -> Result<StudyResults, StudyError> {
+    let plan = plan::preset_plan(options.preset == StudyPreset::Full);
+    let scene = load_scene(options.scene.as_deref())?;
+    run_plan(&plan, &scene, &options.out_dir, progress)
+}
+
+/// The study scene: `path`, or the built-in one.
+pub fn load_scene(path: Option<&Path>) -> Result<Scenario, StudyError> {
+    let scene = match path {
+        Some(p) => Scenario::load(p, &[])?,
+        None => {
+            let origin = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/config/study_fissure.ron"));
+            Scenario::from_str(DEFAULT_SCENE, origin, &[])?
+        }
+    };
+    if scene.spatulas.is_empty() {
+        return Err(StudyError::Scene { scene: scene.source_path.clone(), message: "the study moves the first spatula; there is none".into() });
+    }
+    Ok(scene)
+}
+
+fn measure(trace: &RunTrace) -> RunMeasure {
+    let mut stages = Vec::new();
+    for id in StageId::ALL {
+        let mut v: Vec<f64> = trace.frames.iter().filter_map(|f| f.times.get(id)).collect();
+        if !v.is_empty() {
+            stages.push((id, Percentiles::of(&mut v)));
+        }
+    }
+    let mut total: Vec<f64> = trace.frames.iter().map(|f| f.times.total()).collect();
+    RunMeasure {
+        frames: trace.frames.len(),
+        mesh_nodes: trace.nodes,
+        surface_triangles: trace.triangles.len(),
+        build_s: trace.build_s,
+        compliance_bytes: trace.compliance_bytes,
+        compliance_cached: trace.compliance_cached,
+        stages,
+        frame: Percentiles::of(&mut total),
+        accuracy: None,
+        no_accuracy: None,
+        crossed_total: trace.frames.iter().map(|f| f.crossed as u64).sum(),
+        penetrating_max: trace.frames.iter().map(|f| f.penetrating).max().unwrap_or(0),
+        penetration_max_m: trace.frames.iter().map(|f| f.max_penetration_m).fold(0.0, f64::max),
+    }
+}
+
+/// Runs `plan` on `scene`, writes the outputs into `out_dir`.
+pub fn run_plan(
+    plan: &StudyPlan,
+    scene: &Scenario,
+    out_dir: &Path,
+    progress: &mut dyn FnMut(StudyProgress),
+) -> Result<StudyResults, StudyError> {
+    let start = Instant::now();
+    let total = plan.run_count();
+    if total == 0 {
+        return Err(StudyError::EmptyPlan);
+    }
+    std::fs::create_dir_all(out_dir).map_err(|source| StudyError::Output { path: out_dir.to_path_buf(), source })?;
+    let cache = out_dir.join("compliance_cache");
+    let mut meshes = runner::MeshStore::default();
+    let mut rows = Vec::with_capacity(total);
+    let mut done = 0;
+    for sweep in &plan.sweeps {
+        let reference_spec = &sweep.runs[sweep.reference];
+        progress(StudyProgress { done, total, label: format!("{}: {} (reference)", sweep.knob.name(), reference_spec.label) });
+        let reference = runner::execute(scene, &reference_spec.settings, &plan.motion, &mut meshes, Some(&cache), true);
+        done += 1;
+        let mut sweep_rows: Vec<(usize, RunRow)> = Vec::with_capacity(sweep.runs.len());
+        let reference_row = RunRow {
+            knob: sweep.knob,
+            label: reference_spec.label.clone(),
+            value: reference_spec.value,
+            settings: reference_spec.settings.clone(),
+            is_reference: true,
+            outcome: match &reference {
+                Ok(t) => {
+                    let mut m = measure(t);
+                    m.accuracy = Some(accuracy::compare(t, t, true)).map(|a| Accuracy { comparison: Comparison::Reference, ..a });
+                    Ok(m)
+                }
+                Err(e) => Err(e.to_string()),
+            },
+        };
+        sweep_rows.push((sweep.reference, reference_row));
+        for (k, spec) in sweep.runs.iter().enumerate() {
+            if k == sweep.reference {
+                continue;
+            }
+            progress(StudyProgress { done, total, label: format!("{}: {}", sweep.knob.name(), spec.label) });
+            let outcome = runner::execute(scene, &spec.settings, &plan.motion, &mut meshes, Some(&cache), true).map_err(|e| e.to_string());
+            done += 1;
+            let outcome = outcome.map(|trace| {
+                let mut m = measure(&trace);
+                let other_anatomy = matches!(spec.settings.mesh, MeshChoice::File { .. }) != matches!(reference_spec.settings.mesh, MeshChoice::File { .. });
+                match &reference {
+                    Ok(r) if !other_anatomy => m.accuracy = Some(accuracy::compare(r, &trace, spec.settings.mesh == reference_spec.settings.mesh)),
+                    Ok(_) => m.no_accuracy = Some("other anatomy: timed only".into()),
+                    Err(_) => m.no_accuracy = Some("the reference run failed".into()),
+                }
+                m
+            });
+            sweep_rows.push((k, RunRow {
+                knob: sweep.knob,
+                label: spec.label.clone(),
+                value: spec.value,
+                settings: spec.settings.clone(),
+                is_reference: false,
+                outcome,
+            }));
+        }
+        sweep_rows.sort_by_key(|(k, _)| *k);
+        rows.extend(sweep_rows.into_iter().map(|(_, r)| r));
+    }
+    progress(StudyProgress { done: total, total, label: "writing the report".into() });
+    let mut results = StudyResults {
+        plan_name: plan.name.clone(),
+        scene_name: scene.name.clone(),
+        rows,
+        files: Vec::new(),
+        elapsed_s: 0.0,
+    };
+    results.elapsed_s = start.elapsed().as_secs_f64();
+    results.files.push(output::write_csv(&results, &out_dir.join("results.csv"))?);
+    results.files.extend(plot::draw_all(&results, out_dir)?);
+    results.files.push(output::write_report(&results, &out_dir.join("report.md"))?);
+    Ok(results)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_are_nearest_rank() {
+        let mut v: Vec<f64> = (1..=100).rev().map(f64::from).collect();
+        let p = Percentiles::of(&mut v);
+        assert_eq!((p.p50, p.p95), (50.0, 95.0));
+        assert_eq!(Percentiles::of(&mut []), Percentiles::default());
+    }
+
+    #[test]
+    fn the_built_in_scene_validates() {
+        let s = load_scene(None).expect("config/study_fissure.ron is valid");
+        assert!(!s.spatulas.is_empty());
+    }
+}

@@ -1,0 +1,237 @@
+//! One study run: the scene set to a run's [`Settings`], built, and replayed
+//! over the study motion, recording what the accuracy and timing tables need.
+//!
+//! In: the validated base scene, a [`Settings`], the [`Motion`], a compliance
+//! cache folder, and a [`MeshStore`] (meshes are generated or read once per
+//! study). Out: a [`RunTrace`]: per frame the stage times, contact count,
+//! total spatula force, crossed / penetrating vertices, and (when asked) the
+//! surface displacement; plus the build time and compliance size. Stays true:
+//! the run is deterministic (the same settings give bitwise-equal
+//! displacements); nothing is written to disk except the compliance cache.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use super::motion::{FrameKey, Motion};
+use super::plan::{MeshChoice, RoiChoice, Settings};
+use crate::geometry::Pose;
+use crate::math::Vec3;
+use crate::mesh::TetMesh;
+use crate::scenario::{Effect, EffectSet, FixedRegion, LengthUnit, MeshSource, RegionOfInterest, Scenario, Sphere};
+use crate::sim::{BuildError, BuildOptions, FrameInput, Pipeline, StageTimes, StepError};
+
+/// Why one run could not be done (the study goes on and its row says so).
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    #[error("mesh {mesh}: {message}")]
+    Mesh { mesh: String, message: String },
+    #[error("build: {0}")]
+    Build(#[from] BuildError),
+    #[error("{0}")]
+    Step(#[from] StepError),
+}
+
+/// What one frame left behind.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameRecord {
+    pub key: FrameKey,
+    pub times: StageTimes,
+    /// Spatula-constrained surface vertices.
+    pub constrained: u32,
+    /// Sum of the spatulas' forces on the tissue, N.
+    pub force: Vec3,
+    pub crossed: u32,
+    pub penetrating: u32,
+    pub max_penetration_m: f64,
+}
+
+/// A finished run.
+#[derive(Debug, Clone, Default)]
+pub struct RunTrace {
+    pub frames: Vec<FrameRecord>,
+    /// Per frame, per surface vertex displacement, m (empty unless asked for).
+    pub displacements: Vec<Vec<Vec3>>,
+    /// Rest positions of the surface vertices, m.
+    pub rest: Vec<Vec3>,
+    /// Surface triangles (surface-vertex indices).
+    pub triangles: Vec<[u32; 3]>,
+    /// Mesh nodes.
+    pub nodes: usize,
+    /// Wall time of the build (assembly, factorization, compliance), s.
+    pub build_s: f64,
+    /// Bytes of the stored compliance.
+    pub compliance_bytes: usize,
+    /// Compliance came from the disk cache.
+    pub compliance_cached: bool,
+}
+
+/// Meshes loaded once per study, in metres.
+#[derive(Default)]
+pub struct MeshStore {
+    entries: Vec<(MeshChoice, TetMesh)>,
+}
+
+impl MeshStore {
+    /// The mesh of `choice` (generated / read on first use).
+    pub fn get(&mut self, choice: &MeshChoice, scene: &Scenario) -> Result<&TetMesh, RunError> {
+        if let Some(k) = self.entries.iter().position(|(c, _)| c == choice) {
+            return Ok(&self.entries[k].1);
+        }
+        let fail = |message: String| RunError::Mesh { mesh: choice.label(), message };
+        let mesh = match choice {
+            MeshChoice::Scene => crate::sim::build::load_mesh(scene)?,
+            MeshChoice::Phantom(name) => {
+                let preset: crate::mesh::phantom::Preset = name.parse().map_err(|e: crate::mesh::phantom::UnknownPreset| fail(e.to_string()))?;
+                crate::mesh::phantom::generate(preset).map_err(|e| fail(e.to_string()))?.mesh
+            }
+            MeshChoice::File { path, .. } => {
+                let mut m = crate::mesh::io::load_tet_mesh(path).map_err(|e| fail(e.to_string()))?;
+                m.scale(1e-3);
+                m
+            }
+        };
+        self.entries.push((choice.clone(), mesh));
+        Ok(&self.entries.last().expect("just pushed").1)
+    }
+}
+
+/// Places the scene's first spatula above the gap between the two largest
+/// components of `mesh` (tip 2 mm above the highest node), keeping its orientation.
+fn pose_above_gap(mesh: &TetMesh, scene: &Scenario) -> Option<Pose> {
+    let comps = crate::mesh::quality::components(mesh);
+    let mut sizes = vec![0usize; comps.count];
+    for &c in &comps.node_component {
+        if (c as usize) < comps.count {
+            sizes[c as usize] += 1;
+        }
+    }
+    let mut order: Vec<usize> = (0..comps.count).collect();
+    order.sort_by_key(|&c| std::cmp::Reverse(sizes[c]));
+    if order.len() < 2 {
+        return None;
+    }
+    let top = mesh.positions.iter().map(|p| p.z).fold(f64::NEG_INFINITY, f64::max);
+    let band = top - 0.030;
+    let mean_x = |c: usize| {
+        let xs: Vec<f64> = mesh.positions.iter().zip(&comps.node_component).filter(|(_, k)| **k as usize == c).map(|(p, _)| p.x).collect();
+        xs.iter().sum::<f64>() / xs.len().max(1) as f64
+    };
+    let (left, right) = if mean_x(order[0]) < mean_x(order[1]) { (order[0], order[1]) } else { (order[1], order[0]) };
+    let (mut left_max, mut right_min, mut y_sum, mut y_n) = (f64::NEG_INFINITY, f64::INFINITY, 0.0, 0usize);
+    for (p, &c) in mesh.positions.iter().zip(&comps.node_component) {
+        if p.z < band {
+            continue;
+        }
+        if c as usize == left {
+            left_max = left_max.max(p.x);
+        } else if c as usize == right {
+            right_min = right_min.min(p.x);
+        } else {
+            continue;
+        }
+        y_sum += p.y;
+        y_n += 1;
+    }
+    let spatula = scene.spatulas.first()?;
+    if !left_max.is_finite() || !right_min.is_finite() || y_n == 0 {
+        return None;
+    }
+    let tip = Vec3::new(0.5 * (left_max + right_min), y_sum / y_n as f64, top + 0.002);
+    let rotation = spatula.initial_pose.rotation;
+    Some(Pose { position: tip - rotation * Vec3::new(spatula.shape.length, 0.0, 0.0), rotation })
+}
+
+/// The base scene with a run's settings applied.
+pub fn configure(base: &Scenario, settings: &Settings, motion: &Motion, mesh: &TetMesh, cache_dir: Option<&Path>) -> Scenario {
+    let mut s = base.clone();
+    match &settings.mesh {
+        MeshChoice::Scene => {}
+        MeshChoice::Phantom(p) => s.mesh = MeshSource::Phantom { preset: p.clone() },
+        MeshChoice::File { path, fix_height_m } => {
+            s.mesh = MeshSource::File { path: path.clone(), units: LengthUnit::Millimetres };
+            s.fixed = vec![FixedRegion::LowestPerComponent { height: *fix_height_m }];
+            s.skull = None;
+            if let (Some(pose), Some(first)) = (pose_above_gap(mesh, base), s.spatulas.first_mut()) {
+                first.initial_pose = pose;
+            }
+        }
+    }
+    for sp in &mut s.spatulas {
+        sp.layout = settings.layout.clone();
+    }
+    s.collision_backend = settings.backend;
+    let mut effects = EffectSet::default();
+    for e in base.effects.iter() {
+        if e != Effect::Culling && !(e == Effect::SkullSpheres && s.skull.is_none()) {
+            effects.insert(e);
+        }
+    }
+    effects.insert(Effect::Collision);
+    effects.insert(Effect::ForceOutput);
+    if settings.culling {
+        effects.insert(Effect::Culling);
+    }
+    s.effects = effects;
+    s.solver.compliance_storage = settings.storage;
+    s.solver.region_of_interest = match settings.roi {
+        RoiChoice::Auto => RegionOfInterest::Auto,
+        RoiChoice::All => RegionOfInterest::All,
+        RoiChoice::Sphere { radius_m } => {
+            let (pose, length) = s.spatulas.first().map(|f| (f.initial_pose, f.shape.length)).unwrap_or_default();
+            RegionOfInterest::Sphere(Sphere { center: motion.working_point(&pose, length), radius: radius_m })
+        }
+    };
+    s.solver.cache_dir = cache_dir.map(PathBuf::from);
+    s
+}
+
+/// Runs `settings` over the motion. `keep_displacements` stores the surface
+/// displacement of every frame (for accuracy comparisons).
+pub fn execute(
+    base: &Scenario,
+    settings: &Settings,
+    motion: &Motion,
+    meshes: &mut MeshStore,
+    cache_dir: Option<&Path>,
+    keep_displacements: bool,
+) -> Result<RunTrace, RunError> {
+    let mesh = meshes.get(&settings.mesh, base)?.clone();
+    let scene = configure(base, settings, motion, &mesh, cache_dir);
+    let initial: Vec<Pose> = scene.spatulas.iter().map(|s| s.initial_pose).collect();
+    let thickness = scene.spatulas.first().map(|s| s.shape.thickness).unwrap_or(0.001);
+    let frames = motion.frames(&initial, thickness, settings.speed);
+    let stride = (frames.len() / 200).max(1);
+    let expected_poses = frames.iter().step_by(stride).map(|f| f.poses.clone()).collect();
+    let t = Instant::now();
+    let (mut pipeline, mut state) = Pipeline::build_with_mesh(&scene, mesh, BuildOptions { expected_poses, progress: None })?;
+    let build_s = t.elapsed().as_secs_f64();
+    let stats = pipeline.solver().compliance().stats();
+    let mut trace = RunTrace {
+        rest: pipeline.rest_positions().to_vec(),
+        triangles: pipeline.surface().triangles.clone(),
+        nodes: pipeline.mesh().node_count(),
+        build_s,
+        compliance_bytes: stats.bytes,
+        compliance_cached: stats.from_cache,
+        ..Default::default()
+    };
+    let mut input = FrameInput::default();
+    for f in &frames {
+        input.poses.clear();
+        input.poses.extend(f.poses.iter().map(|p| Some(*p)));
+        let r = pipeline.step(&mut state, &input)?;
+        trace.frames.push(FrameRecord {
+            key: f.key,
+            times: r.times,
+            constrained: r.constrained_vertices,
+            force: r.spatulas.iter().map(|s| s.force).sum(),
+            crossed: r.crossed_vertices,
+            penetrating: r.penetrating_vertices,
+            max_penetration_m: r.max_penetration_m,
+        });
+        if keep_displacements {
+            trace.displacements.push(state.surface_displacement.clone());
+        }
+    }
+    Ok(trace)
+}

@@ -1,0 +1,171 @@
+//! The built `fissure` binary: `check` (good, bad, `--set`), the bare command,
+//! and each `mesh` subcommand, run as a user would.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn fissure(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_fissure"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("the fissure binary runs")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+fn json_of(out: &Output) -> serde_json::Value {
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is JSON ({e}): {}", text(&out.stdout)))
+}
+
+#[test]
+fn check_accepts_every_shipped_scene() {
+    for name in ["sylvian", "interhemispheric", "v_valley", "u_shape"] {
+        let path = format!("config/{name}.ron");
+        let out = fissure(&["check", &path]);
+        assert!(out.status.success(), "check {path} must pass: {}", text(&out.stderr));
+        assert!(text(&out.stdout).contains("ok: the scenario is valid"), "summary for {path}: {}", text(&out.stdout));
+    }
+}
+
+#[test]
+fn check_rejects_a_bad_scene_naming_file_line_and_field() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let original = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("config/v_valley.ron")).expect("read");
+    let bad = original
+        .replacen("poisson_ratio: 0.45", "poisson_ratio: 0.5", 1)
+        .replacen("\"../assets/", &format!("\"{}/assets/", env!("CARGO_MANIFEST_DIR")), 1);
+    let path = dir.path().join("bad.ron");
+    std::fs::write(&path, &bad).expect("write");
+    let line = bad[..bad.find("poisson_ratio: 0.5").expect("edited")].matches('\n').count() + 1;
+    let out = fissure(&["check", path.to_str().expect("utf-8 path")]);
+    assert!(!out.status.success(), "nu = 0.5 must fail");
+    let err = text(&out.stderr);
+    assert!(err.contains(&format!("{}:{line}:", path.display())), "stderr names file and line {line}: {err}");
+    assert!(err.contains("material.poisson_ratio") && err.contains("(-1, 0.5)"), "stderr names field and range: {err}");
+}
+
+#[test]
+fn check_applies_and_validates_overrides() {
+    let out = fissure(&["check", "config/sylvian.ron", "--set", "collision.backend=Gpu", "--set", "material.poisson_ratio=0.49"]);
+    assert!(out.status.success(), "valid overrides: {}", text(&out.stderr));
+    let summary = text(&out.stdout);
+    assert!(summary.contains("collision: Gpu") && summary.contains("nu = 0.49"), "overrides show in the summary: {summary}");
+
+    let out = fissure(&["check", "config/sylvian.ron", "--set", "material.poisson_ratio=0.7"]);
+    assert!(!out.status.success(), "nu = 0.7 must fail");
+    assert!(text(&out.stderr).contains("--set material.poisson_ratio=0.7"), "names the argument: {}", text(&out.stderr));
+
+    let out = fissure(&["check", "config/sylvian.ron", "--set", "solver.backend=Gpu"]);
+    assert!(!out.status.success());
+    let err = text(&out.stderr);
+    assert!(err.contains("`backend`") && err.contains("`compliance_storage`"), "unknown path lists valid keys: {err}");
+}
+
+#[test]
+fn check_of_a_missing_file_fails_with_its_name() {
+    let out = fissure(&["check", "config/no-such-scene.ron"]);
+    assert!(!out.status.success());
+    assert!(text(&out.stderr).contains("config/no-such-scene.ron"), "{}", text(&out.stderr));
+}
+
+#[test]
+fn bare_fissure_handles_the_default_scene() {
+    let out = fissure(&[]);
+    assert!(out.status.success(), "bare fissure: {}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert!(stdout.contains("config/sylvian.ron") && stdout.contains("ok: the scenario is valid"), "{stdout}");
+}
+
+#[test]
+fn mesh_phantom_info_and_convert_agree() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let msh = dir.path().join("small.msh");
+    let out = fissure(&["mesh", "phantom", "--preset", "small", "-o", msh.to_str().expect("path")]);
+    assert!(out.status.success(), "phantom: {}", text(&out.stderr));
+    assert!(text(&out.stdout).contains("landmarks"), "prints landmarks: {}", text(&out.stdout));
+    assert!(msh.is_file(), "the phantom file is written");
+
+    let info = fissure(&["mesh", "info", msh.to_str().expect("path"), "--json"]);
+    assert!(info.status.success(), "info: {}", text(&info.stderr));
+    let j = json_of(&info);
+    for key in ["nodes", "tets", "surface_triangles", "components", "inverted", "min_dihedral_deg"] {
+        assert!(j.get(key).is_some(), "mesh info --json has `{key}`: {j}");
+    }
+    assert_eq!(j["components"], 1, "the phantom is one body");
+    assert_eq!(j["inverted"], 0);
+
+    let vtu = dir.path().join("small.vtu");
+    let conv = fissure(&["mesh", "convert", msh.to_str().expect("path"), vtu.to_str().expect("path")]);
+    assert!(conv.status.success(), "convert: {}", text(&conv.stderr));
+    let back = json_of(&fissure(&["mesh", "info", vtu.to_str().expect("path"), "--json"]));
+    for key in ["nodes", "tets", "surface_triangles", "components"] {
+        assert_eq!(back[key], j[key], "`{key}` survives .msh -> .vtu");
+    }
+}
+
+#[test]
+fn mesh_phantom_rejects_an_unknown_preset() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let out = fissure(&["mesh", "phantom", "--preset", "huge", "-o", dir.path().join("x.msh").to_str().expect("path")]);
+    assert!(!out.status.success());
+    assert!(text(&out.stderr).contains("paper-12k"), "lists the presets: {}", text(&out.stderr));
+}
+
+/// A closed cube surface, `side` mm, outward triangles, as OBJ text.
+fn cube_obj(side: f64) -> String {
+    let mut s = String::new();
+    for k in 0..8 {
+        let (x, y, z) = ((k & 1) as f64 * side, ((k >> 1) & 1) as f64 * side, ((k >> 2) & 1) as f64 * side);
+        s.push_str(&format!("v {x} {y} {z}\n"));
+    }
+    // Faces as quads (1-based), counter-clockwise seen from outside.
+    for [a, b, c, d] in [[1, 3, 4, 2], [5, 6, 8, 7], [1, 2, 6, 5], [3, 7, 8, 4], [1, 5, 7, 3], [2, 4, 8, 6]] {
+        s.push_str(&format!("f {a} {b} {c}\nf {a} {c} {d}\n"));
+    }
+    s
+}
+
+#[test]
+fn mesh_tetrahedralize_fills_a_closed_surface() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let obj = dir.path().join("cube.obj");
+    std::fs::write(&obj, cube_obj(20.0)).expect("write");
+    let msh = dir.path().join("cube.msh");
+    let out = fissure(&["mesh", "tetrahedralize", obj.to_str().expect("path"), "-o", msh.to_str().expect("path"), "--edge", "5mm"]);
+    assert!(out.status.success(), "tetrahedralize: {}", text(&out.stderr));
+    let j = json_of(&fissure(&["mesh", "info", msh.to_str().expect("path"), "--json"]));
+    assert!(j["tets"].as_u64().unwrap_or(0) > 0 && j["components"] == 1, "one filled body: {j}");
+    let min_dihedral = j["min_dihedral_deg"].as_f64().expect("number");
+    assert!(min_dihedral >= 10.0, "isosurface stuffing keeps its dihedral bound, got {min_dihedral}");
+
+    let bad = fissure(&["mesh", "tetrahedralize", obj.to_str().expect("path"), "-o", msh.to_str().expect("path"), "--edge", "5"]);
+    assert!(!bad.status.success() && text(&bad.stderr).contains("mm or m"), "an edge without a unit is refused: {}", text(&bad.stderr));
+}
+
+#[test]
+fn mesh_info_on_garbage_names_the_file() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let path = dir.path().join("broken.msh");
+    std::fs::write(&path, "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0\n").expect("write");
+    let out = fissure(&["mesh", "info", path.to_str().expect("path")]);
+    assert!(!out.status.success(), "a truncated mesh must fail");
+    assert!(text(&out.stderr).contains("broken.msh"), "{}", text(&out.stderr));
+}
+
+#[test]
+fn mesh_info_on_the_real_brains() {
+    let data = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/brain"));
+    let path = data.join("brain_pial_coarse.msh");
+    if !path.is_file() {
+        println!("skipped: {} is absent", path.display());
+        return;
+    }
+    let out = fissure(&["mesh", "info", path.to_str().expect("path"), "--json"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let j = json_of(&out);
+    assert_eq!((j["nodes"].as_u64(), j["tets"].as_u64()), (Some(25_757), Some(94_876)), "counts of the README: {j}");
+    assert_eq!(j["components"], 2, "two hemispheres");
+}

@@ -1,0 +1,166 @@
+//! Verification against closed forms: patch test, Lamé thick sphere, Sneddon
+//! flat punch. Sizes stay small for CI; observed orders are printed.
+
+#[path = "fem_common/mod.rs"]
+mod common;
+
+use common::*;
+use fissure::fem::fixtures::{box_mesh, linspace, sphere_shell};
+use fissure::fem::reference::solve_direct;
+use fissure::fem::{
+    Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, Material,
+};
+use fissure::math::Vec3;
+
+#[test]
+fn patch_test_uniaxial_bar_is_exact() {
+    // Bar 0.1 x 0.02 x 0.02 m, rollers at x = 0, enforced u_x = d at x = L.
+    let (l, d) = (0.1, 0.002);
+    let mesh = box_mesh(&linspace(0.0, l, 6), &linspace(0.0, 0.02, 2), &linspace(0.0, 0.02, 3)).unwrap();
+    let m = Material { young_modulus: 5e3, poisson_ratio: 0.3 };
+    let lame = vec![m.lame(); mesh.tets.len()];
+    let mut prescribed = Vec::new();
+    for (n, p) in mesh.positions.iter().enumerate() {
+        if p.x == 0.0 {
+            prescribed.push((3 * n, 0.0));
+            if p.y == 0.0 && p.z == 0.0 {
+                prescribed.push((3 * n + 1, 0.0));
+                prescribed.push((3 * n + 2, 0.0));
+            }
+            if p.y > 0.0 && p.z == 0.0 {
+                prescribed.push((3 * n + 2, 0.0));
+            }
+        }
+        if (p.x - l).abs() < 1e-12 {
+            prescribed.push((3 * n, d));
+        }
+    }
+    let sol = solve_direct(&mesh, &lame, &prescribed, &[]).unwrap();
+    let exact: Vec<Vec3> = mesh.positions.iter().map(|p| Vec3::new(d * p.x / l, -m.poisson_ratio * d * p.y / l, -m.poisson_ratio * d * p.z / l)).collect();
+    let e = rel_error(&sol.displacement, &exact);
+    assert!(e < 1e-10, "uniaxial bar must be reproduced exactly, relative error {e:e}");
+    // reaction at the end = E A eps
+    let force: f64 = prescribed.iter().zip(&sol.reactions).filter(|((dof, v), _)| dof % 3 == 0 && *v > 0.0).map(|(_, r)| r).sum();
+    let expected = m.young_modulus * 0.02 * 0.02 * d / l;
+    assert!((force - expected).abs() < 1e-10 * expected, "end force {force} vs E A eps {expected}");
+}
+
+#[test]
+fn patch_test_through_the_fast_path() {
+    // Every boundary node gets the exact linear field u = g z (stretch and shear);
+    // the fixed bottom face z = 0 has u = 0 there.
+    let mesh = block(4, 3, 3);
+    let g = Vec3::new(0.01, -0.004, 0.006);
+    let exact: Vec<Vec3> = mesh.positions.iter().map(|p| g * p.z).collect();
+    let fixed = bottom_fixed(&mesh);
+    let model = FemModel::new(&mesh, &uniform(BRAIN), &fixed, &FemOptions::default()).unwrap();
+    let roi = model.surface().vertices.clone();
+    let c = Compliance::compute(&model, &roi, ComplianceStorage::F64, None, &mut |_, _| {}).unwrap();
+    let mut solver = ConstrainedSolver::new(model, c).unwrap();
+    let cons: Vec<Constraint> = roi
+        .iter()
+        .map(|&n| Constraint { node: n, owner: 0, kind: ConstraintKind::Enforced { displacement: exact[n as usize] } })
+        .collect();
+    let mut out = FrameSolution::default();
+    solver.step(&cons, &mut out).unwrap();
+    let mut all = Vec::new();
+    solver.interior_displacements(&mut all).unwrap();
+    let e = rel_error(&all, &exact);
+    assert!(e < 1e-10, "interior nodes must follow the linear field, relative error {e:e}");
+}
+
+/// Lamé: thick sphere a < r < b, u(a) = u_a radially, free outer surface.
+fn lame_error(n: usize, layers: usize) -> f64 {
+    let (a, b, ua): (f64, f64, f64) = (0.01, 0.02, 1e-4);
+    let m = Material { young_modulus: 3e3, poisson_ratio: 0.3 };
+    let (lambda, mu) = m.lame();
+    // u = A r + B / r^2, sigma_rr(b) = (3 lambda + 2 mu) A - 4 mu B / b^3 = 0
+    let k = 4.0 * mu / ((3.0 * lambda + 2.0 * mu) * b.powi(3));
+    let bb = ua / (k * a + 1.0 / (a * a));
+    let aa = k * bb;
+    let mesh = sphere_shell(a, b, n, layers).unwrap();
+    let lame = vec![(lambda, mu); mesh.tets.len()];
+    let mut prescribed = Vec::new();
+    for (i, p) in mesh.positions.iter().enumerate() {
+        if (p.norm() - a).abs() < 1e-12 {
+            let u = p.normalize() * ua;
+            for c in 0..3 {
+                prescribed.push((3 * i + c, u[c]));
+            }
+        }
+    }
+    let sol = solve_direct(&mesh, &lame, &prescribed, &[]).unwrap();
+    // max error of the radial displacement at the outer surface, relative to u(b)
+    let ub = aa * b + bb / (b * b);
+    mesh.positions
+        .iter()
+        .zip(&sol.displacement)
+        .filter(|(p, _)| (p.norm() - b).abs() < 1e-12)
+        .map(|(p, u)| (u.dot(&p.normalize()) - ub).abs() / ub)
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn lame_thick_sphere_converges() {
+    let coarse = lame_error(4, 2);
+    let fine = lame_error(8, 4);
+    let order = (coarse / fine).log2();
+    println!("Lame thick sphere: outer radial error {coarse:e} (h) -> {fine:e} (h/2), observed order {order:.2}");
+    assert!(fine < coarse, "error must decrease with refinement");
+    assert!(order > 1.5, "observed order {order:.2} should be near 2 for linear tets");
+    assert!(fine < 0.1, "fine-mesh error {fine:e} should be under 10 %");
+}
+
+/// Frictionless rigid flat punch of radius `a` pressed `d` into a block:
+/// returns the force and Sneddon's half-space value 2 a E d / (1 - nu^2).
+fn punch(cells: usize) -> (f64, f64) {
+    let (a, d) = (0.005, 1e-4);
+    let m = Material { young_modulus: 3e3, poisson_ratio: 0.45 };
+    // quarter model by symmetry, graded toward the punch; block 20a wide, 20a deep
+    let side = 20.0 * a;
+    let grade = |n: usize| -> Vec<f64> { (0..=n).map(|i| side * (i as f64 / n as f64).powf(2.2)).collect() };
+    let xs = grade(cells);
+    let zs: Vec<f64> = grade(cells).iter().rev().map(|z| side - z).collect();
+    let mesh = box_mesh(&xs, &xs, &zs).unwrap();
+    let lame = vec![m.lame(); mesh.tets.len()];
+    let mut prescribed = Vec::new();
+    let mut punch_dofs = Vec::new();
+    for (i, p) in mesh.positions.iter().enumerate() {
+        if p.z == 0.0 {
+            for c in 0..3 {
+                prescribed.push((3 * i + c, 0.0));
+            }
+            continue;
+        }
+        if p.x == 0.0 {
+            prescribed.push((3 * i, 0.0));
+        }
+        if p.y == 0.0 {
+            prescribed.push((3 * i + 1, 0.0));
+        }
+        if (p.z - side).abs() < 1e-12 && (p.x * p.x + p.y * p.y).sqrt() <= a + 1e-12 {
+            punch_dofs.push(prescribed.len());
+            prescribed.push((3 * i + 2, -d));
+        }
+    }
+    let sol = solve_direct(&mesh, &lame, &prescribed, &[]).unwrap();
+    let force = -4.0 * punch_dofs.iter().map(|&k| sol.reactions[k]).sum::<f64>();
+    (force, 2.0 * a * m.young_modulus * d / (1.0 - m.poisson_ratio.powi(2)))
+}
+
+#[test]
+fn sneddon_flat_punch_converges() {
+    let levels = [8, 12, 16];
+    let mut errors = Vec::new();
+    let mut sneddon = 0.0;
+    for &cells in &levels {
+        let (f, s) = punch(cells);
+        sneddon = s;
+        errors.push((f - s).abs() / s);
+        println!("Sneddon punch, {cells} cells a side: F = {f:.5e} N vs half-space {s:.5e} N, rel. difference {:.3}", errors.last().unwrap());
+    }
+    let order = (errors[1] / errors[2]).ln() / (16.0_f64 / 12.0).ln();
+    println!("Sneddon punch: observed order {order:.2} (cells 12 -> 16), reference {sneddon:.5e} N");
+    assert!(errors[0] > errors[1] && errors[1] > errors[2], "the force must approach Sneddon's value with refinement: {errors:?}");
+    assert!(errors[2] < 0.3, "finest level within 30 % (finite 20a block with a fixed base, staircase punch edge, edge singularity): {}", errors[2]);
+}

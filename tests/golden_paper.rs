@@ -1,0 +1,176 @@
+//! The paper's scenes end to end (golden replays): each states in numbers what
+//! the paper shows in pictures. Tolerances are stated beside each assertion.
+//!
+//! - Fig. 11: a spatula jumps 5 thicknesses sideways in one frame inside the
+//!   inter-hemispheric fissure: with culling no surface vertex is pulled through
+//!   the blade; without culling some are (the failure the paper shows).
+//! - Fig. 12: V-valley, both faces give displacements and culling cancels none;
+//!   U-shape rotated, both faces touch, in different places.
+//! - Fig. 14: two spatulas open the Sylvian fissure: its width at depth grows to
+//!   the blades' spread, and the skull spheres hold.
+
+use fissure::math::Vec3;
+use fissure::scenario::Scenario;
+use fissure::sim::replay::{ReplayOptions, replay};
+use fissure::sim::{BuildOptions, FrameInput, Pipeline, replay::PoseSource};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+fn repo(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+/// Replays a config with a trajectory and overrides; returns the summary and the CSV.
+fn run(config: &str, trajectory: &str, overrides: &[&str]) -> (fissure::sim::metrics::Summary, String) {
+    let mut sets: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    sets.push("solver.cache_dir=None".into());
+    let s = Scenario::load(&repo(config), &sets).expect("config loads");
+    let dir = tempfile::tempdir().unwrap();
+    let opts = ReplayOptions { out_dir: dir.path().to_path_buf(), trajectory: Some(repo(trajectory)), vtk: false };
+    let summary = replay(&s, &opts, &AtomicBool::new(false), &mut |_, _, _, _| Ok(()), None).expect("replay");
+    let csv = std::fs::read_to_string(dir.path().join("metrics.csv")).unwrap();
+    (summary, csv)
+}
+
+/// Column `name` of a metrics CSV as numbers.
+fn column(csv: &str, name: &str) -> Vec<f64> {
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let k = header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name} in {header:?}"));
+    lines.map(|l| l.split(',').nth(k).unwrap().parse().unwrap()).collect()
+}
+
+#[test]
+fn fig11_culling_keeps_tissue_out_of_the_blade_and_without_it_tissue_is_pulled_through() {
+    let traj = "assets/trajectories/paper_fig11_interhemispheric.csv";
+    let (with, csv_with) = run("config/interhemispheric.ron", traj, &["duration_s=2.5"]);
+    let (without, csv_without) = run("config/interhemispheric.ron", traj, &["duration_s=2.5", "effects=[Collision, ForceOutput]"]);
+    let pairs_with: f64 = column(&csv_with, "spatula_feasible_pairs").iter().sum();
+    assert!(pairs_with > 0.0, "the spatula must touch the wall");
+    let culled: f64 = column(&csv_with, "spatula_culled_pairs").iter().sum();
+    println!(
+        "Fig. 11: with culling: max crossed {}, culled pairs (sum) {culled}; without: max crossed {}, max displacement {:.2} vs {:.2} mm",
+        with.max_crossed_vertices, without.max_crossed_vertices, with.max_displacement_mm, without.max_displacement_mm
+    );
+    assert_eq!(with.max_crossed_vertices, 0, "with culling no surface vertex may be pulled through the spatula");
+    assert!(culled > 0.0, "the one-frame jump must make culling cancel pairs");
+    assert!(without.max_crossed_vertices > 0, "without culling the far wall is pulled through the blade (paper Fig. 11b)");
+    assert_eq!(column(&csv_without, "spatula_culled_pairs").iter().sum::<f64>(), 0.0);
+}
+
+#[test]
+fn fig12_v_valley_both_faces_push_and_culling_cancels_none() {
+    let (s, csv) = run("config/v_valley.ron", "assets/trajectories/paper_fig12_v_valley.csv", &[]);
+    let culled: f64 = column(&csv, "spatula_culled_pairs").iter().sum();
+    let feasible = column(&csv, "spatula_feasible_pairs");
+    println!("Fig. 12 V: final feasible pairs {}, culled total {culled}, max displacement {:.2} mm", feasible.last().unwrap(), s.max_displacement_mm);
+    assert_eq!(culled, 0.0, "in the V valley culling cancels none of the feasible pairs");
+    assert_eq!(s.max_crossed_vertices, 0);
+    // Both faces: checked on the final state with the collision stage's per-face targets.
+    let sc = Scenario::load(&repo("config/v_valley.ron"), &["solver.cache_dir=None".into()]).unwrap();
+    let faces = final_faces(&sc, "assets/trajectories/paper_fig12_v_valley.csv");
+    assert!(faces[0] > 0 && faces[1] > 0, "both faces constrain the walls: {faces:?}");
+}
+
+#[test]
+fn fig12_u_shape_rotated_blade_touches_with_both_faces_in_different_places() {
+    let sc = Scenario::load(&repo("config/u_shape.ron"), &["solver.cache_dir=None".into()]).unwrap();
+    let (p, s, targets) = final_targets(&sc, "assets/trajectories/paper_fig12_u_shape.csv");
+    let along = |face: u8| {
+        let v: Vec<f64> = targets.iter().filter(|t| t.1 == face).map(|t| t.0).collect();
+        (v.len(), v.iter().sum::<f64>() / v.len().max(1) as f64)
+    };
+    let (n0, x0) = along(0);
+    let (n1, x1) = along(1);
+    println!("Fig. 12 U: face +z: {n0} vertices at mean blade x {:.1} mm; face -z: {n1} at {:.1} mm", x0 * 1e3, x1 * 1e3);
+    assert!(n0 > 0 && n1 > 0, "both faces touch the channel walls");
+    assert!((x0 - x1).abs() > 0.005, "the two faces' contacts lie at different places along the blade");
+    let _ = (p, s);
+}
+
+/// Replays in-process and returns, per face, the number of vertices constrained at the end.
+fn final_faces(s: &Scenario, traj: &str) -> [usize; 2] {
+    let (_, _, t) = final_targets(s, traj);
+    [t.iter().filter(|t| t.1 == 0).count(), t.iter().filter(|t| t.1 == 1).count()]
+}
+
+/// (pipeline, state, [(blade-local x of the target vertex, face)]) at the end of the trajectory.
+fn final_targets(s: &Scenario, traj: &str) -> (Pipeline, fissure::sim::SimState, Vec<(f64, u8)>) {
+    let source = PoseSource::for_scenario(s, Some(&repo(traj))).unwrap();
+    let (mut p, mut state) = Pipeline::build(s, BuildOptions { expected_poses: source.samples(s.duration, 50), progress: None }).unwrap();
+    let mut input = FrameInput::default();
+    for k in 0..s.step_count() {
+        source.poses_at((k + 1) as f64 * s.time_step, &mut input);
+        p.step(&mut state, &input).unwrap();
+    }
+    let pose = state.poses[0];
+    let targets = p
+        .collision()
+        .unwrap()
+        .output()
+        .targets
+        .iter()
+        .map(|t| {
+            let x = pose.rotation.inverse_transform_vector(&(state.surface_positions[t.vertex as usize] - pose.position)).x;
+            (x, t.face)
+        })
+        .collect();
+    (p, state, targets)
+}
+
+#[test]
+fn fig14_two_spatulas_open_the_sylvian_fissure_and_the_skull_holds() {
+    let traj = "assets/trajectories/paper_fig14_sylvian.csv";
+    let s = Scenario::load(&repo("config/sylvian.ron"), &["solver.cache_dir=None".into(), "time_step_s=0.02".into()]).unwrap();
+    let source = PoseSource::for_scenario(&s, Some(&repo(traj))).unwrap();
+    let (mut p, mut state) = Pipeline::build(&s, BuildOptions { expected_poses: source.samples(s.duration, 100), progress: None }).unwrap();
+    let mut input = FrameInput::default();
+    let mut max_crossed = 0;
+    for k in 0..s.step_count() {
+        source.poses_at((k + 1) as f64 * s.time_step, &mut input);
+        let r = p.step(&mut state, &input).expect("step");
+        max_crossed = max_crossed.max(r.crossed_vertices);
+        assert!(r.max_displacement_m.is_finite());
+    }
+    // The fissure frame (from the phantom's landmarks, as in scripts/make_trajectories.py).
+    let entry = Vec3::new(-68.09e-3, 10e-3, -11.65e-3);
+    let inward = Vec3::x();
+    let normal = Vec3::new(0.0, 0.3429, 0.9394).normalize();
+    let across = normal.cross(&inward);
+    let rest = p.rest_positions();
+    let (mut rest_upper, mut rest_lower, mut now_upper, mut now_lower) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for (r, now) in rest.iter().zip(&state.surface_positions) {
+        let d = r - entry;
+        let depth = d.dot(&inward);
+        if !(0.006..=0.014).contains(&depth) || d.dot(&across).abs() > 0.002 {
+            continue;
+        }
+        let s_rest = d.dot(&normal);
+        let s_now = (now - entry).dot(&normal);
+        if s_rest > 0.0 && s_rest < 0.008 {
+            rest_upper = rest_upper.min(s_rest);
+            now_upper = now_upper.min(s_now);
+        } else if s_rest < 0.0 && s_rest > -0.008 {
+            rest_lower = rest_lower.max(s_rest);
+            now_lower = now_lower.max(s_now);
+        }
+    }
+    let width_rest = (rest_upper - rest_lower) * 1e3;
+    let width_now = (now_upper - now_lower) * 1e3;
+    let blades_outer_faces = 2.0 * (1.2 + 7.0 + 0.5);
+    println!("Fig. 14: fissure width at 6-14 mm depth: rest {width_rest:.2} mm, opened {width_now:.2} mm, blades' outer faces {blades_outer_faces:.1} mm apart; max crossed {max_crossed}");
+    assert!(width_rest.is_finite() && width_now.is_finite(), "both walls found in the measuring window");
+    assert!((width_now - blades_outer_faces).abs() < 0.5, "the opened fissure's walls rest on the blades (tolerance 0.5 mm)");
+    assert!(width_now - width_rest > 0.8 * (blades_outer_faces - width_rest), "the fissure opened by the spread");
+    assert_eq!(max_crossed, 0);
+    // The skull spheres hold for every surface vertex.
+    let skull = p.skull().expect("sylvian.ron asks for skull spheres").skull();
+    for q in &state.surface_positions {
+        if let Some(c) = skull.containing {
+            assert!((q - c.center).norm() <= c.radius * (1.0 + 1e-9), "vertex outside the containing sphere");
+        }
+        if let Some(e) = skull.excluding {
+            assert!((q - e.center).norm() >= e.radius * (1.0 - 1e-9), "vertex inside the excluding sphere");
+        }
+    }
+}

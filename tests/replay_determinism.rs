@@ -1,0 +1,113 @@
+//! Headless replay: two runs of one scene give byte-identical `metrics.csv`
+//! (timing columns aside) and the same final-state hash; an interrupted run
+//! leaves valid rows and a summary marked interrupted.
+
+mod common;
+
+use fissure::math::Vec3;
+use fissure::scenario::Scenario;
+use fissure::sim::replay::{ReplayOptions, replay};
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+fn scene(dir: &Path) -> Scenario {
+    let mesh = common::block(8, 8, 4, Vec3::new(40.0, 40.0, 20.0), Vec3::new(-20.0, -20.0, 0.0));
+    let mesh_path = common::write_mesh(dir, "block.msh", &mesh);
+    // The blade comes down 2.5 mm into the top face, slides sideways, and leaves.
+    let traj = "# press, slide, withdraw\ntime_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz\n\
+        0.0,0,-10.0,0.0,21.0,1.0,0.0,0.0,0.0\n\
+        0.1,0,-10.0,0.0,18.0,1.0,0.0,0.0,0.0\n\
+        0.2,0,-6.0,2.0,18.0,1.0,0.0,0.0,0.0\n\
+        0.3,0,-6.0,2.0,25.0,1.0,0.0,0.0,0.0\n";
+    std::fs::write(dir.join("press.csv"), traj).unwrap();
+    let text = format!(
+        r#"(
+    name: "block replay",
+    mesh: File(path: "{}", units: Millimetres),
+    material: (young_modulus_pa: 3000.0, poisson_ratio: 0.45),
+    fixed: [LowestPerComponent(height_mm: 1.0)],
+    spatulas: [(
+        name: "blade",
+        shape: (length_mm: 20.0, width_mm: 10.0, thickness_mm: 1.0),
+        layout: Grid(along: 10, across: 5),
+        pose: (position_mm: (-10.0, 0.0, 21.0), rotation: Quaternion(1.0, 0.0, 0.0, 0.0)),
+        input: Trajectory,
+    )],
+    effects: [Collision, Culling, ForceOutput, ContactPressure],
+    collision: (backend: Bvh),
+    solver: (compliance_storage: F64, region_of_interest: All, cache_dir: None),
+    time_step_s: 0.01,
+    duration_s: 0.3,
+    trajectory: Some("press.csv"),
+)"#,
+        mesh_path.display()
+    );
+    Scenario::from_str(&text, &dir.join("block.ron"), &[]).expect("valid")
+}
+
+/// The CSV with every `_ms` column removed.
+fn without_timings(csv: &str) -> String {
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let keep: Vec<bool> = header.iter().map(|h| !h.ends_with("_ms")).collect();
+    std::iter::once(header.join(","))
+        .chain(lines.map(|l| l.split(',').zip(&keep).filter(|(_, k)| **k).map(|(v, _)| v).collect::<Vec<_>>().join(",")))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn two_replays_are_bitwise_identical() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    let mut runs = Vec::new();
+    for k in 0..2 {
+        let out = dir.path().join(format!("run{k}"));
+        let opts = ReplayOptions { out_dir: out.clone(), trajectory: None, vtk: k == 0 };
+        let summary = replay(&s, &opts, &AtomicBool::new(false), &mut |_, _, _, _| Ok(()), None).expect("replay");
+        assert_eq!(summary.frames, 30);
+        assert!(!summary.interrupted);
+        let csv = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+        assert_eq!(csv.lines().count(), 31, "header + one row a frame");
+        runs.push((without_timings(&csv), summary.final_state_hash.clone(), summary));
+    }
+    assert_eq!(runs[0].0, runs[1].0, "metrics.csv differs between two replays of one scene");
+    assert_eq!(runs[0].1, runs[1].1, "final-state hashes differ");
+    let s0 = &runs[0].2;
+    assert!(s0.spatulas[0].peak_force_n > 0.0, "the blade pressed the block");
+    assert!(s0.max_displacement_mm > 1.0 && s0.max_displacement_mm < 10.0, "{}", s0.max_displacement_mm);
+    // The VTK series of the first run: a .pvd naming 30 .vtu files that load back.
+    let pvd = std::fs::read_to_string(dir.path().join("run0/series.pvd")).unwrap();
+    assert_eq!(pvd.matches(".vtu").count(), 30);
+    let m = fissure::mesh::io::load_tet_mesh(&dir.path().join("run0/frame_00010.vtu")).expect("a written frame loads back");
+    assert_eq!(m.tets.len(), 8 * 8 * 4 * 6);
+}
+
+#[test]
+fn an_interrupted_replay_keeps_its_rows_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    let out = dir.path().join("cut");
+    let stop = AtomicBool::new(false);
+    let opts = ReplayOptions { out_dir: out.clone(), trajectory: None, vtk: false };
+    let summary = replay(
+        &s,
+        &opts,
+        &stop,
+        &mut |_, _, done, _| {
+            if done == 12 {
+                stop.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+            Ok(())
+        },
+        None,
+    )
+    .expect("an interruption is not an error");
+    assert!(summary.interrupted);
+    assert_eq!(summary.frames, 12);
+    let csv = std::fs::read_to_string(out.join("metrics.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 13);
+    assert!(csv.lines().all(|l| l.split(',').count() == csv.lines().next().unwrap().split(',').count()), "every row complete");
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(json["interrupted"], true);
+}
