@@ -105,3 +105,18 @@ write("assets/trajectories/paper_fig12_u_shape.csv",
       "Paper Fig. 12c-d: a 40 x 10 x 1 mm spatula goes down the U channel (16 mm wide, 16 mm deep)\n"
       "until its tip is 14 mm below the rim, then rotates 50 degrees about the point 7 mm above its\n"
       "tip, so its tip presses one wall with one face and its upper part the other wall with the other face.", rows)
+
+# The real brain (../shared/data/brain/brain_pial_coarse.msh, fsaverage5 RAS millimetres):
+# two 0.5 mm blades go down the inter-hemispheric gap at y = -30 mm side by side, the
+# tips 25 mm below the top of the brain (z = 75 -> 50 mm), then spread 5 mm apart each,
+# retracting the two hemispheres.
+entry, inward, normal = (0.0, -30.0, 75.0), (0.0, 0.0, -1.0), (1.0, 0.0, 0.0)
+rows = []
+for k, side in ((0, -1.0), (1, 1.0)):
+    for t, depth, off in ((0.0, -5.0, 0.4), (1.0, 25.0, 0.4), (3.0, 25.0, 5.4), (4.0, 25.0, 5.4)):
+        p, q = blade_pose(entry, inward, normal, 60.0, depth, side * off)
+        rows.append(row(t, k, p, q))
+write("assets/trajectories/real_brain_interhemispheric.csv",
+      "Real brain (fsaverage5, ../shared/data/brain): two 60 x 8 x 0.5 mm blades enter the\n"
+      "inter-hemispheric gap at y = -30 mm (tips 25 mm deep at 1 s), then spread 5 mm each\n"
+      "towards their hemisphere until 3 s and hold.", rows)

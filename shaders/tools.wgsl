@@ -1,6 +1,6 @@
 // Tools and helpers: metallic blades (fs_lit, opaque), translucent skull
 // spheres (fs_lit with the vertex alpha, blended), overlay squares and pair
-// lines (fs_unlit). Same vertex format and globals as surface.wgsl.
+// ribbons (fs_unlit). Same vertex format and globals as surface.wgsl.
 
 struct Globals {
     view_proj: mat4x4<f32>,
@@ -44,10 +44,10 @@ fn fs_lit(in: VsOut) -> @location(0) vec4<f32> {
     let ndl = max(dot(n, l), 0.0);
     let ndv = max(dot(n, v), 0.0);
     let h = normalize(l + v);
-    let spec = pow(max(dot(n, h), 0.0), 48.0) * 0.8;
+    let spec = pow(max(dot(n, h), 0.0), 48.0) * 0.5;
     let rim = pow(1.0 - ndv, 4.0) * 0.25;
     let albedo = in.color.rgb;
-    let rgb = albedo * (0.25 + 0.45 * ndl + 0.35 * ndv) + vec3<f32>(spec + rim);
+    let rgb = albedo * (0.22 + 0.45 * ndl + 0.25 * ndv) + vec3<f32>(spec + rim);
     return vec4<f32>(rgb, in.color.a);
 }
 

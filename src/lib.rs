@@ -15,4 +15,5 @@ pub mod mesh;
 pub mod render;
 pub mod scenario;
 pub mod sim;
+pub mod study;
 pub mod ui;

@@ -18,9 +18,9 @@ fn config_dir() -> PathBuf {
 /// can be written anywhere.
 fn sylvian_text() -> String {
     let text = std::fs::read_to_string(config_dir().join("sylvian.ron")).expect("config/sylvian.ron is shipped");
-    let relative = "\"../assets/trajectories/sylvian_open.csv\"";
+    let relative = "\"../assets/trajectories/paper_fig14_sylvian.csv\"";
     assert!(text.contains(relative), "sylvian.ron plays {relative}");
-    let absolute = config_dir().join("../assets/trajectories/sylvian_open.csv");
+    let absolute = config_dir().join("../assets/trajectories/paper_fig14_sylvian.csv");
     text.replacen(relative, &format!("{:?}", absolute.display().to_string()), 1)
 }
 
@@ -92,12 +92,12 @@ fn sylvian_scene_is_converted_to_si() {
     assert!((sp.shape.thickness - 1.0e-3).abs() < 1e-15, "thickness 1 mm -> 1e-3 m, got {}", sp.shape.thickness);
     assert_eq!(sp.layout, NodeLayout::Grid { along: 15, across: 10 });
     let p = sp.initial_pose.position;
-    assert!((p - Vec3::new(-0.1251, 0.010686216, -0.009821408)).norm() < 1e-15, "position in metres: {p:?}");
-    // LookAt(direction: +x, up: (0, 0.343, 0.939)): blade along +x, face normal the fissure's normal.
+    assert!((p - Vec3::new(-0.13309, 0.0104115, -0.0105227)).norm() < 1e-15, "position in metres: {p:?}");
+    // Blade along +x, face normal the fissure's normal (to the 9 digits of the file).
     let x = sp.initial_pose.transform_vector(&Vec3::x());
     let z = sp.initial_pose.transform_vector(&Vec3::z());
     let normal = Vec3::new(0.0, 0.343, 0.939).normalize();
-    assert!((x - Vec3::x()).norm() < 1e-12 && (z - normal).norm() < 1e-12, "LookAt axes: x {x:?}, z {z:?}");
+    assert!((x - Vec3::x()).norm() < 1e-8 && (z - normal).norm() < 1e-3, "pose axes: x {x:?}, z {z:?}");
     assert!((s.material.young_modulus - 3000.0).abs() < 1e-12 && (s.material.poisson_ratio - 0.45).abs() < 1e-15);
     assert_eq!(s.fixed, vec![FixedRegion::RegionId(3)], "fixed near the brain stem");
     let containing = s.skull.and_then(|k| k.containing).expect("containing sphere");
@@ -126,7 +126,7 @@ fn initial_poses_match_the_trajectories_at_time_zero() {
 #[test]
 fn look_at_builds_a_right_handed_frame() {
     let text = sylvian_text().replacen(
-        "rotation: LookAt(direction: (1.0, 0.0, 0.0), up: (0.0, 0.343, 0.939))",
+        "rotation: Quaternion(0.984727174, -0.174104545, 0.0, 0.0)",
         "rotation: LookAt(direction: (0.0, 0.0, -2.0), up: (1.0, 0.0, 0.3))",
         1,
     );

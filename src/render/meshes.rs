@@ -117,17 +117,10 @@ pub const NODE_COLOR: [f32; 4] = [0.1, 0.6, 1.0, 1.0];
 pub const FEASIBLE_COLOR: [f32; 4] = [0.1, 0.9, 0.2, 1.0];
 pub const CULLED_COLOR: [f32; 4] = [1.0, 0.1, 0.1, 1.0];
 
-/// Appends source nodes as camera-facing squares (triangles) and pairs as line
-/// segments (two vertices each). `right`/`up` are the view's unit axes.
-pub fn overlay_vertices(
-    overlays: &Overlays,
-    origin: &Vec3,
-    right: &Vec3,
-    up: &Vec3,
-    default_size_m: f64,
-    quads: &mut Vec<Vertex>,
-    lines: &mut Vec<Vertex>,
-) {
+/// Appends source nodes as camera-facing squares and pairs as camera-facing
+/// ribbons (a third of the node size wide, so they survive MSAA as clearly as
+/// the nodes), all as triangles. `right`/`up` are the view's unit axes.
+pub fn overlay_vertices(overlays: &Overlays, origin: &Vec3, right: &Vec3, up: &Vec3, default_size_m: f64, quads: &mut Vec<Vertex>) {
     let size = if overlays.node_size_m > 0.0 && overlays.node_size_m.is_finite() { overlays.node_size_m } else { default_size_m };
     let (r, u) = (right * (size * 0.5), up * (size * 0.5));
     let n = f3(&right.cross(up));
@@ -137,10 +130,16 @@ pub fn overlay_vertices(
             quads.push(Vertex { position: rel(&c[k], origin), normal: n, color: NODE_COLOR });
         }
     }
+    let towards_viewer = right.cross(up);
     for seg in overlays.pairs {
         let color = if seg.feasible { FEASIBLE_COLOR } else { CULLED_COLOR };
-        lines.push(Vertex { position: rel(&seg.from, origin), normal: n, color });
-        lines.push(Vertex { position: rel(&seg.to, origin), normal: n, color });
+        let side = (seg.to - seg.from).cross(&towards_viewer);
+        // A segment along the view direction shows as a dot: give it the right axis.
+        let side = if side.norm() > 1e-12 { side.normalize() } else { *right } * (size / 6.0);
+        let c = [seg.from - side, seg.to - side, seg.to + side, seg.from + side];
+        for k in [0, 1, 2, 0, 2, 3] {
+            quads.push(Vertex { position: rel(&c[k], origin), normal: n, color });
+        }
     }
 }
 

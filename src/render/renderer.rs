@@ -11,7 +11,8 @@
 //!
 //! Passes, in order, in one render pass with a depth buffer and 4x MSAA where
 //! the format allows: brain surface (two-sided), blades (opaque), skull spheres
-//! (alpha blended, no depth write), overlays (on top, no depth test).
+//! (alpha blended, no depth write), overlays (nodes as squares, pairs as
+//! ribbons; on top, no depth test).
 
 use super::RenderError;
 use super::gpu_types::{Globals, Vertex};
@@ -81,8 +82,7 @@ pub(crate) struct OffscreenTarget {
 struct ToolRanges {
     blades: (u32, u32),
     skull: (u32, u32),
-    quads: (u32, u32),
-    lines: (u32, u32),
+    overlays: (u32, u32),
 }
 
 #[derive(Default)]
@@ -90,7 +90,6 @@ struct Scratch {
     normals: Vec<crate::math::Vec3>,
     surface: Vec<Vertex>,
     tools: Vec<Vertex>,
-    lines: Vec<Vertex>,
     unit_sphere: Vec<crate::math::Vec3>,
 }
 
@@ -107,8 +106,7 @@ pub struct Renderer {
     surface_pipeline: wgpu::RenderPipeline,
     blade_pipeline: wgpu::RenderPipeline,
     skull_pipeline: wgpu::RenderPipeline,
-    quad_pipeline: wgpu::RenderPipeline,
-    line_pipeline: wgpu::RenderPipeline,
+    overlay_pipeline: wgpu::RenderPipeline,
     surface_vertices: GrowBuffer,
     surface_indices: GrowBuffer,
     tool_vertices: GrowBuffer,
@@ -240,13 +238,12 @@ impl Renderer {
             })
         };
         use wgpu::CompareFunction::{Always, Less};
-        use wgpu::PrimitiveTopology::{LineList, TriangleList};
+        use wgpu::PrimitiveTopology::TriangleList;
         let surface_pipeline = make("surface pipeline", &surface_shader, "fs_main", TriangleList, None, true, Less, None);
         let blade_pipeline = make("blade pipeline", &tools_shader, "fs_lit", TriangleList, Some(wgpu::Face::Back), true, Less, None);
         let skull_pipeline =
             make("skull pipeline", &tools_shader, "fs_lit", TriangleList, Some(wgpu::Face::Back), false, Less, Some(wgpu::BlendState::ALPHA_BLENDING));
-        let quad_pipeline = make("overlay node pipeline", &tools_shader, "fs_unlit", TriangleList, None, false, Always, None);
-        let line_pipeline = make("overlay pair pipeline", &tools_shader, "fs_unlit", LineList, None, false, Always, None);
+        let overlay_pipeline = make("overlay pipeline", &tools_shader, "fs_unlit", TriangleList, None, false, Always, None);
 
         let vertex_usage = wgpu::BufferUsages::VERTEX;
         let surface_vertices = GrowBuffer::new(&device, "surface vertices", vertex_usage);
@@ -264,8 +261,7 @@ impl Renderer {
             surface_pipeline,
             blade_pipeline,
             skull_pipeline,
-            quad_pipeline,
-            line_pipeline,
+            overlay_pipeline,
             surface_vertices,
             surface_indices,
             tool_vertices,
@@ -395,17 +391,14 @@ impl Renderer {
         self.surface_vertices.write(&self.device, &self.queue, bytemuck::cast_slice(&s.surface));
 
         s.tools.clear();
-        s.lines.clear();
         meshes::blade_vertices(view.spatulas, &origin, &mut s.tools);
         let blades_end = s.tools.len() as u32;
         meshes::sphere_vertices(view.skull, &s.unit_sphere, &origin, &mut s.tools);
         let skull_end = s.tools.len() as u32;
         let (right, up) = cam.right_up();
-        meshes::overlay_vertices(&view.overlays, &origin, &right, &up, cam.distance_m * 0.006, &mut s.tools, &mut s.lines);
-        let quads_end = s.tools.len() as u32;
-        s.tools.extend_from_slice(&s.lines);
-        let lines_end = s.tools.len() as u32;
-        self.ranges = ToolRanges { blades: (0, blades_end), skull: (blades_end, skull_end), quads: (skull_end, quads_end), lines: (quads_end, lines_end) };
+        meshes::overlay_vertices(&view.overlays, &origin, &right, &up, cam.distance_m * 0.006, &mut s.tools);
+        let overlays_end = s.tools.len() as u32;
+        self.ranges = ToolRanges { blades: (0, blades_end), skull: (blades_end, skull_end), overlays: (skull_end, overlays_end) };
         self.tool_vertices.write(&self.device, &self.queue, bytemuck::cast_slice(&s.tools));
 
         let aspect = size.0 as f64 / size.1 as f64;
@@ -469,7 +462,7 @@ impl Renderer {
         pass.set_vertex_buffer(0, self.tool_vertices.buffer.slice(..));
         let r = self.ranges;
         for (pipeline, (start, end)) in
-            [(&self.blade_pipeline, r.blades), (&self.skull_pipeline, r.skull), (&self.quad_pipeline, r.quads), (&self.line_pipeline, r.lines)]
+            [(&self.blade_pipeline, r.blades), (&self.skull_pipeline, r.skull), (&self.overlay_pipeline, r.overlays)]
         {
             if end > start {
                 pass.set_pipeline(pipeline);

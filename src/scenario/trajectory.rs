@@ -128,10 +128,10 @@ impl Trajectory {
         if self.tracks.len() <= spatula {
             self.tracks.resize_with(spatula + 1, Vec::new);
         }
-        if let Some(last) = self.tracks[spatula].last() {
-            if sample.time_s <= last.time_s {
-                return Err(bad(format!("times must strictly increase per spatula (previous {} s)", last.time_s)));
-            }
+        if let Some(last) = self.tracks[spatula].last()
+            && sample.time_s <= last.time_s
+        {
+            return Err(bad(format!("times must strictly increase per spatula (previous {} s)", last.time_s)));
         }
         self.tracks[spatula].push(sample);
         Ok(())
@@ -220,10 +220,10 @@ impl Trajectory {
         loop {
             let mut next: Option<(usize, f64)> = None;
             for (k, track) in self.tracks.iter().enumerate() {
-                if let Some(sample) = track.get(cursor[k]) {
-                    if next.is_none_or(|(_, t)| sample.time_s < t) {
-                        next = Some((k, sample.time_s));
-                    }
+                if let Some(sample) = track.get(cursor[k])
+                    && next.is_none_or(|(_, t)| sample.time_s < t)
+                {
+                    next = Some((k, sample.time_s));
                 }
             }
             let Some((k, _)) = next else { break };

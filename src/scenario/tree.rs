@@ -214,10 +214,10 @@ impl Parser<'_> {
             }
         }
         // `-` only inside raw identifiers; a plain identifier stops before it.
-        if start == body {
-            if let Some(dash) = self.text[body..self.pos].find('-') {
-                self.pos = body + dash;
-            }
+        if start == body
+            && let Some(dash) = self.text[body..self.pos].find('-')
+        {
+            self.pos = body + dash;
         }
         if self.pos == body {
             self.pos = start;

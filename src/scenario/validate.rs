@@ -4,9 +4,9 @@
 //! In: the parsed file and its [`Document`] (for positions). Out: a [`Scenario`]
 //! the pipeline reads directly, or the first [`ScenarioError::Invalid`] in file
 //! order of checks, naming file, line, column and field path. Stays true for a
-//! validated scenario: every number is finite; lengths, radii, moduli, steps are
-//! > 0; nu in (-1, 0.5); poses are unit; input files exist; each effect's
-//! prerequisites are present.
+//! validated scenario: every number is finite; lengths, radii, moduli and steps
+//! are positive; nu in (-1, 0.5); poses are unit; input files exist; each
+//! effect's prerequisites are present.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

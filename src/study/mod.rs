@@ -146,6 +146,8 @@ pub struct RunRow {
 #[derive(Debug, Clone, PartialEq)]
 pub struct StudyResults {
     pub plan_name: String,
+    /// The motion every run replayed.
+    pub motion: Motion,
     pub scene_name: String,
     pub rows: Vec<RunRow>,
     /// Files written, in order.
@@ -273,6 +275,7 @@ pub fn run_plan(
     progress(StudyProgress { done: total, total, label: "writing the report".into() });
     let mut results = StudyResults {
         plan_name: plan.name.clone(),
+        motion: plan.motion,
         scene_name: scene.name.clone(),
         rows,
         files: Vec::new(),

@@ -299,7 +299,7 @@ fn elements_v2_binary(c: &mut Cursor<'_>, raw: &mut RawTets, b: Binary) -> Resul
             None => return Err(err(K::UnsupportedElementType { element_type: ty })),
         };
         let ints = 1 + ntags + nodes_per;
-        let len = (follow as usize).checked_mul(ints * 4).unwrap_or(usize::MAX);
+        let len = (follow as usize).saturating_mul(ints * 4);
         let start = c.pos;
         let block = c.bytes(len, "binary element data and $EndElements")?;
         if ty == 4 {
@@ -449,10 +449,10 @@ fn nodes_v41_binary(c: &mut Cursor<'_>, raw: &mut RawTets, b: Binary) -> Result<
         let n = b.size(h, 12);
         let params = if parametric != 0 { dim.clamp(0, 3) as usize } else { 0 };
         let n_usize = usize::try_from(n).unwrap_or(usize::MAX);
-        let tag_bytes = c.bytes(n_usize.checked_mul(s).unwrap_or(usize::MAX), "binary node tags and $EndNodes")?;
+        let tag_bytes = c.bytes(n_usize.saturating_mul(s), "binary node tags and $EndNodes")?;
         let rec = 8 * (3 + params);
         let start = c.pos;
-        let coords = c.bytes(n_usize.checked_mul(rec).unwrap_or(usize::MAX), "binary node coordinates and $EndNodes")?;
+        let coords = c.bytes(n_usize.saturating_mul(rec), "binary node coordinates and $EndNodes")?;
         for i in 0..n_usize {
             let tag = b.size(tag_bytes, i * s) as i64;
             let p = Vec3::new(b.f64(coords, i * rec), b.f64(coords, i * rec + 8), b.f64(coords, i * rec + 16));
@@ -541,7 +541,7 @@ fn elements_v41_binary(
         let rec = (1 + per) * s;
         let n_usize = usize::try_from(n).unwrap_or(usize::MAX);
         let start = c.pos;
-        let block = c.bytes(n_usize.checked_mul(rec).unwrap_or(usize::MAX), "binary element data and $EndElements")?;
+        let block = c.bytes(n_usize.saturating_mul(rec), "binary element data and $EndElements")?;
         if ty == 4 {
             for (i, r) in block.chunks_exact(rec).enumerate() {
                 let tag = b.size(r, 0) as i64;

@@ -23,7 +23,7 @@ pub mod vtu;
 mod cursor;
 mod tets;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 pub use error::{MeshFileError, MeshFileErrorKind};
 
@@ -245,9 +245,4 @@ pub fn save_surface(path: &Path, surface: &TriSurface) -> Result<(), MeshFileErr
 /// s, file name relative to the `.pvd`). Times must be finite.
 pub fn write_pvd(path: &Path, entries: &[(f64, String)]) -> Result<(), MeshFileError> {
     write(path, vtu::write_pvd(path, entries)?.as_bytes())
-}
-
-/// The sibling path with another extension (e.g. `frame.vtu` beside `run.pvd`).
-pub fn sibling(path: &Path, file_name: &str) -> PathBuf {
-    path.parent().map(|d| d.join(file_name)).unwrap_or_else(|| PathBuf::from(file_name))
 }

@@ -75,7 +75,7 @@ pub fn parse(node_path: &Path, node: &[u8], ele_path: &Path, ele: &[u8]) -> Resu
         }
         let region = if has_region == 1 {
             let r = c.float(|| format!("region attribute of tetrahedron {tag}"))?;
-            if !(r >= 0.0 && r < 4294967296.0 && r.fract() == 0.0) {
+            if !((0.0..4294967296.0).contains(&r) && r.fract() == 0.0) {
                 return Err(c.err_at(line, K::Invalid(format!("region attribute {r} of tetrahedron {tag} is not an integer in 0..2^32"))));
             }
             r as u32

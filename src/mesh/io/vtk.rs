@@ -69,7 +69,7 @@ fn values(
     }
     let n = usize::try_from(count).unwrap_or(usize::MAX);
     let start = c.pos;
-    let block = c.bytes(n.checked_mul(size).unwrap_or(usize::MAX), &format!("binary {what}"))?;
+    let block = c.bytes(n.saturating_mul(size), &format!("binary {what}"))?;
     let lower = ty.0.to_ascii_lowercase();
     for (i, b) in block.chunks_exact(size).enumerate() {
         let x = match (lower.as_slice(), size) {
@@ -338,7 +338,7 @@ pub(crate) fn assemble(
     cells: &Cells<'_>,
     regions: Option<(&[f64], Place)>,
 ) -> Result<TetMesh, MeshFileError> {
-    if points.len() % 3 != 0 {
+    if !points.len().is_multiple_of(3) {
         return Err(MeshFileError::new(path, K::Invalid(format!("{} point coordinates (not a multiple of 3)", points.len()))));
     }
     let ncells = cells.offsets.len().saturating_sub(1);

@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Runs fissure's whole test suite (debug profile, no GPU or display needed):
+# installs the Debian packages (scripts/deps.sh, which also checks the Rust toolchain),
+# points wgpu at the software Vulkan driver (Mesa lavapipe), then
+# `cargo test --all-targets` (library, binary, integration tests, benches
+# built as tests) and the doc tests. Extra arguments go to both cargo runs.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/deps.sh
+export VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json
+export WGPU_BACKEND=vulkan
+XDG_RUNTIME_DIR="$(mktemp -d)"
+export XDG_RUNTIME_DIR
+trap 'rm -rf "$XDG_RUNTIME_DIR"' EXIT
+cargo test --all-targets "$@"
+cargo test --doc "$@"

@@ -1,0 +1,383 @@
+//! The study's tables: `results.csv` (a row a run) and `report.md`.
+//!
+//! In: [`StudyResults`]. Out: the two files. Stays true: one CSV row per run,
+//! in plan order, with a fixed header ([`CSV_HEADER`]); times in milliseconds,
+//! lengths in millimetres; a failed run keeps its row with empty numbers and
+//! its reason in `status`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use super::plan::backend_name;
+use super::{Comparison, Knob, RunMeasure, RunRow, StudyError, StudyResults};
+use crate::sim::StageId;
+
+/// The paper's Fig. 13: collision for 500 source nodes on a 15,865-triangle model, ms.
+pub const PAPER_COLLISION_GPU_MS: f64 = 160.0;
+/// As above, on the CPU.
+pub const PAPER_COLLISION_CPU_MS: f64 = 2000.0;
+/// Surface triangles of the paper's Fig. 13 model.
+pub const PAPER_TRIANGLES: usize = 15_865;
+/// The paper's whole simulation loop, about, ms.
+pub const PAPER_LOOP_MS: f64 = 700.0;
+
+/// Column names of `results.csv`.
+pub const CSV_HEADER: &str = "knob,label,value,reference,mesh,mesh_nodes,surface_triangles,layout,nodes_per_face,backend,culling,\
+speed_thickness_per_frame,storage,roi,status,frames,build_s,compliance_mb,compliance_cached,\
+collision_p50_ms,collision_p95_ms,solve_p50_ms,solve_p95_ms,forces_p50_ms,forces_p95_ms,monitor_p50_ms,monitor_p95_ms,\
+frame_p50_ms,frame_p95_ms,comparison,frames_compared,rms_error_mm,max_error_mm,force_error_pct,missed_contact_frames,\
+reference_contact_frames,crossed_vertices,penetrating_max,penetration_max_mm";
+
+fn quote(s: &str) -> String {
+    format!("\"{}\"", s.replace('"', "\"\""))
+}
+
+/// Commas outside double quotes.
+fn separators(line: &str) -> usize {
+    let mut quoted = false;
+    line.chars()
+        .filter(|&c| {
+            if c == '"' {
+                quoted = !quoted;
+            }
+            c == ',' && !quoted
+        })
+        .count()
+}
+
+fn comparison_label(c: Comparison) -> String {
+    match c {
+        Comparison::Reference => "reference".into(),
+        Comparison::PerVertex => "per-vertex".into(),
+        Comparison::Probes(n) => format!("{n} probes"),
+    }
+}
+
+fn ms(x: f64) -> String {
+    format!("{:.4}", x * 1e3)
+}
+
+/// One CSV line (no newline).
+pub fn csv_line(r: &RunRow) -> String {
+    let s = &r.settings;
+    let mut line = format!(
+        "{},{},{},{},{},",
+        r.knob.name(),
+        quote(&r.label),
+        r.value,
+        r.is_reference,
+        quote(&s.mesh.label())
+    );
+    let m = r.outcome.as_ref().ok();
+    let _ = write!(
+        line,
+        "{},{},{},{},{},{},{},{:?},{},",
+        m.map(|m| m.mesh_nodes.to_string()).unwrap_or_default(),
+        m.map(|m| m.surface_triangles.to_string()).unwrap_or_default(),
+        quote(&s.layout_label()),
+        s.nodes_per_face(),
+        backend_name(s.backend),
+        s.culling,
+        s.speed,
+        s.storage,
+        quote(&s.roi.label())
+    );
+    let status = match &r.outcome {
+        Ok(m) => m.no_accuracy.clone().unwrap_or_else(|| "ok".into()),
+        Err(e) => format!("failed: {e}"),
+    };
+    let _ = write!(line, "{},", quote(&status));
+    let Some(m) = m else {
+        // Empty numbers: pad to the header's field count.
+        let missing = separators(CSV_HEADER).saturating_sub(separators(&line));
+        line.push_str(&",".repeat(missing));
+        return line;
+    };
+    let stage = |id: StageId| m.stage(id).map(|p| (ms(p.p50), ms(p.p95))).unwrap_or_default();
+    let _ = write!(line, "{},{:.3},{:.3},{},", m.frames, m.build_s, m.compliance_bytes as f64 / 1e6, m.compliance_cached);
+    for id in [StageId::Collision, StageId::Solve, StageId::Forces, StageId::Monitor] {
+        let (a, b) = stage(id);
+        let _ = write!(line, "{a},{b},");
+    }
+    let _ = write!(line, "{},{},", ms(m.frame.p50), ms(m.frame.p95));
+    match &m.accuracy {
+        Some(a) => {
+            let _ = write!(
+                line,
+                "{},{},{:.6},{:.6},{:.4},{},{},",
+                quote(&comparison_label(a.comparison)),
+                a.frames_compared,
+                a.rms_error_m * 1e3,
+                a.max_error_m * 1e3,
+                a.force_error_pct,
+                a.missed_contact_frames,
+                a.reference_contact_frames
+            );
+        }
+        None => line.push_str(",,,,,,,"),
+    }
+    let _ = write!(line, "{},{},{:.6}", m.crossed_total, m.penetrating_max, m.penetration_max_m * 1e3);
+    line
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> StudyError + '_ {
+    move |source| StudyError::Output { path: path.to_path_buf(), source }
+}
+
+/// Writes `results.csv`.
+pub fn write_csv(results: &StudyResults, path: &Path) -> Result<PathBuf, StudyError> {
+    let mut text = String::from(CSV_HEADER);
+    text.push('\n');
+    for r in &results.rows {
+        text.push_str(&csv_line(r));
+        text.push('\n');
+    }
+    std::fs::write(path, text).map_err(io(path))?;
+    Ok(path.to_path_buf())
+}
+
+fn f_ms(x: f64) -> String {
+    let v = x * 1e3;
+    if v >= 100.0 { format!("{v:.0}") } else if v >= 1.0 { format!("{v:.2}") } else { format!("{v:.3}") }
+}
+
+fn f_mm(x: f64) -> String {
+    let v = x * 1e3;
+    if v == 0.0 { "0".into() } else if v >= 0.1 { format!("{v:.3}") } else { format!("{v:.1e}") }
+}
+
+/// Runs with accuracy on the error-vs-time Pareto front (frame p95 ascending,
+/// each strictly more accurate than every faster one).
+pub fn pareto_front(rows: &[RunRow]) -> Vec<&RunRow> {
+    let mut ok: Vec<(&RunRow, f64, f64)> = rows
+        .iter()
+        .filter_map(|r| {
+            let m = r.outcome.as_ref().ok()?;
+            let a = m.accuracy.as_ref()?;
+            Some((r, m.frame.p95, a.rms_error_m))
+        })
+        .collect();
+    ok.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.2.total_cmp(&b.2)));
+    let mut best = f64::INFINITY;
+    let mut front = Vec::new();
+    for (r, _, e) in ok {
+        if e < best {
+            best = e;
+            front.push(r);
+        }
+    }
+    front
+}
+
+fn settings_summary(r: &RunRow) -> String {
+    let s = &r.settings;
+    format!(
+        "{}, {} nodes/face ({}), {}, culling {}, {} h/frame, {:?}, ROI {}",
+        s.mesh.label(),
+        s.nodes_per_face(),
+        s.layout_label(),
+        backend_name(s.backend),
+        if s.culling { "on" } else { "off" },
+        s.speed,
+        s.storage,
+        s.roi.label()
+    )
+}
+
+fn measure_of(r: &RunRow) -> Option<&RunMeasure> {
+    r.outcome.as_ref().ok()
+}
+
+/// Writes `report.md`.
+pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, StudyError> {
+    let mut t = String::new();
+    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let _ = writeln!(t, "# What accuracy costs in time — `fissure study --preset {}`\n", results.plan_name);
+    let _ = writeln!(
+        t,
+        "Scene: {}. {} runs in {:.0} s on {} logical cores ({} build). Times are wall-clock per frame stage \
+         (median p50 and 95th percentile p95 over the run's frames); the frame is the sum of the stages.\n",
+        results.scene_name,
+        results.rows.len(),
+        results.elapsed_s,
+        cores,
+        if cfg!(debug_assertions) { "debug" } else { "release" }
+    );
+    let m = &results.motion;
+    let _ = write!(
+        t,
+        "Each run replays the same motion: the spatula goes {:.0} mm into the fissure ({:.1} mm a frame), {:.0} mm sideways \
+         along its face normal and back (at the run's speed), and out. ",
+        m.insert_m * 1e3,
+        m.insert_step_m * 1e3,
+        m.open_m * 1e3
+    );
+    t.push_str(
+        "Every sweep changes one knob from the base (150 grid nodes a face, BVH, \
+         culling on, 0.5 blade thicknesses a frame, f64 compliance, automatic region of interest) and compares each run \
+         with the sweep's *reference* (its most accurate value: densest nodes, smallest step, finest mesh, f64, \
+         reference backend, whole-surface compliance):\n\n\
+         - **RMS / max error**: surface displacement vs the reference, mm, at the frames where both runs are at the same \
+         point of the path; RMS over the vertices the reference moves (more than 1% of its peak), max over all. Same mesh: \
+         vertex by vertex; across meshes: at the reference's moving surface vertices, where the other mesh's displacement is \
+         interpolated at the closest point of its rest surface (this includes the meshes' different fissure geometry).\n\
+         - **force err**: largest |F − F_ref| over those frames, % of the reference's peak force.\n\
+         - **missed**: frames where the reference had contact and this run had none (tunnelling), of the reference's contact frames.\n\
+         - **crossed**: surface vertices pulled through a blade (summed over frames); **pen.**: most vertices inside a blade in one frame (deepest, mm).\n\n",
+    );
+
+    t.push_str("## For this much accuracy, this much time\n\n");
+    t.push_str("The error-vs-time Pareto front over all runs (each run's error against its own sweep's reference): ");
+    t.push_str("no run is both faster and more accurate than a row here.\n\n");
+    t.push_str("| frame p95 (ms) | frame p50 (ms) | RMS err (mm) | max err (mm) | force err (%) | setting |\n|---:|---:|---:|---:|---:|---|\n");
+    for r in pareto_front(&results.rows) {
+        let (Some(m), Some(a)) = (measure_of(r), measure_of(r).and_then(|m| m.accuracy.as_ref())) else { continue };
+        let _ = writeln!(
+            t,
+            "| {} | {} | {} | {} | {:.2} | {} = {} ({}) |",
+            f_ms(m.frame.p95),
+            f_ms(m.frame.p50),
+            f_mm(a.rms_error_m),
+            f_mm(a.max_error_m),
+            a.force_error_pct,
+            r.knob.name(),
+            r.label,
+            settings_summary(r)
+        );
+    }
+    t.push_str("\n![Pareto front](pareto.png)\n\n");
+
+    t.push_str("## Beside the paper\n\n");
+    t.push_str("| quantity | paper (Fukuhara et al. 2014) | ours |\n|---|---|---|\n");
+    // Our backend rows nearest to the paper's 500 nodes a face (culling on).
+    let backend_rows: Vec<&RunRow> = results.rows.iter().filter(|r| r.knob == Knob::Backend && r.settings.culling).collect();
+    let nearest = backend_rows.iter().map(|r| r.settings.nodes_per_face()).min_by_key(|&n| (n as i64 - 500).abs());
+    let ours_for = |backends: &[crate::scenario::CollisionBackend]| -> String {
+        let mut parts = Vec::new();
+        for r in backend_rows.iter().filter(|r| Some(r.settings.nodes_per_face()) == nearest && backends.contains(&r.settings.backend)) {
+            parts.push(match &r.outcome {
+                Ok(m) => m
+                    .stage(StageId::Collision)
+                    .map(|p| {
+                        format!(
+                            "{}: {} ms p50, {} ms p95 ({} nodes a face, {} triangles)",
+                            backend_name(r.settings.backend),
+                            f_ms(p.p50),
+                            f_ms(p.p95),
+                            r.settings.nodes_per_face(),
+                            m.surface_triangles
+                        )
+                    })
+                    .unwrap_or_else(|| "—".into()),
+                Err(e) => format!("{}: not run: {}", backend_name(r.settings.backend), e.replace('|', "/")),
+            });
+        }
+        if parts.is_empty() { "not in this plan".into() } else { parts.join("; ") }
+    };
+    use crate::scenario::CollisionBackend as B;
+    let _ = writeln!(
+        t,
+        "| collision, 500 nodes a face, {PAPER_TRIANGLES} triangles, CPU (Fig. 13) | {PAPER_COLLISION_CPU_MS:.0} ms (CPU) | {} |",
+        ours_for(&[B::Reference, B::Bvh])
+    );
+    let _ = writeln!(
+        t,
+        "| collision, 500 nodes a face, {PAPER_TRIANGLES} triangles, GPU (Fig. 13) | {PAPER_COLLISION_GPU_MS:.0} ms (GPU) | {} |",
+        ours_for(&[B::Gpu])
+    );
+    if let Some(base) = results.rows.iter().find(|r| r.knob == Knob::Storage && r.is_reference).or_else(|| results.rows.first()) {
+        if let Some(m) = measure_of(base) {
+            let _ = writeln!(
+                t,
+                "| one simulation loop | about {PAPER_LOOP_MS:.0} ms | {} ms p50, {} ms p95 ({}; {} nodes, {} triangles) |",
+                f_ms(m.frame.p50),
+                f_ms(m.frame.p95),
+                settings_summary(base),
+                m.mesh_nodes,
+                m.surface_triangles
+            );
+        }
+    }
+    t.push_str("\n![Collision time vs source nodes per backend](fig13_collision_vs_nodes.png)\n\n");
+
+    for knob in [Knob::SourceNodes, Knob::Mesh, Knob::Speed, Knob::Backend, Knob::Storage, Knob::RegionOfInterest] {
+        let rows: Vec<&RunRow> = results.rows.iter().filter(|r| r.knob == knob).collect();
+        if rows.is_empty() {
+            continue;
+        }
+        let _ = writeln!(t, "## Sweep: {}\n", knob.name());
+        t.push_str(
+            "| value | collision p50/p95 (ms) | solve p50/p95 (ms) | frame p50/p95 (ms) | build (s) | compliance (MB) | RMS err (mm) | max err (mm) | force err (%) | missed | crossed | pen. (mm) | note |\n\
+             |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
+        );
+        for r in rows {
+            let label = if r.is_reference { format!("**{}** (ref)", r.label) } else { r.label.clone() };
+            match &r.outcome {
+                Err(e) => {
+                    let _ = writeln!(t, "| {label} | | | | | | | | | | | | not run: {} |", e.replace('|', "/"));
+                }
+                Ok(m) => {
+                    let pp = |id| m.stage(id).map(|p: super::Percentiles| format!("{} / {}", f_ms(p.p50), f_ms(p.p95))).unwrap_or_else(|| "—".into());
+                    let (rms, max, force, missed) = match &m.accuracy {
+                        Some(a) => (
+                            f_mm(a.rms_error_m),
+                            f_mm(a.max_error_m),
+                            format!("{:.2}", a.force_error_pct),
+                            format!("{}/{}", a.missed_contact_frames, a.reference_contact_frames),
+                        ),
+                        None => ("—".into(), "—".into(), "—".into(), "—".into()),
+                    };
+                    let mut note = m.no_accuracy.clone().unwrap_or_default();
+                    if let Some(Comparison::Probes(n)) = m.accuracy.map(|a| a.comparison) {
+                        note = format!("{n} probes");
+                    }
+                    if m.compliance_cached {
+                        note = format!("{note} compliance from cache").trim().to_string();
+                    }
+                    let _ = writeln!(
+                        t,
+                        "| {label} | {} | {} | {} / {} | {:.2} | {:.1} | {rms} | {max} | {force} | {missed} | {} | {} ({}) | {note} |",
+                        pp(StageId::Collision),
+                        pp(StageId::Solve),
+                        f_ms(m.frame.p50),
+                        f_ms(m.frame.p95),
+                        m.build_s,
+                        m.compliance_bytes as f64 / 1e6,
+                        m.crossed_total,
+                        m.penetrating_max,
+                        f_mm(m.penetration_max_m),
+                    );
+                }
+            }
+        }
+        if knob == Knob::Speed {
+            t.push_str("\n![Error and tunnelling vs speed](speed_vs_error.png)\n");
+        }
+        t.push('\n');
+    }
+    t.push_str("Files: `results.csv` (every number above, one row a run), `pareto.{png,svg}`, `fig13_collision_vs_nodes.{png,svg}`, `speed_vs_error.{png,svg}`.\n");
+    std::fs::write(path, t).map_err(io(path))?;
+    Ok(path.to_path_buf())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::study::plan::{MeshChoice, base_settings};
+
+    #[test]
+    fn a_failed_row_has_as_many_fields_as_the_header() {
+        let r = RunRow {
+            knob: Knob::Backend,
+            label: "gpu 150, culling on".into(),
+            value: 150.0,
+            settings: base_settings(MeshChoice::Scene),
+            is_reference: false,
+            outcome: Err("no adapter, \"lavapipe\" absent".into()),
+        };
+        let line = csv_line(&r);
+        assert_eq!(separators(&line), separators(CSV_HEADER), "{line}");
+        assert!(line.starts_with("backend,\"gpu 150, culling on\",150,false,"), "{line}");
+        assert!(line.contains("failed: no adapter"));
+    }
+}

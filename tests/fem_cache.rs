@@ -1,0 +1,91 @@
+//! The compliance disk cache: reload equals compute, corrupt or mismatched
+//! files are rebuilt (never trusted), and contact pressure helpers.
+
+#[path = "fem_common/mod.rs"]
+mod common;
+
+use common::*;
+use fissure::fem::{
+    Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, Material,
+    contact_patches, PA_PER_MMHG,
+};
+use fissure::math::Vec3;
+
+fn model(e: f64) -> FemModel {
+    let mesh = block(4, 3, 3);
+    let fixed = bottom_fixed(&mesh);
+    FemModel::new(&mesh, &uniform(Material { young_modulus: e, poisson_ratio: 0.45 }), &fixed, &FemOptions::default()).unwrap()
+}
+
+fn all_blocks(c: &Compliance) -> Vec<f64> {
+    let mut v = Vec::new();
+    for col in 0..c.column_count() {
+        for row in 0..c.row_nodes().len() {
+            v.extend(c.block(row, col).iter().copied());
+        }
+    }
+    v
+}
+
+#[test]
+fn reload_is_bitwise_equal_and_corruption_is_rebuilt() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = model(3e3);
+    let roi = m.surface().vertices.clone();
+    let mut calls = 0;
+    let a = Compliance::compute(&m, &roi, ComplianceStorage::F64, Some(dir.path()), &mut |_, _| calls += 1).unwrap();
+    assert!(!a.stats().from_cache && calls > 1, "first call computes, with progress");
+    let b = Compliance::compute(&m, &roi, ComplianceStorage::F64, Some(dir.path()), &mut |_, _| {}).unwrap();
+    assert!(b.stats().from_cache, "second call must load the cache");
+    assert_eq!(all_blocks(&a), all_blocks(&b), "reloaded entries must be bitwise equal");
+    // corrupt one byte in the middle of the data
+    let file = std::fs::read_dir(dir.path()).unwrap().next().unwrap().unwrap().path();
+    let mut bytes = std::fs::read(&file).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x40;
+    std::fs::write(&file, &bytes).unwrap();
+    let c = Compliance::compute(&m, &roi, ComplianceStorage::F64, Some(dir.path()), &mut |_, _| {}).unwrap();
+    assert!(!c.stats().from_cache, "a corrupt cache must be rebuilt, not trusted");
+    assert_eq!(all_blocks(&a), all_blocks(&c));
+    // truncated file
+    std::fs::write(&file, &bytes[..100]).unwrap();
+    let d = Compliance::compute(&m, &roi, ComplianceStorage::F64, Some(dir.path()), &mut |_, _| {}).unwrap();
+    assert!(!d.stats().from_cache, "a truncated cache must be rebuilt");
+    // another material gives another key: not loaded from the first model's file
+    let m2 = model(6e3);
+    let e = Compliance::compute(&m2, &roi, ComplianceStorage::F64, Some(dir.path()), &mut |_, _| {}).unwrap();
+    assert!(!e.stats().from_cache, "a different material must not reuse the cache");
+    assert_ne!(a.key(), e.key());
+    // f32 storage of the same model is another key too
+    let f = Compliance::compute(&m, &roi, ComplianceStorage::F32, Some(dir.path()), &mut |_, _| {}).unwrap();
+    assert!(!f.stats().from_cache && f.stats().bytes * 2 == a.stats().bytes, "f32 halves the storage");
+    // a compliance of another model is refused by the solver
+    assert!(ConstrainedSolver::new(m2, a).is_err(), "compliance and model must match");
+}
+
+#[test]
+fn contact_pressure_per_spatula() {
+    let m = model(3e3);
+    let mesh = m.mesh().clone();
+    let roi = m.surface().vertices.clone();
+    let c = Compliance::compute(&m, &roi, ComplianceStorage::F64, None, &mut |_, _| {}).unwrap();
+    let mut solver = ConstrainedSolver::new(m, c).unwrap();
+    // spatula 0 presses the whole top face down 1 mm
+    let cons: Vec<Constraint> = (0..mesh.node_count() as u32)
+        .filter(|&n| (mesh.positions[n as usize].z - 0.03).abs() < 1e-12)
+        .map(|n| Constraint { node: n, owner: 0, kind: ConstraintKind::Enforced { displacement: Vec3::new(0.0, 0.0, -0.001) } })
+        .collect();
+    let mut out = FrameSolution::default();
+    solver.step(&cons, &mut out).unwrap();
+    let surface = solver.model().surface();
+    let positions = surface.gather_positions(&mesh.positions);
+    let (mut scratch, mut patches) = (Vec::new(), Vec::new());
+    contact_patches(surface, &positions, &cons, &out.reactions, &mut scratch, &mut patches);
+    assert_eq!(patches.len(), 1);
+    let p = patches[0];
+    assert!((p.area - 0.06 * 0.04).abs() < 1e-12, "the whole top face is in contact: area {}", p.area);
+    assert!(p.force.z < 0.0, "the spatula pushes the tissue down");
+    assert!((p.mean_pressure_pa - p.force.norm() / p.area).abs() < 1e-9 * p.mean_pressure_pa);
+    assert!((p.mean_pressure_mmhg * PA_PER_MMHG - p.mean_pressure_pa).abs() < 1e-9 * p.mean_pressure_pa);
+    println!("top-face press 1 mm: force {:.4} N, pressure {:.1} Pa = {:.2} mmHg", p.force.norm(), p.mean_pressure_pa, p.mean_pressure_mmhg);
+}
