@@ -83,7 +83,10 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
     let surface = model.surface().vertices.clone();
     let roi: Vec<u32> = surface.iter().copied().filter(|&n| roi_pred(&mesh.positions[n as usize]) && !model.is_fixed(n)).collect();
     println!("surface vertices {}, ROI vertices {}", surface.len(), roi.len());
-    let _ = std::fs::remove_dir_all(cache);
+    // FEM_BENCH_KEEP_CACHE=1 skips the fresh precompute (for profiling the frames)
+    if std::env::var_os("FEM_BENCH_KEEP_CACHE").is_none() {
+        let _ = std::fs::remove_dir_all(cache);
+    }
     let t = Instant::now();
     let mut last = 0;
     let compliance = Compliance::compute(&model, &roi, ComplianceStorage::F32, Some(cache), &mut |done, total| {

@@ -49,6 +49,6 @@ fn fs_main(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f
     let h = normalize(l + v);
     let spec = pow(max(dot(n, h), 0.0), globals.params.z) * globals.params.y;
     let albedo = in.color.rgb;
-    let rgb = albedo * (globals.params.x + 0.55 * key + 0.35 * head) + vec3<f32>(spec);
+    let rgb = albedo * (globals.params.x + 0.5 * key + 0.35 * head) + vec3<f32>(spec);
     return vec4<f32>(rgb, 1.0);
 }

@@ -4,8 +4,10 @@
 //! skull constraints, conflict rules, no adhesive face force, inverted count);
 //! displacements stay bounded by the frame's enforced displacements times a
 //! stated factor; after both blades withdraw the block is at rest within 1e-9 m;
-//! memory stays flat (live heap bytes counted by this binary's global allocator,
-//! and the process RSS from /proc/self/statm, at frame 1,000 and frame 10,000).
+//! memory stays flat: `Pipeline::step` allocates only while its scratch grows to
+//! the largest frame (counted by this binary's global allocator), the live heap
+//! and the process RSS (/proc/self/statm) at frame 10,000 are within 1 MiB / 4 MiB
+//! of frame 1,000.
 //!
 //! This file holds one test so that the allocator counts only its work.
 
@@ -78,11 +80,12 @@ struct Walker {
 impl Walker {
     fn step(&mut self, rng: &mut Rng) {
         for k in 0..2 {
-            self.offset[k] = (self.offset[k] + rng.sym(0.3)).clamp(-5.0, 5.0);
-            self.tilt[k] = (self.tilt[k] + rng.sym(0.01)).clamp(-0.14, 0.14);
+            self.offset[k] = (self.offset[k] + rng.sym(0.3)).clamp(-3.0, 3.0);
+            self.tilt[k] = (self.tilt[k] + rng.sym(0.005)).clamp(-0.05, 0.05);
         }
-        // Height of the handle end: from 1.5 mm above contact to a 2.5 mm press (face 1 at 17.5 mm).
-        self.offset[2] = (self.offset[2] + rng.sym(0.25)).clamp(-3.5, 0.5);
+        // Height of the handle end: from 1 mm above contact to a 2.5 mm press (face 1 at 17.5 mm);
+        // the tilt (up to 0.05 rad over the 20 mm blade) adds up to 1 mm at the tip.
+        self.offset[2] = (self.offset[2] + rng.sym(0.25)).clamp(-3.0, 0.5);
     }
     fn pose(&self) -> Pose {
         let p = Vec3::new(self.base[0] + self.offset[0], self.base[1] + self.offset[1], self.base[2] + self.offset[2]) * 1e-3;
@@ -103,16 +106,18 @@ fn ten_thousand_random_walk_frames_stay_finite_bounded_and_flat_and_return_to_re
     let dir = tempfile::tempdir().unwrap();
     let mesh = common::block(8, 8, 4, Vec3::new(40.0, 40.0, 20.0), Vec3::new(-20.0, -20.0, 0.0));
     let blade = |name, base: [f64; 3]| Blade { along: 5, across: 3, ..Blade::flat(name, base) };
-    // Blade A covers x in [-18, 2] mm around y = -4, blade B x in [-2, 18] around y = +4: they overlap near the middle.
-    let mut scene = Scene::new(mesh, vec![blade("a", [-18.0, -4.0, 21.0]), blade("b", [-2.0, 4.0, 21.0])]);
+    // Blade A wanders over x in [-19, 7] mm, y in [-12, 4]; blade B over x in [-7, 19], y in [-4, 12]: they
+    // overlap in the middle, and both stay 1 mm inside the top face (over the block's edge, the paper's
+    // unlimited depth behind lets a grazing ray claim a side face 15 mm deep: see hard_penetration.rs).
+    let mut scene = Scene::new(mesh, vec![blade("a", [-16.0, -4.0, 21.0]), blade("b", [-4.0, 4.0, 21.0])]);
     // A containing sphere through the block's corners (+0.01 mm): the corners bulge into it under a press.
     scene.skull = Some("Some((containing: Some((center_mm: (0.0, 0.0, 10.0), radius_mm: 30.01))))".into());
     scene.effects = "Collision, Culling, SkullSpheres, ForceOutput, ContactPressure".into();
     let (mut p, mut state) = scene.build(dir.path());
     let mut rng = Rng(0x5EED_F155_u64);
     let mut walkers = [
-        Walker { base: [-18.0, -4.0, 21.0], offset: [0.0; 3], tilt: [0.0; 2] },
-        Walker { base: [-2.0, 4.0, 21.0], offset: [0.0; 3], tilt: [0.0; 2] },
+        Walker { base: [-16.0, -4.0, 21.0], offset: [0.0; 3], tilt: [0.0; 2] },
+        Walker { base: [-4.0, 4.0, 21.0], offset: [0.0; 3], tilt: [0.0; 2] },
     ];
     let mut input = FrameInput { poses: vec![None, None] };
     let label = "endurance";
@@ -168,9 +173,13 @@ fn ten_thousand_random_walk_frames_stay_finite_bounded_and_flat_and_return_to_re
     );
     assert!(frames_in_contact > FRAMES / 4, "{label}: the walk must press often ({frames_in_contact} frames)");
     assert!(frames_with_skull > 0, "{label}: the walk must reach the skull sphere at least once");
-    assert_eq!(max_inverted, 0, "{label}: presses of at most 2.5 mm on 5 mm elements invert no surface tet");
+    assert_eq!(max_inverted, 0, "{label}: presses of at most 3.5 mm on 5 mm elements invert no surface tet");
+    // Flat memory: Pipeline::step allocates only when its scratch grows to a larger frame than any
+    // before (a high-water mark: measured 7-8 allocations in 9,000 frames, W growing to the
+    // largest constraint set); a per-frame allocation or leak would show 9,000 or more.
+    assert!(step_allocations <= 64, "{label}: Pipeline::step allocated {step_allocations} times in {} frames", FRAMES - 1_000);
     let growth = live_at_end as i64 - live_at_1000 as i64;
-    assert!(growth.abs() <= 64 * 1024, "{label}: live heap grew by {growth} B between frame 1000 and {FRAMES}");
+    assert!(growth.abs() <= 1024 * 1024, "{label}: live heap grew by {growth} B between frame 1000 and {FRAMES}");
     let rss_growth = rss_at_end as i64 - rss_at_1000 as i64;
     assert!(rss_growth <= 4 * 1024 * 1024, "{label}: RSS grew by {rss_growth} B between frame 1000 and {FRAMES}");
 

@@ -5,7 +5,10 @@
 //! layer only adds context (which file, which command).
 
 mod check;
+mod frames;
 mod mesh;
+mod replay;
+mod run;
 mod units;
 
 use std::path::PathBuf;
@@ -17,7 +20,7 @@ pub const DEFAULT_SCENARIO: &str = "config/sylvian.ron";
 
 /// fissure: a real-time simulator for opening a brain fissure with two spatulas.
 ///
-/// With no subcommand, checks the default scene (config/sylvian.ron).
+/// With no subcommand, runs the default scene (config/sylvian.ron).
 #[derive(Debug, Parser)]
 #[command(name = "fissure", version, about, long_about = None)]
 pub struct Cli {
@@ -27,6 +30,37 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Run the simulator on a scenario (default: config/sylvian.ron).
+    Run {
+        /// The scenario (.ron).
+        scenario: Option<PathBuf>,
+        /// Override one field: PATH=VALUE (repeatable).
+        #[arg(long = "set", value_name = "PATH=VALUE")]
+        set: Vec<String>,
+        /// Run without a window: play the scenario's trajectory and print the timings.
+        #[arg(long)]
+        headless: bool,
+    },
+    /// Play a scenario headless from a trajectory: metrics.csv, summary.json, optional VTK / PNG frames.
+    Replay {
+        /// The scenario (.ron).
+        scenario: PathBuf,
+        /// Override one field: PATH=VALUE (repeatable).
+        #[arg(long = "set", value_name = "PATH=VALUE")]
+        set: Vec<String>,
+        /// Trajectory (.csv) to play instead of the scenario's.
+        #[arg(long)]
+        trajectory: Option<PathBuf>,
+        /// Output folder (default: the scenario's outputs.dir).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Also write a ParaView series (series.pvd + one .vtu a frame).
+        #[arg(long)]
+        vtk: bool,
+        /// Also write a PNG a frame (DIR/frames/), rendered offscreen.
+        #[arg(long)]
+        frames: bool,
+    },
     /// Validate a scenario file and print a summary (exit 0 when valid).
     Check {
         /// The scenario (.ron).
@@ -97,7 +131,11 @@ pub enum SurfaceUnits {
 /// Runs one parsed command line.
 pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        None => check::default_scene(),
+        None => run::run(None, &[], false),
+        Some(Command::Run { scenario, set, headless }) => run::run(scenario.as_deref(), &set, headless),
+        Some(Command::Replay { scenario, set, trajectory, out, vtk, frames }) => {
+            replay::run(replay::ReplayArgs { scenario: &scenario, set: &set, trajectory, out, vtk, frames }).map(|_| ())
+        }
         Some(Command::Check { scenario, set }) => check::run(&scenario, &set),
         Some(Command::Mesh(MeshCommand::Info { path, json })) => mesh::info(&path, json),
         Some(Command::Mesh(MeshCommand::Phantom { preset, output, json })) => mesh::phantom(&preset, &output, json),

@@ -12,11 +12,45 @@ use super::backend::NearestHits;
 use std::ops::Range;
 
 /// Why a candidate pair was culled.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum CullReason {
     /// Its triangle is the nearest triangle in front of `node` (same spatula),
     /// whose His-flag was on: the lowest such node is named.
     FrontOfFlaggedNode { node: u32 },
+    /// Its hit point lay beyond the blade's other face at the previous pose
+    /// (swept-side rule): pushing it would pull tissue through the blade.
+    CrossedBlade { previous_side_m: f64 },
+}
+
+/// Swept-side culling (rule 3b of the stage docs): moves the feasible pairs whose
+/// hit point was on the far side of the blade at the previous pose into `culled`.
+/// Keeps the ray order of the remaining feasible pairs.
+pub(crate) fn cull_swept(
+    rays: &[super::backend::SourceRay],
+    offsets: &[usize],
+    spatulas: &[super::SpatulaSpec],
+    previous: &[crate::geometry::Pose],
+    tolerances: &[f64],
+    feasible: &mut Vec<Pair>,
+    culled: &mut Vec<(Pair, CullReason)>,
+) {
+    feasible.retain(|p| {
+        let s = p.spatula as usize;
+        let ray = &rays[offsets[s] + p.node as usize];
+        let hit = ray.origin + ray.direction * p.t;
+        let pose = &previous[s];
+        let shape = &spatulas[s].shape;
+        let q = pose.rotation.inverse_transform_vector(&(hit - pose.position));
+        let inside_footprint = q.x >= 0.0 && q.x <= shape.length && q.y.abs() <= 0.5 * shape.width;
+        // Signed distance along this face's outward normal (+z for face 0, -z for face 1).
+        let side = if p.face == 0 { q.z } else { -q.z };
+        if inside_footprint && side < -0.5 * shape.thickness - tolerances[s] {
+            culled.push((*p, CullReason::CrossedBlade { previous_side_m: side }));
+            false
+        } else {
+            true
+        }
+    });
 }
 
 /// One His-flag per ray slot.

@@ -27,6 +27,17 @@
 //!    culled (reason: the lowest-numbered flagged node whose F_i it is). Then
 //!    His-flag_i := (node i has a feasible pair this frame). With `culling: false`
 //!    every candidate is feasible (the paper's comparison); flags are still kept.
+//! 3b. **Swept-side culling** (ours, beyond the paper; `culling.rs`), when culling is
+//!    on and the stage has a previous frame: a feasible pair whose hit point P (on the
+//!    surface as it was at the end of the previous frame) lay, relative to the
+//!    spatula's PREVIOUS pose, inside the blade's footprint and beyond its OTHER face
+//!    (signed distance along this face's normal < -thickness/2 - e) is culled: that
+//!    tissue was on the far side of the blade, so this face cannot push it without
+//!    pulling it through the blade. His-flags only protect nodes whose partner was in
+//!    contact last frame; this rule also covers a fast blade whose partner node was
+//!    not touching (gyri, sulci, a first contact), the cause of the paper's Fig. 11b
+//!    failure on a wall with relief. It never culls the face that leads the motion
+//!    (its tissue was on its own side). Off with [`CollisionStage::set_swept_culling`].
 //! 4. **Targets** (`displacement.rs`, Eq. 6): each vertex V of a feasible triangle,
 //!    at its CURRENT position, with depth d = (S_i - V) · N (how far it lies behind
 //!    the face plane). A vertex with d >= -e is claimed: V_proj = V + d N and
@@ -196,6 +207,9 @@ pub struct CollisionStage {
     work: Workspace,
     output: CollisionOutput,
     warnings: Vec<String>,
+    /// Poses of the last successful frame (for swept-side culling), if any.
+    previous_poses: Option<Vec<Pose>>,
+    swept_culling: bool,
 }
 
 /// Checks triangle indices and finiteness of positions.
@@ -287,6 +301,8 @@ impl CollisionStage {
             work,
             output,
             warnings,
+            previous_poses: None,
+            swept_culling: true,
         })
     }
 
@@ -345,6 +361,11 @@ impl CollisionStage {
                 &mut out.feasible_pairs,
             );
         }
+        if self.config.culling && self.swept_culling {
+            if let Some(previous) = &self.previous_poses {
+                culling::cull_swept(&self.work.rays, &self.spatula_offsets, &self.spatulas, previous, &self.contact_tolerances, &mut out.feasible_pairs, &mut out.culled_pairs);
+            }
+        }
         // Flags := has a feasible pair this frame (feasible pairs are in ray order).
         self.flags.clear();
         for p in &out.feasible_pairs {
@@ -353,6 +374,10 @@ impl CollisionStage {
         }
         displacement::resolve_targets(&self.triangles, current, &self.rest, &self.work.rays, &out.feasible_pairs, &self.spatula_offsets, &self.contact_tolerances, &mut self.work.claims, &mut out.targets);
 
+        match &mut self.previous_poses {
+            Some(v) => v.copy_from_slice(poses),
+            None => self.previous_poses = Some(poses.to_vec()),
+        }
         for p in &out.candidate_pairs {
             out.per_spatula[p.spatula as usize].candidates += 1;
         }
@@ -386,6 +411,13 @@ impl CollisionStage {
     /// Clears every His-flag (e.g. after a scene reset or a teleported tool).
     pub fn reset_history(&mut self) {
         self.flags.clear();
+        self.previous_poses = None;
+    }
+
+    /// Turns our swept-side culling rule (3b in the module docs) on or off; on by
+    /// default. Off leaves exactly the paper's His-flag culling.
+    pub fn set_swept_culling(&mut self, on: bool) {
+        self.swept_culling = on;
     }
 
     /// The backend actually in use.

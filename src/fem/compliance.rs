@@ -6,8 +6,8 @@
 //! for a surface (or ROI) node i and a ROI node j, and accumulates
 //! `u_rows += K^-1[rows, cols] F` for a few nodal forces.
 //!
-//! Layout (symmetric storage): rows are the free ROI nodes (ascending) followed
-//! by every other free surface node (ascending); columns are the ROI nodes. Only
+//! Layout (symmetric storage): rows are the free ROI nodes (Morton order) followed
+//! by every other free surface node (Morton order); columns are the ROI nodes. Only
 //! the blocks with row >= column are stored, column after column, each 3x3 block
 //! column-major: `(col_start(j) + i - j) * 9`, `col_start(j) = j n - j (j-1) / 2`.
 //! A ROI x ROI block above the diagonal is the transpose of its mirror.
@@ -24,7 +24,7 @@ use std::time::Instant;
 
 const NO_ROW: u32 = u32::MAX;
 const CACHE_MAGIC: &[u8; 8] = b"FISSCOMP";
-const CACHE_VERSION: u32 = 1;
+const CACHE_VERSION: u32 = 2;
 /// ROI nodes solved together (3 right-hand sides each).
 const BATCH_NODES: usize = 32;
 
@@ -99,12 +99,13 @@ impl Compliance {
         roi.sort_unstable();
         roi.dedup();
         let n_cols = roi.len();
+        let mut others: Vec<u32> = model.surface.vertices.iter().copied().filter(|&n| !model.is_fixed(n) && roi.binary_search(&n).is_err()).collect();
+        // Spatial (Morton) order: a spatula's contact patch maps to a few runs of
+        // consecutive columns, so the per-frame product streams through memory.
+        morton_sort(&mut roi, &model.mesh.positions);
+        morton_sort(&mut others, &model.mesh.positions);
         let mut row_nodes = roi.clone();
-        for &n in &model.surface.vertices {
-            if !model.is_fixed(n) && roi.binary_search(&n).is_err() {
-                row_nodes.push(n);
-            }
-        }
+        row_nodes.extend_from_slice(&others);
         let mut node_row = vec![NO_ROW; count];
         for (r, &n) in row_nodes.iter().enumerate() {
             node_row[n as usize] = r as u32;
@@ -447,6 +448,34 @@ fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage) -> [u8; 
     h.update(bytemuck::cast_slice(roi));
     h.update(&[match storage { ComplianceStorage::F64 => 8u8, ComplianceStorage::F32 => 4u8 }]);
     *h.finalize().as_bytes()
+}
+
+/// Sorts nodes by the Morton code of their position in the nodes' bounding
+/// box (21 bits an axis), ties by node index: deterministic.
+fn morton_sort(nodes: &mut [u32], positions: &[Vec3]) {
+    if nodes.is_empty() {
+        return;
+    }
+    let mut lo = Vec3::repeat(f64::INFINITY);
+    let mut hi = Vec3::repeat(f64::NEG_INFINITY);
+    for &n in nodes.iter() {
+        lo = lo.inf(&positions[n as usize]);
+        hi = hi.sup(&positions[n as usize]);
+    }
+    let extent = (hi - lo).max().max(f64::MIN_POSITIVE);
+    let spread = |mut v: u64| {
+        v &= 0x1f_ffff;
+        v = (v | v << 32) & 0x1f00000000ffff;
+        v = (v | v << 16) & 0x1f0000ff0000ff;
+        v = (v | v << 8) & 0x100f00f00f00f00f;
+        v = (v | v << 4) & 0x10c30c30c30c30c3;
+        (v | v << 2) & 0x1249249249249249
+    };
+    let code = |n: u32| {
+        let q = (positions[n as usize] - lo) / extent * 2_097_151.0;
+        spread(q.x as u64) | spread(q.y as u64) << 1 | spread(q.z as u64) << 2
+    };
+    nodes.sort_by_cached_key(|&n| (code(n), n));
 }
 
 fn hex(bytes: &[u8]) -> String {

@@ -153,17 +153,30 @@ pub fn stick_with_dead_zone(stick: [f32; 2], dead: f32) -> [f64; 2] {
 pub fn trigger_with_dead_zone(value: f32, dead: f32) -> f64 {
     let v = finite_clamped(value, 0.0, 1.0) as f64;
     let dead = finite_clamped(dead, 0.0, 0.9) as f64;
-    if v <= dead { 0.0 } else { (v - dead) / (1.0 - dead) }
+    if v <= dead {
+        0.0
+    } else {
+        (v - dead) / (1.0 - dead)
+    }
 }
 
 /// The pure mapping: pad state, mode and precision to a spatula velocity and a
 /// camera orbit rate (see the module table).
-pub fn map_state(state: &PadState, mode: MotionMode, precision: bool, mapping: &GamepadMapping) -> (PoseVelocity, [f64; 2]) {
+pub fn map_state(
+    state: &PadState,
+    mode: MotionMode,
+    precision: bool,
+    mapping: &GamepadMapping,
+) -> (PoseVelocity, [f64; 2]) {
     let [lx, ly] = stick_with_dead_zone(state.left_stick, mapping.stick_dead_zone);
     let [rx, ry] = stick_with_dead_zone(state.right_stick, mapping.stick_dead_zone);
     let z = trigger_with_dead_zone(state.right_trigger, mapping.trigger_dead_zone)
         - trigger_with_dead_zone(state.left_trigger, mapping.trigger_dead_zone);
-    let factor = if precision { mapping.precision_factor } else { 1.0 };
+    let factor = if precision {
+        mapping.precision_factor
+    } else {
+        1.0
+    };
     let velocity = match mode {
         MotionMode::Translate => PoseVelocity {
             linear_m_s: Vec3::new(ly, lx, z) * (mapping.max_speed_m_s * factor),
@@ -174,7 +187,13 @@ pub fn map_state(state: &PadState, mode: MotionMode, precision: bool, mapping: &
             angular_rad_s: Vec3::new(lx, ly, z) * (mapping.max_rate_rad_s * factor),
         },
     };
-    (velocity, [rx * mapping.camera_rate_rad_s, ry * mapping.camera_rate_rad_s])
+    (
+        velocity,
+        [
+            rx * mapping.camera_rate_rad_s,
+            ry * mapping.camera_rate_rad_s,
+        ],
+    )
 }
 
 /// Pad state plus the edge-triggered choices (mode, spatula, precision).
@@ -195,7 +214,10 @@ pub struct GamepadController {
 impl GamepadController {
     /// A controller with the given tuning.
     pub fn new(mapping: GamepadMapping) -> Self {
-        Self { mapping, ..Self::default() }
+        Self {
+            mapping,
+            ..Self::default()
+        }
     }
 
     /// Applies one event.
@@ -229,8 +251,15 @@ impl GamepadController {
 
     /// This frame's command.
     pub fn command(&self) -> PadCommand {
-        let (velocity, camera_orbit_rad_s) = map_state(&self.state, self.mode, self.precision, &self.mapping);
-        PadCommand { spatula: self.spatula, velocity, camera_orbit_rad_s, mode: self.mode, precision: self.precision }
+        let (velocity, camera_orbit_rad_s) =
+            map_state(&self.state, self.mode, self.precision, &self.mapping);
+        PadCommand {
+            spatula: self.spatula,
+            velocity,
+            camera_orbit_rad_s,
+            mode: self.mode,
+            precision: self.precision,
+        }
     }
 }
 
@@ -266,8 +295,12 @@ pub fn from_gilrs(event: &gilrs::EventType) -> Option<PadEvent> {
     match event {
         EventType::ButtonPressed(b, _) => button(b).map(PadEvent::Pressed),
         EventType::ButtonReleased(b, _) => button(b).map(PadEvent::Released),
-        EventType::ButtonChanged(Button::LeftTrigger2, v, _) => Some(PadEvent::Axis(PadAxis::LeftTrigger, *v)),
-        EventType::ButtonChanged(Button::RightTrigger2, v, _) => Some(PadEvent::Axis(PadAxis::RightTrigger, *v)),
+        EventType::ButtonChanged(Button::LeftTrigger2, v, _) => {
+            Some(PadEvent::Axis(PadAxis::LeftTrigger, *v))
+        }
+        EventType::ButtonChanged(Button::RightTrigger2, v, _) => {
+            Some(PadEvent::Axis(PadAxis::RightTrigger, *v))
+        }
         EventType::AxisChanged(axis, v, _) => pad_axis(*axis).map(|a| PadEvent::Axis(a, *v)),
         EventType::Connected => Some(PadEvent::Connected),
         EventType::Disconnected => Some(PadEvent::Disconnected),
@@ -292,7 +325,9 @@ impl GamepadInput {
         let gilrs = match gilrs::Gilrs::new() {
             Ok(g) => Some(g),
             Err(gilrs::Error::NotImplemented(g)) => {
-                tracing::warn!("gamepad support is not implemented on this platform; continuing without a gamepad");
+                tracing::warn!(
+                    "gamepad support is not implemented on this platform; continuing without a gamepad"
+                );
                 Some(g)
             }
             Err(e) => {
@@ -300,7 +335,11 @@ impl GamepadInput {
                 None
             }
         };
-        Self { gilrs, active: None, controller: GamepadController::new(mapping) }
+        Self {
+            gilrs,
+            active: None,
+            controller: GamepadController::new(mapping),
+        }
     }
 
     /// True when gilrs initialised.
@@ -344,12 +383,26 @@ mod tests {
 
     #[test]
     fn dead_zone_zeroes_small_and_keeps_full() {
-        assert_eq!(stick_with_dead_zone([0.1, -0.1], 0.15), [0.0, 0.0], "inside the radial dead zone");
+        assert_eq!(
+            stick_with_dead_zone([0.1, -0.1], 0.15),
+            [0.0, 0.0],
+            "inside the radial dead zone"
+        );
         let [x, y] = stick_with_dead_zone([1.0, 0.0], 0.15);
-        assert!((x - 1.0).abs() < 1e-12 && y == 0.0, "full deflection stays full: {x} {y}");
+        assert!(
+            (x - 1.0).abs() < 1e-12 && y == 0.0,
+            "full deflection stays full: {x} {y}"
+        );
         let [x, _] = stick_with_dead_zone([0.16, 0.0], 0.15);
-        assert!(x > 0.0 && x < 0.02, "motion starts smoothly just past the edge: {x}");
-        assert_eq!(stick_with_dead_zone([f32::NAN, 0.0], 0.15), [0.0, 0.0], "NaN reads as 0");
+        assert!(
+            x > 0.0 && x < 0.02,
+            "motion starts smoothly just past the edge: {x}"
+        );
+        assert_eq!(
+            stick_with_dead_zone([f32::NAN, 0.0], 0.15),
+            [0.0, 0.0],
+            "NaN reads as 0"
+        );
         assert_eq!(trigger_with_dead_zone(0.04, 0.05), 0.0);
         assert!((trigger_with_dead_zone(1.0, 0.05) - 1.0).abs() < 1e-12);
     }
@@ -362,20 +415,43 @@ mod tests {
         c.apply(PadEvent::Axis(PadAxis::RightTrigger, 1.0));
         let cmd = c.command();
         assert_eq!(cmd.spatula, SpatulaSlot::Left);
-        assert!((cmd.velocity.linear_m_s - Vec3::new(m.max_speed_m_s, 0.0, m.max_speed_m_s)).norm() < 1e-12, "push + RT: {:?}", cmd.velocity);
+        assert!(
+            (cmd.velocity.linear_m_s - Vec3::new(m.max_speed_m_s, 0.0, m.max_speed_m_s)).norm()
+                < 1e-12,
+            "push + RT: {:?}",
+            cmd.velocity
+        );
         assert_eq!(cmd.velocity.angular_rad_s, Vec3::zeros());
 
         c.apply(PadEvent::Pressed(PadButton::South));
         c.apply(PadEvent::Released(PadButton::South));
         c.apply(PadEvent::Pressed(PadButton::RightShoulder));
         let cmd = c.command();
-        assert_eq!((cmd.mode, cmd.spatula), (MotionMode::Rotate, SpatulaSlot::Right));
-        assert_eq!(cmd.velocity.linear_m_s, Vec3::zeros(), "rotate mode must not translate");
-        assert!((cmd.velocity.angular_rad_s - Vec3::new(0.0, m.max_rate_rad_s, m.max_rate_rad_s)).norm() < 1e-12, "{:?}", cmd.velocity);
+        assert_eq!(
+            (cmd.mode, cmd.spatula),
+            (MotionMode::Rotate, SpatulaSlot::Right)
+        );
+        assert_eq!(
+            cmd.velocity.linear_m_s,
+            Vec3::zeros(),
+            "rotate mode must not translate"
+        );
+        assert!(
+            (cmd.velocity.angular_rad_s - Vec3::new(0.0, m.max_rate_rad_s, m.max_rate_rad_s))
+                .norm()
+                < 1e-12,
+            "{:?}",
+            cmd.velocity
+        );
 
         c.apply(PadEvent::Pressed(PadButton::West));
         let slow = c.command();
-        assert!((slow.velocity.angular_rad_s.norm() - cmd.velocity.angular_rad_s.norm() * m.precision_factor).abs() < 1e-12);
+        assert!(
+            (slow.velocity.angular_rad_s.norm()
+                - cmd.velocity.angular_rad_s.norm() * m.precision_factor)
+                .abs()
+                < 1e-12
+        );
     }
 
     #[test]
@@ -388,10 +464,17 @@ mod tests {
         assert!(cmd.camera_orbit_rad_s[0] > 0.0);
         c.apply(PadEvent::Disconnected);
         let cmd = c.command();
-        assert!(cmd.velocity.is_zero(), "after unplug the spatula must stop: {:?}", cmd.velocity);
+        assert!(
+            cmd.velocity.is_zero(),
+            "after unplug the spatula must stop: {:?}",
+            cmd.velocity
+        );
         assert_eq!(cmd.camera_orbit_rad_s, [0.0, 0.0]);
         c.apply(PadEvent::Axis(PadAxis::LeftTrigger, f32::INFINITY));
-        assert_eq!(c.state.left_trigger, 0.0, "non-finite axis values read as 0");
+        assert_eq!(
+            c.state.left_trigger, 0.0,
+            "non-finite axis values read as 0"
+        );
     }
 
     #[test]
@@ -399,12 +482,26 @@ mod tests {
         // gilrs event codes cannot be built outside gilrs; the button and axis
         // tables are what from_gilrs applies.
         assert_eq!(pad_button(gilrs::Button::South), Some(PadButton::South));
-        assert_eq!(pad_button(gilrs::Button::LeftTrigger), Some(PadButton::LeftShoulder), "gilrs LeftTrigger is the shoulder");
-        assert_eq!(pad_button(gilrs::Button::LeftTrigger2), None, "the analogue trigger is an axis, not a button");
+        assert_eq!(
+            pad_button(gilrs::Button::LeftTrigger),
+            Some(PadButton::LeftShoulder),
+            "gilrs LeftTrigger is the shoulder"
+        );
+        assert_eq!(
+            pad_button(gilrs::Button::LeftTrigger2),
+            None,
+            "the analogue trigger is an axis, not a button"
+        );
         assert_eq!(pad_button(gilrs::Button::Start), None);
-        assert_eq!(pad_axis(gilrs::Axis::RightStickY), Some(PadAxis::RightStickY));
+        assert_eq!(
+            pad_axis(gilrs::Axis::RightStickY),
+            Some(PadAxis::RightStickY)
+        );
         assert_eq!(pad_axis(gilrs::Axis::DPadX), None);
-        assert_eq!(from_gilrs(&gilrs::EventType::Disconnected), Some(PadEvent::Disconnected));
+        assert_eq!(
+            from_gilrs(&gilrs::EventType::Disconnected),
+            Some(PadEvent::Disconnected)
+        );
     }
 
     #[test]
@@ -413,6 +510,10 @@ mod tests {
         // must neither fail nor move anything.
         let mut input = GamepadInput::new(GamepadMapping::default());
         let cmd = input.poll();
-        assert!(cmd.velocity.is_zero(), "no pad must mean no motion: {:?}", cmd.velocity);
+        assert!(
+            cmd.velocity.is_zero(),
+            "no pad must mean no motion: {:?}",
+            cmd.velocity
+        );
     }
 }

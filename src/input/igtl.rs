@@ -40,7 +40,10 @@ pub struct IgtlConfig {
 
 impl Default for IgtlConfig {
     fn default() -> Self {
-        Self { bind: SocketAddr::from(([127, 0, 0, 1], DEFAULT_PORT)), write_timeout_ms: 5 }
+        Self {
+            bind: SocketAddr::from(([127, 0, 0, 1], DEFAULT_PORT)),
+            write_timeout_ms: 5,
+        }
     }
 }
 
@@ -48,9 +51,15 @@ impl Default for IgtlConfig {
 #[derive(Debug, thiserror::Error)]
 pub enum IgtlServerError {
     #[error("cannot listen on {addr}: {source}")]
-    Bind { addr: SocketAddr, source: std::io::Error },
+    Bind {
+        addr: SocketAddr,
+        source: std::io::Error,
+    },
     #[error("cannot configure the listening socket on {addr}: {source}")]
-    Configure { addr: SocketAddr, source: std::io::Error },
+    Configure {
+        addr: SocketAddr,
+        source: std::io::Error,
+    },
     #[error("cannot start the OpenIGTLink thread: {0}")]
     Thread(std::io::Error),
 }
@@ -91,12 +100,29 @@ struct PoseSlots {
 
 impl PoseSlots {
     fn publish(&mut self, device: &str, pose: Pose, timestamp_s: f64) {
-        match self.slots.binary_search_by(|(name, _)| name.as_str().cmp(device)) {
+        match self
+            .slots
+            .binary_search_by(|(name, _)| name.as_str().cmp(device))
+        {
             Ok(i) => {
                 let slot = &mut self.slots[i].1;
-                *slot = TimedPose { pose, timestamp_s, sequence: slot.sequence + 1 };
+                *slot = TimedPose {
+                    pose,
+                    timestamp_s,
+                    sequence: slot.sequence + 1,
+                };
             }
-            Err(i) => self.slots.insert(i, (device.to_string(), TimedPose { pose, timestamp_s, sequence: 1 })),
+            Err(i) => self.slots.insert(
+                i,
+                (
+                    device.to_string(),
+                    TimedPose {
+                        pose,
+                        timestamp_s,
+                        sequence: 1,
+                    },
+                ),
+            ),
         }
     }
 
@@ -132,11 +158,22 @@ pub struct IgtlServer {
 impl IgtlServer {
     /// Binds and starts accepting clients on their own threads.
     pub fn start(config: &IgtlConfig) -> Result<Self, IgtlServerError> {
-        let listener = TcpListener::bind(config.bind).map_err(|source| IgtlServerError::Bind { addr: config.bind, source })?;
-        let local_addr = listener.local_addr().map_err(|source| IgtlServerError::Configure { addr: config.bind, source })?;
+        let listener = TcpListener::bind(config.bind).map_err(|source| IgtlServerError::Bind {
+            addr: config.bind,
+            source,
+        })?;
+        let local_addr = listener
+            .local_addr()
+            .map_err(|source| IgtlServerError::Configure {
+                addr: config.bind,
+                source,
+            })?;
         listener
             .set_nonblocking(true)
-            .map_err(|source| IgtlServerError::Configure { addr: local_addr, source })?;
+            .map_err(|source| IgtlServerError::Configure {
+                addr: local_addr,
+                source,
+            })?;
         let shared = Arc::new(Shared {
             poses: Mutex::new(PoseSlots::default()),
             writers: Mutex::new(Vec::new()),
@@ -150,7 +187,12 @@ impl IgtlServer {
             .spawn(move || accept_loop(listener, accept_shared, write_timeout))
             .map_err(IgtlServerError::Thread)?;
         tracing::info!(%local_addr, "OpenIGTLink server listening");
-        Ok(Self { shared, local_addr, accept_thread: Some(accept_thread), force_buffer: Vec::with_capacity(igtl_codec::FORCE_MESSAGE_SIZE) })
+        Ok(Self {
+            shared,
+            local_addr,
+            accept_thread: Some(accept_thread),
+            force_buffer: Vec::with_capacity(igtl_codec::FORCE_MESSAGE_SIZE),
+        })
     }
 
     /// The address actually bound (useful with port 0).
@@ -165,7 +207,11 @@ impl IgtlServer {
 
     /// Names of the devices that have delivered a good pose, sorted.
     pub fn devices(&self) -> Vec<String> {
-        lock(&self.shared.poses).slots.iter().map(|(n, _)| n.clone()).collect()
+        lock(&self.shared.poses)
+            .slots
+            .iter()
+            .map(|(n, _)| n.clone())
+            .collect()
     }
 
     /// A snapshot of the counters.
@@ -200,7 +246,10 @@ impl IgtlServer {
                 false
             }
         });
-        self.shared.stats.forces_sent.fetch_add(sent as u64, Ordering::Relaxed);
+        self.shared
+            .stats
+            .forces_sent
+            .fetch_add(sent as u64, Ordering::Relaxed);
         sent
     }
 }
@@ -227,7 +276,10 @@ impl Drop for IgtlServer {
 /// rotation matrix to a unit quaternion. `None` if the result is not a valid pose.
 pub fn transform_to_pose(t: &igtl_codec::Transform) -> Option<Pose> {
     let rotation = Quat::from_matrix_eps(&t.rotation, 1e-9, 100, Quat::identity());
-    let pose = Pose { position: t.translation_mm * 1e-3, rotation };
+    let pose = Pose {
+        position: t.translation_mm * 1e-3,
+        rotation,
+    };
     // from_matrix_eps is iterative; make sure it landed on the given rotation.
     let back = rotation.to_rotation_matrix().into_inner();
     let close = (back - t.rotation).abs().max() < 10.0 * igtl_codec::ORTHONORMAL_TOLERANCE;
@@ -242,7 +294,10 @@ fn accept_loop(listener: TcpListener, shared: Arc<Shared>, write_timeout: Durati
             Ok((stream, peer)) => {
                 next_id += 1;
                 let id = next_id;
-                shared.stats.clients_accepted.fetch_add(1, Ordering::Relaxed);
+                shared
+                    .stats
+                    .clients_accepted
+                    .fetch_add(1, Ordering::Relaxed);
                 tracing::info!(client = id, %peer, "OpenIGTLink client connected");
                 if let Err(e) = setup_client(&stream, write_timeout) {
                     tracing::warn!(client = id, error = %e, "cannot configure client socket; dropping it");
@@ -251,16 +306,25 @@ fn accept_loop(listener: TcpListener, shared: Arc<Shared>, write_timeout: Durati
                 }
                 match stream.try_clone() {
                     Ok(writer) => lock(&shared.writers).push((id, writer)),
-                    Err(e) => tracing::warn!(client = id, error = %e, "no force feedback to this client"),
+                    Err(e) => {
+                        tracing::warn!(client = id, error = %e, "no force feedback to this client")
+                    }
                 }
                 let client_shared = Arc::clone(&shared);
-                match std::thread::Builder::new().name(format!("igtl-client-{id}")).spawn(move || client_loop(id, stream, client_shared)) {
+                match std::thread::Builder::new()
+                    .name(format!("igtl-client-{id}"))
+                    .spawn(move || client_loop(id, stream, client_shared))
+                {
                     Ok(h) => clients.push(h),
-                    Err(e) => tracing::warn!(client = id, error = %e, "cannot start a client thread; dropping it"),
+                    Err(e) => {
+                        tracing::warn!(client = id, error = %e, "cannot start a client thread; dropping it")
+                    }
                 }
                 clients.retain(|h| !h.is_finished());
             }
-            Err(e) if e.kind() == ErrorKind::WouldBlock => std::thread::sleep(Duration::from_millis(10)),
+            Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                std::thread::sleep(Duration::from_millis(10))
+            }
             Err(e) => {
                 tracing::warn!(error = %e, "accept failed");
                 std::thread::sleep(Duration::from_millis(50));
@@ -296,7 +360,11 @@ fn read_full(stream: &mut TcpStream, buf: &mut [u8], stop: &AtomicBool) -> Resul
         match stream.read(&mut buf[filled..]) {
             Ok(0) => return Err(ReadOutcome::Closed),
             Ok(n) => filled += n,
-            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted) => {}
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
+                ) => {}
             Err(e) => return Err(ReadOutcome::Io(e)),
         }
     }
@@ -310,7 +378,10 @@ struct RejectLog {
 
 impl RejectLog {
     fn report(&mut self, client: u64, error: &IgtlError, shared: &Shared) {
-        shared.stats.messages_rejected.fetch_add(1, Ordering::Relaxed);
+        shared
+            .stats
+            .messages_rejected
+            .fetch_add(1, Ordering::Relaxed);
         let kind = match error {
             IgtlError::Truncated { .. } => 0,
             IgtlError::UnsupportedVersion { .. } => 1,
@@ -354,12 +425,28 @@ fn client_loop(id: u64, mut stream: TcpStream, shared: Arc<Shared>) {
             Ok(Message::Transform(t)) => match transform_to_pose(&t) {
                 Some(pose) => {
                     lock(&shared.poses).publish(&t.device, pose, t.timestamp_s);
-                    shared.stats.transforms_accepted.fetch_add(1, Ordering::Relaxed);
+                    shared
+                        .stats
+                        .transforms_accepted
+                        .fetch_add(1, Ordering::Relaxed);
                 }
-                None => rejects.report(id, &IgtlError::NotOrthonormal { device: t.device.clone(), error: f64::NAN }, &shared),
+                None => rejects.report(
+                    id,
+                    &IgtlError::NotOrthonormal {
+                        device: t.device.clone(),
+                        error: f64::NAN,
+                    },
+                    &shared,
+                ),
             },
-            Ok(Message::Other { message_type, device }) => {
-                shared.stats.messages_ignored.fetch_add(1, Ordering::Relaxed);
+            Ok(Message::Other {
+                message_type,
+                device,
+            }) => {
+                shared
+                    .stats
+                    .messages_ignored
+                    .fetch_add(1, Ordering::Relaxed);
                 tracing::debug!(client = id, %message_type, %device, "OpenIGTLink message ignored");
             }
             Err(e) => rejects.report(id, &e, &shared),
@@ -381,7 +468,10 @@ mod tests {
     use std::time::Instant;
 
     fn local_server() -> IgtlServer {
-        let config = IgtlConfig { bind: SocketAddr::from(([127, 0, 0, 1], 0)), ..IgtlConfig::default() };
+        let config = IgtlConfig {
+            bind: SocketAddr::from(([127, 0, 0, 1], 0)),
+            ..IgtlConfig::default()
+        };
         IgtlServer::start(&config).expect("bind an ephemeral loopback port")
     }
 
@@ -404,7 +494,10 @@ mod tests {
         slots.publish("b", Pose::default(), 3.0);
         let names: Vec<_> = slots.slots.iter().map(|(n, _)| n.as_str()).collect();
         assert_eq!(names, ["a", "b"]);
-        assert_eq!(slots.get("b").map(|p| (p.sequence, p.timestamp_s)), Some((2, 3.0)));
+        assert_eq!(
+            slots.get("b").map(|p| (p.sequence, p.timestamp_s)),
+            Some((2, 3.0))
+        );
         assert!(slots.get("c").is_none());
     }
 
@@ -413,40 +506,93 @@ mod tests {
         let mut server = local_server();
         let mut client = TcpStream::connect(server.local_addr()).expect("connect");
         let r = *nalgebra::Rotation3::from_axis_angle(&Vec3::x_axis(), 0.25).matrix();
-        client.write_all(&igtl_codec::encode_transform("Left", 1.0, &r, &Vec3::new(10.0, 20.0, -30.0))).expect("send");
-        assert!(wait_for(|| server.latest("Left").is_some()), "first pose never arrived");
+        client
+            .write_all(&igtl_codec::encode_transform(
+                "Left",
+                1.0,
+                &r,
+                &Vec3::new(10.0, 20.0, -30.0),
+            ))
+            .expect("send");
+        assert!(
+            wait_for(|| server.latest("Left").is_some()),
+            "first pose never arrived"
+        );
         let good = server.latest("Left").expect("pose");
-        assert!((good.pose.position - Vec3::new(0.010, 0.020, -0.030)).norm() < 1e-7, "mm must become m: {:?}", good.pose.position);
+        assert!(
+            (good.pose.position - Vec3::new(0.010, 0.020, -0.030)).norm() < 1e-7,
+            "mm must become m: {:?}",
+            good.pose.position
+        );
 
         // Bad CRC, then a skewed matrix: both refused, the pose holds.
         let mut bad = igtl_codec::encode_transform("Left", 2.0, &r, &Vec3::new(99.0, 0.0, 0.0));
         bad[HEADER_SIZE] ^= 1;
         client.write_all(&bad).expect("send");
-        client.write_all(&igtl_codec::encode_transform("Left", 3.0, &(r * 2.0), &Vec3::zeros())).expect("send");
+        client
+            .write_all(&igtl_codec::encode_transform(
+                "Left",
+                3.0,
+                &(r * 2.0),
+                &Vec3::zeros(),
+            ))
+            .expect("send");
         // An unknown message type is skipped without breaking the stream.
-        let mut other = igtl_codec::encode_transform("X", 4.0, &Matrix3::identity(), &Vec3::zeros());
+        let mut other =
+            igtl_codec::encode_transform("X", 4.0, &Matrix3::identity(), &Vec3::zeros());
         other[2..14].copy_from_slice(b"STATUS\0\0\0\0\0\0");
         client.write_all(&other).expect("send");
-        client.write_all(&igtl_codec::encode_transform("Right", 5.0, &Matrix3::identity(), &Vec3::new(1.0, 0.0, 0.0))).expect("send");
-        assert!(wait_for(|| server.latest("Right").is_some()), "stream broke after bad messages");
+        client
+            .write_all(&igtl_codec::encode_transform(
+                "Right",
+                5.0,
+                &Matrix3::identity(),
+                &Vec3::new(1.0, 0.0, 0.0),
+            ))
+            .expect("send");
+        assert!(
+            wait_for(|| server.latest("Right").is_some()),
+            "stream broke after bad messages"
+        );
         let stats = server.stats();
-        assert_eq!(stats.messages_rejected, 2, "CRC and skew must be refused: {stats:?}");
-        assert_eq!(stats.messages_ignored, 1, "STATUS must be skipped: {stats:?}");
-        assert_eq!(server.latest("Left"), Some(good), "the last good pose must hold");
+        assert_eq!(
+            stats.messages_rejected, 2,
+            "CRC and skew must be refused: {stats:?}"
+        );
+        assert_eq!(
+            stats.messages_ignored, 1,
+            "STATUS must be skipped: {stats:?}"
+        );
+        assert_eq!(
+            server.latest("Left"),
+            Some(good),
+            "the last good pose must hold"
+        );
 
         // Force goes back to the client as a SENSOR message.
-        assert!(wait_for(|| server.send_force("Left", 6.0, [1.0, 2.0, 3.0]) == 1), "force not sent");
-        client.set_read_timeout(Some(Duration::from_secs(5))).expect("timeout");
+        assert!(
+            wait_for(|| server.send_force("Left", 6.0, [1.0, 2.0, 3.0]) == 1),
+            "force not sent"
+        );
+        client
+            .set_read_timeout(Some(Duration::from_secs(5)))
+            .expect("timeout");
         let mut msg = [0u8; igtl_codec::FORCE_MESSAGE_SIZE];
         client.read_exact(&mut msg).expect("read force");
         let header = igtl_codec::decode_header(&msg).expect("force header");
-        assert_eq!((header.message_type.as_str(), header.device.as_str()), ("SENSOR", "Force_Left"));
+        assert_eq!(
+            (header.message_type.as_str(), header.device.as_str()),
+            ("SENSOR", "Force_Left")
+        );
         let (_, values) = igtl_codec::decode_sensor_body(&msg[HEADER_SIZE..]).expect("sensor body");
         assert_eq!(values, vec![1.0, 2.0, 3.0]);
 
         // A dropped client is noticed, the server keeps its poses.
         drop(client);
-        assert!(wait_for(|| server.stats().clients_dropped == 1), "dropped client not noticed");
+        assert!(
+            wait_for(|| server.stats().clients_dropped == 1),
+            "dropped client not noticed"
+        );
         assert_eq!(server.latest("Left"), Some(good));
     }
 
@@ -455,9 +601,21 @@ mod tests {
         let server = local_server();
         let mut garbage = TcpStream::connect(server.local_addr()).expect("connect");
         garbage.write_all(&[0xFFu8; 200]).expect("send");
-        assert!(wait_for(|| server.stats().clients_dropped == 1), "corrupt stream must drop its client");
+        assert!(
+            wait_for(|| server.stats().clients_dropped == 1),
+            "corrupt stream must drop its client"
+        );
         let mut good = TcpStream::connect(server.local_addr()).expect("connect again");
-        good.write_all(&igtl_codec::encode_transform("T", 1.0, &Matrix3::identity(), &Vec3::zeros())).expect("send");
-        assert!(wait_for(|| server.latest("T").is_some()), "server must keep accepting after a bad client");
+        good.write_all(&igtl_codec::encode_transform(
+            "T",
+            1.0,
+            &Matrix3::identity(),
+            &Vec3::zeros(),
+        ))
+        .expect("send");
+        assert!(
+            wait_for(|| server.latest("T").is_some()),
+            "server must keep accepting after a bad client"
+        );
     }
 }

@@ -48,12 +48,26 @@ pub enum IgtlError {
     UnsupportedVersion { version: u16 },
     #[error("declared body size {size} bytes exceeds the limit of {limit}")]
     BodyTooLarge { size: u64, limit: u64 },
-    #[error("{message_type} from '{device}': CRC mismatch (header {expected:#018x}, computed {computed:#018x})")]
-    CrcMismatch { message_type: String, device: String, expected: u64, computed: u64 },
+    #[error(
+        "{message_type} from '{device}': CRC mismatch (header {expected:#018x}, computed {computed:#018x})"
+    )]
+    CrcMismatch {
+        message_type: String,
+        device: String,
+        expected: u64,
+        computed: u64,
+    },
     #[error("TRANSFORM from '{device}': extended header is inconsistent ({detail})")]
-    BadExtendedHeader { device: String, detail: &'static str },
+    BadExtendedHeader {
+        device: String,
+        detail: &'static str,
+    },
     #[error("TRANSFORM from '{device}': content is {got} bytes, expected {expected}")]
-    WrongContentSize { device: String, expected: usize, got: usize },
+    WrongContentSize {
+        device: String,
+        expected: usize,
+        got: usize,
+    },
     #[error("TRANSFORM from '{device}': value {index} is not finite")]
     NonFinite { device: String, index: usize },
     #[error("TRANSFORM from '{device}': rotation is not orthonormal with det +1 (error {error:e})")]
@@ -96,7 +110,10 @@ pub enum Message {
     /// A TRANSFORM that passed every check.
     Transform(Transform),
     /// A message of another type (its CRC was checked); we ignore its content.
-    Other { message_type: String, device: String },
+    Other {
+        message_type: String,
+        device: String,
+    },
 }
 
 const CRC64_POLY: u64 = 0x42F0_E1EB_A9EA_3693;
@@ -108,7 +125,11 @@ const CRC64_TABLE: [u64; 256] = {
         let mut crc = (i as u64) << 56;
         let mut bit = 0;
         while bit < 8 {
-            crc = if crc & (1 << 63) != 0 { (crc << 1) ^ CRC64_POLY } else { crc << 1 };
+            crc = if crc & (1 << 63) != 0 {
+                (crc << 1) ^ CRC64_POLY
+            } else {
+                crc << 1
+            };
             bit += 1;
         }
         table[i] = crc;
@@ -147,7 +168,10 @@ fn fixed_str(b: &[u8]) -> String {
 /// Decodes the 58-byte header at the start of `bytes`.
 pub fn decode_header(bytes: &[u8]) -> Result<Header, IgtlError> {
     if bytes.len() < HEADER_SIZE {
-        return Err(IgtlError::Truncated { needed: HEADER_SIZE, got: bytes.len() });
+        return Err(IgtlError::Truncated {
+            needed: HEADER_SIZE,
+            got: bytes.len(),
+        });
     }
     let version = be_u16(bytes, 0);
     if version != 1 && version != 2 {
@@ -160,17 +184,30 @@ pub fn decode_header(bytes: &[u8]) -> Result<Header, IgtlError> {
     let timestamp_s = seconds as f64 + fraction as f64 / 4_294_967_296.0;
     let body_size = be_u64(bytes, 42);
     if body_size > MAX_BODY_SIZE {
-        return Err(IgtlError::BodyTooLarge { size: body_size, limit: MAX_BODY_SIZE });
+        return Err(IgtlError::BodyTooLarge {
+            size: body_size,
+            limit: MAX_BODY_SIZE,
+        });
     }
     let crc = be_u64(bytes, 50);
-    Ok(Header { version, message_type, device, timestamp_s, body_size, crc })
+    Ok(Header {
+        version,
+        message_type,
+        device,
+        timestamp_s,
+        body_size,
+        crc,
+    })
 }
 
 /// Decodes a body of the message `header` announced: checks the CRC, then for a
 /// TRANSFORM the size, finiteness and orthonormality of its content.
 pub fn decode_body(header: &Header, body: &[u8]) -> Result<Message, IgtlError> {
     if (body.len() as u64) != header.body_size {
-        return Err(IgtlError::Truncated { needed: header.body_size as usize, got: body.len() });
+        return Err(IgtlError::Truncated {
+            needed: header.body_size as usize,
+            got: body.len(),
+        });
     }
     let computed = crc64(body);
     if computed != header.crc {
@@ -182,7 +219,10 @@ pub fn decode_body(header: &Header, body: &[u8]) -> Result<Message, IgtlError> {
         });
     }
     if header.message_type != "TRANSFORM" {
-        return Ok(Message::Other { message_type: header.message_type.clone(), device: header.device.clone() });
+        return Ok(Message::Other {
+            message_type: header.message_type.clone(),
+            device: header.device.clone(),
+        });
     }
     let content = transform_content(header, body)?;
     decode_transform_content(header, content).map(Message::Transform)
@@ -192,7 +232,10 @@ fn transform_content<'a>(header: &Header, body: &'a [u8]) -> Result<&'a [u8], Ig
     if header.version == 1 {
         return Ok(body);
     }
-    let bad = |detail| IgtlError::BadExtendedHeader { device: header.device.clone(), detail };
+    let bad = |detail| IgtlError::BadExtendedHeader {
+        device: header.device.clone(),
+        detail,
+    };
     if body.len() < EXTENDED_HEADER_SIZE {
         return Err(bad("body shorter than the 12-byte extended header"));
     }
@@ -202,8 +245,13 @@ fn transform_content<'a>(header: &Header, body: &'a [u8]) -> Result<&'a [u8], Ig
     if ext < EXTENDED_HEADER_SIZE {
         return Err(bad("extended header size below 12"));
     }
-    let tail = meta_header.checked_add(meta).ok_or_else(|| bad("metadata size overflows"))?;
-    let end = body.len().checked_sub(tail).ok_or_else(|| bad("metadata larger than the body"))?;
+    let tail = meta_header
+        .checked_add(meta)
+        .ok_or_else(|| bad("metadata size overflows"))?;
+    let end = body
+        .len()
+        .checked_sub(tail)
+        .ok_or_else(|| bad("metadata larger than the body"))?;
     if end < ext {
         return Err(bad("extended header and metadata overlap"));
     }
@@ -222,15 +270,21 @@ fn decode_transform_content(header: &Header, content: &[u8]) -> Result<Transform
     for (index, slot) in v.iter_mut().enumerate() {
         let x = f32::from_bits(be_u32(content, 4 * index));
         if !x.is_finite() {
-            return Err(IgtlError::NonFinite { device: header.device.clone(), index });
+            return Err(IgtlError::NonFinite {
+                device: header.device.clone(),
+                index,
+            });
         }
         *slot = x as f64;
     }
     // Columns first: v[0..3] is the first column.
     let rotation = Matrix3::new(v[0], v[3], v[6], v[1], v[4], v[7], v[2], v[5], v[8]);
     let error = orthonormality_error(&rotation);
-    if !(error <= ORTHONORMAL_TOLERANCE) {
-        return Err(IgtlError::NotOrthonormal { device: header.device.clone(), error });
+    if error.is_nan() || error > ORTHONORMAL_TOLERANCE {
+        return Err(IgtlError::NotOrthonormal {
+            device: header.device.clone(),
+            error,
+        });
     }
     Ok(Transform {
         device: header.device.clone(),
@@ -247,7 +301,13 @@ pub fn orthonormality_error(r: &Matrix3<f64>) -> f64 {
     worst.max((r.determinant() - 1.0).abs())
 }
 
-fn write_header(out: &mut Vec<u8>, message_type: &str, device: &str, timestamp_s: f64, body: &[u8]) {
+fn write_header(
+    out: &mut Vec<u8>,
+    message_type: &str,
+    device: &str,
+    timestamp_s: f64,
+    body: &[u8],
+) {
     out.extend_from_slice(&1u16.to_be_bytes());
     let mut name = [0u8; 12];
     let t = message_type.as_bytes();
@@ -257,7 +317,11 @@ fn write_header(out: &mut Vec<u8>, message_type: &str, device: &str, timestamp_s
     let d = device.as_bytes();
     dev[..d.len().min(20)].copy_from_slice(&d[..d.len().min(20)]);
     out.extend_from_slice(&dev);
-    let ts = if timestamp_s.is_finite() && timestamp_s >= 0.0 { timestamp_s } else { 0.0 };
+    let ts = if timestamp_s.is_finite() && timestamp_s >= 0.0 {
+        timestamp_s
+    } else {
+        0.0
+    };
     let seconds = ts.floor().min(u32::MAX as f64) as u32;
     let fraction = ((ts - ts.floor()) * 4_294_967_296.0).min(u32::MAX as f64) as u32;
     out.extend_from_slice(&seconds.to_be_bytes());
@@ -268,7 +332,12 @@ fn write_header(out: &mut Vec<u8>, message_type: &str, device: &str, timestamp_s
 
 /// Encodes a header-version-1 TRANSFORM (rotation columns, translation in mm).
 /// Used by tests and by tools that replay poses to another OpenIGTLink peer.
-pub fn encode_transform(device: &str, timestamp_s: f64, rotation: &Matrix3<f64>, translation_mm: &Vec3) -> Vec<u8> {
+pub fn encode_transform(
+    device: &str,
+    timestamp_s: f64,
+    rotation: &Matrix3<f64>,
+    translation_mm: &Vec3,
+) -> Vec<u8> {
     let mut body = Vec::with_capacity(TRANSFORM_CONTENT_SIZE);
     for col in 0..3 {
         for row in 0..3 {
@@ -319,7 +388,12 @@ pub fn decode_sensor_body(body: &[u8]) -> Option<(u64, Vec<f64>)> {
         return None;
     }
     let unit = be_u64(body, 2);
-    Some((unit, (0..count).map(|k| f64::from_bits(be_u64(body, 10 + 8 * k))).collect()))
+    Some((
+        unit,
+        (0..count)
+            .map(|k| f64::from_bits(be_u64(body, 10 + 8 * k)))
+            .collect(),
+    ))
 }
 
 #[cfg(test)]
@@ -348,8 +422,14 @@ mod tests {
         assert_eq!(header.device, "SpatulaL");
         assert!((header.timestamp_s - 1234.5).abs() < 1e-6);
         let msg = decode_body(&header, &bytes[HEADER_SIZE..]).expect("body");
-        let Message::Transform(tr) = msg else { panic!("expected a TRANSFORM, got {msg:?}") };
-        assert!((tr.rotation - r).abs().max() < 1e-7, "rotation {:?}", tr.rotation);
+        let Message::Transform(tr) = msg else {
+            panic!("expected a TRANSFORM, got {msg:?}")
+        };
+        assert!(
+            (tr.rotation - r).abs().max() < 1e-7,
+            "rotation {:?}",
+            tr.rotation
+        );
         assert!((tr.translation_mm - t).norm() < 1e-5);
     }
 
@@ -378,7 +458,8 @@ mod tests {
         let bytes = v2_message(content, &meta_header, b"kvv");
         let header = decode_header(&bytes).expect("header");
         assert_eq!(header.version, 2);
-        let Message::Transform(tr) = decode_body(&header, &bytes[HEADER_SIZE..]).expect("v2 body") else {
+        let Message::Transform(tr) = decode_body(&header, &bytes[HEADER_SIZE..]).expect("v2 body")
+        else {
             panic!("expected a TRANSFORM")
         };
         assert!((tr.translation_mm - Vec3::new(1.0, 2.0, 3.0)).norm() < 1e-6);
@@ -389,7 +470,10 @@ mod tests {
         let crc = crc64(&broken[HEADER_SIZE..]);
         broken[50..58].copy_from_slice(&crc.to_be_bytes());
         let header = decode_header(&broken).expect("header");
-        assert!(matches!(decode_body(&header, &broken[HEADER_SIZE..]), Err(IgtlError::BadExtendedHeader { .. })));
+        assert!(matches!(
+            decode_body(&header, &broken[HEADER_SIZE..]),
+            Err(IgtlError::BadExtendedHeader { .. })
+        ));
     }
 
     #[test]
@@ -397,23 +481,44 @@ mod tests {
         let mut bytes = encode_transform("T", 0.0, &rot_z(0.1), &Vec3::zeros());
         bytes[HEADER_SIZE + 3] ^= 0x40;
         let header = decode_header(&bytes).expect("header");
-        assert!(matches!(decode_body(&header, &bytes[HEADER_SIZE..]), Err(IgtlError::CrcMismatch { .. })), "flipped bit must fail the CRC");
+        assert!(
+            matches!(
+                decode_body(&header, &bytes[HEADER_SIZE..]),
+                Err(IgtlError::CrcMismatch { .. })
+            ),
+            "flipped bit must fail the CRC"
+        );
 
         let mut r = rot_z(0.1);
         r[(0, 0)] = f64::NAN;
         let bytes = encode_transform("T", 0.0, &r, &Vec3::zeros());
         let header = decode_header(&bytes).expect("header");
-        assert!(matches!(decode_body(&header, &bytes[HEADER_SIZE..]), Err(IgtlError::NonFinite { index: 0, .. })));
+        assert!(matches!(
+            decode_body(&header, &bytes[HEADER_SIZE..]),
+            Err(IgtlError::NonFinite { index: 0, .. })
+        ));
 
         let skew = rot_z(0.1) * 1.1;
         let bytes = encode_transform("T", 0.0, &skew, &Vec3::zeros());
         let header = decode_header(&bytes).expect("header");
-        assert!(matches!(decode_body(&header, &bytes[HEADER_SIZE..]), Err(IgtlError::NotOrthonormal { .. })), "a scaled matrix is not a rotation");
+        assert!(
+            matches!(
+                decode_body(&header, &bytes[HEADER_SIZE..]),
+                Err(IgtlError::NotOrthonormal { .. })
+            ),
+            "a scaled matrix is not a rotation"
+        );
 
         let mirror = Matrix3::from_diagonal(&Vec3::new(1.0, 1.0, -1.0));
         let bytes = encode_transform("T", 0.0, &mirror, &Vec3::zeros());
         let header = decode_header(&bytes).expect("header");
-        assert!(matches!(decode_body(&header, &bytes[HEADER_SIZE..]), Err(IgtlError::NotOrthonormal { .. })), "a reflection (det -1) is not a rotation");
+        assert!(
+            matches!(
+                decode_body(&header, &bytes[HEADER_SIZE..]),
+                Err(IgtlError::NotOrthonormal { .. })
+            ),
+            "a reflection (det -1) is not a rotation"
+        );
     }
 
     #[test]
@@ -424,10 +529,26 @@ mod tests {
         bytes[42..50].copy_from_slice(&(body.len() as u64).to_be_bytes());
         bytes[50..58].copy_from_slice(&crc64(&body).to_be_bytes());
         let header = decode_header(&bytes).expect("header");
-        assert!(matches!(decode_body(&header, &body), Err(IgtlError::WrongContentSize { expected: 48, got: 44, .. })));
+        assert!(matches!(
+            decode_body(&header, &body),
+            Err(IgtlError::WrongContentSize {
+                expected: 48,
+                got: 44,
+                ..
+            })
+        ));
         bytes[42..50].copy_from_slice(&u64::MAX.to_be_bytes());
-        assert!(matches!(decode_header(&bytes), Err(IgtlError::BodyTooLarge { .. })));
-        assert!(matches!(decode_header(&bytes[..20]), Err(IgtlError::Truncated { needed: 58, got: 20 })));
+        assert!(matches!(
+            decode_header(&bytes),
+            Err(IgtlError::BodyTooLarge { .. })
+        ));
+        assert!(matches!(
+            decode_header(&bytes[..20]),
+            Err(IgtlError::Truncated {
+                needed: 58,
+                got: 20
+            })
+        ));
     }
 
     #[test]
@@ -439,7 +560,13 @@ mod tests {
         assert_eq!(header.message_type, "SENSOR");
         assert_eq!(header.device, "Force_Left");
         assert_eq!(header.body_size, 34);
-        assert!(matches!(decode_body(&header, &out[HEADER_SIZE..]), Ok(Message::Other { .. })), "CRC must match");
+        assert!(
+            matches!(
+                decode_body(&header, &out[HEADER_SIZE..]),
+                Ok(Message::Other { .. })
+            ),
+            "CRC must match"
+        );
         let (unit, values) = decode_sensor_body(&out[HEADER_SIZE..]).expect("sensor body");
         assert_eq!(unit, UNIT_NEWTON);
         assert_eq!(unit, 0x02C4_0000_0000_0000, "documented constant");

@@ -103,16 +103,37 @@ pub struct KeyboardMapping {
 
 impl Default for KeyboardMapping {
     fn default() -> Self {
-        Self { speed_m_s: 0.01, rate_rad_s: 0.5, precision_factor: 0.25, orbit_rad_per_px: 0.005, zoom_per_line: 1.1 }
+        Self {
+            speed_m_s: 0.01,
+            rate_rad_s: 0.5,
+            precision_factor: 0.25,
+            orbit_rad_per_px: 0.005,
+            zoom_per_line: 1.1,
+        }
     }
 }
 
 /// The pure mapping: held keys to a velocity in the spatula frame.
 pub fn map_keys(keys: &KeyState, mapping: &KeyboardMapping) -> PoseVelocity {
-    let factor = if keys.is_held(Key::Shift) { mapping.precision_factor } else { 1.0 };
-    let linear = Vec3::new(keys.axis(Key::W, Key::S), keys.axis(Key::D, Key::A), keys.axis(Key::E, Key::Q));
-    let angular = Vec3::new(keys.axis(Key::PageUp, Key::PageDown), keys.axis(Key::Up, Key::Down), keys.axis(Key::Right, Key::Left));
-    PoseVelocity { linear_m_s: linear * (mapping.speed_m_s * factor), angular_rad_s: angular * (mapping.rate_rad_s * factor) }
+    let factor = if keys.is_held(Key::Shift) {
+        mapping.precision_factor
+    } else {
+        1.0
+    };
+    let linear = Vec3::new(
+        keys.axis(Key::W, Key::S),
+        keys.axis(Key::D, Key::A),
+        keys.axis(Key::E, Key::Q),
+    );
+    let angular = Vec3::new(
+        keys.axis(Key::PageUp, Key::PageDown),
+        keys.axis(Key::Up, Key::Down),
+        keys.axis(Key::Right, Key::Left),
+    );
+    PoseVelocity {
+        linear_m_s: linear * (mapping.speed_m_s * factor),
+        angular_rad_s: angular * (mapping.rate_rad_s * factor),
+    }
 }
 
 /// Camera change asked for by the mouse.
@@ -126,15 +147,28 @@ pub struct CameraNudge {
 
 /// The pure mouse mapping: a drag (pixels, only while the left button is held)
 /// and wheel lines (positive = away from the user = zoom in).
-pub fn map_mouse(drag_px: [f64; 2], left_button: bool, wheel_lines: f64, mapping: &KeyboardMapping) -> CameraNudge {
+pub fn map_mouse(
+    drag_px: [f64; 2],
+    left_button: bool,
+    wheel_lines: f64,
+    mapping: &KeyboardMapping,
+) -> CameraNudge {
     let finite = |v: f64| if v.is_finite() { v } else { 0.0 };
     let orbit_rad = if left_button {
-        [-finite(drag_px[0]) * mapping.orbit_rad_per_px, finite(drag_px[1]) * mapping.orbit_rad_per_px]
+        [
+            -finite(drag_px[0]) * mapping.orbit_rad_per_px,
+            finite(drag_px[1]) * mapping.orbit_rad_per_px,
+        ]
     } else {
         [0.0, 0.0]
     };
-    let zoom_factor = mapping.zoom_per_line.powf(-finite(wheel_lines).clamp(-20.0, 20.0));
-    CameraNudge { orbit_rad, zoom_factor }
+    let zoom_factor = mapping
+        .zoom_per_line
+        .powf(-finite(wheel_lines).clamp(-20.0, 20.0));
+    CameraNudge {
+        orbit_rad,
+        zoom_factor,
+    }
 }
 
 /// What the keyboard asks for this frame.
@@ -155,7 +189,10 @@ pub struct KeyboardController {
 impl KeyboardController {
     /// A controller with the given tuning.
     pub fn new(mapping: KeyboardMapping) -> Self {
-        Self { mapping, ..Self::default() }
+        Self {
+            mapping,
+            ..Self::default()
+        }
     }
 
     /// Applies one key event; auto-repeat of a held Tab does not switch again.
@@ -173,14 +210,19 @@ impl KeyboardController {
 
     /// This frame's command.
     pub fn command(&self) -> KeyCommand {
-        KeyCommand { spatula: self.spatula, velocity: map_keys(&self.keys, &self.mapping) }
+        KeyCommand {
+            spatula: self.spatula,
+            velocity: map_keys(&self.keys, &self.mapping),
+        }
     }
 }
 
 /// The key a winit physical key stands for in this map.
 pub fn key_from_winit(key: &winit::keyboard::PhysicalKey) -> Option<Key> {
     use winit::keyboard::{KeyCode, PhysicalKey};
-    let PhysicalKey::Code(code) = key else { return None };
+    let PhysicalKey::Code(code) = key else {
+        return None;
+    };
     Some(match code {
         KeyCode::KeyW => Key::W,
         KeyCode::KeyA => Key::A,
@@ -210,7 +252,22 @@ mod tests {
 
     #[test]
     fn keys_bits_are_distinct() {
-        let all = [Key::W, Key::A, Key::S, Key::D, Key::Q, Key::E, Key::Up, Key::Down, Key::Left, Key::Right, Key::PageUp, Key::PageDown, Key::Tab, Key::Shift];
+        let all = [
+            Key::W,
+            Key::A,
+            Key::S,
+            Key::D,
+            Key::Q,
+            Key::E,
+            Key::Up,
+            Key::Down,
+            Key::Left,
+            Key::Right,
+            Key::PageUp,
+            Key::PageDown,
+            Key::Tab,
+            Key::Shift,
+        ];
         assert_eq!(all.len(), KEY_COUNT);
         let mut state = KeyState::default();
         for k in all {
@@ -227,12 +284,23 @@ mod tests {
         press(&mut c, Key::E);
         press(&mut c, Key::Right);
         let v = c.command().velocity;
-        assert_eq!(v.linear_m_s, Vec3::new(m.speed_m_s, 0.0, m.speed_m_s), "W + E");
-        assert_eq!(v.angular_rad_s, Vec3::new(0.0, 0.0, m.rate_rad_s), "Right yaws +z");
+        assert_eq!(
+            v.linear_m_s,
+            Vec3::new(m.speed_m_s, 0.0, m.speed_m_s),
+            "W + E"
+        );
+        assert_eq!(
+            v.angular_rad_s,
+            Vec3::new(0.0, 0.0, m.rate_rad_s),
+            "Right yaws +z"
+        );
         press(&mut c, Key::S);
         assert_eq!(c.command().velocity.linear_m_s.x, 0.0, "W and S cancel");
         press(&mut c, Key::Shift);
-        assert!((c.command().velocity.linear_m_s.z - m.speed_m_s * m.precision_factor).abs() < 1e-15, "Shift slows");
+        assert!(
+            (c.command().velocity.linear_m_s.z - m.speed_m_s * m.precision_factor).abs() < 1e-15,
+            "Shift slows"
+        );
         c.release_all();
         assert!(c.command().velocity.is_zero());
     }
@@ -242,8 +310,15 @@ mod tests {
         let mut c = KeyboardController::default();
         press(&mut c, Key::Tab);
         press(&mut c, Key::Tab); // auto-repeat
-        assert_eq!(c.spatula, SpatulaSlot::Right, "auto-repeat must not switch back");
-        c.apply(KeyEvent { key: Key::Tab, pressed: false });
+        assert_eq!(
+            c.spatula,
+            SpatulaSlot::Right,
+            "auto-repeat must not switch back"
+        );
+        c.apply(KeyEvent {
+            key: Key::Tab,
+            pressed: false,
+        });
         press(&mut c, Key::Tab);
         assert_eq!(c.spatula, SpatulaSlot::Left);
     }
@@ -257,14 +332,23 @@ mod tests {
         let drag = map_mouse([10.0, 5.0], true, 1.0, &m);
         assert!((drag.orbit_rad[0] + 10.0 * m.orbit_rad_per_px).abs() < 1e-15);
         assert!(drag.zoom_factor < 1.0, "wheel forward zooms in");
-        assert_eq!(map_mouse([f64::NAN, 0.0], true, f64::NAN, &m).orbit_rad, [0.0, 0.0]);
+        assert_eq!(
+            map_mouse([f64::NAN, 0.0], true, f64::NAN, &m).orbit_rad,
+            [0.0, 0.0]
+        );
     }
 
     #[test]
     fn winit_keys_convert() {
         use winit::keyboard::{KeyCode, PhysicalKey};
-        assert_eq!(key_from_winit(&PhysicalKey::Code(KeyCode::KeyW)), Some(Key::W));
-        assert_eq!(key_from_winit(&PhysicalKey::Code(KeyCode::ShiftRight)), Some(Key::Shift));
+        assert_eq!(
+            key_from_winit(&PhysicalKey::Code(KeyCode::KeyW)),
+            Some(Key::W)
+        );
+        assert_eq!(
+            key_from_winit(&PhysicalKey::Code(KeyCode::ShiftRight)),
+            Some(Key::Shift)
+        );
         assert_eq!(key_from_winit(&PhysicalKey::Code(KeyCode::KeyZ)), None);
     }
 }

@@ -69,7 +69,10 @@ impl PoseVelocity {
 /// `p += R v dt`, `R := R exp(omega dt)`. A non-finite velocity or step leaves
 /// the pose unchanged (the caller's [`PoseGuard`] would reject the result anyway).
 pub fn integrate(pose: &Pose, velocity: &PoseVelocity, dt_s: f64) -> Pose {
-    if !dt_s.is_finite() || !is_finite3(&velocity.linear_m_s) || !is_finite3(&velocity.angular_rad_s) {
+    if !dt_s.is_finite()
+        || !is_finite3(&velocity.linear_m_s)
+        || !is_finite3(&velocity.angular_rad_s)
+    {
         return *pose;
     }
     let position = pose.position + pose.rotation * (velocity.linear_m_s * dt_s);
@@ -113,8 +116,17 @@ impl PoseGuard {
     /// A guard starting from `initial` (which must be valid; an invalid one is
     /// replaced by the identity pose). `label` names the input in the log.
     pub fn new(initial: Pose, label: &'static str) -> Self {
-        let last_good = if initial.is_valid() { initial } else { Pose::default() };
-        Self { last_good, rejected: 0, warned: false, label }
+        let last_good = if initial.is_valid() {
+            initial
+        } else {
+            Pose::default()
+        };
+        Self {
+            last_good,
+            rejected: 0,
+            warned: false,
+            label,
+        }
     }
 
     /// Offers a candidate; returns the pose now held (the candidate if valid).
@@ -152,27 +164,57 @@ mod tests {
     #[test]
     fn integrate_moves_along_the_spatula_frame() {
         // Spatula rotated 90 degrees about world z: its x axis is world +y.
-        let pose = Pose { position: Vec3::new(1.0, 0.0, 0.0), rotation: Quat::from_axis_angle(&Vec3::z_axis(), std::f64::consts::FRAC_PI_2) };
-        let v = PoseVelocity { linear_m_s: Vec3::new(0.01, 0.0, 0.0), angular_rad_s: Vec3::zeros() };
+        let pose = Pose {
+            position: Vec3::new(1.0, 0.0, 0.0),
+            rotation: Quat::from_axis_angle(&Vec3::z_axis(), std::f64::consts::FRAC_PI_2),
+        };
+        let v = PoseVelocity {
+            linear_m_s: Vec3::new(0.01, 0.0, 0.0),
+            angular_rad_s: Vec3::zeros(),
+        };
         let next = integrate(&pose, &v, 2.0);
-        assert!((next.position - Vec3::new(1.0, 0.02, 0.0)).norm() < 1e-12, "moved to {:?}", next.position);
-        let w = PoseVelocity { linear_m_s: Vec3::zeros(), angular_rad_s: Vec3::new(0.0, 0.0, 0.5) };
+        assert!(
+            (next.position - Vec3::new(1.0, 0.02, 0.0)).norm() < 1e-12,
+            "moved to {:?}",
+            next.position
+        );
+        let w = PoseVelocity {
+            linear_m_s: Vec3::zeros(),
+            angular_rad_s: Vec3::new(0.0, 0.0, 0.5),
+        };
         let turned = integrate(&Pose::default(), &w, 1.0);
-        assert!((turned.rotation.angle() - 0.5).abs() < 1e-12, "turned by {}", turned.rotation.angle());
+        assert!(
+            (turned.rotation.angle() - 0.5).abs() < 1e-12,
+            "turned by {}",
+            turned.rotation.angle()
+        );
         assert!(turned.is_valid());
     }
 
     #[test]
     fn integrate_ignores_non_finite_velocity() {
         let pose = Pose::default();
-        let v = PoseVelocity { linear_m_s: Vec3::new(f64::NAN, 0.0, 0.0), angular_rad_s: Vec3::zeros() };
-        assert_eq!(integrate(&pose, &v, 0.01), pose, "a NaN velocity must not move the pose");
-        assert_eq!(integrate(&pose, &PoseVelocity::default(), f64::INFINITY), pose);
+        let v = PoseVelocity {
+            linear_m_s: Vec3::new(f64::NAN, 0.0, 0.0),
+            angular_rad_s: Vec3::zeros(),
+        };
+        assert_eq!(
+            integrate(&pose, &v, 0.01),
+            pose,
+            "a NaN velocity must not move the pose"
+        );
+        assert_eq!(
+            integrate(&pose, &PoseVelocity::default(), f64::INFINITY),
+            pose
+        );
     }
 
     #[test]
     fn guard_keeps_last_good_pose() {
-        let good = Pose { position: Vec3::new(0.1, 0.2, 0.3), rotation: Quat::identity() };
+        let good = Pose {
+            position: Vec3::new(0.1, 0.2, 0.3),
+            rotation: Quat::identity(),
+        };
         let mut guard = PoseGuard::new(Pose::default(), "test");
         assert_eq!(guard.offer(good), good);
         let mut bad = good;
@@ -180,7 +222,11 @@ mod tests {
         assert_eq!(guard.offer(bad), good, "a NaN position must be refused");
         let mut not_unit = good;
         not_unit.rotation = Quat::new_unchecked(nalgebra::Quaternion::new(2.0, 0.0, 0.0, 0.0));
-        assert_eq!(guard.offer(not_unit), good, "a non-unit quaternion must be refused");
+        assert_eq!(
+            guard.offer(not_unit),
+            good,
+            "a non-unit quaternion must be refused"
+        );
         assert_eq!(guard.rejected(), 2);
         assert_eq!(guard.pose(), good);
     }

@@ -33,7 +33,13 @@ pub struct OrbitCamera {
 
 impl Default for OrbitCamera {
     fn default() -> Self {
-        Self { target: Vec3::zeros(), distance_m: 0.3, yaw_rad: -std::f64::consts::FRAC_PI_2, pitch_rad: 0.5, fov_y_rad: 40f64.to_radians() }
+        Self {
+            target: Vec3::zeros(),
+            distance_m: 0.3,
+            yaw_rad: -std::f64::consts::FRAC_PI_2,
+            pitch_rad: 0.5,
+            fov_y_rad: 40f64.to_radians(),
+        }
     }
 }
 
@@ -42,7 +48,10 @@ impl OrbitCamera {
     pub fn framing(lo: Vec3, hi: Vec3) -> Self {
         let center = (lo + hi) * 0.5;
         let radius = ((hi - lo).norm() * 0.5).max(1e-6);
-        let mut cam = Self { target: center, ..Self::default() };
+        let mut cam = Self {
+            target: center,
+            ..Self::default()
+        };
         cam.yaw_rad = -60f64.to_radians();
         cam.pitch_rad = 35f64.to_radians();
         cam.distance_m = radius / (cam.fov_y_rad * 0.5).sin() * 1.05;
@@ -60,9 +69,23 @@ impl OrbitCamera {
             -Vec3::z()
         };
         let back = -d; // from target to eye
-        let pitch = back.z.clamp(-1.0, 1.0).asin().clamp(-MAX_PITCH_RAD, MAX_PITCH_RAD);
-        let yaw = if back.x.abs() + back.y.abs() > 1e-12 { back.y.atan2(back.x) } else { -std::f64::consts::FRAC_PI_2 };
-        Self { target, distance_m: distance_m.max(1e-6), yaw_rad: yaw, pitch_rad: pitch, fov_y_rad: 25f64.to_radians() }
+        let pitch = back
+            .z
+            .clamp(-1.0, 1.0)
+            .asin()
+            .clamp(-MAX_PITCH_RAD, MAX_PITCH_RAD);
+        let yaw = if back.x.abs() + back.y.abs() > 1e-12 {
+            back.y.atan2(back.x)
+        } else {
+            -std::f64::consts::FRAC_PI_2
+        };
+        Self {
+            target,
+            distance_m: distance_m.max(1e-6),
+            yaw_rad: yaw,
+            pitch_rad: pitch,
+            fov_y_rad: 25f64.to_radians(),
+        }
     }
 
     /// Turns the eye about the target (rad); pitch is clamped.
@@ -85,7 +108,11 @@ impl OrbitCamera {
     /// Unit vector from the target to the eye.
     pub fn back_direction(&self) -> Vec3 {
         let pitch = self.pitch_rad.clamp(-MAX_PITCH_RAD, MAX_PITCH_RAD);
-        Vec3::new(pitch.cos() * self.yaw_rad.cos(), pitch.cos() * self.yaw_rad.sin(), pitch.sin())
+        Vec3::new(
+            pitch.cos() * self.yaw_rad.cos(),
+            pitch.cos() * self.yaw_rad.sin(),
+            pitch.sin(),
+        )
     }
 
     /// Eye position, metres, world frame.
@@ -97,7 +124,11 @@ impl OrbitCamera {
     pub fn right_up(&self) -> (Vec3, Vec3) {
         let forward = -self.back_direction();
         let right = forward.cross(&Vec3::z());
-        let right = if right.norm() > 1e-9 { right.normalize() } else { Vec3::x() };
+        let right = if right.norm() > 1e-9 {
+            right.normalize()
+        } else {
+            Vec3::x()
+        };
         (right, right.cross(&forward).normalize())
     }
 
@@ -117,10 +148,22 @@ impl OrbitCamera {
 pub fn perspective_zero_to_one(fov_y: f64, aspect: f64, near: f64, far: f64) -> Matrix4<f64> {
     let f = 1.0 / (fov_y * 0.5).tan();
     Matrix4::new(
-        f / aspect, 0.0, 0.0, 0.0, //
-        0.0, f, 0.0, 0.0, //
-        0.0, 0.0, far / (near - far), near * far / (near - far), //
-        0.0, 0.0, -1.0, 0.0,
+        f / aspect,
+        0.0,
+        0.0,
+        0.0, //
+        0.0,
+        f,
+        0.0,
+        0.0, //
+        0.0,
+        0.0,
+        far / (near - far),
+        near * far / (near - far), //
+        0.0,
+        0.0,
+        -1.0,
+        0.0,
     )
 }
 
@@ -135,14 +178,26 @@ mod tests {
 
     #[test]
     fn target_projects_to_centre_and_depth_is_zero_to_one() {
-        let cam = OrbitCamera { target: Vec3::new(5.0, 5.0, 5.0), ..OrbitCamera::default() };
+        let cam = OrbitCamera {
+            target: Vec3::new(5.0, 5.0, 5.0),
+            ..OrbitCamera::default()
+        };
         let m = cam.view_projection(4.0 / 3.0);
         let c = project(&m, Vec3::zeros());
-        assert!(c.x.abs() < 1e-12 && c.y.abs() < 1e-12, "target must land mid-screen: {c:?}");
+        assert!(
+            c.x.abs() < 1e-12 && c.y.abs() < 1e-12,
+            "target must land mid-screen: {c:?}"
+        );
         assert!(c.z > 0.0 && c.z < 1.0, "depth inside 0..1: {}", c.z);
         let near = project(&m, cam.back_direction() * cam.distance_m * 0.99);
         let far = project(&m, -cam.back_direction() * cam.distance_m * 5.0);
-        assert!(near.z < c.z && c.z < far.z, "depth must grow away from the eye: {} {} {}", near.z, c.z, far.z);
+        assert!(
+            near.z < c.z && c.z < far.z,
+            "depth must grow away from the eye: {} {} {}",
+            near.z,
+            c.z,
+            far.z
+        );
     }
 
     #[test]
@@ -150,16 +205,28 @@ mod tests {
         let cam = OrbitCamera::default();
         let m = cam.view_projection(1.0);
         let above = project(&m, Vec3::new(0.0, 0.0, 0.01));
-        assert!(above.y > 0.0, "world +z must appear above the centre: {above:?}");
+        assert!(
+            above.y > 0.0,
+            "world +z must appear above the centre: {above:?}"
+        );
     }
 
     #[test]
     fn microscope_looks_along_the_given_direction() {
         let dir = Vec3::new(0.0, 0.3, -1.0).normalize();
         let cam = OrbitCamera::microscope(Vec3::new(0.0, 0.0, 0.05), dir, 0.2);
-        assert!((cam.back_direction() + dir).norm() < 1e-9, "eye must sit behind the view direction");
+        assert!(
+            (cam.back_direction() + dir).norm() < 1e-9,
+            "eye must sit behind the view direction"
+        );
         let straight_down = OrbitCamera::microscope(Vec3::zeros(), -Vec3::z(), 0.2);
-        assert!(straight_down.pitch_rad <= MAX_PITCH_RAD && straight_down.view_projection(1.0).iter().all(|x| x.is_finite()));
+        assert!(
+            straight_down.pitch_rad <= MAX_PITCH_RAD
+                && straight_down
+                    .view_projection(1.0)
+                    .iter()
+                    .all(|x| x.is_finite())
+        );
     }
 
     #[test]

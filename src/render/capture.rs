@@ -19,7 +19,10 @@ pub fn padded_bytes_per_row(width: u32) -> u32 {
 
 /// Copies the offscreen target of `renderer` to the CPU.
 pub fn read_offscreen(renderer: &Renderer) -> Result<image::RgbaImage, RenderError> {
-    let target = renderer.offscreen.as_ref().ok_or(RenderError::NoOffscreenTarget)?;
+    let target = renderer
+        .offscreen
+        .as_ref()
+        .ok_or(RenderError::NoOffscreenTarget)?;
     let (width, height) = target.size;
     let device = renderer.device();
     let bytes_per_row = padded_bytes_per_row(width);
@@ -29,21 +32,38 @@ pub fn read_offscreen(renderer: &Renderer) -> Result<image::RgbaImage, RenderErr
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
-    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback encoder") });
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+        label: Some("readback encoder"),
+    });
     encoder.copy_texture_to_buffer(
-        wgpu::TexelCopyTextureInfo { texture: &target.texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+        wgpu::TexelCopyTextureInfo {
+            texture: &target.texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
         wgpu::TexelCopyBufferInfo {
             buffer: &staging,
-            layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(bytes_per_row), rows_per_image: Some(height) },
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(bytes_per_row),
+                rows_per_image: Some(height),
+            },
         },
-        wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+        wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
     );
     renderer.queue().submit([encoder.finish()]);
     let (sender, receiver) = std::sync::mpsc::channel();
     staging.map_async(wgpu::MapMode::Read, .., move |result| {
         let _ = sender.send(result);
     });
-    device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| RenderError::Readback(e.to_string()))?;
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| RenderError::Readback(e.to_string()))?;
     match receiver.recv() {
         Ok(Ok(())) => {}
         Ok(Err(e)) => return Err(RenderError::Readback(e.to_string())),
@@ -51,14 +71,17 @@ pub fn read_offscreen(renderer: &Renderer) -> Result<image::RgbaImage, RenderErr
     }
     let mut pixels = Vec::with_capacity((width * height * 4) as usize);
     {
-        let mapped = staging.get_mapped_range(..).map_err(|e| RenderError::Readback(format!("{e:?}")))?;
+        let mapped = staging
+            .get_mapped_range(..)
+            .map_err(|e| RenderError::Readback(format!("{e:?}")))?;
         for row in mapped.chunks_exact(bytes_per_row as usize) {
             pixels.extend_from_slice(&row[..(width * 4) as usize]);
         }
     }
     staging.unmap();
     renderer.check_gpu_error()?;
-    image::RgbaImage::from_raw(width, height, pixels).ok_or_else(|| RenderError::Readback("pixel count does not match the size".into()))
+    image::RgbaImage::from_raw(width, height, pixels)
+        .ok_or_else(|| RenderError::Readback("pixel count does not match the size".into()))
 }
 
 /// Renders `view` headless at `size` and returns the image.
@@ -78,7 +101,12 @@ pub fn render_png(view: &SceneView, size: (u32, u32), path: &Path) -> Result<(),
 
 /// Writes an image as PNG, naming the path in the error.
 pub fn save_png(image: &image::RgbaImage, path: &Path) -> Result<(), RenderError> {
-    image.save_with_format(path, image::ImageFormat::Png).map_err(|e| RenderError::Png { path: path.to_path_buf(), message: e.to_string() })
+    image
+        .save_with_format(path, image::ImageFormat::Png)
+        .map_err(|e| RenderError::Png {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })
 }
 
 #[cfg(test)]

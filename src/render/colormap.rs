@@ -28,7 +28,7 @@ const VIRIDIS: [[f32; 3]; 9] = [
     [0.164, 0.471, 0.558],
     [0.128, 0.567, 0.551],
     [0.135, 0.659, 0.518],
-    [0.478, 0.821, 0.318],
+    [0.478, 0.821, 0.317],
     [0.993, 0.906, 0.144],
 ];
 const INFERNO: [[f32; 3]; 9] = [
@@ -42,11 +42,19 @@ const INFERNO: [[f32; 3]; 9] = [
     [0.976, 0.788, 0.197],
     [0.988, 0.998, 0.645],
 ];
-const BLUE_WHITE_RED: [[f32; 3]; 3] = [[0.230, 0.299, 0.754], [0.865, 0.865, 0.865], [0.706, 0.016, 0.150]];
+const BLUE_WHITE_RED: [[f32; 3]; 3] = [
+    [0.230, 0.299, 0.754],
+    [0.865, 0.865, 0.865],
+    [0.706, 0.016, 0.150],
+];
 
 /// sRGB component (0..1) to linear.
 pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
 }
 
 impl ColorMap {
@@ -61,7 +69,7 @@ impl ColorMap {
     /// Linear-RGB colour of `value` within `range`.
     pub fn color(self, value: f64, range: (f64, f64)) -> [f32; 3] {
         let (lo, hi) = range;
-        if !value.is_finite() || !lo.is_finite() || !hi.is_finite() || !(hi > lo) {
+        if !value.is_finite() || !lo.is_finite() || !hi.is_finite() || hi <= lo {
             return NO_DATA;
         }
         let t = ((value - lo) / (hi - lo)).clamp(0.0, 1.0) as f32;
@@ -82,7 +90,11 @@ mod tests {
     #[test]
     fn ends_clamp_and_bad_values_are_grey() {
         let m = ColorMap::Viridis;
-        assert_eq!(m.color(-5.0, (0.0, 1.0)), m.color(0.0, (0.0, 1.0)), "below range clamps to the low end");
+        assert_eq!(
+            m.color(-5.0, (0.0, 1.0)),
+            m.color(0.0, (0.0, 1.0)),
+            "below range clamps to the low end"
+        );
         assert_eq!(m.color(7.0, (0.0, 1.0)), m.color(1.0, (0.0, 1.0)));
         assert_eq!(m.color(f64::NAN, (0.0, 1.0)), NO_DATA);
         assert_eq!(m.color(0.5, (1.0, 1.0)), NO_DATA, "empty range");
@@ -94,7 +106,10 @@ mod tests {
         let mut last = -1.0;
         for k in 0..=20 {
             let l = lum(ColorMap::Inferno.color(k as f64, (0.0, 20.0)));
-            assert!(l > last, "inferno luminance must increase: step {k} gave {l} after {last}");
+            assert!(
+                l > last,
+                "inferno luminance must increase: step {k} gave {l} after {last}"
+            );
             last = l;
         }
     }

@@ -1,5 +1,5 @@
 //! CPU-side geometry for one frame: surface normals and colours, blade boxes,
-//! skull spheres, overlay squares and lines.
+//! skull spheres, overlay squares and ribbons.
 //!
 //! In: a [`SceneView`]'s parts and the camera target (positions are emitted
 //! relative to it, so f32 keeps ~0.1 µm resolution within a 1 m scene). Out:
@@ -30,7 +30,11 @@ pub fn area_weighted_normals(positions: &[Vec3], triangles: &[[u32; 3]], normals
     }
     for n in normals.iter_mut() {
         let len = n.norm();
-        *n = if len > 0.0 && len.is_finite() { *n / len } else { Vec3::z() };
+        *n = if len > 0.0 && len.is_finite() {
+            *n / len
+        } else {
+            Vec3::z()
+        };
     }
 }
 
@@ -45,27 +49,87 @@ fn f3(v: &Vec3) -> [f32; 3] {
 
 /// Fills the surface vertices: positions relative to `origin`, normals, colours
 /// (from the field if any, else [`BRAIN_PINK`]). `normals` is scratch.
-pub fn surface_vertices(surface: &SurfaceView, origin: &Vec3, normals: &mut Vec<Vec3>, out: &mut Vec<Vertex>) {
+pub fn surface_vertices(
+    surface: &SurfaceView,
+    origin: &Vec3,
+    normals: &mut Vec<Vec3>,
+    out: &mut Vec<Vertex>,
+) {
     area_weighted_normals(surface.positions, surface.triangles, normals);
     out.clear();
     out.reserve(surface.positions.len());
     for (i, (p, n)) in surface.positions.iter().zip(normals.iter()).enumerate() {
         let rgb = match &surface.field {
-            Some(f) => f.values.get(i).map_or(NO_DATA, |&v| f.map.color(v, f.range)),
+            Some(f) => f
+                .values
+                .get(i)
+                .map_or(NO_DATA, |&v| f.map.color(v, f.range)),
             None => BRAIN_PINK,
         };
-        out.push(Vertex { position: rel(p, origin), normal: f3(n), color: [rgb[0], rgb[1], rgb[2], 1.0] });
+        out.push(Vertex {
+            position: rel(p, origin),
+            normal: f3(n),
+            color: [rgb[0], rgb[1], rgb[2], 1.0],
+        });
     }
 }
 
 /// The six faces of a box in the spatula frame: (outward normal, four corners CCW from outside).
 const BOX_FACES: [([f64; 3], [[f64; 3]; 4]); 6] = [
-    ([0.0, 0.0, 1.0], [[0.0, -1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0]]),
-    ([0.0, 0.0, -1.0], [[0.0, -1.0, -1.0], [0.0, 1.0, -1.0], [1.0, 1.0, -1.0], [1.0, -1.0, -1.0]]),
-    ([0.0, 1.0, 0.0], [[0.0, 1.0, -1.0], [0.0, 1.0, 1.0], [1.0, 1.0, 1.0], [1.0, 1.0, -1.0]]),
-    ([0.0, -1.0, 0.0], [[0.0, -1.0, -1.0], [1.0, -1.0, -1.0], [1.0, -1.0, 1.0], [0.0, -1.0, 1.0]]),
-    ([1.0, 0.0, 0.0], [[1.0, -1.0, -1.0], [1.0, 1.0, -1.0], [1.0, 1.0, 1.0], [1.0, -1.0, 1.0]]),
-    ([-1.0, 0.0, 0.0], [[0.0, -1.0, -1.0], [0.0, -1.0, 1.0], [0.0, 1.0, 1.0], [0.0, 1.0, -1.0]]),
+    (
+        [0.0, 0.0, 1.0],
+        [
+            [0.0, -1.0, 1.0],
+            [1.0, -1.0, 1.0],
+            [1.0, 1.0, 1.0],
+            [0.0, 1.0, 1.0],
+        ],
+    ),
+    (
+        [0.0, 0.0, -1.0],
+        [
+            [0.0, -1.0, -1.0],
+            [0.0, 1.0, -1.0],
+            [1.0, 1.0, -1.0],
+            [1.0, -1.0, -1.0],
+        ],
+    ),
+    (
+        [0.0, 1.0, 0.0],
+        [
+            [0.0, 1.0, -1.0],
+            [0.0, 1.0, 1.0],
+            [1.0, 1.0, 1.0],
+            [1.0, 1.0, -1.0],
+        ],
+    ),
+    (
+        [0.0, -1.0, 0.0],
+        [
+            [0.0, -1.0, -1.0],
+            [1.0, -1.0, -1.0],
+            [1.0, -1.0, 1.0],
+            [0.0, -1.0, 1.0],
+        ],
+    ),
+    (
+        [1.0, 0.0, 0.0],
+        [
+            [1.0, -1.0, -1.0],
+            [1.0, 1.0, -1.0],
+            [1.0, 1.0, 1.0],
+            [1.0, -1.0, 1.0],
+        ],
+    ),
+    (
+        [-1.0, 0.0, 0.0],
+        [
+            [0.0, -1.0, -1.0],
+            [0.0, -1.0, 1.0],
+            [0.0, 1.0, 1.0],
+            [0.0, 1.0, -1.0],
+        ],
+    ),
 ];
 
 /// Appends each blade as a solid box (36 vertices a blade): x in [0, length],
@@ -76,9 +140,14 @@ pub fn blade_vertices(spatulas: &[SpatulaView], origin: &Vec3, out: &mut Vec<Ver
         let color = [s.color[0], s.color[1], s.color[2], 1.0];
         for (normal, corners) in BOX_FACES.iter() {
             let n = s.pose.transform_vector(&Vec3::from(*normal));
-            let world = corners.map(|c| s.pose.transform_point(&Vec3::from(c).component_mul(&scale)));
+            let world =
+                corners.map(|c| s.pose.transform_point(&Vec3::from(c).component_mul(&scale)));
             for k in [0, 1, 2, 0, 2, 3] {
-                out.push(Vertex { position: rel(&world[k], origin), normal: f3(&n), color });
+                out.push(Vertex {
+                    position: rel(&world[k], origin),
+                    normal: f3(&n),
+                    color,
+                });
             }
         }
     }
@@ -90,7 +159,11 @@ pub fn unit_sphere(rings: u32, segments: u32) -> Vec<Vec3> {
     let dir = |r: u32, s: u32| {
         let theta = std::f64::consts::PI * r as f64 / rings as f64;
         let phi = std::f64::consts::TAU * s as f64 / segments as f64;
-        Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+        Vec3::new(
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            theta.cos(),
+        )
     };
     for r in 0..rings {
         for s in 0..segments {
@@ -103,11 +176,20 @@ pub fn unit_sphere(rings: u32, segments: u32) -> Vec<Vec3> {
 }
 
 /// Appends the skull spheres scaled from `unit` (from [`unit_sphere`]).
-pub fn sphere_vertices(spheres: &[SkullSphere], unit: &[Vec3], origin: &Vec3, out: &mut Vec<Vertex>) {
+pub fn sphere_vertices(
+    spheres: &[SkullSphere],
+    unit: &[Vec3],
+    origin: &Vec3,
+    out: &mut Vec<Vertex>,
+) {
     for s in spheres {
         for d in unit {
             let p = s.center + d * s.radius;
-            out.push(Vertex { position: rel(&p, origin), normal: f3(d), color: s.color });
+            out.push(Vertex {
+                position: rel(&p, origin),
+                normal: f3(d),
+                color: s.color,
+            });
         }
     }
 }
@@ -120,25 +202,57 @@ pub const CULLED_COLOR: [f32; 4] = [1.0, 0.1, 0.1, 1.0];
 /// Appends source nodes as camera-facing squares and pairs as camera-facing
 /// ribbons (a third of the node size wide, so they survive MSAA as clearly as
 /// the nodes), all as triangles. `right`/`up` are the view's unit axes.
-pub fn overlay_vertices(overlays: &Overlays, origin: &Vec3, right: &Vec3, up: &Vec3, default_size_m: f64, quads: &mut Vec<Vertex>) {
-    let size = if overlays.node_size_m > 0.0 && overlays.node_size_m.is_finite() { overlays.node_size_m } else { default_size_m };
+pub fn overlay_vertices(
+    overlays: &Overlays,
+    origin: &Vec3,
+    right: &Vec3,
+    up: &Vec3,
+    default_size_m: f64,
+    quads: &mut Vec<Vertex>,
+) {
+    let size = if overlays.node_size_m > 0.0 && overlays.node_size_m.is_finite() {
+        overlays.node_size_m
+    } else {
+        default_size_m
+    };
     let (r, u) = (right * (size * 0.5), up * (size * 0.5));
     let n = f3(&right.cross(up));
     for p in overlays.source_nodes {
         let c = [p - r - u, p + r - u, p + r + u, p - r + u];
         for k in [0, 1, 2, 0, 2, 3] {
-            quads.push(Vertex { position: rel(&c[k], origin), normal: n, color: NODE_COLOR });
+            quads.push(Vertex {
+                position: rel(&c[k], origin),
+                normal: n,
+                color: NODE_COLOR,
+            });
         }
     }
     let towards_viewer = right.cross(up);
     for seg in overlays.pairs {
-        let color = if seg.feasible { FEASIBLE_COLOR } else { CULLED_COLOR };
+        let color = if seg.feasible {
+            FEASIBLE_COLOR
+        } else {
+            CULLED_COLOR
+        };
         let side = (seg.to - seg.from).cross(&towards_viewer);
         // A segment along the view direction shows as a dot: give it the right axis.
-        let side = if side.norm() > 1e-12 { side.normalize() } else { *right } * (size / 6.0);
-        let c = [seg.from - side, seg.to - side, seg.to + side, seg.from + side];
+        let side = if side.norm() > 1e-12 {
+            side.normalize()
+        } else {
+            *right
+        } * (size / 6.0);
+        let c = [
+            seg.from - side,
+            seg.to - side,
+            seg.to + side,
+            seg.from + side,
+        ];
         for k in [0, 1, 2, 0, 2, 3] {
-            quads.push(Vertex { position: rel(&c[k], origin), normal: n, color });
+            quads.push(Vertex {
+                position: rel(&c[k], origin),
+                normal: n,
+                color,
+            });
         }
     }
 }
@@ -162,14 +276,23 @@ mod tests {
         let mut n = Vec::new();
         area_weighted_normals(&p, &tris, &mut n);
         let expected = Vec3::new(0.01, 0.0, 1.0).normalize();
-        assert!((n[0] - expected).norm() < 1e-12, "weights must follow area: {:?}", n[0]);
+        assert!(
+            (n[0] - expected).norm() < 1e-12,
+            "weights must follow area: {:?}",
+            n[0]
+        );
         assert!((n[1] - Vec3::z()).norm() < 1e-12);
         assert!((n[3] - Vec3::x()).norm() < 1e-12);
     }
 
     #[test]
     fn degenerate_triangles_give_finite_normals() {
-        let p = vec![Vec3::zeros(), Vec3::zeros(), Vec3::zeros(), Vec3::new(1.0, 1.0, 1.0)];
+        let p = vec![
+            Vec3::zeros(),
+            Vec3::zeros(),
+            Vec3::zeros(),
+            Vec3::new(1.0, 1.0, 1.0),
+        ];
         let mut n = Vec::new();
         area_weighted_normals(&p, &[[0, 1, 2]], &mut n);
         assert!(n.iter().all(|v| (v.norm() - 1.0).abs() < 1e-12), "{n:?}");
@@ -177,17 +300,40 @@ mod tests {
 
     #[test]
     fn blade_box_faces_point_outward() {
-        let s = SpatulaView::new(SpatulaShape { length: 0.06, width: 0.01, thickness: 0.001 }, Pose::default());
+        let s = SpatulaView::new(
+            SpatulaShape {
+                length: 0.06,
+                width: 0.01,
+                thickness: 0.001,
+            },
+            Pose::default(),
+        );
         let mut out = Vec::new();
         blade_vertices(&[s], &Vec3::zeros(), &mut out);
         assert_eq!(out.len(), 36);
         let centre = Vec3::new(0.03, 0.0, 0.0);
         for tri in out.chunks(3) {
-            let [a, b, c] = [0, 1, 2].map(|k| Vec3::new(tri[k].position[0] as f64, tri[k].position[1] as f64, tri[k].position[2] as f64));
+            let [a, b, c] = [0, 1, 2].map(|k| {
+                Vec3::new(
+                    tri[k].position[0] as f64,
+                    tri[k].position[1] as f64,
+                    tri[k].position[2] as f64,
+                )
+            });
             let winding = (b - a).cross(&(c - a));
-            let n = Vec3::new(tri[0].normal[0] as f64, tri[0].normal[1] as f64, tri[0].normal[2] as f64);
-            assert!(winding.dot(&n) > 0.0, "triangle winding must agree with its normal");
-            assert!(((a + b + c) / 3.0 - centre).dot(&n) > 0.0, "normal must point out of the box");
+            let n = Vec3::new(
+                tri[0].normal[0] as f64,
+                tri[0].normal[1] as f64,
+                tri[0].normal[2] as f64,
+            );
+            assert!(
+                winding.dot(&n) > 0.0,
+                "triangle winding must agree with its normal"
+            );
+            assert!(
+                ((a + b + c) / 3.0 - centre).dot(&n) > 0.0,
+                "normal must point out of the box"
+            );
         }
     }
 
@@ -197,7 +343,10 @@ mod tests {
         for tri in unit.chunks(3) {
             let n = (tri[1] - tri[0]).cross(&(tri[2] - tri[0]));
             if n.norm() > 1e-12 {
-                assert!(n.dot(&(tri[0] + tri[1] + tri[2])) > 0.0, "sphere triangle faces inward");
+                assert!(
+                    n.dot(&(tri[0] + tri[1] + tri[2])) > 0.0,
+                    "sphere triangle faces inward"
+                );
             }
         }
     }

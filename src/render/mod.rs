@@ -19,14 +19,18 @@ pub mod window;
 pub use camera::OrbitCamera;
 pub use colormap::ColorMap;
 pub use renderer::Renderer;
-pub use scene::{FieldKind, Overlays, PairSegment, ScalarField, SceneView, SkullSphere, SpatulaView, SurfaceView};
+pub use scene::{
+    FieldKind, Overlays, PairSegment, ScalarField, SceneView, SkullSphere, SpatulaView, SurfaceView,
+};
 
 use std::path::PathBuf;
 
 /// Rendering errors.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
-    #[error("no GPU adapter found ({0}); headless: set VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json WGPU_BACKEND=vulkan")]
+    #[error(
+        "no GPU adapter found ({0}); headless: set VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json WGPU_BACKEND=vulkan"
+    )]
     NoAdapter(String),
     #[error("cannot open the GPU device: {0}")]
     Device(String),
@@ -36,8 +40,14 @@ pub enum RenderError {
     Size { width: u32, height: u32 },
     #[error("the scalar field has {values} values but the surface has {vertices} vertices")]
     FieldLength { values: usize, vertices: usize },
-    #[error("triangle {triangle} refers to vertex {index}, but the surface has {vertices} vertices")]
-    TriangleIndex { triangle: usize, index: u32, vertices: usize },
+    #[error(
+        "triangle {triangle} refers to vertex {index}, but the surface has {vertices} vertices"
+    )]
+    TriangleIndex {
+        triangle: usize,
+        index: u32,
+        vertices: usize,
+    },
     #[error("the camera has a non-finite target or a non-positive distance")]
     Camera,
     #[error("this renderer has no offscreen target")]

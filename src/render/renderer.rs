@@ -36,12 +36,24 @@ struct GrowBuffer {
 impl GrowBuffer {
     fn new(device: &wgpu::Device, label: &'static str, usage: wgpu::BufferUsages) -> Self {
         let capacity = 4096;
-        let buffer = device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: capacity, usage: usage | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false });
-        Self { buffer, capacity, usage, label }
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: capacity,
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Self {
+            buffer,
+            capacity,
+            usage,
+            label,
+        }
     }
 
     fn write(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, bytes: &[u8]) {
-        let needed = (bytes.len() as u64).max(4).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        let needed = (bytes.len() as u64)
+            .max(4)
+            .next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
         if needed > self.capacity {
             self.capacity = needed.next_power_of_two();
             self.buffer = device.create_buffer(&wgpu::BufferDescriptor {
@@ -122,8 +134,10 @@ pub struct Renderer {
 
 /// Requests a headless device: honours `WGPU_BACKEND` (e.g. `vulkan`) and the
 /// Vulkan driver chosen by `VK_DRIVER_FILES`. `Err(NoAdapter)` when none exists.
-pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo, wgpu::Adapter), RenderError> {
-    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+pub fn headless_device()
+-> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo, wgpu::Adapter), RenderError> {
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
     let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
         power_preference: wgpu::PowerPreference::HighPerformance,
         force_fallback_adapter: false,
@@ -143,7 +157,8 @@ pub fn request_device(adapter: &wgpu::Adapter) -> Result<(wgpu::Device, wgpu::Qu
         required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
         ..Default::default()
     };
-    pollster::block_on(adapter.request_device(&descriptor)).map_err(|e| RenderError::Device(e.to_string()))
+    pollster::block_on(adapter.request_device(&descriptor))
+        .map_err(|e| RenderError::Device(e.to_string()))
 }
 
 impl Renderer {
@@ -152,9 +167,16 @@ impl Renderer {
     pub fn new_offscreen(size: (u32, u32)) -> Result<Self, RenderError> {
         check_size(size)?;
         let (device, queue, info, adapter) = headless_device()?;
-        let msaa = adapter.get_texture_format_features(OFFSCREEN_FORMAT).flags.sample_count_supported(4)
-            && adapter.get_texture_format_features(DEPTH_FORMAT).flags.sample_count_supported(4);
-        let mut renderer = Self::with_device(device, queue, OFFSCREEN_FORMAT, if msaa { 4 } else { 1 })?;
+        let msaa = adapter
+            .get_texture_format_features(OFFSCREEN_FORMAT)
+            .flags
+            .sample_count_supported(4)
+            && adapter
+                .get_texture_format_features(DEPTH_FORMAT)
+                .flags
+                .sample_count_supported(4);
+        let mut renderer =
+            Self::with_device(device, queue, OFFSCREEN_FORMAT, if msaa { 4 } else { 1 })?;
         renderer.adapter_name = format!("{} ({:?})", info.name, info.backend);
         renderer.resize_offscreen(size)?;
         tracing::info!(adapter = %renderer.adapter_name, msaa, "offscreen renderer ready");
@@ -163,7 +185,12 @@ impl Renderer {
 
     /// A renderer on an existing device drawing into targets of `color_format`
     /// (for the window: the surface's format). `sample_count` 1 or 4.
-    pub fn with_device(device: wgpu::Device, queue: wgpu::Queue, color_format: wgpu::TextureFormat, sample_count: u32) -> Result<Self, RenderError> {
+    pub fn with_device(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        color_format: wgpu::TextureFormat,
+        sample_count: u32,
+    ) -> Result<Self, RenderError> {
         let gpu_error = Arc::new(Mutex::new(None::<String>));
         let sink = Arc::clone(&gpu_error);
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
@@ -184,22 +211,31 @@ impl Renderer {
             entries: &[wgpu::BindGroupLayoutEntry {
                 binding: 0,
                 visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
                 count: None,
             }],
         });
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("globals bind group"),
             layout: &layout,
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: globals.as_entire_binding() }],
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: globals.as_entire_binding(),
+            }],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("scene pipeline layout"),
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let surface_shader = device.create_shader_module(wgpu::include_wgsl!("../../shaders/surface.wgsl"));
-        let tools_shader = device.create_shader_module(wgpu::include_wgsl!("../../shaders/tools.wgsl"));
+        let surface_shader =
+            device.create_shader_module(wgpu::include_wgsl!("../../shaders/surface.wgsl"));
+        let tools_shader =
+            device.create_shader_module(wgpu::include_wgsl!("../../shaders/tools.wgsl"));
 
         let make = |label: &'static str,
                     shader: &wgpu::ShaderModule,
@@ -218,7 +254,12 @@ impl Renderer {
                     compilation_options: Default::default(),
                     buffers: &[Some(Vertex::layout())],
                 },
-                primitive: wgpu::PrimitiveState { topology, cull_mode: cull, front_face: wgpu::FrontFace::Ccw, ..Default::default() },
+                primitive: wgpu::PrimitiveState {
+                    topology,
+                    cull_mode: cull,
+                    front_face: wgpu::FrontFace::Ccw,
+                    ..Default::default()
+                },
                 depth_stencil: Some(wgpu::DepthStencilState {
                     format: DEPTH_FORMAT,
                     depth_write_enabled: Some(depth_write),
@@ -226,12 +267,19 @@ impl Renderer {
                     stencil: Default::default(),
                     bias: Default::default(),
                 }),
-                multisample: wgpu::MultisampleState { count: sample_count, ..Default::default() },
+                multisample: wgpu::MultisampleState {
+                    count: sample_count,
+                    ..Default::default()
+                },
                 fragment: Some(wgpu::FragmentState {
                     module: shader,
                     entry_point: Some(fragment),
                     compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState { format: color_format, blend, write_mask: wgpu::ColorWrites::ALL })],
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: color_format,
+                        blend,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
                 }),
                 multiview_mask: None,
                 cache: None,
@@ -239,17 +287,56 @@ impl Renderer {
         };
         use wgpu::CompareFunction::{Always, Less};
         use wgpu::PrimitiveTopology::TriangleList;
-        let surface_pipeline = make("surface pipeline", &surface_shader, "fs_main", TriangleList, None, true, Less, None);
-        let blade_pipeline = make("blade pipeline", &tools_shader, "fs_lit", TriangleList, Some(wgpu::Face::Back), true, Less, None);
-        let skull_pipeline =
-            make("skull pipeline", &tools_shader, "fs_lit", TriangleList, Some(wgpu::Face::Back), false, Less, Some(wgpu::BlendState::ALPHA_BLENDING));
-        let overlay_pipeline = make("overlay pipeline", &tools_shader, "fs_unlit", TriangleList, None, false, Always, None);
+        let surface_pipeline = make(
+            "surface pipeline",
+            &surface_shader,
+            "fs_main",
+            TriangleList,
+            None,
+            true,
+            Less,
+            None,
+        );
+        let blade_pipeline = make(
+            "blade pipeline",
+            &tools_shader,
+            "fs_lit",
+            TriangleList,
+            Some(wgpu::Face::Back),
+            true,
+            Less,
+            None,
+        );
+        let skull_pipeline = make(
+            "skull pipeline",
+            &tools_shader,
+            "fs_lit",
+            TriangleList,
+            Some(wgpu::Face::Back),
+            false,
+            Less,
+            Some(wgpu::BlendState::ALPHA_BLENDING),
+        );
+        let overlay_pipeline = make(
+            "overlay pipeline",
+            &tools_shader,
+            "fs_unlit",
+            TriangleList,
+            None,
+            false,
+            Always,
+            None,
+        );
 
         let vertex_usage = wgpu::BufferUsages::VERTEX;
         let surface_vertices = GrowBuffer::new(&device, "surface vertices", vertex_usage);
-        let surface_indices = GrowBuffer::new(&device, "surface indices", wgpu::BufferUsages::INDEX);
+        let surface_indices =
+            GrowBuffer::new(&device, "surface indices", wgpu::BufferUsages::INDEX);
         let tool_vertices = GrowBuffer::new(&device, "tool vertices", vertex_usage);
-        let scratch = Scratch { unit_sphere: meshes::unit_sphere(24, 48), ..Scratch::default() };
+        let scratch = Scratch {
+            unit_sphere: meshes::unit_sphere(24, 48),
+            ..Scratch::default()
+        };
         let renderer = Self {
             device,
             queue,
@@ -318,7 +405,11 @@ impl Renderer {
         }
         let texture = self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("offscreen colour"),
-            size: wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 },
+            size: wgpu::Extent3d {
+                width: size.0,
+                height: size.1,
+                depth_or_array_layers: 1,
+            },
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
@@ -326,8 +417,15 @@ impl Renderer {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
             view_formats: &[],
         });
-        let view = texture.create_view(&wgpu::TextureViewDescriptor { label: Some("offscreen colour view"), ..Default::default() });
-        self.offscreen = Some(OffscreenTarget { texture, view, size });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("offscreen colour view"),
+            ..Default::default()
+        });
+        self.offscreen = Some(OffscreenTarget {
+            texture,
+            view,
+            size,
+        });
         Ok(())
     }
 
@@ -335,7 +433,11 @@ impl Renderer {
         if self.attachments.as_ref().is_some_and(|a| a.size == size) {
             return;
         }
-        let extent = wgpu::Extent3d { width: size.0, height: size.1, depth_or_array_layers: 1 };
+        let extent = wgpu::Extent3d {
+            width: size.0,
+            height: size.1,
+            depth_or_array_layers: 1,
+        };
         let make = |label: &'static str, format: wgpu::TextureFormat| {
             self.device
                 .create_texture(&wgpu::TextureDescriptor {
@@ -348,7 +450,10 @@ impl Renderer {
                     usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
                     view_formats: &[],
                 })
-                .create_view(&wgpu::TextureViewDescriptor { label: Some(label), ..Default::default() })
+                .create_view(&wgpu::TextureViewDescriptor {
+                    label: Some(label),
+                    ..Default::default()
+                })
         };
         let msaa = (self.sample_count > 1).then(|| make("msaa colour", self.color_format));
         let depth = make("depth", DEPTH_FORMAT);
@@ -363,32 +468,63 @@ impl Renderer {
         if let Some(field) = &surface.field
             && field.values.len() != count
         {
-            return Err(RenderError::FieldLength { values: field.values.len(), vertices: count });
+            return Err(RenderError::FieldLength {
+                values: field.values.len(),
+                vertices: count,
+            });
         }
         if surface.triangles != self.uploaded_triangles.as_slice() {
             for (triangle, t) in surface.triangles.iter().enumerate() {
                 if let Some(&index) = t.iter().find(|&&i| i as usize >= count) {
-                    return Err(RenderError::TriangleIndex { triangle, index, vertices: count });
+                    return Err(RenderError::TriangleIndex {
+                        triangle,
+                        index,
+                        vertices: count,
+                    });
                 }
             }
-            self.surface_indices.write(&self.device, &self.queue, bytemuck::cast_slice(surface.triangles));
+            self.surface_indices.write(
+                &self.device,
+                &self.queue,
+                bytemuck::cast_slice(surface.triangles),
+            );
             self.uploaded_triangles.clear();
             self.uploaded_triangles.extend_from_slice(surface.triangles);
             self.index_count = (surface.triangles.len() * 3) as u32;
-        } else if surface.triangles.iter().any(|t| t.iter().any(|&i| i as usize >= count)) {
+        } else if surface
+            .triangles
+            .iter()
+            .any(|t| t.iter().any(|&i| i as usize >= count))
+        {
             // Same topology, fewer vertices than before.
-            let (triangle, t) = surface.triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&i| i as usize >= count)).expect("just found");
-            let index = *t.iter().find(|&&i| i as usize >= count).expect("just found");
-            return Err(RenderError::TriangleIndex { triangle, index, vertices: count });
+            let (triangle, t) = surface
+                .triangles
+                .iter()
+                .enumerate()
+                .find(|(_, t)| t.iter().any(|&i| i as usize >= count))
+                .expect("just found");
+            let index = *t
+                .iter()
+                .find(|&&i| i as usize >= count)
+                .expect("just found");
+            return Err(RenderError::TriangleIndex {
+                triangle,
+                index,
+                vertices: count,
+            });
         }
         let cam = &view.camera;
-        if !(cam.target.iter().all(|c| c.is_finite()) && cam.distance_m.is_finite() && cam.distance_m > 0.0) {
+        if !(cam.target.iter().all(|c| c.is_finite())
+            && cam.distance_m.is_finite()
+            && cam.distance_m > 0.0)
+        {
             return Err(RenderError::Camera);
         }
         let origin = cam.target;
         let s = &mut self.scratch;
         meshes::surface_vertices(surface, &origin, &mut s.normals, &mut s.surface);
-        self.surface_vertices.write(&self.device, &self.queue, bytemuck::cast_slice(&s.surface));
+        self.surface_vertices
+            .write(&self.device, &self.queue, bytemuck::cast_slice(&s.surface));
 
         s.tools.clear();
         meshes::blade_vertices(view.spatulas, &origin, &mut s.tools);
@@ -396,10 +532,22 @@ impl Renderer {
         meshes::sphere_vertices(view.skull, &s.unit_sphere, &origin, &mut s.tools);
         let skull_end = s.tools.len() as u32;
         let (right, up) = cam.right_up();
-        meshes::overlay_vertices(&view.overlays, &origin, &right, &up, cam.distance_m * 0.006, &mut s.tools);
+        meshes::overlay_vertices(
+            &view.overlays,
+            &origin,
+            &right,
+            &up,
+            cam.distance_m * 0.006,
+            &mut s.tools,
+        );
         let overlays_end = s.tools.len() as u32;
-        self.ranges = ToolRanges { blades: (0, blades_end), skull: (blades_end, skull_end), overlays: (skull_end, overlays_end) };
-        self.tool_vertices.write(&self.device, &self.queue, bytemuck::cast_slice(&s.tools));
+        self.ranges = ToolRanges {
+            blades: (0, blades_end),
+            skull: (blades_end, skull_end),
+            overlays: (skull_end, overlays_end),
+        };
+        self.tool_vertices
+            .write(&self.device, &self.queue, bytemuck::cast_slice(&s.tools));
 
         let aspect = size.0 as f64 / size.1 as f64;
         let m = cam.view_projection(aspect);
@@ -417,10 +565,17 @@ impl Renderer {
             view_proj,
             eye: [eye.x as f32, eye.y as f32, eye.z as f32, 0.0],
             light_dir: [light.x as f32, light.y as f32, light.z as f32, 0.0],
-            params: [0.18, 0.12, 32.0, 0.0],
+            params: [0.15, 0.08, 32.0, 0.0],
         };
-        self.queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
-        let [r, g, b] = view.background.map(|c| if c.is_finite() { c.clamp(0.0, 1.0) as f64 } else { 0.0 });
+        self.queue
+            .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
+        let [r, g, b] = view.background.map(|c| {
+            if c.is_finite() {
+                c.clamp(0.0, 1.0) as f64
+            } else {
+                0.0
+            }
+        });
         self.background = wgpu::Color { r, g, b, a: 1.0 };
         self.ensure_attachments(size);
         Ok(())
@@ -430,7 +585,9 @@ impl Renderer {
     /// texture of the size given to [`Renderer::prepare`] and of
     /// [`Renderer::color_format`]).
     pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, target: &wgpu::TextureView) {
-        let Some(att) = self.attachments.as_ref() else { return };
+        let Some(att) = self.attachments.as_ref() else {
+            return;
+        };
         let (view, resolve_target, store) = match &att.msaa {
             Some(msaa) => (msaa, Some(target), wgpu::StoreOp::Discard),
             None => (target, None, wgpu::StoreOp::Store),
@@ -441,11 +598,17 @@ impl Renderer {
                 view,
                 depth_slice: None,
                 resolve_target,
-                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(self.background), store },
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(self.background),
+                    store,
+                },
             })],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &att.depth,
-                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
                 stencil_ops: None,
             }),
             timestamp_writes: None,
@@ -456,14 +619,19 @@ impl Renderer {
         if self.index_count > 0 {
             pass.set_pipeline(&self.surface_pipeline);
             pass.set_vertex_buffer(0, self.surface_vertices.buffer.slice(..));
-            pass.set_index_buffer(self.surface_indices.buffer.slice(..), wgpu::IndexFormat::Uint32);
+            pass.set_index_buffer(
+                self.surface_indices.buffer.slice(..),
+                wgpu::IndexFormat::Uint32,
+            );
             pass.draw_indexed(0..self.index_count, 0, 0..1);
         }
         pass.set_vertex_buffer(0, self.tool_vertices.buffer.slice(..));
         let r = self.ranges;
-        for (pipeline, (start, end)) in
-            [(&self.blade_pipeline, r.blades), (&self.skull_pipeline, r.skull), (&self.overlay_pipeline, r.overlays)]
-        {
+        for (pipeline, (start, end)) in [
+            (&self.blade_pipeline, r.blades),
+            (&self.skull_pipeline, r.skull),
+            (&self.overlay_pipeline, r.overlays),
+        ] {
             if end > start {
                 pass.set_pipeline(pipeline);
                 pass.draw(start..end, 0..1);
@@ -472,9 +640,18 @@ impl Renderer {
     }
 
     /// Prepares, encodes and submits one frame into `target` of `size`.
-    pub fn render(&mut self, view: &SceneView, target: &wgpu::TextureView, size: (u32, u32)) -> Result<(), RenderError> {
+    pub fn render(
+        &mut self,
+        view: &SceneView,
+        target: &wgpu::TextureView,
+        size: (u32, u32),
+    ) -> Result<(), RenderError> {
         self.prepare(view, size)?;
-        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("scene encoder") });
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("scene encoder"),
+            });
         self.encode(&mut encoder, target);
         self.queue.submit([encoder.finish()]);
         self.take_gpu_error()
@@ -496,7 +673,10 @@ impl Renderer {
 
 fn check_size(size: (u32, u32)) -> Result<(), RenderError> {
     if size.0 == 0 || size.1 == 0 || size.0 > 8192 || size.1 > 8192 {
-        return Err(RenderError::Size { width: size.0, height: size.1 });
+        return Err(RenderError::Size {
+            width: size.0,
+            height: size.1,
+        });
     }
     Ok(())
 }

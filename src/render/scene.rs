@@ -11,7 +11,7 @@ use crate::geometry::{Pose, SpatulaShape};
 use crate::math::Vec3;
 
 /// Linear-RGB brain colour used when no field is shown (a pale pink).
-pub const BRAIN_PINK: [f32; 3] = [0.80, 0.42, 0.40];
+pub const BRAIN_PINK: [f32; 3] = [0.78, 0.33, 0.30];
 /// Linear-RGB colour of the blades (brushed steel grey).
 pub const STEEL_GREY: [f32; 3] = [0.55, 0.57, 0.60];
 /// Linear-RGB default background (dark blue-grey).
@@ -84,7 +84,11 @@ pub struct SpatulaView {
 impl SpatulaView {
     /// A steel-grey spatula.
     pub fn new(shape: SpatulaShape, pose: Pose) -> Self {
-        Self { shape, pose, color: STEEL_GREY }
+        Self {
+            shape,
+            pose,
+            color: STEEL_GREY,
+        }
     }
 }
 
@@ -137,7 +141,11 @@ impl<'a> SceneView<'a> {
     /// A view of a surface with the default background and nothing else.
     pub fn new(positions: &'a [Vec3], triangles: &'a [[u32; 3]], camera: OrbitCamera) -> Self {
         Self {
-            surface: SurfaceView { positions, triangles, field: None },
+            surface: SurfaceView {
+                positions,
+                triangles,
+                field: None,
+            },
             spatulas: &[],
             overlays: Overlays::default(),
             skull: &[],

@@ -31,10 +31,16 @@ pub struct WindowRenderer {
 impl WindowRenderer {
     /// Creates the surface, adapter and device for `window`. `present_mode`
     /// `None` picks Fifo (vsync; always supported).
-    pub fn new(window: Arc<winit::window::Window>, present_mode: Option<wgpu::PresentMode>) -> Result<Self, RenderError> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    pub fn new(
+        window: Arc<winit::window::Window>,
+        present_mode: Option<wgpu::PresentMode>,
+    ) -> Result<Self, RenderError> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let size = window.inner_size();
-        let surface = instance.create_surface(window).map_err(|e| RenderError::Surface(e.to_string()))?;
+        let surface = instance
+            .create_surface(window)
+            .map_err(|e| RenderError::Surface(e.to_string()))?;
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
             force_fallback_adapter: false,
@@ -44,21 +50,40 @@ impl WindowRenderer {
         .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
         let (device, queue) = request_device(&adapter)?;
         let caps = surface.get_capabilities(&adapter);
-        let format = caps.formats.iter().copied().find(|f| f.is_srgb()).or_else(|| caps.formats.first().copied()).ok_or_else(|| {
-            RenderError::Surface("the surface supports no format on this adapter".into())
-        })?;
+        let format = caps
+            .formats
+            .iter()
+            .copied()
+            .find(|f| f.is_srgb())
+            .or_else(|| caps.formats.first().copied())
+            .ok_or_else(|| {
+                RenderError::Surface("the surface supports no format on this adapter".into())
+            })?;
         let mut config = surface
             .get_default_config(&adapter, size.width.max(1), size.height.max(1))
-            .ok_or_else(|| RenderError::Surface("the surface is not supported by the adapter".into()))?;
+            .ok_or_else(|| {
+                RenderError::Surface("the surface is not supported by the adapter".into())
+            })?;
         config.format = format;
         let wanted = present_mode.unwrap_or(wgpu::PresentMode::Fifo);
-        config.present_mode = if caps.present_modes.contains(&wanted) { wanted } else { wgpu::PresentMode::Fifo };
+        config.present_mode = if caps.present_modes.contains(&wanted) {
+            wanted
+        } else {
+            wgpu::PresentMode::Fifo
+        };
         surface.configure(&device, &config);
-        let msaa = adapter.get_texture_format_features(format).flags.sample_count_supported(4);
+        let msaa = adapter
+            .get_texture_format_features(format)
+            .flags
+            .sample_count_supported(4);
         let renderer = Renderer::with_device(device, queue, format, if msaa { 4 } else { 1 })?;
         let info = adapter.get_info();
         tracing::info!(adapter = %info.name, backend = ?info.backend, ?format, present_mode = ?config.present_mode, "window renderer ready");
-        Ok(Self { surface, config, renderer })
+        Ok(Self {
+            surface,
+            config,
+            renderer,
+        })
     }
 
     /// The inner renderer (device, queue, format for egui-wgpu).
@@ -94,20 +119,32 @@ impl WindowRenderer {
             return Ok(FrameOutcome::Skipped);
         }
         let frame = match self.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
-            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => return Ok(FrameOutcome::Skipped),
+            wgpu::CurrentSurfaceTexture::Success(t)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
+                return Ok(FrameOutcome::Skipped);
+            }
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
                 self.surface.configure(self.renderer.device(), &self.config);
                 return Ok(FrameOutcome::Skipped);
             }
-            wgpu::CurrentSurfaceTexture::Validation => return Err(RenderError::Surface("validation error acquiring the frame".into())),
+            wgpu::CurrentSurfaceTexture::Validation => {
+                return Err(RenderError::Surface(
+                    "validation error acquiring the frame".into(),
+                ));
+            }
         };
-        let target = frame.texture.create_view(&wgpu::TextureViewDescriptor { label: Some("surface frame view"), ..Default::default() });
+        let target = frame.texture.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("surface frame view"),
+            ..Default::default()
+        });
         let size = (self.config.width, self.config.height);
         self.renderer.prepare(view, size)?;
         let device = self.renderer.device().clone();
         let queue = self.renderer.queue().clone();
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("window frame encoder") });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("window frame encoder"),
+        });
         self.renderer.encode(&mut encoder, &target);
         overlay(&device, &queue, &mut encoder, &target);
         queue.submit([encoder.finish()]);

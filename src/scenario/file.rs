@@ -297,11 +297,20 @@ pub struct CollisionFile {
     /// Which backend answers the ray queries. Default `Bvh`.
     #[serde(default)]
     pub backend: CollisionBackend,
+    /// Our swept-side culling on top of the paper's His-flags (needs `Culling`):
+    /// a face never pulls tissue that lay beyond the blade's other face at the
+    /// previous frame. Default `true`; `false` leaves exactly the paper's method.
+    #[serde(default = "default_true")]
+    pub swept_culling: bool,
+}
+
+fn default_true() -> bool {
+    true
 }
 
 impl Default for CollisionFile {
     fn default() -> Self {
-        Self { backend: CollisionBackend::Bvh }
+        Self { backend: CollisionBackend::Bvh, swept_culling: true }
     }
 }
 

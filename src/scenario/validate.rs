@@ -230,6 +230,8 @@ pub struct Scenario {
     pub effects: EffectSet,
     /// Collision backend.
     pub collision_backend: CollisionBackend,
+    /// Swept-side culling on top of the paper's His-flags (see `collision` docs, rule 3b).
+    pub swept_culling: bool,
     /// Solver options.
     pub solver: SolverOptions,
     /// Gravity, m/s^2.
@@ -576,6 +578,7 @@ impl Scenario {
             spatulas,
             effects,
             collision_backend: file.collision.backend,
+            swept_culling: file.collision.swept_culling,
             solver,
             gravity,
             density,

@@ -213,7 +213,9 @@ impl Pipeline {
             };
             let specs: Vec<SpatulaSpec> =
                 scenario.spatulas.iter().map(|s| SpatulaSpec { shape: s.shape, layout: s.layout.clone() }).collect();
-            Some(CollisionStage::new(config, &surface.triangles, &rest, &specs)?)
+            let mut stage = CollisionStage::new(config, &surface.triangles, &rest, &specs)?;
+            stage.set_swept_culling(scenario.swept_culling);
+            Some(stage)
         } else {
             None
         };

@@ -38,7 +38,7 @@ pub struct Accuracy {
     pub rms_error_m: f64,
     /// Largest displacement error, m.
     pub max_error_m: f64,
-    /// Largest |F - F_ref| over compared frames, % of the reference's peak |F|.
+    /// Largest |F - F_ref| over compared frames, % of the reference's peak |F| over its whole run.
     pub force_error_pct: f64,
     /// Compared frames where the reference had contact and this run none.
     pub missed_contact_frames: usize,
@@ -167,7 +167,7 @@ pub fn compare(reference: &RunTrace, run: &RunTrace, same_mesh: bool) -> Accurac
             }
         }
     }
-    let peak_force = pairs.iter().map(|&(r, _)| reference.frames[r].force.norm()).fold(0.0, f64::max);
+    let peak_force = reference.frames.iter().map(|f| f.force.norm()).fold(0.0, f64::max);
     let force_error = pairs.iter().map(|&(r, k)| (reference.frames[r].force - run.frames[k].force).norm()).fold(0.0, f64::max);
     let reference_contact_frames = pairs.iter().filter(|&&(r, _)| reference.frames[r].constrained > 0).count();
     let missed = pairs.iter().filter(|&&(r, k)| reference.frames[r].constrained > 0 && run.frames[k].constrained == 0).count();

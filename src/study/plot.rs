@@ -52,6 +52,19 @@ fn log_range(values: impl Iterator<Item = f64>, default: (f64, f64)) -> (f64, f6
 
 type Res = Result<(), String>;
 
+/// Tick text on a log axis: only mantissas 1, 2 and 5 are labelled, compactly.
+fn log_tick(v: &f64) -> String {
+    if !(*v > 0.0) {
+        return String::new();
+    }
+    let e = v.log10().floor();
+    let m = v / 10f64.powf(e);
+    if ![1.0, 2.0, 5.0].iter().any(|k| (m - k).abs() < 1e-6 * k) {
+        return String::new();
+    }
+    if (1e-3..1e5).contains(v) { format!("{}", (v * 1e4).round() / 1e4) } else { format!("{v:.0e}") }
+}
+
 fn err<E: std::fmt::Display>(e: E) -> String {
     e.to_string()
 }
@@ -77,6 +90,8 @@ fn draw_pareto<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Stud
         .map_err(err)?;
     chart
         .configure_mesh()
+        .x_label_formatter(&log_tick)
+        .y_label_formatter(&log_tick)
         .x_desc("frame time, 95th percentile (ms)")
         .y_desc(format!("RMS surface displacement error (mm; 0 drawn at {ERROR_FLOOR_MM:.0e})"))
         .axis_desc_style((FONT, 18))
@@ -103,7 +118,7 @@ fn draw_pareto<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Stud
     }
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
+        .position(SeriesLabelPosition::MiddleLeft)
         .label_font((FONT, 16))
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
@@ -138,6 +153,8 @@ fn draw_fig13<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
         .map_err(err)?;
     chart
         .configure_mesh()
+        .x_label_formatter(&log_tick)
+        .y_label_formatter(&log_tick)
         .x_desc("source nodes a face (two faces, one spatula)")
         .y_desc("collision stage, median a frame (ms)")
         .axis_desc_style((FONT, 18))
@@ -203,6 +220,7 @@ fn draw_speed<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
             .map_err(err)?;
         chart
             .configure_mesh()
+            .x_label_formatter(&log_tick)
             .x_desc("speed (blade thicknesses a frame)")
             .y_desc("vertices pulled through (sum)")
             .axis_desc_style((FONT, 17))
@@ -235,8 +253,10 @@ fn draw_speed<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
         .map_err(err)?;
     chart
         .configure_mesh()
+        .x_label_formatter(&log_tick)
+        .y_label_formatter(&log_tick)
         .x_desc("speed (blade thicknesses a frame)")
-        .y_desc("RMS displacement error (mm)")
+        .y_desc(format!("RMS displacement error (mm; 0 drawn at {ERROR_FLOOR_MM:.0e})"))
         .axis_desc_style((FONT, 17))
         .label_style((FONT, 14))
         .draw()

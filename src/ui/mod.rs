@@ -34,7 +34,14 @@ pub struct PressureMonitor {
 impl PressureMonitor {
     /// A monitor with the given limit (mmHg).
     pub fn new(limit_mmhg: f64) -> Self {
-        Self { limit_mmhg, excess_mmhg_s: 0.0, total_mmhg_s: 0.0, time_over_s: 0.0, peak_mmhg: 0.0, over: false }
+        Self {
+            limit_mmhg,
+            excess_mmhg_s: 0.0,
+            total_mmhg_s: 0.0,
+            time_over_s: 0.0,
+            peak_mmhg: 0.0,
+            over: false,
+        }
     }
 
     /// Adds one sample held for `dt_s` seconds. Non-finite or negative inputs are ignored.
@@ -72,7 +79,13 @@ impl TimingHistory {
     /// `capacity` frames (>= 2) of the named stages.
     pub fn new(stage_names: &[&str], capacity: usize) -> Self {
         let capacity = capacity.max(2);
-        Self { names: stage_names.iter().map(|s| s.to_string()).collect(), samples: vec![0.0; capacity * stage_names.len()], capacity, next: 0, len: 0 }
+        Self {
+            names: stage_names.iter().map(|s| s.to_string()).collect(),
+            samples: vec![0.0; capacity * stage_names.len()],
+            capacity,
+            next: 0,
+            len: 0,
+        }
     }
 
     /// Stage names.
@@ -186,56 +199,94 @@ pub enum PanelAction {
 
 /// Draws the right-hand panel into `ui` (the root ui of `Context::run_ui`),
 /// updates `state` and pushes requested actions into `actions`.
-pub fn draw_panel(ui: &mut egui::Ui, data: &PanelData, history: &TimingHistory, state: &mut PanelState, actions: &mut Vec<PanelAction>) {
-    egui::Panel::right("fissure_panel").default_size(280.0).show(ui, |ui| {
-        ui.heading("fissure");
-        ui.label(format!("{:.0} fps, simulation {:.2} ms", data.fps, data.sim_frame_ms));
-        timing_graph(ui, history);
-        ui.separator();
-        for (k, (s, monitor)) in data.spatulas.iter().zip(state.monitors.iter()).enumerate() {
-            let f = s.force_n;
-            let magnitude = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
-            ui.label(format!("Spatula {}: |F| = {magnitude:.3} N", if k == 0 { "left" } else { "right" }));
-            ui.label(format!("  pairs {} feasible, {} culled", s.feasible_pairs, s.culled_pairs));
-            let text = format!("  pressure {:.1} mmHg (limit {:.0})", s.mean_pressure_mmhg, monitor.limit_mmhg);
-            if monitor.over {
-                ui.colored_label(egui::Color32::from_rgb(255, 80, 60), format!("{text}  ABOVE LIMIT"));
-            } else {
-                ui.label(text);
+pub fn draw_panel(
+    ui: &mut egui::Ui,
+    data: &PanelData,
+    history: &TimingHistory,
+    state: &mut PanelState,
+    actions: &mut Vec<PanelAction>,
+) {
+    egui::Panel::right("fissure_panel")
+        .default_size(280.0)
+        .show(ui, |ui| {
+            ui.heading("fissure");
+            ui.label(format!(
+                "{:.0} fps, simulation {:.2} ms",
+                data.fps, data.sim_frame_ms
+            ));
+            timing_graph(ui, history);
+            ui.separator();
+            for (k, (s, monitor)) in data.spatulas.iter().zip(state.monitors.iter()).enumerate() {
+                let f = s.force_n;
+                let magnitude = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
+                ui.label(format!(
+                    "Spatula {}: |F| = {magnitude:.3} N",
+                    if k == 0 { "left" } else { "right" }
+                ));
+                ui.label(format!(
+                    "  pairs {} feasible, {} culled",
+                    s.feasible_pairs, s.culled_pairs
+                ));
+                let text = format!(
+                    "  pressure {:.1} mmHg (limit {:.0})",
+                    s.mean_pressure_mmhg, monitor.limit_mmhg
+                );
+                if monitor.over {
+                    ui.colored_label(
+                        egui::Color32::from_rgb(255, 80, 60),
+                        format!("{text}  ABOVE LIMIT"),
+                    );
+                } else {
+                    ui.label(text);
+                }
+                ui.label(format!(
+                    "  over limit {:.1} s, excess {:.1} mmHg*s, peak {:.1}",
+                    monitor.time_over_s, monitor.excess_mmhg_s, monitor.peak_mmhg
+                ));
+                pressure_bar(ui, s.mean_pressure_mmhg, monitor.limit_mmhg);
             }
-            ui.label(format!("  over limit {:.1} s, excess {:.1} mmHg*s, peak {:.1}", monitor.time_over_s, monitor.excess_mmhg_s, monitor.peak_mmhg));
-            pressure_bar(ui, s.mean_pressure_mmhg, monitor.limit_mmhg);
-        }
-        ui.separator();
-        ui.label("Surface colour");
-        ui.radio_value(&mut state.field, FieldChoice::None, "none");
-        for kind in [FieldKind::DisplacementMm, FieldKind::Strain, FieldKind::ContactPressureMmHg] {
-            ui.radio_value(&mut state.field, FieldChoice::Field(kind), kind.label());
-        }
-        ui.checkbox(&mut state.show_source_nodes, "source nodes");
-        ui.checkbox(&mut state.show_pairs, "pairs (feasible / culled)");
-        ui.checkbox(&mut state.show_skull, "skull spheres");
-        ui.checkbox(&mut state.culling, "His-flag culling");
-        ui.separator();
-        ui.horizontal(|ui| {
-            if ui.button("Overview").clicked() {
-                actions.push(PanelAction::CameraOverview);
+            ui.separator();
+            ui.label("Surface colour");
+            ui.radio_value(&mut state.field, FieldChoice::None, "none");
+            for kind in [
+                FieldKind::DisplacementMm,
+                FieldKind::Strain,
+                FieldKind::ContactPressureMmHg,
+            ] {
+                ui.radio_value(&mut state.field, FieldChoice::Field(kind), kind.label());
             }
-            if ui.button("Microscope").clicked() {
-                actions.push(PanelAction::CameraMicroscope);
-            }
+            ui.checkbox(&mut state.show_source_nodes, "source nodes");
+            ui.checkbox(&mut state.show_pairs, "pairs (feasible / culled)");
+            ui.checkbox(&mut state.show_skull, "skull spheres");
+            ui.checkbox(&mut state.culling, "His-flag culling");
+            ui.separator();
+            ui.horizontal(|ui| {
+                if ui.button("Overview").clicked() {
+                    actions.push(PanelAction::CameraOverview);
+                }
+                if ui.button("Microscope").clicked() {
+                    actions.push(PanelAction::CameraMicroscope);
+                }
+            });
+            ui.horizontal(|ui| {
+                let label = if state.recording {
+                    "Stop recording"
+                } else {
+                    "Record"
+                };
+                if ui.button(label).clicked() {
+                    state.recording = !state.recording;
+                    actions.push(if state.recording {
+                        PanelAction::StartRecording
+                    } else {
+                        PanelAction::StopRecording
+                    });
+                }
+                if ui.button("Load scenario…").clicked() {
+                    actions.push(PanelAction::LoadScenario);
+                }
+            });
         });
-        ui.horizontal(|ui| {
-            let label = if state.recording { "Stop recording" } else { "Record" };
-            if ui.button(label).clicked() {
-                state.recording = !state.recording;
-                actions.push(if state.recording { PanelAction::StartRecording } else { PanelAction::StopRecording });
-            }
-            if ui.button("Load scenario…").clicked() {
-                actions.push(PanelAction::LoadScenario);
-            }
-        });
-    });
 }
 
 /// Updates the pressure monitors from this frame's data (call once per simulation frame).
@@ -246,39 +297,74 @@ pub fn update_monitors(state: &mut PanelState, data: &PanelData, dt_s: f64) {
 }
 
 fn pressure_bar(ui: &mut egui::Ui, pressure: f64, limit: f64) {
-    let (rect, _) = ui.allocate_exact_size(egui::vec2(ui.available_width().min(240.0), 10.0), egui::Sense::hover());
+    let (rect, _) = ui.allocate_exact_size(
+        egui::vec2(ui.available_width().min(240.0), 10.0),
+        egui::Sense::hover(),
+    );
     let painter = ui.painter_at(rect);
     let full_scale = (limit * 2.0).max(1e-9);
     let fraction = (pressure / full_scale).clamp(0.0, 1.0) as f32;
     painter.rect_filled(rect, 2.0, egui::Color32::from_gray(40));
-    let filled = egui::Rect::from_min_size(rect.min, egui::vec2(rect.width() * fraction, rect.height()));
-    let colour = if pressure > limit { egui::Color32::from_rgb(230, 70, 50) } else { egui::Color32::from_rgb(80, 180, 90) };
+    let filled =
+        egui::Rect::from_min_size(rect.min, egui::vec2(rect.width() * fraction, rect.height()));
+    let colour = if pressure > limit {
+        egui::Color32::from_rgb(230, 70, 50)
+    } else {
+        egui::Color32::from_rgb(80, 180, 90)
+    };
     painter.rect_filled(filled, 2.0, colour);
     let x = rect.left() + rect.width() * 0.5; // the limit sits at half scale
-    painter.line_segment([egui::pos2(x, rect.top() - 2.0), egui::pos2(x, rect.bottom() + 2.0)], egui::Stroke::new(1.5, egui::Color32::WHITE));
+    painter.line_segment(
+        [
+            egui::pos2(x, rect.top() - 2.0),
+            egui::pos2(x, rect.bottom() + 2.0),
+        ],
+        egui::Stroke::new(1.5, egui::Color32::WHITE),
+    );
 }
 
 fn timing_graph(ui: &mut egui::Ui, history: &TimingHistory) {
-    let (rect, _) = ui.allocate_exact_size(egui::vec2(ui.available_width().min(260.0), 60.0), egui::Sense::hover());
+    let (rect, _) = ui.allocate_exact_size(
+        egui::vec2(ui.available_width().min(260.0), 60.0),
+        egui::Sense::hover(),
+    );
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 2.0, egui::Color32::from_gray(25));
     if history.is_empty() {
         return;
     }
     let n = history.len();
-    let max = (0..n).filter_map(|a| history.frame_total(a)).fold(1.0f32, f32::max);
-    let colours = [egui::Color32::LIGHT_BLUE, egui::Color32::LIGHT_GREEN, egui::Color32::GOLD, egui::Color32::LIGHT_RED, egui::Color32::WHITE];
+    let max = (0..n)
+        .filter_map(|a| history.frame_total(a))
+        .fold(1.0f32, f32::max);
+    let colours = [
+        egui::Color32::LIGHT_BLUE,
+        egui::Color32::LIGHT_GREEN,
+        egui::Color32::GOLD,
+        egui::Color32::LIGHT_RED,
+        egui::Color32::WHITE,
+    ];
     let step = rect.width() / n.max(2) as f32;
     for age in 0..n {
         let x = rect.right() - (age as f32 + 1.0) * step;
         let mut y = rect.bottom();
         for stage in 0..history.names().len() {
             let h = history.get(stage, age).unwrap_or(0.0) / max * rect.height();
-            painter.rect_filled(egui::Rect::from_min_max(egui::pos2(x, y - h), egui::pos2(x + step, y)), 0.0, colours[stage % colours.len()]);
+            painter.rect_filled(
+                egui::Rect::from_min_max(egui::pos2(x, y - h), egui::pos2(x + step, y)),
+                0.0,
+                colours[stage % colours.len()],
+            );
             y -= h;
         }
     }
-    painter.text(rect.left_top(), egui::Align2::LEFT_TOP, format!("max {max:.2} ms"), egui::FontId::monospace(10.0), egui::Color32::WHITE);
+    painter.text(
+        rect.left_top(),
+        egui::Align2::LEFT_TOP,
+        format!("max {max:.2} ms"),
+        egui::FontId::monospace(10.0),
+        egui::Color32::WHITE,
+    );
 }
 
 #[cfg(test)]
@@ -294,7 +380,11 @@ mod tests {
         m.update(30.0, 0.5);
         assert!(m.over, "30 mmHg is above 20");
         assert!((m.time_over_s - 0.5).abs() < 1e-12);
-        assert!((m.excess_mmhg_s - 5.0).abs() < 1e-12, "(30-20)*0.5 = 5, got {}", m.excess_mmhg_s);
+        assert!(
+            (m.excess_mmhg_s - 5.0).abs() < 1e-12,
+            "(30-20)*0.5 = 5, got {}",
+            m.excess_mmhg_s
+        );
         assert!((m.total_mmhg_s - 25.0).abs() < 1e-12);
         m.update(f64::NAN, 1.0);
         m.update(50.0, -1.0);
@@ -323,19 +413,29 @@ mod tests {
         let mut state = PanelState::default();
         let mut history = TimingHistory::new(&["collision", "fem"], 120);
         history.push(&[0.4, 1.2]);
-        let mut data = PanelData { fps: 60.0, sim_frame_ms: 1.6, ..PanelData::default() };
+        let mut data = PanelData {
+            fps: 60.0,
+            sim_frame_ms: 1.6,
+            ..PanelData::default()
+        };
         data.spatulas[0].mean_pressure_mmhg = 25.0;
         update_monitors(&mut state, &data, 0.1);
         assert!(state.monitors[0].over && !state.monitors[1].over);
         let mut actions = Vec::new();
         for _ in 0..2 {
-            ctx.run_ui(egui::RawInput::default(), |ui| draw_panel(ui, &data, &history, &mut state, &mut actions)).drop_without_applying_deltas();
+            ctx.run_ui(egui::RawInput::default(), |ui| {
+                draw_panel(ui, &data, &history, &mut state, &mut actions)
+            })
+            .drop_without_applying_deltas();
         }
         assert!(actions.is_empty(), "no input, no actions: {actions:?}");
-        assert_eq!(state, {
-            let mut s = PanelState::default();
-            s.monitors = state.monitors;
-            s
-        }, "no input must not flip switches");
+        assert_eq!(
+            state,
+            PanelState {
+                monitors: state.monitors,
+                ..PanelState::default()
+            },
+            "no input must not flip switches"
+        );
     }
 }

@@ -16,11 +16,12 @@
 //! - no adhesive contact force: the FEM's reactions are forces ON the tissue
 //!   (`constrained.rs`: `C^T lambda is the force ON the tissue`); a spatula
 //!   pushes its tissue along its claiming face's outward normal N, so the force
-//!   on the tissue summed over a spatula's contact satisfies `F . N >= 0` for
-//!   each face, and a sphere row never pulls (`lambda >= 0` along its feasible
-//!   direction). Per vertex the bilateral enforced constraint may pull at the rim
-//!   of a contact patch (a linear-elastic fact, not a solver error): the worst
-//!   such pull is returned as `max_vertex_pull_n` for the case to print.
+//!   on the tissue summed over each face's held vertices satisfies `F . N >= 0`,
+//!   and a sphere row never pulls (`lambda >= 0` along its feasible direction).
+//!   Per vertex, the bilateral enforced constraint can pull (a rim vertex the
+//!   elastic solution would carry past the face plane is held back onto it):
+//!   the worst such pull is returned as `max_vertex_pull_n`, printed, and
+//!   asserted zero only where a case says so (see `docs/hard_cases.md`).
 //! - the frame report's inverted-element count is returned (and printed).
 #![allow(dead_code)]
 
@@ -237,20 +238,37 @@ pub fn check_frame(pipeline: &Pipeline, state: &SimState, report: &FrameReport, 
     let mut enforced_seen = 0;
     for (k, c) in constraints.iter().enumerate() {
         if let ConstraintKind::Enforced { displacement } = c.kind {
-            let t = targets[enforced_seen];
             enforced_seen += 1;
             let v = surface.node_to_vertex[c.node as usize] as usize;
-            assert_eq!(v, t.vertex as usize, "{}", ctx("enforced constraints follow the collision targets"));
+            let t = match targets.binary_search_by_key(&(v as u32), |t| t.vertex) {
+                Ok(i) => targets[i],
+                Err(_) => panic!("{}", ctx(&format!("enforced vertex {v} has no collision target"))),
+            };
+            assert_eq!(displacement, t.displacement, "{}", ctx("an enforced constraint carries its target's displacement"));
+            if pipeline.solver().model().is_fixed(c.node) {
+                // Conflict rule (FEM): a constraint on a fixed node is ignored, its reaction is zero.
+                assert_eq!(solution.reactions[k], Vec3::zeros(), "{}", ctx(&format!("fixed vertex {v} carries a reaction")));
+                assert_eq!(state.surface_displacement[v], Vec3::zeros(), "{}", ctx(&format!("fixed vertex {v} moved")));
+                continue;
+            }
             enforced_vertex[v] = true;
             let err = (state.surface_displacement[v] - displacement).norm();
-            assert!(err <= TARGET_TOLERANCE_M, "{}", ctx(&format!("enforced vertex {v} misses its target by {err:e} m (exact solve)")));
+            assert!(
+                err <= TARGET_TOLERANCE_M,
+                "{}",
+                ctx(&format!(
+                    "enforced vertex {v} misses its target by {err:e} m (exact solve): rest {:?}, target {t:?}, fixed {}",
+                    pipeline.rest_positions()[v],
+                    pipeline.solver().model().is_fixed(c.node)
+                ))
+            );
             let along = solution.reactions[k].dot(&t.normal);
             max_pull = max_pull.max(-along);
             max_push = max_push.max(along);
             face_force[t.spatula as usize][t.face as usize] += along;
         }
     }
-    assert_eq!(enforced_seen, targets.len(), "{}", ctx("every target became a constraint"));
+    assert_eq!(enforced_seen, targets.len(), "{}", ctx("every collision target became one enforced constraint"));
     let reaction_scale = solution.reactions.iter().map(|r| r.norm()).fold(0.0, f64::max);
     for (s, faces) in face_force.iter().enumerate() {
         for (face, &sum) in faces.iter().enumerate() {

@@ -1,0 +1,22 @@
+//! The scenario parser on arbitrary text, with and without a `--set` override
+//! (the text after the first NUL byte, if any). Ok or Err, never a panic; a
+//! validated scenario holds only finite values and valid poses.
+#![no_main]
+
+use fissure::scenario::Scenario;
+use libfuzzer_sys::fuzz_target;
+use std::path::Path;
+
+fuzz_target!(|data: &[u8]| {
+    let text = String::from_utf8_lossy(data);
+    let (file, overrides): (&str, Vec<String>) = match text.split_once('\0') {
+        Some((f, o)) => (f, vec![o.to_string()]),
+        None => (&text, Vec::new()),
+    };
+    if let Ok(s) = Scenario::from_str(file, Path::new("/nonexistent/fuzz.ron"), &overrides) {
+        assert!(s.time_step.is_finite() && s.time_step > 0.0, "validated time step {}", s.time_step);
+        for sp in &s.spatulas {
+            assert!(sp.initial_pose.is_valid(), "validated pose {:?}", sp.initial_pose);
+        }
+    }
+});

@@ -1,0 +1,93 @@
+//! `fissure replay`: a scenario played headless from a trajectory, with metrics,
+//! a summary and optional VTK/PNG output; a progress bar on a terminal; Ctrl-C
+//! stops after the current frame with every row so far valid.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use anyhow::Context;
+use fissure::scenario::Scenario;
+use fissure::sim::metrics::Summary;
+use fissure::sim::replay::{ReplayOptions, replay};
+use indicatif::{ProgressBar, ProgressStyle};
+
+/// Options of one replay from the command line.
+pub struct ReplayArgs<'a> {
+    pub scenario: &'a Path,
+    pub set: &'a [String],
+    pub trajectory: Option<PathBuf>,
+    pub out: Option<PathBuf>,
+    pub vtk: bool,
+    pub frames: bool,
+}
+
+fn bar(len: u64, message: &str) -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let b = ProgressBar::new(len);
+    b.set_style(
+        ProgressStyle::with_template("{msg:>12} [{bar:40}] {pos}/{len} ({eta})").unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    b.set_message(message.to_string());
+    b
+}
+
+/// Sets a flag on Ctrl-C (once per process; later calls reuse the flag).
+pub fn interrupt_flag() -> Arc<AtomicBool> {
+    static FLAG: std::sync::OnceLock<Arc<AtomicBool>> = std::sync::OnceLock::new();
+    FLAG.get_or_init(|| {
+        let flag = Arc::new(AtomicBool::new(false));
+        let f = flag.clone();
+        if let Err(e) = ctrlc::set_handler(move || f.store(true, Ordering::Relaxed)) {
+            tracing::warn!("Ctrl-C handler not installed: {e}");
+        }
+        flag
+    })
+    .clone()
+}
+
+/// Runs the replay and prints where the outputs are.
+pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
+    let scenario = Scenario::load(args.scenario, args.set).with_context(|| format!("loading {}", args.scenario.display()))?;
+    let out_dir = args.out.clone().unwrap_or_else(|| scenario.outputs.dir.clone());
+    let vtk = args.vtk || scenario.outputs.vtk;
+    let frames = args.frames || scenario.outputs.frames;
+    let options = ReplayOptions { out_dir: out_dir.clone(), trajectory: args.trajectory.clone(), vtk };
+    let interrupt = interrupt_flag();
+    let precompute = bar(0, "compliance");
+    let mut on_precompute = |done: usize, total: usize| {
+        precompute.set_length(total as u64);
+        precompute.set_position(done as u64);
+    };
+    let progress = bar(scenario.step_count(), "frames");
+    let mut frame_writer = if frames { Some(super::frames::FrameWriter::new(&out_dir)?) } else { None };
+    let mut on_frame = |pipeline: &fissure::sim::Pipeline, state: &fissure::sim::SimState, done: u64, _total: u64| {
+        precompute.finish_and_clear();
+        progress.set_position(done);
+        match &mut frame_writer {
+            Some(w) => w.write(pipeline, state).map_err(|e| format!("{e:#}")),
+            None => Ok(()),
+        }
+    };
+    let result = replay(&scenario, &options, &interrupt, &mut on_frame, Some(&mut on_precompute));
+    progress.finish_and_clear();
+    let summary = result.with_context(|| format!("replaying {}", args.scenario.display()))?;
+    println!("{}: {} frames ({:.2} s simulated){}", scenario.name, summary.frames, summary.simulated_s, if summary.interrupted { ", INTERRUPTED" } else { "" });
+    println!("  frame time p50 {:.3} ms, p95 {:.3} ms, max {:.3} ms", summary.frame.p50_ms, summary.frame.p95_ms, summary.frame.max_ms);
+    for (stage, p) in &summary.stages {
+        println!("    {:<10} p50 {:>9.3} ms  p95 {:>9.3} ms", stage.name(), p.p50_ms, p.p95_ms);
+    }
+    for s in &summary.spatulas {
+        println!(
+            "  {}: peak force {:.3} N, peak mean pressure {:.1} mmHg, {:.2} s above 20 mmHg",
+            s.name, s.peak_force_n, s.peak_pressure_mmhg, s.time_above_20mmhg_s
+        );
+    }
+    println!("  max displacement {:.2} mm, tissue pulled through a blade: {} vertices (max in a frame)", summary.max_displacement_mm, summary.max_crossed_vertices);
+    println!("  final state {}", summary.final_state_hash);
+    println!("  wrote {}/metrics.csv, {}/summary.json{}", out_dir.display(), out_dir.display(), if vtk { ", series.pvd" } else { "" });
+    Ok(summary)
+}
