@@ -125,6 +125,7 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
         }
         let frames = ((near.len() - count) / fresh).min(60);
         let mut times = Vec::new();
+        let mut phases = [0.0f64; 4];
         let mut out = FrameSolution::default();
         let mut cons: Vec<Constraint> = Vec::new();
         for k in 0..frames {
@@ -137,6 +138,12 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
             let t = Instant::now();
             solver.step(&cons, &mut out).expect("step");
             times.push(t.elapsed().as_secs_f64() * 1e3);
+            if k > 0 {
+                let p = solver.timings();
+                for (acc, x) in phases.iter_mut().zip([p.gather, p.factor, p.candidates, p.surface]) {
+                    *acc += x * 1e3 / (frames - 1) as f64;
+                }
+            }
         }
         let mut sorted = times[1..].to_vec();
         sorted.sort_by(|a, b| a.total_cmp(b));
@@ -149,6 +156,10 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
             sorted.last().unwrap(),
             out.conditioning,
             out.max_displacement * 1e3
+        );
+        println!(
+            "  mean phase times: gather {:.2} ms, factor+solve W {:.2} ms, candidates {:.2} ms, surface product {:.2} ms",
+            phases[0], phases[1], phases[2], phases[3]
         );
     }
     let mut all = Vec::new();

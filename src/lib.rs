@@ -6,6 +6,7 @@
 //! See `DESIGN.md` for the map. The simulation core (`mesh`, `geometry`,
 //! `collision`, `fem`, `sim`, `scenario`) never imports `render`, `ui` or `input`.
 
+pub mod app;
 pub mod collision;
 pub mod fem;
 pub mod geometry;

@@ -103,6 +103,16 @@ const DISPLACEMENT_FACTOR: f64 = 1.5;
 
 #[test]
 fn ten_thousand_random_walk_frames_stay_finite_bounded_and_flat_and_return_to_rest() {
+    random_walk(false);
+}
+
+#[test]
+#[ignore = "BUG (FEM/pipeline: spatula contact is bilateral): in this walk a retreating blade face pulls the tissue after it, sum F.N < 0 over its held vertices (first at frame 154: -1.6e-3 N); run alone: --ignored --test-threads=1"]
+fn random_walk_blades_never_pull_the_tissue() {
+    random_walk(true);
+}
+
+fn random_walk(assert_no_adhesion: bool) {
     let dir = tempfile::tempdir().unwrap();
     let mesh = common::block(8, 8, 4, Vec3::new(40.0, 40.0, 20.0), Vec3::new(-20.0, -20.0, 0.0));
     let blade = |name, base: [f64; 3]| Blade { along: 5, across: 3, ..Blade::flat(name, base) };
@@ -125,6 +135,7 @@ fn ten_thousand_random_walk_frames_stay_finite_bounded_and_flat_and_return_to_re
     let (mut frames_in_contact, mut frames_with_skull, mut max_inverted, mut max_cond) = (0u64, 0u64, 0u32, 0.0f64);
     let (mut live_at_1000, mut rss_at_1000, mut allocs_at_1000) = (0u64, 0u64, 0u64);
     let mut step_allocations = 0u64;
+    let (mut adhesive_frames, mut max_face_pull) = (0u64, 0.0f64);
     for frame in 1..=FRAMES {
         for (w, slot) in walkers.iter_mut().zip(input.poses.iter_mut()) {
             w.step(&mut rng);
@@ -137,7 +148,12 @@ fn ten_thousand_random_walk_frames_stay_finite_bounded_and_flat_and_return_to_re
         }
         let report = report.clone();
         let c = check_frame(&p, &state, &report, label);
-        let max_target = p.collision().unwrap().output().targets.iter().map(|t| t.displacement.norm()).fold(0.0, f64::max);
+        if c.max_face_pull_n > 0.0 {
+            assert!(!assert_no_adhesion, "{label}: frame {frame}: a blade face pulls the tissue: {:e} N", c.max_face_pull_n);
+            adhesive_frames += 1;
+            max_face_pull = max_face_pull.max(c.max_face_pull_n);
+        }
+        let max_target = common::scenes::max_enforced_m(&p);
         if max_target > 0.0 {
             frames_in_contact += 1;
             worst_ratio = worst_ratio.max(c.max_displacement_m / max_target);
@@ -166,6 +182,7 @@ fn ten_thousand_random_walk_frames_stay_finite_bounded_and_flat_and_return_to_re
          worst max|u| / max|U_enf| {worst_ratio:.6}; worst vertex pull / push {max_pull_ratio:.3}; max inverted (surface tets) {max_inverted}; max cond(W) {max_cond:.3e}",
         max_u_all * 1e3
     );
+    println!("{label}: {adhesive_frames} frames with a blade face pulling the tissue (bilateral contact), largest pull {max_face_pull:.3e} N");
     println!(
         "{label}: live heap {live_at_1000} B at frame 1000, {live_at_end} B at frame {FRAMES}; RSS {rss_at_1000} B -> {rss_at_end} B; \
          {allocs} allocations in frames 1001..{FRAMES} (test checks included), {step_allocations} inside Pipeline::step ({:.2} a frame)",

@@ -13,7 +13,7 @@ use fissure::fem::{Compliance, ComplianceStorage, FemModel, FemOptions, Material
 use fissure::geometry::Pose;
 use fissure::input::igtl::{IgtlConfig, IgtlServer};
 use fissure::input::igtl_codec::{decode_body, decode_header, encode_transform, HEADER_SIZE};
-use fissure::input::{PoseGuard, PoseSource};
+use fissure::input::PoseGuard;
 use fissure::math::{Matrix3, Quat, Vec3};
 use fissure::scenario::{Scenario, Trajectory, TrajectoryRecorder};
 use fissure::sim::replay::{ReplayOptions, replay};
@@ -34,7 +34,7 @@ fn bad_poses(good: Pose) -> Vec<(&'static str, Pose)> {
     p.position.z = f64::INFINITY;
     v.push(("infinite position", p));
     let mut p = good;
-    p.rotation = Quat::from_quaternion(good.rotation.into_inner() * 1.1);
+    p.rotation = Quat::new_unchecked(good.rotation.into_inner() * 1.1);
     v.push(("quaternion of norm 1.1", p));
     let mut p = good;
     p.rotation = Quat::new_unchecked(nalgebra::Quaternion::new(0.0, 0.0, 0.0, 0.0));
@@ -54,26 +54,37 @@ fn two_blade_block(dir: &Path) -> (Pipeline, fissure::sim::SimState) {
 
 #[test]
 fn pipeline_refuses_every_bad_pose_and_holds_the_last_good_one() {
+    // Two identical pipelines; the twin gets the last good pose wherever the other gets a bad one.
     let dir = tempfile::tempdir().unwrap();
     let (mut p, mut state) = two_blade_block(dir.path());
+    let twin_dir = tempfile::tempdir().unwrap();
+    let (mut twin, mut twin_state) = two_blade_block(twin_dir.path());
     let pressed = |x: f64, y: f64| Pose { position: Vec3::new(x, y, 0.0195), rotation: Quat::identity() };
     let (a, b) = (pressed(-0.018, -0.005), pressed(-0.002, 0.005));
-    p.step(&mut state, &FrameInput { poses: vec![Some(a), Some(b)] }).unwrap();
-    let r = p.step(&mut state, &FrameInput { poses: vec![Some(a), Some(b)] }).unwrap().clone();
-    assert!(r.constrained_vertices > 0);
-    let held = state.surface_displacement.clone();
+    for _ in 0..2 {
+        p.step(&mut state, &FrameInput { poses: vec![Some(a), Some(b)] }).unwrap();
+        twin.step(&mut twin_state, &FrameInput { poses: vec![Some(a), Some(b)] }).unwrap();
+    }
+    assert!(p.last_constraints().len() > 0);
     for (what, bad) in bad_poses(a) {
-        // Spatula a gets the bad pose, b moves on: only a's pose is refused.
-        let b2 = pressed(-0.002, 0.0045);
-        let r = p.step(&mut state, &FrameInput { poses: vec![Some(bad), Some(b2)] }).unwrap_or_else(|e| panic!("{what}: {e}")).clone();
+        // Spatula a gets the bad pose, b holds: the frame must equal the twin's frame with a's last good pose.
+        let r = p.step(&mut state, &FrameInput { poses: vec![Some(bad), Some(b)] }).unwrap_or_else(|e| panic!("{what}: {e}")).clone();
+        twin.step(&mut twin_state, &FrameInput { poses: vec![Some(a), Some(b)] }).unwrap();
         assert_eq!(r.rejected_poses, 1, "{what}: exactly one pose refused");
         assert_eq!(state.poses[0], a, "{what}: the last good pose of spatula a holds");
-        assert_eq!(state.poses[1], b2, "{what}: spatula b's good pose is taken");
+        assert_eq!(state.surface_displacement, twin_state.surface_displacement, "{what}: the bad pose must act as the last good one (bit for bit)");
+        assert_eq!(p.state_hash(&state), twin.state_hash(&twin_state), "{what}: His-flags too");
+        // A bad pose for a, a good new one for b: only a's is refused.
+        let b2 = pressed(-0.002, 0.0045);
+        let r = p.step(&mut state, &FrameInput { poses: vec![Some(bad), Some(b2)] }).unwrap().clone();
+        assert_eq!(r.rejected_poses, 1, "{what}: only a's pose refused");
+        assert_eq!((state.poses[0], state.poses[1]), (a, b2), "{what}: a holds, b moves");
         assert!(state.surface_positions.iter().all(|x| x.iter().all(|c| c.is_finite())), "{what}: the surface stays finite");
-        // Back to the previous good poses: the state is exactly the held one (nothing leaked in).
-        let r = p.step(&mut state, &FrameInput { poses: vec![Some(a), Some(b)] }).unwrap().clone();
-        assert_eq!(r.rejected_poses, 0);
-        assert_eq!(state.surface_displacement, held, "{what}: after the bad frame the state returns bit for bit");
+        twin.step(&mut twin_state, &FrameInput { poses: vec![Some(a), Some(b2)] }).unwrap();
+        assert_eq!(state.surface_displacement, twin_state.surface_displacement, "{what}: and with b moving");
+        // Back to the good poses.
+        p.step(&mut state, &FrameInput { poses: vec![Some(a), Some(b)] }).unwrap();
+        twin.step(&mut twin_state, &FrameInput { poses: vec![Some(a), Some(b)] }).unwrap();
     }
 }
 
@@ -286,7 +297,7 @@ fn corrupt_or_missing_compliance_cache_is_rebuilt_not_trusted() {
 }
 
 #[test]
-fn an_unwritable_cache_folder_does_not_stop_the_simulation() {
+fn an_unwritable_cache_folder_never_gives_a_wrong_compliance() {
     let model = small_model();
     let roi = model.surface().vertices.clone();
     let dir = tempfile::tempdir().unwrap();
@@ -310,13 +321,19 @@ fn an_unwritable_cache_folder_does_not_stop_the_simulation() {
 
 // ---------------------------------------------------------------- full disk
 
-/// The replay scene of `replay_determinism.rs`: a blade presses, slides and leaves (30 frames).
-fn replay_scene(dir: &Path) -> Scenario {
+/// Writes the inputs of [`replay_scene`] into `dir` (mesh and trajectory).
+fn write_replay_inputs(dir: &Path) {
     let mesh = common::block(6, 6, 3, Vec3::new(40.0, 40.0, 20.0), Vec3::new(-20.0, -20.0, 0.0));
-    let mesh_path = common::write_mesh(dir, "block.msh", &mesh);
+    common::write_mesh(dir, "block.msh", &mesh);
     let traj = "time_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0.0,0,-10.0,0.0,21.0,1.0,0.0,0.0,0.0\n\
         0.1,0,-10.0,0.0,18.0,1.0,0.0,0.0,0.0\n0.2,0,-6.0,2.0,18.0,1.0,0.0,0.0,0.0\n0.3,0,-6.0,2.0,25.0,1.0,0.0,0.0,0.0\n";
     std::fs::write(dir.join("press.csv"), traj).unwrap();
+}
+
+/// The replay scene of `replay_determinism.rs` (inputs from [`write_replay_inputs`]):
+/// a blade presses, slides and leaves (30 frames).
+fn replay_scene(dir: &Path) -> Scenario {
+    let mesh_path = dir.join("block.msh");
     let text = format!(
         r#"(
     name: "full disk",
@@ -343,6 +360,7 @@ fn metrics_on_a_full_disk_end_with_a_clear_error() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
+    write_replay_inputs(dir.path());
     let s = replay_scene(dir.path());
     let out = dir.path().join("out");
     std::fs::create_dir_all(&out).unwrap();
@@ -373,6 +391,7 @@ fn replay_cut_by_a_file_size_limit_keeps_every_row_written_so_far() {
     // The writes fail part way (EFBIG once metrics.csv reaches 4 KiB): the same path as a disk
     // filling up mid-run. The child ignores SIGXFSZ so the write returns an error instead.
     let dir = tempfile::tempdir().unwrap();
+    write_replay_inputs(dir.path());
     let exe = std::env::current_exe().unwrap();
     let out = std::process::Command::new("bash")
         .arg("-c")
@@ -386,7 +405,7 @@ fn replay_cut_by_a_file_size_limit_keeps_every_row_written_so_far() {
     };
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "child failed: {:?}\n{stdout}\n{}", out.status, String::from_utf8_lossy(&out.stderr));
-    let line = stdout.lines().find(|l| l.starts_with("REPLAY_")).unwrap_or_else(|| panic!("no REPLAY_ line in {stdout}"));
+    let line = stdout.lines().find_map(|l| l.find("REPLAY_").map(|k| &l[k..])).unwrap_or_else(|| panic!("no REPLAY_ line in {stdout}"));
     println!("child: {line}");
     assert!(line.starts_with("REPLAY_ERROR"), "the replay must fail when the file cannot grow: {line}");
     assert!(line.contains("metrics.csv") && line.contains("too large"), "the error must name the file and the cause: {line}");

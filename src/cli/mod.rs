@@ -9,6 +9,8 @@ mod frames;
 mod mesh;
 mod replay;
 mod run;
+mod study;
+mod screenshot;
 mod units;
 
 use std::path::PathBuf;
@@ -40,7 +42,11 @@ pub enum Command {
         /// Run without a window: play the scenario's trajectory and print the timings.
         #[arg(long)]
         headless: bool,
+        #[command(flatten)]
+        window: run::WindowArgs,
     },
+    /// Render one frame of a scenario to a PNG, offscreen (no display needed).
+    Screenshot(screenshot::ScreenshotArgs),
     /// Play a scenario headless from a trajectory: metrics.csv, summary.json, optional VTK / PNG frames.
     Replay {
         /// The scenario (.ron).
@@ -60,6 +66,18 @@ pub enum Command {
         /// Also write a PNG a frame (DIR/frames/), rendered offscreen.
         #[arg(long)]
         frames: bool,
+    },
+    /// Measure what accuracy costs in time: sweeps, results.csv, report.md and plots.
+    Study {
+        /// quick (minutes, paper-9k) or full (the README's numbers).
+        #[arg(long, value_enum, default_value = "quick")]
+        preset: StudyPresetArg,
+        /// The study scene (default: config/study_fissure.ron).
+        #[arg(long)]
+        scene: Option<PathBuf>,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
     },
     /// Validate a scenario file and print a summary (exit 0 when valid).
     Check {
@@ -119,6 +137,13 @@ pub enum MeshCommand {
     },
 }
 
+/// Study presets.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum StudyPresetArg {
+    Quick,
+    Full,
+}
+
 /// Length unit of a surface file.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 pub enum SurfaceUnits {
@@ -131,10 +156,18 @@ pub enum SurfaceUnits {
 /// Runs one parsed command line.
 pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        None => run::run(None, &[], false),
-        Some(Command::Run { scenario, set, headless }) => run::run(scenario.as_deref(), &set, headless),
+        None => run::run(None, &[], false, &run::WindowArgs::default()),
+        Some(Command::Run { scenario, set, headless, window }) => run::run(scenario.as_deref(), &set, headless, &window),
+        Some(Command::Screenshot(args)) => screenshot::run(&args),
         Some(Command::Replay { scenario, set, trajectory, out, vtk, frames }) => {
             replay::run(replay::ReplayArgs { scenario: &scenario, set: &set, trajectory, out, vtk, frames }).map(|_| ())
+        }
+        Some(Command::Study { preset, scene, out }) => {
+            let preset = match preset {
+                StudyPresetArg::Quick => fissure::study::StudyPreset::Quick,
+                StudyPresetArg::Full => fissure::study::StudyPreset::Full,
+            };
+            study::run(preset, scene, out)
         }
         Some(Command::Check { scenario, set }) => check::run(&scenario, &set),
         Some(Command::Mesh(MeshCommand::Info { path, json })) => mesh::info(&path, json),

@@ -1,12 +1,58 @@
-//! `fissure run [SCENARIO]` (and a bare `fissure`): the simulator on a scenario.
+//! `fissure run [SCENARIO]` (and a bare `fissure`): the simulator window on a
+//! scenario; `--headless` (or no display / no GPU adapter) plays the
+//! scenario's trajectory without a window through the same pipeline and prints
+//! the timings.
 //!
-//! `--headless` plays the scenario's trajectory (or holds the initial poses)
-//! without a window through the same pipeline as the window, and prints the
-//! timings.
+//! For tests and demos: `--script FILE` injects timed key presses and actions
+//! (see `fissure::app::script`), `--frames N` stops after N simulation frames,
+//! `--exit-after SECONDS` closes the window after that wall time; the run then
+//! prints a summary (frames, frame rate, force-loop rate, final poses, peak
+//! forces, final state hash) and exits 0.
 
 use std::path::{Path, PathBuf};
 
+use anyhow::Context;
+use fissure::app::script::Script;
+use fissure::app::window::{WindowError, WindowOptions, run_window};
+use fissure::scenario::Scenario;
+
 use super::DEFAULT_SCENARIO;
+
+/// Present mode of the window.
+#[derive(Debug, Clone, Copy, Default, clap::ValueEnum)]
+pub enum PresentArg {
+    /// Vsync (always supported; the default).
+    #[default]
+    Fifo,
+    /// Low-latency vsync where supported (falls back to Fifo).
+    Mailbox,
+}
+
+/// Window options of `run`.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct WindowArgs {
+    /// Timed input script (lines `TIME_S press E`, `TIME_S record out.csv`, `TIME_S quit`, ...).
+    #[arg(long, value_name = "FILE")]
+    pub script: Option<PathBuf>,
+    /// Stop after this many simulation frames.
+    #[arg(long, value_name = "N")]
+    pub frames: Option<u64>,
+    /// Close the window after this many seconds of wall time.
+    #[arg(long, value_name = "SECONDS")]
+    pub exit_after: Option<f64>,
+    /// Present mode (set explicitly: Xvfb's default, Immediate, misbehaves).
+    #[arg(long, value_enum, default_value = "fifo")]
+    pub present_mode: PresentArg,
+    /// Window size, WIDTHxHEIGHT pixels.
+    #[arg(long, value_parser = super::screenshot::parse_size)]
+    pub size: Option<(u32, u32)>,
+    /// Folder for recordings started from the panel (default: recordings).
+    #[arg(long, value_name = "DIR")]
+    pub record_dir: Option<PathBuf>,
+    /// Do not start the 1 kHz force output.
+    #[arg(long)]
+    pub no_haptics: bool,
+}
 
 /// The default scene's path: `config/sylvian.ron` under the working directory,
 /// else beside the crate (so `cargo run` works from anywhere in the checkout).
@@ -15,11 +61,76 @@ pub fn default_scenario() -> PathBuf {
     if here.exists() { here } else { Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_SCENARIO) }
 }
 
-pub fn run(scenario: Option<&Path>, set: &[String], headless: bool) -> anyhow::Result<()> {
-    let path = scenario.map(Path::to_path_buf).unwrap_or_else(default_scenario);
-    if !headless {
-        eprintln!("fissure: the window is not built yet; running {} headless", path.display());
-    }
-    super::replay::run(super::replay::ReplayArgs { scenario: &path, set, trajectory: None, out: None, vtk: false, frames: false })?;
+fn headless(path: &Path, set: &[String]) -> anyhow::Result<()> {
+    super::replay::run(super::replay::ReplayArgs { scenario: path, set, trajectory: None, out: None, vtk: false, frames: false })?;
     Ok(())
+}
+
+pub fn run(scenario: Option<&Path>, set: &[String], headless_only: bool, args: &WindowArgs) -> anyhow::Result<()> {
+    let path = scenario.map(Path::to_path_buf).unwrap_or_else(default_scenario);
+    if headless_only {
+        return headless(&path, set);
+    }
+    if let Some(t) = args.exit_after {
+        anyhow::ensure!(t.is_finite() && t > 0.0, "--exit-after must be a positive number of seconds, got {t}");
+    }
+    let loaded = Scenario::load(&path, set).with_context(|| format!("loading {}", path.display()))?;
+    let script = match &args.script {
+        Some(p) => Script::load(p).with_context(|| format!("reading the script {}", p.display()))?.actions,
+        None => Vec::new(),
+    };
+    let mut options = WindowOptions {
+        present_mode: match args.present_mode {
+            PresentArg::Fifo => wgpu::PresentMode::Fifo,
+            PresentArg::Mailbox => wgpu::PresentMode::Mailbox,
+        },
+        max_frames: args.frames,
+        exit_after_s: args.exit_after,
+        script,
+        haptics: !args.no_haptics,
+        ..WindowOptions::default()
+    };
+    if let Some(size) = args.size {
+        options.size = size;
+    }
+    if let Some(dir) = &args.record_dir {
+        options.record_dir = dir.clone();
+    }
+    let names: Vec<String> = loaded.spatulas.iter().map(|s| s.name.clone()).collect();
+    let dt = loaded.time_step;
+    match run_window(loaded, options) {
+        Ok(summary) => {
+            let sim = &summary.sim;
+            let mut steps = sim.step_ms.clone();
+            steps.sort_by(f64::total_cmp);
+            let pct = |q: f64| if steps.is_empty() { 0.0 } else { steps[((steps.len() - 1) as f64 * q).round() as usize] };
+            println!("window: {} frames presented in {:.2} s ({:.1} fps) on {}", summary.presented, summary.wall_s, summary.fps(), summary.adapter);
+            println!(
+                "simulation: {} frames ({:.3} s simulated, step {dt} s), step p50 {:.3} ms, p95 {:.3} ms, {} failed",
+                sim.frames,
+                sim.time_s,
+                pct(0.5),
+                pct(0.95),
+                sim.failed_frames
+            );
+            if summary.haptic_s > 0.0 {
+                println!("force output: {} ticks in {:.2} s ({:.0} Hz)", summary.haptic_ticks, summary.haptic_s, summary.haptic_ticks as f64 / summary.haptic_s);
+            }
+            for (k, name) in names.iter().enumerate() {
+                let p = sim.final_poses.get(k).map(|p| p.position * 1e3).unwrap_or_default();
+                let peak = sim.peak_force_n.get(k).copied().unwrap_or(0.0);
+                println!("  {name}: final position_mm ({:?}, {:?}, {:?}), peak force {peak:.6} N", p.x, p.y, p.z);
+            }
+            if let Some(r) = &sim.recording {
+                println!("  recorded {}", r.display());
+            }
+            println!("  final state {}", sim.state_hash);
+            Ok(())
+        }
+        Err(e @ (WindowError::NoDisplay(_) | WindowError::NoAdapter(_))) => {
+            eprintln!("fissure: {e}; running {} headless instead", path.display());
+            headless(&path, set)
+        }
+        Err(e) => Err(e).context("running the window"),
+    }
 }

@@ -32,7 +32,7 @@
 
 use super::FemError;
 use super::compliance::Compliance;
-use super::dense::{self, DenseWorkspace};
+use super::wfactor::ContactFactor;
 use super::model::FemModel;
 use crate::math::{Matrix3, Vec3, is_finite3};
 
@@ -92,6 +92,19 @@ pub struct FrameSolution {
     pub lazy_solves: usize,
 }
 
+/// Seconds spent in the phases of the last [`ConstrainedSolver::step`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PhaseTimings {
+    /// Gathering W from the compliance (all active-set iterations).
+    pub gather: f64,
+    /// Dense factorization of W (full or incremental) and the two triangular solves.
+    pub factor: f64,
+    /// Evaluating skull candidates (active-set bookkeeping).
+    pub candidates: f64,
+    /// The surface product `u = u0 + K^-1 C^T lambda` over every surface row.
+    pub surface: f64,
+}
+
 /// One row of C: `dir . u[node] = target`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ConstraintRow {
@@ -145,17 +158,29 @@ pub struct ConstrainedSolver {
     rows: Vec<ConstraintRow>,
     /// Candidate index of each sphere row (row - enforced rows).
     row_candidate: Vec<usize>,
-    w: Vec<f64>,
-    w_factor: Vec<f64>,
+    /// Persistent factor of W (see [`super::wfactor`] for the order rule).
+    factor: ContactFactor,
+    /// Enforced nodes of the frame, ascending (for membership tests).
+    enforced_sorted: Vec<u32>,
+    perm_nodes: Vec<u32>,
+    perm_claims: Vec<usize>,
+    perm_owner: Vec<u16>,
+    perm_ptr: Vec<usize>,
+    perm_targets: Vec<Vec3>,
+    /// Sphere rows of W: against the enforced rows (column per sphere row) and among themselves.
+    w_es: Vec<f64>,
+    w_ss: Vec<f64>,
     lambda: Vec<f64>,
     node_force: Vec<Vec3>,
     col_forces: Vec<(usize, Vec3)>,
     u_rows: Vec<Vec3>,
     prev_u_rows: Vec<Vec3>,
-    dense: DenseWorkspace,
     solve_scratch: Option<faer::dyn_stack::MemBuffer>,
     /// Nodal forces of the last frame (node, force) for interior displacements.
     last_forces: Vec<(u32, Vec3)>,
+    timings: PhaseTimings,
+    /// Scratch of the surface product (9 partial products a row).
+    product_scratch: Vec<f64>,
 }
 
 impl ConstrainedSolver {
@@ -182,22 +207,41 @@ impl ConstrainedSolver {
             prev_active: Vec::new(),
             rows: Vec::new(),
             row_candidate: Vec::new(),
-            w: Vec::new(),
-            w_factor: Vec::new(),
+            factor: ContactFactor::default(),
+            enforced_sorted: Vec::new(),
+            perm_nodes: Vec::new(),
+            perm_claims: Vec::new(),
+            perm_owner: Vec::new(),
+            perm_ptr: Vec::new(),
+            perm_targets: Vec::new(),
+            w_es: Vec::new(),
+            w_ss: Vec::new(),
             lambda: Vec::new(),
             node_force: Vec::new(),
             col_forces: Vec::new(),
             u_rows: vec![Vec3::zeros(); rows],
             prev_u_rows: vec![Vec3::zeros(); rows],
-            dense: DenseWorkspace::default(),
             solve_scratch: None,
             last_forces: Vec::new(),
+            timings: PhaseTimings::default(),
+            product_scratch: Vec::new(),
         })
     }
 
     /// The model.
     pub fn model(&self) -> &FemModel {
         &self.model
+    }
+
+    /// How the enforced block of W's factor was updated in the last frame
+    /// (see [`super::wfactor`] for the order rule).
+    pub fn factor_update(&self) -> super::wfactor::FactorUpdate {
+        self.factor.last_update()
+    }
+
+    /// Phase timings of the last frame (s).
+    pub fn timings(&self) -> PhaseTimings {
+        self.timings
     }
 
     /// The compliance.
@@ -215,12 +259,25 @@ impl ConstrainedSolver {
         &self.nodes
     }
 
-    /// `W = C K^-1 C^T` of the last frame (n x n column major, lower triangle
-    /// and diagonal valid), n = `constraint_rows().len()`. For a haptic thread
-    /// that wants its own copy.
-    pub fn contact_compliance(&self) -> &[f64] {
+    /// Copies `W = C K^-1 C^T` of the last frame into `out` (n x n column
+    /// major, full symmetric), n = `constraint_rows().len()`. For a haptic
+    /// thread that wants its own copy.
+    pub fn contact_compliance(&self, out: &mut Vec<f64>) {
         let n = self.rows.len();
-        &self.w[..n * n]
+        let e = 3 * self.enforced_nodes;
+        let s = n - e;
+        out.clear();
+        out.resize(n * n, 0.0);
+        self.factor.copy_enforced_w(out, n);
+        for t in 0..s {
+            for i in 0..e {
+                out[(e + t) * n + i] = self.w_es[t * e + i];
+                out[i * n + e + t] = self.w_es[t * e + i];
+            }
+            for u in 0..s {
+                out[(e + u) * n + e + t] = self.w_ss[u * s + t];
+            }
+        }
     }
 
     /// Change of the force ON the tissue from spatula `owner` when all of its
@@ -245,7 +302,7 @@ impl ConstrainedSolver {
         if !any {
             return Vec3::zeros();
         }
-        dense::solve_in_place(&self.w_factor[..n * n], n, &self.dense.dropped, scratch);
+        self.factor.solve_in_place(scratch);
         let mut f = Vec3::zeros();
         for k in 0..self.enforced_nodes {
             let share = self.owner_share(k, owner);
@@ -266,6 +323,7 @@ impl ConstrainedSolver {
     /// Solves one frame. `out` is overwritten (its buffers are reused).
     pub fn step(&mut self, constraints: &[Constraint], out: &mut FrameSolution) -> Result<(), FemError> {
         self.frame += 1;
+        self.timings = PhaseTimings::default();
         self.validate(constraints)?;
         self.group_enforced(constraints);
         self.collect_candidates(constraints);
@@ -278,6 +336,15 @@ impl ConstrainedSolver {
             }
         }
         self.ensure_lazy(&extra)?;
+        let enforced = std::mem::take(&mut self.perm_nodes);
+        let ensured = self.ensure_lazy(&enforced);
+        let t = std::time::Instant::now();
+        let mut factor = std::mem::take(&mut self.factor);
+        factor.update_enforced(&enforced, &|p, q| self.kinv(p, q));
+        self.factor = factor;
+        self.perm_nodes = enforced;
+        self.timings.factor += t.elapsed().as_secs_f64();
+        ensured?;
         let max_iterations = 100 + 2 * self.candidates.len();
         let mut iterations = 0;
         loop {
@@ -350,7 +417,9 @@ impl ConstrainedSolver {
             }
             break;
         }
+        let t = std::time::Instant::now();
         self.update_surface();
+        self.timings.surface += t.elapsed().as_secs_f64();
         self.write_solution(constraints, out, iterations, self.lazy_computed - lazy_before);
         Ok(())
     }
@@ -418,6 +487,29 @@ impl ConstrainedSolver {
             self.enforced_targets.push(sum / (k - start) as f64);
         }
         self.enforced_nodes = self.nodes.len();
+        // Persistent order (see `wfactor`): permute the grouping into it.
+        self.enforced_sorted.clear();
+        self.enforced_sorted.extend_from_slice(&self.nodes);
+        self.factor.order_for(&self.enforced_sorted, &mut self.perm_nodes);
+        self.perm_claims.clear();
+        self.perm_owner.clear();
+        self.perm_ptr.clear();
+        self.perm_ptr.push(0);
+        self.perm_targets.clear();
+        for &node in &self.perm_nodes {
+            let Ok(k) = self.enforced_sorted.binary_search(&node) else { continue };
+            let (a, b) = (self.claim_ptr[k], self.claim_ptr[k + 1]);
+            self.perm_claims.extend_from_slice(&self.claims[a..b]);
+            self.perm_owner.extend_from_slice(&self.claim_owner[a..b]);
+            self.perm_ptr.push(self.perm_claims.len());
+            self.perm_targets.push(self.enforced_targets[k]);
+        }
+        self.nodes.clear();
+        self.nodes.extend_from_slice(&self.perm_nodes);
+        std::mem::swap(&mut self.claims, &mut self.perm_claims);
+        std::mem::swap(&mut self.claim_owner, &mut self.perm_owner);
+        std::mem::swap(&mut self.claim_ptr, &mut self.perm_ptr);
+        std::mem::swap(&mut self.enforced_targets, &mut self.perm_targets);
     }
 
     fn collect_candidates(&mut self, constraints: &[Constraint]) {
@@ -428,7 +520,7 @@ impl ConstrainedSolver {
                 ConstraintKind::SphereInside { center, radius } => (center, radius, true),
                 ConstraintKind::SphereOutside { center, radius } => (center, radius, false),
             };
-            if self.model.is_fixed(c.node) || self.nodes[..self.enforced_nodes].binary_search(&c.node).is_ok() {
+            if self.model.is_fixed(c.node) || self.enforced_sorted.binary_search(&c.node).is_ok() {
                 continue;
             }
             let rest = self.model.mesh.positions[c.node as usize];
@@ -562,52 +654,43 @@ impl ConstrainedSolver {
         Ok(())
     }
 
-    /// Gathers W, factors it, solves for lambda and the nodal forces.
+    /// Gathers the sphere rows of W, extends the enforced factor with them,
+    /// solves for lambda and the nodal forces.
     fn solve_rows(&mut self) {
+        let t = std::time::Instant::now();
         let n = self.rows.len();
-        let enforced_rows = 3 * self.enforced_nodes;
-        self.w.clear();
-        self.w.resize(n * n, 0.0);
-        // enforced x enforced: one block per node pair
-        for l in 0..self.enforced_nodes {
-            for k in l..self.enforced_nodes {
-                let b = self.kinv(self.nodes[k], self.nodes[l]);
-                for c in 0..3 {
-                    for r in 0..3 {
-                        let (i, j) = (3 * k + r, 3 * l + c);
-                        self.w[j * n + i] = b[(r, c)];
-                        self.w[i * n + j] = b[(r, c)];
-                    }
-                }
-            }
-        }
-        // sphere rows against every earlier row
-        for i in enforced_rows..n {
-            let ri = self.rows[i];
+        let e = 3 * self.enforced_nodes;
+        let s = n - e;
+        self.w_es.clear();
+        self.w_es.resize(e * s, 0.0);
+        self.w_ss.clear();
+        self.w_ss.resize(s * s, 0.0);
+        for t in 0..s {
+            let ri = self.rows[e + t];
             let pi = self.nodes[ri.slot];
             for l in 0..self.enforced_nodes {
-                let b = self.kinv(pi, self.nodes[l]);
-                let v = b.transpose() * ri.dir;
+                let v = self.kinv(self.nodes[l], pi) * ri.dir;
                 for c in 0..3 {
-                    let j = 3 * l + c;
-                    self.w[j * n + i] = v[c];
-                    self.w[i * n + j] = v[c];
+                    self.w_es[t * e + 3 * l + c] = v[c];
                 }
             }
-            for j in enforced_rows..=i {
-                let rj = self.rows[j];
+            for u in 0..=t {
+                let rj = self.rows[e + u];
                 let value = ri.dir.dot(&(self.kinv(pi, self.nodes[rj.slot]) * rj.dir));
-                self.w[j * n + i] = value;
-                self.w[i * n + j] = value;
+                self.w_ss[u * s + t] = value;
+                self.w_ss[t * s + u] = value;
             }
         }
-        dense::factor(&self.w, &mut self.w_factor, n, &mut self.dense);
+        self.timings.gather += t.elapsed().as_secs_f64();
+        let t = std::time::Instant::now();
+        self.factor.set_sphere_rows(s, &self.w_es, &self.w_ss);
         self.lambda.clear();
         for row in &self.rows {
             let u0 = self.model.gravity_displacement(self.nodes[row.slot]);
             self.lambda.push(row.target - row.dir.dot(&u0));
         }
-        dense::solve_in_place(&self.w_factor, n, &self.dense.dropped, &mut self.lambda);
+        self.factor.solve_in_place(&mut self.lambda);
+        self.timings.factor += t.elapsed().as_secs_f64();
         self.node_force.clear();
         self.node_force.resize(self.nodes.len(), Vec3::zeros());
         for (row, l) in self.rows.iter().zip(&self.lambda) {
@@ -639,7 +722,7 @@ impl ConstrainedSolver {
             }
         }
         self.col_forces.sort_unstable_by_key(|x| x.0);
-        self.compliance.accumulate(&self.col_forces, &mut self.u_rows);
+        self.compliance.accumulate(&self.col_forces, &mut self.u_rows, &mut self.product_scratch);
         let n_free = self.model.dofs.dof_count();
         for (slot, f) in self.node_force.iter().enumerate() {
             let node = self.nodes[slot];
@@ -701,8 +784,8 @@ impl ConstrainedSolver {
         out.active_sphere_contacts = self.row_candidate.len();
         let n = self.rows.len();
         out.rows = n;
-        out.dropped_rows = self.dense.dropped.iter().filter(|d| **d).count();
-        out.conditioning = dense::conditioning_estimate(&self.w_factor, n, &self.dense.dropped);
+        out.dropped_rows = self.factor.dropped().filter(|d| *d).count();
+        out.conditioning = self.factor.conditioning_estimate();
         out.iterations = iterations;
         out.lazy_solves = lazy_solves;
         self.last_forces.clear();

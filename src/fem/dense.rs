@@ -41,14 +41,27 @@ impl DenseWorkspace {
 /// L in the lower triangle of `l` (resized to n x n). Marks dependent rows in
 /// `ws.dropped`; returns how many were dropped.
 pub fn factor(w: &[f64], l: &mut Vec<f64>, n: usize, ws: &mut DenseWorkspace) -> usize {
+    ws.diag.clear();
+    ws.diag.extend((0..n).map(|i| w[i * n + i]));
+    factor_impl(w, l, n, ws)
+}
+
+/// As [`factor`], with the dependent-row test relative to `reference_diag`
+/// instead of W's own diagonal (used when W is a Schur complement: the
+/// reference is the diagonal of the original rows).
+pub fn factor_with_reference(w: &[f64], l: &mut Vec<f64>, n: usize, reference_diag: &[f64], ws: &mut DenseWorkspace) -> usize {
+    ws.diag.clear();
+    ws.diag.extend_from_slice(&reference_diag[..n]);
+    factor_impl(w, l, n, ws)
+}
+
+fn factor_impl(w: &[f64], l: &mut Vec<f64>, n: usize, ws: &mut DenseWorkspace) -> usize {
     l.clear();
     l.extend_from_slice(&w[..n * n]);
     let w_orig = w;
     let w = &mut l[..];
     ws.dropped.clear();
     ws.dropped.resize(n, false);
-    ws.diag.clear();
-    ws.diag.extend((0..n).map(|i| w[i * n + i]));
     if n == 0 {
         return 0;
     }

@@ -24,6 +24,7 @@ pub mod model;
 pub mod reference;
 pub mod fixtures;
 pub mod stress;
+pub mod wfactor;
 
 pub use compliance::{Compliance, ComplianceStats, ComplianceStorage};
 pub use constrained::{ConstrainedSolver, Constraint, ConstraintKind, ConstraintRow, FrameSolution};

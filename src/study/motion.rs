@@ -133,7 +133,7 @@ mod tests {
         let frames = m.frames(&[p0], 0.001, 1.0);
         let last = frames.last().expect("frames");
         assert!((last.poses[0].position - p0.position).norm() < 1e-12, "withdrawn to the start");
-        let widest = frames.iter().map(|f| (f.poses[0].position - p0.position)).fold(0.0_f64, |a, d| a.max((r.inverse() * d).z));
+        let widest = frames.iter().map(|f| f.poses[0].position - p0.position).fold(0.0_f64, |a, d| a.max((r.inverse() * d).z));
         assert!((widest - 0.010).abs() < 1e-12, "opens by open_m along the blade's z: {widest}");
     }
 }

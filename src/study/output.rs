@@ -285,8 +285,10 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         "| collision, 500 nodes a face, {PAPER_TRIANGLES} triangles, GPU (Fig. 13) | {PAPER_COLLISION_GPU_MS:.0} ms (GPU) | {} |",
         ours_for(&[B::Gpu])
     );
-    if let Some(base) = results.rows.iter().find(|r| r.knob == Knob::Storage && r.is_reference).or_else(|| results.rows.first()) {
-        if let Some(m) = measure_of(base) {
+    if let Some(base) = results.rows.iter().find(|r| r.knob == Knob::Storage && r.is_reference).or_else(|| results.rows.first())
+        && let Some(m) = measure_of(base)
+    {
+        {
             let _ = writeln!(
                 t,
                 "| one simulation loop | about {PAPER_LOOP_MS:.0} ms | {} ms p50, {} ms p95 ({}; {} nodes, {} triangles) |",

@@ -54,7 +54,7 @@ type Res = Result<(), String>;
 
 /// Tick text on a log axis: only mantissas 1, 2 and 5 are labelled, compactly.
 fn log_tick(v: &f64) -> String {
-    if !(*v > 0.0) {
+    if v.is_nan() || *v <= 0.0 {
         return String::new();
     }
     let e = v.log10().floor();

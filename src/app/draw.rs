@@ -1,0 +1,321 @@
+//! The drawing shared by the window, `fissure screenshot` and `replay --frames`:
+//! a [`Snapshot`] of one simulation frame (owned plain data) and the
+//! [`SceneBuffers`] that turn it into a [`SceneView`].
+//!
+//! In: the pipeline and its state after a step (the snapshot copies what it
+//! needs), drawing switches ([`DrawOptions`]) and a camera. Out: a
+//! `SceneView` borrowing the snapshot and the buffers. Stays true: the three
+//! consumers draw through [`SceneBuffers::view`] only, so a screenshot looks
+//! like the window; capturing a snapshot reuses its vectors (no allocation once
+//! sized); nothing here touches the GPU.
+
+use crate::geometry::Pose;
+use crate::math::Vec3;
+use crate::render::{
+    FieldKind, OrbitCamera, Overlays, PairSegment, ScalarField, SceneView, SkullSphere, SpatulaView,
+};
+use crate::sim::{FrameReport, Pipeline, SimState};
+use crate::fem::ConstraintKind;
+use crate::mesh::surface::NOT_ON_SURFACE;
+
+/// Pascals in one mmHg.
+pub const PASCALS_PER_MMHG: f64 = 133.322_387_415;
+
+/// Which quantity colours the brain surface.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SurfaceField {
+    /// The plain brain colour.
+    #[default]
+    None,
+    /// Displacement magnitude from rest, mm (0..[`DISPLACEMENT_FULL_SCALE_MM`]).
+    Displacement,
+    /// Contact pressure at each constrained vertex, mmHg (0..2x the 20 mmHg line).
+    Pressure,
+}
+
+/// Displacement mapped to the top of the colour map, mm.
+pub const DISPLACEMENT_FULL_SCALE_MM: f64 = 10.0;
+/// Pressure mapped to the top of the colour map, mmHg (twice the 20 mmHg line).
+pub const PRESSURE_FULL_SCALE_MMHG: f64 = 40.0;
+
+/// Switches that change what is drawn (not what is simulated).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DrawOptions {
+    pub field: SurfaceField,
+    pub source_nodes: bool,
+    pub pairs: bool,
+    pub skull: bool,
+}
+
+impl Default for DrawOptions {
+    fn default() -> Self {
+        Self { field: SurfaceField::None, source_nodes: false, pairs: false, skull: true }
+    }
+}
+
+/// One simulation frame as plain owned data (what the window and the
+/// screenshot draw; what the simulation thread publishes).
+#[derive(Debug, Clone, Default)]
+pub struct Snapshot {
+    /// Frame index (frames done).
+    pub frame: u64,
+    /// Simulated time, s.
+    pub time_s: f64,
+    /// Deformed surface-vertex positions, m.
+    pub surface_positions: Vec<Vec3>,
+    /// |displacement| per surface vertex, mm.
+    pub displacement_mm: Vec<f64>,
+    /// Contact pressure per surface vertex, mmHg (0 where not in contact).
+    pub pressure_mmhg: Vec<f64>,
+    /// Spatula poses the frame used.
+    pub poses: Vec<Pose>,
+    /// The frame's report (timings, pairs, forces, pressures).
+    pub report: FrameReport,
+    /// Source nodes, m (empty without collision).
+    pub source_nodes: Vec<Vec3>,
+    /// Feasible and culled pairs as segments.
+    pub pairs: Vec<PairSegment>,
+}
+
+/// Per-surface-vertex areas (a third of each adjacent rest triangle), m^2, for
+/// turning reaction forces into pressures.
+pub fn vertex_areas(rest: &[Vec3], triangles: &[[u32; 3]]) -> Vec<f64> {
+    let mut areas = vec![0.0; rest.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| rest.get(i as usize).copied().unwrap_or_else(Vec3::zeros));
+        let third = (b - a).cross(&(c - a)).norm() / 6.0;
+        for &i in t {
+            if let Some(slot) = areas.get_mut(i as usize) {
+                *slot += third;
+            }
+        }
+    }
+    areas
+}
+
+impl Snapshot {
+    /// Copies the frame just stepped (`report` is what `step` returned;
+    /// `areas` from [`vertex_areas`]).
+    pub fn capture(&mut self, pipeline: &Pipeline, state: &SimState, report: &FrameReport, areas: &[f64]) {
+        self.frame = state.frame;
+        self.time_s = state.time_s;
+        self.surface_positions.clear();
+        self.surface_positions.extend_from_slice(&state.surface_positions);
+        self.displacement_mm.clear();
+        self.displacement_mm.extend(state.surface_displacement.iter().map(|u| u.norm() * 1e3));
+        self.poses.clear();
+        self.poses.extend_from_slice(&state.poses);
+        self.report.clone_from(report);
+        // Pressure: |reaction| / vertex area at each enforced vertex.
+        self.pressure_mmhg.clear();
+        self.pressure_mmhg.resize(state.surface_positions.len(), 0.0);
+        let surface = pipeline.surface();
+        let reactions = &pipeline.last_solution().reactions;
+        for (c, f) in pipeline.last_constraints().iter().zip(reactions) {
+            if !matches!(c.kind, ConstraintKind::Enforced { .. }) {
+                continue;
+            }
+            let v = surface.node_to_vertex.get(c.node as usize).copied().unwrap_or(NOT_ON_SURFACE);
+            if v == NOT_ON_SURFACE {
+                continue;
+            }
+            let area = areas.get(v as usize).copied().unwrap_or(0.0);
+            if area > 0.0 {
+                if let Some(p) = self.pressure_mmhg.get_mut(v as usize) {
+                    *p += f.norm() / area / PASCALS_PER_MMHG;
+                }
+            }
+        }
+        self.source_nodes.clear();
+        self.pairs.clear();
+        if let Some(collision) = pipeline.collision() {
+            let out = collision.output();
+            self.source_nodes.extend(out.source_nodes.iter().map(|n| n.position));
+            let segment = |spatula: u8, face: u8, node: u32, t: f64, feasible: bool| {
+                out.source_nodes
+                    .iter()
+                    .find(|n| n.spatula == spatula && n.face == face && n.node == node)
+                    .map(|n| PairSegment { from: n.position, to: n.position + n.normal * t, feasible })
+            };
+            for p in &out.feasible_pairs {
+                self.pairs.extend(segment(p.spatula, p.face, p.node, p.t, true));
+            }
+            for (p, _) in &out.culled_pairs {
+                self.pairs.extend(segment(p.spatula, p.face, p.node, p.t, false));
+            }
+        }
+    }
+}
+
+/// The camera presets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ViewPreset {
+    /// The whole brain from the front-left, above.
+    #[default]
+    Overview,
+    /// The surgeon's microscope: down the spatulas' insertion direction at the tips.
+    Microscope,
+}
+
+/// A camera for `preset` on the pipeline's mesh and the given spatula poses.
+pub fn camera_for(preset: ViewPreset, pipeline: &Pipeline, poses: &[Pose]) -> OrbitCamera {
+    camera_from_parts(preset, pipeline.mesh().bounding_box(), pipeline.spatula_shapes(), poses)
+}
+
+/// [`camera_for`] from the mesh box (m) and the blades (what the window keeps).
+pub fn camera_from_parts(
+    preset: ViewPreset,
+    (lo, hi): (Vec3, Vec3),
+    shapes: &[crate::geometry::SpatulaShape],
+    poses: &[Pose],
+) -> OrbitCamera {
+    let n = poses.len().min(shapes.len());
+    if n == 0 {
+        return OrbitCamera::framing(lo, hi);
+    }
+    let mut tip_sum = Vec3::zeros();
+    let mut blade = Vec3::zeros();
+    let mut normal = Vec3::zeros();
+    let (mut box_lo, mut box_hi) = (lo, hi);
+    for (pose, shape) in poses.iter().zip(shapes) {
+        let along = pose.rotation * Vec3::x();
+        tip_sum += pose.position + along * shape.length * 0.85;
+        blade += along;
+        normal += pose.rotation * Vec3::z();
+        for end in [pose.position, pose.position + along * shape.length] {
+            box_lo = box_lo.inf(&end);
+            box_hi = box_hi.sup(&end);
+        }
+    }
+    let blade = if blade.norm() > 1e-9 { blade.normalize() } else { Vec3::x() };
+    let up = if normal.norm() > 1e-9 { normal.normalize() } else { Vec3::z() };
+    match preset {
+        ViewPreset::Overview => {
+            // The brain and the blades, from the side the blades come in, a
+            // little anterior and above.
+            let mut cam = OrbitCamera::framing(box_lo, box_hi);
+            cam.yaw_rad = (-blade.y).atan2(-blade.x) - 35f64.to_radians();
+            cam.pitch_rad = 30f64.to_radians();
+            cam.distance_m *= 0.85;
+            cam
+        }
+        ViewPreset::Microscope => {
+            // The surgeon's line of sight: from above the blades' faces and
+            // lateral to the entry, down into the fissure at the tips.
+            let target = tip_sum / n as f64;
+            let direction = blade * 0.55 - up * 0.85;
+            let size = (hi - lo).norm();
+            OrbitCamera::microscope(target, direction, size * 0.55)
+        }
+    }
+}
+
+/// Owned buffers a [`SceneView`] borrows (spatula views, skull spheres), reused each frame.
+#[derive(Debug, Default)]
+pub struct SceneBuffers {
+    spatulas: Vec<SpatulaView>,
+    skull: Vec<SkullSphere>,
+}
+
+/// Colours of the two blades: cool steel (first) and warm brass (second), so they can be told apart.
+const BLADE_COLOURS: [[f32; 3]; 2] = [[0.52, 0.60, 0.74], [0.74, 0.64, 0.46]];
+
+impl SceneBuffers {
+    /// The view of `snapshot` with `options` through `camera`.
+    pub fn view<'a>(
+        &'a mut self,
+        pipeline_view: &'a SceneStatic,
+        snapshot: &'a Snapshot,
+        options: &DrawOptions,
+        camera: OrbitCamera,
+    ) -> SceneView<'a> {
+        self.spatulas.clear();
+        for (k, (shape, pose)) in pipeline_view.shapes.iter().zip(&snapshot.poses).enumerate() {
+            let mut v = SpatulaView::new(*shape, *pose);
+            v.color = BLADE_COLOURS[k % 2];
+            self.spatulas.push(v);
+        }
+        self.skull.clear();
+        if options.skull {
+            self.skull.extend(pipeline_view.skull.iter().copied());
+        }
+        let mut view = SceneView::new(&snapshot.surface_positions, &pipeline_view.triangles, camera);
+        view.surface.field = match options.field {
+            SurfaceField::None => None,
+            SurfaceField::Displacement => Some(ScalarField {
+                values: &snapshot.displacement_mm,
+                kind: FieldKind::DisplacementMm,
+                map: FieldKind::DisplacementMm.default_map(),
+                range: (0.0, DISPLACEMENT_FULL_SCALE_MM),
+            }),
+            // Diverging map centred on zero: tissue without contact stays
+            // white (lit, readable), pressure shades to red at full scale.
+            SurfaceField::Pressure => Some(ScalarField {
+                values: &snapshot.pressure_mmhg,
+                kind: FieldKind::ContactPressureMmHg,
+                map: crate::render::ColorMap::BlueWhiteRed,
+                range: (-PRESSURE_FULL_SCALE_MMHG, PRESSURE_FULL_SCALE_MMHG),
+            }),
+        };
+        view.spatulas = &self.spatulas;
+        view.skull = &self.skull;
+        view.overlays = Overlays {
+            source_nodes: if options.source_nodes { &snapshot.source_nodes } else { &[] },
+            node_size_m: 0.0,
+            pairs: if options.pairs { &snapshot.pairs } else { &[] },
+        };
+        view
+    }
+}
+
+/// What does not change between frames of one pipeline: triangles, blade
+/// shapes, skull spheres (copied once so the window's render thread needs no
+/// access to the pipeline, which lives on the simulation thread).
+#[derive(Debug, Clone, Default)]
+pub struct SceneStatic {
+    pub triangles: Vec<[u32; 3]>,
+    pub shapes: Vec<crate::geometry::SpatulaShape>,
+    pub skull: Vec<SkullSphere>,
+    /// Mesh bounding box, m.
+    pub bounds: (Vec3, Vec3),
+}
+
+impl SceneStatic {
+    /// Copies the static parts of `pipeline`; skull spheres translucent blue
+    /// (containing) and red (excluding), as in the paper's Fig. 5d.
+    pub fn of(pipeline: &Pipeline) -> Self {
+        let mut skull = Vec::new();
+        if let Some(s) = pipeline.skull() {
+            let s = s.skull();
+            if let Some(c) = &s.containing {
+                skull.push(SkullSphere { center: c.center, radius: c.radius, color: [0.2, 0.35, 0.9, 0.08] });
+            }
+            if let Some(e) = &s.excluding {
+                skull.push(SkullSphere { center: e.center, radius: e.radius, color: [0.9, 0.2, 0.15, 0.25] });
+            }
+        }
+        Self {
+            triangles: pipeline.surface().triangles.clone(),
+            shapes: pipeline.spatula_shapes().to_vec(),
+            skull,
+            bounds: pipeline.mesh().bounding_box(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vertex_areas_split_each_triangle_in_thirds() {
+        let rest = [Vec3::zeros(), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)];
+        let areas = vertex_areas(&rest, &[[0, 1, 2], [1, 3, 2]]);
+        let total: f64 = areas.iter().sum();
+        assert!((total - 1.0).abs() < 1e-12, "areas must sum to the surface area 1, got {total}");
+        assert!((areas[0] - 1.0 / 6.0).abs() < 1e-12, "corner 0 touches one triangle: {}", areas[0]);
+        assert!((areas[1] - 1.0 / 3.0).abs() < 1e-12, "vertex 1 touches two triangles: {}", areas[1]);
+        let bad = vertex_areas(&rest[..2], &[[0, 1, 7]]);
+        assert_eq!(bad.len(), 2, "an out-of-range index must not panic or grow the list");
+    }
+}

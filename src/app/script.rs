@@ -1,0 +1,147 @@
+//! Scripted input for the window (`fissure run --script FILE`): timed key
+//! presses and app actions, for tests and demos.
+//!
+//! In: text, one action a line: `TIME_S ACTION [ARG]`, `#` starts a comment.
+//! Actions: `press KEY`, `release KEY` (KEY: W A S D Q E Up Down Left Right
+//! PageUp PageDown Tab Shift), `record PATH`, `stop`, `field none|displacement|pressure`,
+//! `view overview|microscope`, `quit`. Out: a [`Script`] sorted by time.
+//! Stays true: key and record actions fire on the simulation thread at the first
+//! frame whose simulated time reaches TIME_S, so a script drives the simulation
+//! deterministically whatever the display rate; view actions fire in the window.
+
+use crate::input::keyboard::Key;
+use std::path::{Path, PathBuf};
+
+use super::draw::{SurfaceField, ViewPreset};
+
+/// A script error, naming the line.
+#[derive(Debug, thiserror::Error)]
+pub enum ScriptError {
+    #[error("cannot read the script {path}: {io}")]
+    Read { path: PathBuf, io: std::io::Error },
+    #[error("{path}:{line}: {message}")]
+    Line { path: PathBuf, line: usize, message: String },
+}
+
+/// One scripted action.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ScriptAction {
+    Press(Key),
+    Release(Key),
+    Record(PathBuf),
+    Stop,
+    Field(SurfaceField),
+    View(ViewPreset),
+    Quit,
+}
+
+impl ScriptAction {
+    /// True for actions the simulation thread carries out (keys, recording, quit).
+    pub fn is_simulation(&self) -> bool {
+        matches!(self, Self::Press(_) | Self::Release(_) | Self::Record(_) | Self::Stop | Self::Quit)
+    }
+}
+
+/// Timed actions, ascending by time (ties keep file order).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Script {
+    pub actions: Vec<(f64, ScriptAction)>,
+}
+
+fn key_named(name: &str) -> Option<Key> {
+    Some(match name.to_ascii_lowercase().as_str() {
+        "w" => Key::W,
+        "a" => Key::A,
+        "s" => Key::S,
+        "d" => Key::D,
+        "q" => Key::Q,
+        "e" => Key::E,
+        "up" => Key::Up,
+        "down" => Key::Down,
+        "left" => Key::Left,
+        "right" => Key::Right,
+        "pageup" => Key::PageUp,
+        "pagedown" => Key::PageDown,
+        "tab" => Key::Tab,
+        "shift" => Key::Shift,
+        _ => return None,
+    })
+}
+
+impl Script {
+    /// Reads a script file.
+    pub fn load(path: &Path) -> Result<Self, ScriptError> {
+        let text = std::fs::read_to_string(path).map_err(|io| ScriptError::Read { path: path.to_path_buf(), io })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses script text; `origin` names the file in errors.
+    pub fn parse(text: &str, origin: &Path) -> Result<Self, ScriptError> {
+        let mut actions = Vec::new();
+        for (i, raw) in text.lines().enumerate() {
+            let line = raw.split('#').next().unwrap_or("").trim();
+            if line.is_empty() {
+                continue;
+            }
+            let err = |message: String| ScriptError::Line { path: origin.to_path_buf(), line: i + 1, message };
+            let mut words = line.split_whitespace();
+            let time: f64 = words
+                .next()
+                .and_then(|w| w.parse().ok())
+                .filter(|t: &f64| t.is_finite() && *t >= 0.0)
+                .ok_or_else(|| err("expected a time in seconds (>= 0) first".into()))?;
+            let verb = words.next().ok_or_else(|| err("expected an action after the time".into()))?;
+            let arg = words.next();
+            let need = |what: &str| err(format!("`{verb}` needs {what}"));
+            let action = match verb {
+                "press" | "release" => {
+                    let name = arg.ok_or_else(|| need("a key"))?;
+                    let key = key_named(name).ok_or_else(|| err(format!("unknown key `{name}`")))?;
+                    if verb == "press" { ScriptAction::Press(key) } else { ScriptAction::Release(key) }
+                }
+                "record" => ScriptAction::Record(PathBuf::from(arg.ok_or_else(|| need("a file path"))?)),
+                "stop" => ScriptAction::Stop,
+                "quit" => ScriptAction::Quit,
+                "field" => ScriptAction::Field(match arg {
+                    Some("none") => SurfaceField::None,
+                    Some("displacement") => SurfaceField::Displacement,
+                    Some("pressure") => SurfaceField::Pressure,
+                    _ => return Err(need("none, displacement or pressure")),
+                }),
+                "view" => ScriptAction::View(match arg {
+                    Some("overview") => ViewPreset::Overview,
+                    Some("microscope") => ViewPreset::Microscope,
+                    _ => return Err(need("overview or microscope")),
+                }),
+                other => return Err(err(format!("unknown action `{other}`"))),
+            };
+            actions.push((time, action));
+        }
+        actions.sort_by(|a, b| a.0.total_cmp(&b.0));
+        Ok(Self { actions })
+    }
+
+    /// Splits into (simulation actions, window actions), both still sorted.
+    pub fn split(self) -> (Vec<(f64, ScriptAction)>, Vec<(f64, ScriptAction)>) {
+        self.actions.into_iter().partition(|(_, a)| a.is_simulation())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_sorts_and_names_bad_lines() {
+        let s = Script::parse("# demo\n0.5 release E\n0.1 press e  # open\n1 quit\n0.2 view microscope\n", Path::new("s.txt")).unwrap();
+        assert_eq!(s.actions[0], (0.1, ScriptAction::Press(Key::E)), "sorted by time, key names case-insensitive");
+        assert_eq!(s.actions.len(), 4);
+        let (sim, window) = s.split();
+        assert_eq!(sim.len(), 3);
+        assert_eq!(window, vec![(0.2, ScriptAction::View(ViewPreset::Microscope))]);
+        let e = Script::parse("0.1 press\n", Path::new("s.txt")).unwrap_err().to_string();
+        assert!(e.contains("s.txt:1") && e.contains("needs a key"), "error must name file:line: {e}");
+        let e = Script::parse("\n-1 quit\n", Path::new("s.txt")).unwrap_err().to_string();
+        assert!(e.contains("s.txt:2"), "negative time rejected on line 2: {e}");
+    }
+}

@@ -1,0 +1,388 @@
+//! The simulation thread of the window: steps the pipeline at the scenario's
+//! fixed time step in real time, publishes each frame for the renderer and the
+//! haptic loop, records trajectories.
+//!
+//! In: a scenario, the live input ([`LiveInput`]: the keyboard and gamepad
+//! commands the window writes), an optional OpenIGTLink server, commands
+//! ([`SimCommand`]). Out: [`Snapshot`]s through an [`Exchange`] (the sim never
+//! waits for the renderer), [`HapticModel`]s to the [`ForceOutput`], trajectory
+//! CSVs, and at the end a [`SimExit`]. Stays true: each spatula's pose comes
+//! from its binding (keyboard / gamepad velocities integrated over the fixed
+//! step, OpenIGTLink's latest pose, or the scenario's trajectory at the frame's
+//! time); the recording holds the poses the sim actually used at its frame
+//! times, from the brain at rest (time 0), so `fissure replay --trajectory`
+//! plays it back; a failing frame is logged and the last state holds.
+
+use super::draw::{Snapshot, vertex_areas};
+use super::exchange::Exchange;
+use super::haptics::{ForceOutput, HapticModel};
+use super::script::ScriptAction;
+use crate::geometry::Pose;
+use crate::input::gamepad::PadCommand;
+use crate::input::igtl::IgtlServer;
+use crate::input::keyboard::{KeyCommand, KeyEvent, KeyboardController};
+use crate::input::{PoseGuard, integrate};
+use crate::scenario::{CollisionBackend, Effect, EffectSet, InputBinding, Scenario, Trajectory, TrajectoryRecorder};
+use crate::sim::{BuildOptions, FrameInput, Pipeline, SimState};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, Sender, TryRecvError};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// What the window asks the simulation to do.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SimCommand {
+    /// Write the session's poses (from time 0) to this CSV, then keep appending.
+    StartRecording(PathBuf),
+    /// Close the recording (every row is already on disk).
+    StopRecording,
+    /// Rebuild with His-flag culling on or off.
+    SetCulling(bool),
+    /// Rebuild with another collision backend.
+    SetBackend(CollisionBackend),
+    /// Load another scenario (rebuild, restart at time 0).
+    LoadScenario(PathBuf),
+    /// Stop after the current frame.
+    Quit,
+}
+
+/// The commands the window's input devices give now.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct LiveInput {
+    pub keyboard: KeyCommand,
+    pub pad: PadCommand,
+}
+
+/// Things the window reads without waiting.
+#[derive(Debug, Default)]
+pub struct SimShared {
+    /// The newest frame.
+    pub frames: Exchange<Snapshot>,
+    /// The pipeline's static drawing data, replaced on a rebuild (with `generation` bumped).
+    pub scene: Mutex<Arc<super::draw::SceneStatic>>,
+    pub generation: AtomicU64,
+    /// Keyboard / gamepad commands, written by the window.
+    pub input: Mutex<LiveInput>,
+    /// A line for the panel (build progress, errors, recording state).
+    pub status: Mutex<String>,
+    /// True while recording.
+    pub recording: AtomicBool,
+    /// Set when the thread has finished.
+    pub finished: AtomicBool,
+}
+
+/// What the simulation thread leaves when it ends.
+#[derive(Debug, Clone, Default)]
+pub struct SimExit {
+    pub frames: u64,
+    pub time_s: f64,
+    pub final_poses: Vec<Pose>,
+    /// Largest |force| per spatula over the session, N.
+    pub peak_force_n: Vec<f64>,
+    /// Frame step times (ms) of every frame, for percentiles.
+    pub step_ms: Vec<f64>,
+    pub state_hash: String,
+    pub failed_frames: u64,
+    pub recording: Option<PathBuf>,
+}
+
+/// Options of the thread.
+pub struct SimOptions {
+    /// Stop after this many frames (None: run until told).
+    pub max_frames: Option<u64>,
+    /// Simulation-side scripted actions, ascending by time.
+    pub script: Vec<(f64, ScriptAction)>,
+    /// Run as fast as possible instead of in real time (tests).
+    pub free_running: bool,
+}
+
+/// Handle to the running simulation thread.
+pub struct SimThread {
+    pub shared: Arc<SimShared>,
+    commands: Sender<SimCommand>,
+    thread: Option<JoinHandle<SimExit>>,
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// A pipeline ready to run, with what goes with it.
+struct Built {
+    scenario: Scenario,
+    pipeline: Pipeline,
+    state: SimState,
+    trajectory: Option<Trajectory>,
+    areas: Vec<f64>,
+}
+
+fn build(scenario: Scenario, shared: &SimShared) -> Result<Built, String> {
+    *lock(&shared.status) = format!("building {} ...", scenario.name);
+    let trajectory = match &scenario.trajectory {
+        Some(p) => Some(Trajectory::load(p).map_err(|e| e.to_string())?),
+        None => None,
+    };
+    let (pipeline, state) = Pipeline::build(&scenario, BuildOptions::default()).map_err(|e| e.to_string())?;
+    let areas = vertex_areas(pipeline.rest_positions(), &pipeline.surface().triangles);
+    *lock(&shared.scene) = Arc::new(super::draw::SceneStatic::of(&pipeline));
+    shared.generation.fetch_add(1, Ordering::Relaxed);
+    *lock(&shared.status) = String::new();
+    Ok(Built { scenario, pipeline, state, trajectory, areas })
+}
+
+impl SimThread {
+    /// Builds the pipeline (on the calling thread, so errors come back here)
+    /// and starts the loop.
+    pub fn start(
+        scenario: Scenario,
+        igtl: Option<Arc<Mutex<IgtlServer>>>,
+        haptics: Option<Arc<ForceOutput>>,
+        options: SimOptions,
+    ) -> Result<Self, String> {
+        let shared = Arc::new(SimShared::default());
+        let built = build(scenario, &shared)?;
+        let (tx, rx) = std::sync::mpsc::channel();
+        let s = shared.clone();
+        let thread = std::thread::Builder::new()
+            .name("fissure-sim".into())
+            .spawn(move || {
+                let exit = run_loop(built, &s, rx, igtl, haptics, options);
+                s.finished.store(true, Ordering::Release);
+                exit
+            })
+            .map_err(|e| format!("cannot start the simulation thread: {e}"))?;
+        Ok(Self { shared, commands: tx, thread: Some(thread) })
+    }
+
+    /// Sends a command (ignored once the thread has ended).
+    pub fn send(&self, command: SimCommand) {
+        let _ = self.commands.send(command);
+    }
+
+    /// True when the loop has ended (frame limit, quit, or failure).
+    pub fn finished(&self) -> bool {
+        self.shared.finished.load(Ordering::Acquire)
+    }
+
+    /// Stops the loop (flushing any recording) and returns its summary.
+    pub fn stop(mut self) -> SimExit {
+        let _ = self.commands.send(SimCommand::Quit);
+        self.thread.take().and_then(|t| t.join().ok()).unwrap_or_default()
+    }
+}
+
+impl Drop for SimThread {
+    fn drop(&mut self) {
+        let _ = self.commands.send(SimCommand::Quit);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// The session's poses so far (for a recording started mid-session).
+struct History {
+    rows: Vec<(f64, Vec<Pose>)>,
+}
+
+fn start_recording(path: &PathBuf, history: &History) -> Result<TrajectoryRecorder, String> {
+    let mut rec = TrajectoryRecorder::create(path).map_err(|e| e.to_string())?;
+    for (t, poses) in &history.rows {
+        for (k, p) in poses.iter().enumerate() {
+            rec.record(*t, k, p).map_err(|e| e.to_string())?;
+        }
+    }
+    Ok(rec)
+}
+
+fn run_loop(
+    mut b: Built,
+    shared: &SimShared,
+    commands: Receiver<SimCommand>,
+    igtl: Option<Arc<Mutex<IgtlServer>>>,
+    haptics: Option<Arc<ForceOutput>>,
+    options: SimOptions,
+) -> SimExit {
+    let mut exit = SimExit::default();
+    let mut back = Snapshot::default();
+    let mut input = FrameInput::default();
+    let mut scratch = Vec::new();
+    let mut guards: Vec<PoseGuard> = b.state.poses.iter().map(|p| PoseGuard::new(*p, "window")).collect();
+    let mut history = History { rows: Vec::new() };
+    let mut recorder: Option<TrajectoryRecorder> = None;
+    let mut script = options.script.into_iter().peekable();
+    let mut script_keys = KeyboardController::default();
+    let mut scripted = false;
+    let mut failed_logged = false;
+    exit.peak_force_n = vec![0.0; b.state.poses.len()];
+    let mut next = Instant::now();
+    let mut quit = false;
+    'outer: loop {
+        // Commands from the window.
+        loop {
+            let command = match commands.try_recv() {
+                Ok(c) => c,
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => break 'outer,
+            };
+            let mut rebuild: Option<Scenario> = None;
+            match command {
+                SimCommand::Quit => break 'outer,
+                SimCommand::StartRecording(path) => match start_recording(&path, &history) {
+                    Ok(r) => {
+                        exit.recording = Some(path.clone());
+                        recorder = Some(r);
+                        shared.recording.store(true, Ordering::Relaxed);
+                        *lock(&shared.status) = format!("recording to {}", path.display());
+                    }
+                    Err(e) => *lock(&shared.status) = format!("cannot record: {e}"),
+                },
+                SimCommand::StopRecording => {
+                    if let Some(r) = recorder.take() {
+                        *lock(&shared.status) = format!("recorded {}", r.path().display());
+                    }
+                    shared.recording.store(false, Ordering::Relaxed);
+                }
+                SimCommand::SetCulling(on) => {
+                    let mut s = b.scenario.clone();
+                    let mut e = EffectSet::default();
+                    for x in s.effects.iter().filter(|x| *x != Effect::Culling) {
+                        e.insert(x);
+                    }
+                    if on {
+                        e.insert(Effect::Culling);
+                    }
+                    s.effects = e;
+                    rebuild = Some(s);
+                }
+                SimCommand::SetBackend(backend) => {
+                    let mut s = b.scenario.clone();
+                    s.collision_backend = backend;
+                    rebuild = Some(s);
+                }
+                SimCommand::LoadScenario(path) => match Scenario::load(&path, &[]) {
+                    Ok(s) => rebuild = Some(s),
+                    Err(e) => *lock(&shared.status) = format!("cannot load {}: {e}", path.display()),
+                },
+            }
+            if let Some(s) = rebuild {
+                // A rebuild restarts at rest: the history and any recording end here.
+                match build(s, shared) {
+                    Ok(nb) => {
+                        b = nb;
+                        guards = b.state.poses.iter().map(|p| PoseGuard::new(*p, "window")).collect();
+                        history.rows.clear();
+                        recorder = None;
+                        shared.recording.store(false, Ordering::Relaxed);
+                        exit.peak_force_n = vec![0.0; b.state.poses.len()];
+                        next = Instant::now();
+                    }
+                    Err(e) => *lock(&shared.status) = format!("rebuild failed, keeping the old scene: {e}"),
+                }
+            }
+        }
+        if quit || options.max_frames.is_some_and(|m| b.state.frame >= m) {
+            break;
+        }
+        let dt = b.pipeline.time_step();
+        let t_next = b.state.time_s + dt;
+        // Scripted actions due by this frame's time.
+        while let Some((t, _)) = script.peek() {
+            if *t > t_next + 1e-12 {
+                break;
+            }
+            let Some((_, action)) = script.next() else { break };
+            scripted = true;
+            match action {
+                ScriptAction::Press(key) => script_keys.apply(KeyEvent { key, pressed: true }),
+                ScriptAction::Release(key) => script_keys.apply(KeyEvent { key, pressed: false }),
+                ScriptAction::Record(path) => {
+                    if let Ok(r) = start_recording(&path, &history) {
+                        exit.recording = Some(path);
+                        recorder = Some(r);
+                        shared.recording.store(true, Ordering::Relaxed);
+                    }
+                }
+                ScriptAction::Stop => {
+                    recorder = None;
+                    shared.recording.store(false, Ordering::Relaxed);
+                }
+                ScriptAction::Quit => quit = true,
+                _ => {}
+            }
+        }
+        // Poses from the bindings.
+        let live = *lock(&shared.input);
+        let keyboard = if scripted { script_keys.command() } else { live.keyboard };
+        input.poses.clear();
+        for (k, spatula) in b.scenario.spatulas.iter().enumerate() {
+            let current = b.state.poses.get(k).copied().unwrap_or(spatula.initial_pose);
+            let candidate = match &spatula.input {
+                InputBinding::Keyboard if keyboard.spatula.index() == k => integrate(&current, &keyboard.velocity, dt),
+                InputBinding::Gamepad if live.pad.spatula.index() == k => integrate(&current, &live.pad.velocity, dt),
+                InputBinding::OpenIgtLink { device } => igtl
+                    .as_ref()
+                    .and_then(|s| lock(s).latest(device))
+                    .map(|t| t.pose)
+                    .unwrap_or(current),
+                InputBinding::Trajectory => b.trajectory.as_ref().and_then(|t| t.sample(k, t_next)).unwrap_or(current),
+                _ => current,
+            };
+            let pose = match guards.get_mut(k) {
+                Some(g) => g.offer(candidate),
+                None => candidate,
+            };
+            input.poses.push(Some(pose));
+        }
+        let started = Instant::now();
+        match b.pipeline.step(&mut b.state, &input) {
+            Ok(report) => {
+                let report = report.clone();
+                exit.step_ms.push(started.elapsed().as_secs_f64() * 1e3);
+                for (peak, s) in exit.peak_force_n.iter_mut().zip(&report.spatulas) {
+                    *peak = peak.max(s.force.norm());
+                }
+                history.rows.push((b.state.time_s, b.state.poses.clone()));
+                if let Some(r) = recorder.as_mut() {
+                    for (k, p) in b.state.poses.iter().enumerate() {
+                        if let Err(e) = r.record(b.state.time_s, k, p) {
+                            *lock(&shared.status) = format!("recording stopped: {e}");
+                            shared.recording.store(false, Ordering::Relaxed);
+                            break;
+                        }
+                    }
+                }
+                if let Some(h) = &haptics {
+                    let model = HapticModel::of_frame(&b.pipeline, &b.state.poses, &report, &mut scratch);
+                    h.publish(Arc::new(model));
+                }
+                back.capture(&b.pipeline, &b.state, &report, &b.areas);
+                shared.frames.publish(&mut back);
+            }
+            Err(e) => {
+                exit.failed_frames += 1;
+                if !failed_logged {
+                    failed_logged = true;
+                    tracing::warn!(error = %e, "a simulation frame failed; the last state holds (further failures are counted)");
+                }
+                *lock(&shared.status) = format!("frame failed: {e}");
+            }
+        }
+        if !options.free_running {
+            next += Duration::from_secs_f64(dt);
+            let now = Instant::now();
+            if next > now {
+                std::thread::sleep(next - now);
+            } else if now - next > Duration::from_secs_f64(dt * 5.0) {
+                next = now; // slower than real time: do not try to catch up in a burst
+            }
+        }
+    }
+    exit.frames = b.state.frame;
+    exit.time_s = b.state.time_s;
+    exit.final_poses = b.state.poses.clone();
+    exit.state_hash = b.pipeline.state_hash(&b.state);
+    exit
+}

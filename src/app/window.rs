@@ -1,0 +1,629 @@
+//! The simulator window: winit event loop, wgpu scene + egui panel, devices.
+//!
+//! In: a scenario and [`WindowOptions`]. Out: an interactive session; at the
+//! end a [`WindowSummary`] (frames drawn, frame rate, the simulation's exit).
+//! Stays true: the window draws the newest frame the simulation thread
+//! published and never waits for the simulation (nor the reverse); no display
+//! or no GPU adapter comes back as [`WindowError::NoDisplay`] /
+//! [`WindowError::NoAdapter`] (the CLI then runs headless), never a panic;
+//! closing the window while recording leaves a complete CSV (every row is
+//! flushed as written).
+//!
+//! Keys beyond the spatula map of [`crate::input::keyboard`]: `M` microscope
+//! view, `O` overview, `F` cycles the surface colour, `R` starts / stops
+//! recording, `Esc` quits.
+
+use super::draw::{DrawOptions, SceneBuffers, SceneStatic, Snapshot, SurfaceField, ViewPreset};
+use super::haptics::{ForceOutput, HAPTIC_RATE_HZ};
+use super::script::ScriptAction;
+use super::sim_thread::{SimCommand, SimExit, SimOptions, SimThread};
+use crate::input::gamepad::{GamepadInput, GamepadMapping};
+use crate::input::igtl::{IgtlConfig, IgtlServer};
+use crate::input::keyboard::{KeyEvent, KeyboardController, KeyboardMapping, key_from_winit, map_mouse};
+use crate::render::window::{FrameOutcome, WindowRenderer};
+use crate::render::{FieldKind, OrbitCamera};
+use crate::scenario::{CollisionBackend, InputBinding, Scenario};
+use crate::sim::StageId;
+use crate::ui::{FieldChoice, PanelAction, PanelData, PanelState, TimingHistory, draw_panel, update_monitors};
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+use winit::application::ApplicationHandler;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{KeyCode, PhysicalKey};
+use winit::window::{Window, WindowId};
+
+/// Why the window could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum WindowError {
+    #[error("no display to open a window on ({0})")]
+    NoDisplay(String),
+    #[error("no usable GPU adapter for the window ({0})")]
+    NoAdapter(String),
+    #[error("cannot start the simulation: {0}")]
+    Simulation(String),
+    #[error("the event loop failed: {0}")]
+    EventLoop(String),
+}
+
+/// Options of a window session.
+#[derive(Debug, Clone)]
+pub struct WindowOptions {
+    /// Present mode (explicit: Xvfb's default, Immediate, misbehaves).
+    pub present_mode: wgpu::PresentMode,
+    /// Inner size, pixels.
+    pub size: (u32, u32),
+    /// Stop after this many simulation frames.
+    pub max_frames: Option<u64>,
+    /// Close after this many wall-clock seconds.
+    pub exit_after_s: Option<f64>,
+    /// Timed actions (simulation and window ones).
+    pub script: Vec<(f64, ScriptAction)>,
+    /// Folder for recordings started from the panel.
+    pub record_dir: PathBuf,
+    /// Start the 1 kHz force output.
+    pub haptics: bool,
+}
+
+impl Default for WindowOptions {
+    fn default() -> Self {
+        Self {
+            present_mode: wgpu::PresentMode::Fifo,
+            size: (1280, 800),
+            max_frames: None,
+            exit_after_s: None,
+            script: Vec::new(),
+            record_dir: PathBuf::from("recordings"),
+            haptics: true,
+        }
+    }
+}
+
+/// What a session did.
+#[derive(Debug, Clone, Default)]
+pub struct WindowSummary {
+    /// Frames presented.
+    pub presented: u64,
+    /// Wall time from the first presented frame to the end, s.
+    pub wall_s: f64,
+    /// Haptic ticks and the wall time they took, s.
+    pub haptic_ticks: u64,
+    pub haptic_s: f64,
+    /// The simulation thread's exit.
+    pub sim: SimExit,
+    /// Adapter name.
+    pub adapter: String,
+}
+
+impl WindowSummary {
+    /// Presented frames per second.
+    pub fn fps(&self) -> f64 {
+        if self.wall_s > 0.0 { self.presented as f64 / self.wall_s } else { 0.0 }
+    }
+}
+
+struct Gpu {
+    window: Arc<Window>,
+    renderer: WindowRenderer,
+    egui_state: egui_winit::State,
+    egui_renderer: egui_wgpu::Renderer,
+}
+
+struct App {
+    scenario_path: PathBuf,
+    options: WindowOptions,
+    sim: Option<SimThread>,
+    haptics: Option<Arc<ForceOutput>>,
+    spatula_names: Vec<String>,
+    gpu: Option<Gpu>,
+    error: Option<WindowError>,
+    egui: egui::Context,
+    front: Snapshot,
+    scene: Arc<SceneStatic>,
+    generation: u64,
+    buffers: SceneBuffers,
+    draw: DrawOptions,
+    camera: OrbitCamera,
+    camera_set: bool,
+    keyboard: KeyboardController,
+    gamepad: GamepadInput,
+    cursor: Option<(f64, f64)>,
+    left_down: bool,
+    panel: PanelState,
+    history: TimingHistory,
+    backend: CollisionBackend,
+    load_path: String,
+    window_script: std::iter::Peekable<std::vec::IntoIter<(f64, ScriptAction)>>,
+    started: Instant,
+    first_present: Option<Instant>,
+    presented: u64,
+    fps_window: (Instant, u64, f64),
+    last_frame_seen: u64,
+    adapter: String,
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// Runs the window on `scenario` until closed; see the module docs.
+pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSummary, WindowError> {
+    let event_loop = EventLoop::new().map_err(|e| WindowError::NoDisplay(e.to_string()))?;
+    event_loop.set_control_flow(ControlFlow::Poll);
+
+    // OpenIGTLink server when any spatula is bound to it.
+    let needs_igtl = scenario.spatulas.iter().any(|s| matches!(s.input, InputBinding::OpenIgtLink { .. }));
+    let igtl = if needs_igtl {
+        match IgtlServer::start(&IgtlConfig::default()) {
+            Ok(s) => {
+                tracing::info!(addr = %s.local_addr(), "OpenIGTLink server listening");
+                Some(Arc::new(Mutex::new(s)))
+            }
+            Err(e) => {
+                tracing::warn!(error = %e, "OpenIGTLink server not started; its spatulas hold their poses");
+                None
+            }
+        }
+    } else {
+        None
+    };
+    let names: Vec<String> = scenario.spatulas.iter().map(|s| s.name.clone()).collect();
+    let haptics = if options.haptics {
+        let devices: Vec<Option<String>> = scenario
+            .spatulas
+            .iter()
+            .map(|s| match &s.input {
+                InputBinding::OpenIgtLink { device } => Some(device.clone()),
+                _ => None,
+            })
+            .collect();
+        let probe_server = igtl.clone();
+        let probe = Box::new(move |k: usize, _since: f64| {
+            let device = devices.get(k)?.as_ref()?;
+            probe_server.as_ref().and_then(|s| lock(s).latest(device)).map(|t| t.pose)
+        });
+        let sink = igtl.clone().map(|server| {
+            let names = names.clone();
+            Box::new(move |k: usize, _t: f64, f: crate::math::Vec3| {
+                let unix = std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map(|d| d.as_secs_f64())
+                    .unwrap_or(0.0);
+                if let Some(name) = names.get(k) {
+                    lock(&server).send_force(name, unix, [f.x, f.y, f.z]);
+                }
+            }) as super::haptics::ForceSink
+        });
+        Some(Arc::new(ForceOutput::start(scenario.spatulas.len(), HAPTIC_RATE_HZ, probe, sink)))
+    } else {
+        None
+    };
+    let (sim_script, window_script): (Vec<_>, Vec<_>) = options.script.iter().cloned().partition(|(_, a)| a.is_simulation());
+    let backend = scenario.collision_backend;
+    let scenario_path = scenario.source_path.clone();
+    let sim = SimThread::start(
+        scenario,
+        igtl,
+        haptics.clone(),
+        SimOptions { max_frames: options.max_frames, script: sim_script, free_running: false },
+    )
+    .map_err(WindowError::Simulation)?;
+    let scene = lock(&sim.shared.scene).clone();
+    let stage_names: Vec<&str> = StageId::ALL.iter().map(|s| s.name()).collect();
+    let mut app = App {
+        scenario_path: scenario_path.clone(),
+        options,
+        sim: Some(sim),
+        haptics,
+        spatula_names: names,
+        gpu: None,
+        error: None,
+        egui: egui::Context::default(),
+        front: Snapshot::default(),
+        scene,
+        generation: 0,
+        buffers: SceneBuffers::default(),
+        draw: DrawOptions::default(),
+        camera: OrbitCamera::default(),
+        camera_set: false,
+        keyboard: KeyboardController::new(KeyboardMapping::default()),
+        gamepad: GamepadInput::new(GamepadMapping::default()),
+        cursor: None,
+        left_down: false,
+        panel: PanelState::default(),
+        history: TimingHistory::new(&stage_names, 240),
+        backend,
+        load_path: scenario_path.display().to_string(),
+        window_script: window_script.into_iter().peekable(),
+        started: Instant::now(),
+        first_present: None,
+        presented: 0,
+        fps_window: (Instant::now(), 0, 0.0),
+        last_frame_seen: 0,
+        adapter: String::new(),
+    };
+    app.camera = OrbitCamera::framing(app.scene.bounds.0, app.scene.bounds.1);
+    app.generation = app.sim.as_ref().map(|s| s.shared.generation.load(std::sync::atomic::Ordering::Relaxed)).unwrap_or(0);
+    let result = event_loop.run_app(&mut app);
+    let wall_s = app.first_present.map(|t| t.elapsed().as_secs_f64()).unwrap_or(0.0);
+    let sim_exit = app.sim.take().map(SimThread::stop).unwrap_or_default();
+    let (haptic_ticks, haptic_s) = app.haptics.as_ref().map(|h| (h.ticks(), h.elapsed_s())).unwrap_or((0, 0.0));
+    if let Some(e) = app.error.take() {
+        return Err(e);
+    }
+    result.map_err(|e| WindowError::EventLoop(e.to_string()))?;
+    Ok(WindowSummary { presented: app.presented, wall_s, haptic_ticks, haptic_s, sim: sim_exit, adapter: app.adapter })
+}
+
+impl App {
+    fn preset(&mut self, preset: ViewPreset) {
+        // camera_for needs the pipeline only for the mesh box and blade shapes, both in SceneStatic.
+        self.camera = camera_for_static(preset, &self.scene, &self.front.poses);
+    }
+
+    fn set_field(&mut self, field: SurfaceField) {
+        self.draw.field = field;
+        self.panel.field = match field {
+            SurfaceField::None => FieldChoice::None,
+            SurfaceField::Displacement => FieldChoice::Field(FieldKind::DisplacementMm),
+            SurfaceField::Pressure => FieldChoice::Field(FieldKind::ContactPressureMmHg),
+        };
+    }
+
+    fn send(&self, c: SimCommand) {
+        if let Some(s) = &self.sim {
+            s.send(c);
+        }
+    }
+
+    fn toggle_recording(&mut self, on: bool) {
+        if on {
+            let _ = std::fs::create_dir_all(&self.options.record_dir);
+            let secs = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map(|d| d.as_secs())
+                .unwrap_or(0);
+            self.send(SimCommand::StartRecording(self.options.record_dir.join(format!("session_{secs}.csv"))));
+        } else {
+            self.send(SimCommand::StopRecording);
+        }
+        self.panel.recording = on;
+    }
+
+    fn redraw(&mut self, event_loop: &ActiveEventLoop) {
+        let Some(sim) = &self.sim else { return };
+        let shared = sim.shared.clone();
+        // Newest frame (and new static data after a rebuild).
+        let generation = shared.generation.load(std::sync::atomic::Ordering::Relaxed);
+        if generation != self.generation {
+            self.generation = generation;
+            self.scene = lock(&shared.scene).clone();
+            self.camera_set = false;
+        }
+        if shared.frames.take_latest(&mut self.front) && self.front.frame != self.last_frame_seen {
+            let ms: Vec<f64> = StageId::ALL.iter().map(|s| self.front.report.times.get(*s).unwrap_or(0.0) * 1e3).collect();
+            self.history.push(&ms);
+            let dt = if self.front.frame > self.last_frame_seen && self.last_frame_seen > 0 {
+                (self.front.frame - self.last_frame_seen) as f64 * self.front.time_s / self.front.frame.max(1) as f64
+            } else {
+                0.0
+            };
+            self.last_frame_seen = self.front.frame;
+            let data = self.panel_data();
+            update_monitors(&mut self.panel, &data, dt);
+        }
+        if !self.camera_set && !self.front.poses.is_empty() {
+            self.camera = OrbitCamera::framing(self.scene.bounds.0, self.scene.bounds.1);
+            self.camera_set = true;
+        }
+        // Window-side script actions by simulated time.
+        while let Some((t, _)) = self.window_script.peek() {
+            if *t > self.front.time_s + 1e-12 {
+                break;
+            }
+            let Some((_, action)) = self.window_script.next() else { break };
+            match action {
+                ScriptAction::Field(f) => self.set_field(f),
+                ScriptAction::View(v) => self.preset(v),
+                _ => {}
+            }
+        }
+        // Devices.
+        let pad = self.gamepad.poll();
+        if pad.camera_orbit_rad_s != [0.0, 0.0] {
+            let dt = 1.0 / self.fps_window.2.max(30.0);
+            self.camera.orbit(pad.camera_orbit_rad_s[0] * dt, pad.camera_orbit_rad_s[1] * dt);
+        }
+        {
+            let mut input = lock(&shared.input);
+            input.keyboard = self.keyboard.command();
+            input.pad = pad;
+        }
+        let Some(gpu) = self.gpu.as_mut() else { return };
+        // The panel.
+        let raw = gpu.egui_state.take_egui_input(&gpu.window);
+        let data = panel_data_of(&self.front, self.fps_window.2);
+        let mut actions = Vec::new();
+        let previous_culling = self.panel.culling;
+        let mut backend = self.backend;
+        let mut load = false;
+        let status = lock(&shared.status).clone();
+        let haptic: Vec<(f64, f64)> = (0..self.spatula_names.len())
+            .map(|k| self.haptics.as_ref().and_then(|h| h.latest(k)).map(|(f, t)| (f.norm(), t)).unwrap_or((0.0, 0.0)))
+            .collect();
+        let haptic_rate = self.haptics.as_ref().map(|h| h.ticks() as f64 / h.elapsed_s().max(1e-9)).unwrap_or(0.0);
+        let names = &self.spatula_names;
+        let load_path = &mut self.load_path;
+        let panel = &mut self.panel;
+        let history = &self.history;
+        let time_s = self.front.time_s;
+        let mut full = self.egui.run_ui(raw, |ui| {
+            draw_panel(ui, &data, history, panel, &mut actions);
+            egui::Panel::bottom("fissure_status").show(ui, |ui| {
+                ui.horizontal(|ui| {
+                    ui.label(format!("t = {time_s:.2} s"));
+                    for (name, (f, _)) in names.iter().zip(&haptic) {
+                        ui.label(format!("{name}: haptic |F| {f:.3} N"));
+                    }
+                    ui.label(format!("force loop {haptic_rate:.0} Hz"));
+                    egui::ComboBox::from_label("backend")
+                        .selected_text(format!("{backend:?}"))
+                        .show_ui(ui, |ui| {
+                            for b in [CollisionBackend::Reference, CollisionBackend::Bvh, CollisionBackend::Gpu] {
+                                ui.selectable_value(&mut backend, b, format!("{b:?}"));
+                            }
+                        });
+                    ui.text_edit_singleline(load_path);
+                    if ui.button("Load").clicked() {
+                        load = true;
+                    }
+                    if !status.is_empty() {
+                        ui.label(&status);
+                    }
+                });
+            });
+        });
+        gpu.egui_state.handle_platform_output(&gpu.window, full.platform_output.clone());
+        for action in actions {
+            match action {
+                PanelAction::StartRecording => self.toggle_recording(true),
+                PanelAction::StopRecording => self.toggle_recording(false),
+                PanelAction::CameraOverview => self.preset(ViewPreset::Overview),
+                PanelAction::CameraMicroscope => self.preset(ViewPreset::Microscope),
+                PanelAction::LoadScenario => load = true,
+            }
+        }
+        if load {
+            self.send(SimCommand::LoadScenario(PathBuf::from(self.load_path.trim())));
+        }
+        if self.panel.culling != previous_culling {
+            self.send(SimCommand::SetCulling(self.panel.culling));
+        }
+        if backend != self.backend {
+            self.backend = backend;
+            self.send(SimCommand::SetBackend(backend));
+        }
+        self.draw.source_nodes = self.panel.show_source_nodes;
+        self.draw.pairs = self.panel.show_pairs;
+        self.draw.skull = self.panel.show_skull;
+        match self.panel.field {
+            FieldChoice::None => self.draw.field = SurfaceField::None,
+            FieldChoice::Field(FieldKind::DisplacementMm) => self.draw.field = SurfaceField::Displacement,
+            FieldChoice::Field(FieldKind::ContactPressureMmHg) => self.draw.field = SurfaceField::Pressure,
+            // Strain needs the interior solve of the StressField effect; shown plain.
+            FieldChoice::Field(FieldKind::Strain) => self.draw.field = SurfaceField::None,
+        }
+        let Some(gpu) = self.gpu.as_mut() else { return };
+        let mut textures = std::mem::take(&mut full.textures_delta);
+        let paint_jobs = self.egui.tessellate(full.shapes, full.pixels_per_point);
+        let (w, h) = gpu.renderer.size();
+        let screen = egui_wgpu::ScreenDescriptor { size_in_pixels: [w, h], pixels_per_point: full.pixels_per_point };
+        {
+            let device = gpu.renderer.renderer().device();
+            let queue = gpu.renderer.renderer().queue();
+            for (id, deltas) in &textures.set {
+                for delta in deltas.iter() {
+                    gpu.egui_renderer.update_texture(device, queue, *id, delta);
+                }
+            }
+        }
+        if self.front.surface_positions.is_empty() {
+            for id in &textures.free {
+                gpu.egui_renderer.free_texture(id);
+            }
+            textures.clear();
+            gpu.window.request_redraw();
+            return;
+        }
+        let view = self.buffers.view(&self.scene, &self.front, &self.draw, self.camera);
+        let egui_renderer = &mut gpu.egui_renderer;
+        let outcome = gpu.renderer.render(&view, |device, queue, encoder, target| {
+            let extra = egui_renderer.update_buffers(device, queue, encoder, &paint_jobs, &screen);
+            {
+                let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("egui pass"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: target,
+                        resolve_target: None,
+                        depth_slice: None,
+                        ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                let mut pass = pass.forget_lifetime();
+                egui_renderer.render(&mut pass, &paint_jobs, &screen);
+            }
+            queue.submit(extra);
+        });
+        for id in &textures.free {
+            gpu.egui_renderer.free_texture(id);
+        }
+        textures.clear();
+        match outcome {
+            Ok(FrameOutcome::Presented) => {
+                self.presented += 1;
+                let now = Instant::now();
+                self.first_present.get_or_insert(now);
+                let (since, count, _) = self.fps_window;
+                let elapsed = now.duration_since(since).as_secs_f64();
+                if elapsed >= 0.5 {
+                    self.fps_window = (now, self.presented, (self.presented - count) as f64 / elapsed);
+                }
+            }
+            Ok(FrameOutcome::Skipped) => {}
+            Err(e) => {
+                tracing::error!(error = %e, "rendering failed; closing the window");
+                self.error = Some(WindowError::NoAdapter(e.to_string()));
+                event_loop.exit();
+                return;
+            }
+        }
+        gpu.window.request_redraw();
+    }
+
+    fn panel_data(&self) -> PanelData {
+        panel_data_of(&self.front, self.fps_window.2)
+    }
+}
+
+fn panel_data_of(front: &Snapshot, fps: f64) -> PanelData {
+    let mut data = PanelData { fps, sim_frame_ms: front.report.times.total() * 1e3, ..PanelData::default() };
+    for (slot, s) in data.spatulas.iter_mut().zip(&front.report.spatulas) {
+        slot.force_n = [s.force.x, s.force.y, s.force.z];
+        slot.mean_pressure_mmhg = s.mean_pressure_mmhg();
+        slot.feasible_pairs = s.feasible_pairs;
+        slot.culled_pairs = s.culled_pairs;
+    }
+    data
+}
+
+/// [`camera_for`] from the static scene data (the window has no pipeline).
+pub fn camera_for_static(preset: ViewPreset, scene: &SceneStatic, poses: &[crate::geometry::Pose]) -> OrbitCamera {
+    super::draw::camera_from_parts(preset, scene.bounds, &scene.shapes, poses)
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.gpu.is_some() {
+            return;
+        }
+        let attributes = Window::default_attributes()
+            .with_title(format!("fissure — {}", self.scenario_path.display()))
+            .with_inner_size(winit::dpi::PhysicalSize::new(self.options.size.0, self.options.size.1));
+        let window = match event_loop.create_window(attributes) {
+            Ok(w) => Arc::new(w),
+            Err(e) => {
+                self.error = Some(WindowError::NoDisplay(e.to_string()));
+                event_loop.exit();
+                return;
+            }
+        };
+        let renderer = match WindowRenderer::new(window.clone(), Some(self.options.present_mode)) {
+            Ok(r) => r,
+            Err(e) => {
+                self.error = Some(WindowError::NoAdapter(e.to_string()));
+                event_loop.exit();
+                return;
+            }
+        };
+        self.adapter = renderer.renderer().adapter_name().to_string();
+        let max_texture = renderer.renderer().device().limits().max_texture_dimension_2d as usize;
+        let egui_state = egui_winit::State::new(
+            self.egui.clone(),
+            egui::ViewportId::ROOT,
+            &window,
+            Some(window.scale_factor() as f32),
+            None,
+            Some(max_texture),
+        );
+        let egui_renderer = egui_wgpu::Renderer::new(
+            renderer.renderer().device(),
+            renderer.renderer().color_format(),
+            egui_wgpu::RendererOptions::default(),
+        );
+        window.request_redraw();
+        self.gpu = Some(Gpu { window, renderer, egui_state, egui_renderer });
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let consumed = match self.gpu.as_mut() {
+            Some(gpu) => gpu.egui_state.on_window_event(&gpu.window, &event).consumed,
+            None => false,
+        };
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => {
+                if let Some(gpu) = self.gpu.as_mut() {
+                    gpu.renderer.resize(size.width, size.height);
+                }
+            }
+            WindowEvent::RedrawRequested => self.redraw(event_loop),
+            WindowEvent::Focused(false) => self.keyboard.release_all(),
+            WindowEvent::KeyboardInput { event, .. } => {
+                if self.egui.egui_wants_keyboard_input() {
+                    return;
+                }
+                let pressed = event.state == ElementState::Pressed;
+                if let Some(key) = key_from_winit(&event.physical_key) {
+                    self.keyboard.apply(KeyEvent { key, pressed });
+                } else if pressed && !event.repeat {
+                    match event.physical_key {
+                        PhysicalKey::Code(KeyCode::Escape) => event_loop.exit(),
+                        PhysicalKey::Code(KeyCode::KeyM) => self.preset(ViewPreset::Microscope),
+                        PhysicalKey::Code(KeyCode::KeyO) => self.preset(ViewPreset::Overview),
+                        PhysicalKey::Code(KeyCode::KeyF) => {
+                            self.set_field(match self.draw.field {
+                                SurfaceField::None => SurfaceField::Displacement,
+                                SurfaceField::Displacement => SurfaceField::Pressure,
+                                SurfaceField::Pressure => SurfaceField::None,
+                            });
+                        }
+                        PhysicalKey::Code(KeyCode::KeyR) => {
+                            let on = !self.panel.recording;
+                            self.toggle_recording(on);
+                        }
+                        _ => {}
+                    }
+                }
+            }
+            WindowEvent::MouseInput { button: MouseButton::Left, state, .. } => {
+                self.left_down = state == ElementState::Pressed && !consumed;
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                if let Some((x, y)) = self.cursor
+                    && self.left_down
+                    && !self.egui.egui_wants_pointer_input()
+                {
+                    let nudge = map_mouse([position.x - x, position.y - y], true, 0.0, &self.keyboard.mapping);
+                    self.camera.orbit(nudge.orbit_rad[0], nudge.orbit_rad[1]);
+                }
+                self.cursor = Some((position.x, position.y));
+            }
+            WindowEvent::MouseWheel { delta, .. } if !consumed => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y as f64,
+                    MouseScrollDelta::PixelDelta(p) => p.y / 40.0,
+                };
+                let nudge = map_mouse([0.0, 0.0], false, lines, &self.keyboard.mapping);
+                self.camera.zoom(nudge.zoom_factor);
+            }
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        let sim_done = self.sim.as_ref().is_none_or(|s| s.finished());
+        let timed_out = self.options.exit_after_s.is_some_and(|t| self.started.elapsed().as_secs_f64() >= t);
+        if sim_done || timed_out {
+            event_loop.exit();
+            return;
+        }
+        if let Some(gpu) = &self.gpu {
+            gpu.window.request_redraw();
+        }
+    }
+}

@@ -1,0 +1,120 @@
+//! `fissure screenshot SCENARIO -o out.png [--time S] [--size WxH] [--view ..] [--field ..]`:
+//! builds the pipeline, plays the scenario's trajectory (or holds the initial
+//! poses) to `--time`, and renders one frame offscreen (works on the software
+//! Vulkan driver; no display needed), through the same drawing code as the
+//! window and `replay --frames`.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use fissure::app::draw::{DrawOptions, SurfaceField, ViewPreset};
+use fissure::render::capture;
+use fissure::scenario::Scenario;
+use fissure::sim::replay::PoseSource;
+use fissure::sim::{BuildOptions, FrameInput, FrameReport, Pipeline};
+
+/// Camera preset.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum ViewArg {
+    Overview,
+    Microscope,
+}
+
+/// Surface colour.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum FieldArg {
+    None,
+    Displacement,
+    Pressure,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct ScreenshotArgs {
+    /// The scenario (.ron).
+    pub scenario: PathBuf,
+    /// Output PNG.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Simulated time to play to, seconds (0: the initial state).
+    #[arg(long, default_value_t = 0.0)]
+    pub time: f64,
+    /// Image size, WIDTHxHEIGHT pixels.
+    #[arg(long, default_value = "1280x800", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Camera preset.
+    #[arg(long, value_enum, default_value = "overview")]
+    pub view: ViewArg,
+    /// Surface colour.
+    #[arg(long, value_enum, default_value = "none")]
+    pub field: FieldArg,
+    /// Also draw source nodes and pairs (feasible green, culled red).
+    #[arg(long)]
+    pub overlays: bool,
+    /// Override one field: PATH=VALUE (repeatable).
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    pub set: Vec<String>,
+}
+
+/// Parses `WIDTHxHEIGHT` (each 1..=8192).
+pub fn parse_size(text: &str) -> Result<(u32, u32), String> {
+    let (w, h) = text.split_once(['x', 'X']).ok_or_else(|| format!("expected WIDTHxHEIGHT, got `{text}`"))?;
+    let parse = |s: &str| s.trim().parse::<u32>().ok().filter(|v| (1..=8192).contains(v));
+    match (parse(w), parse(h)) {
+        (Some(w), Some(h)) => Ok((w, h)),
+        _ => Err(format!("width and height must be whole numbers in 1..=8192, got `{text}`")),
+    }
+}
+
+pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(args.time.is_finite() && args.time >= 0.0, "--time must be a finite number of seconds >= 0, got {}", args.time);
+    let scenario = Scenario::load(&args.scenario, &args.set).with_context(|| format!("loading {}", args.scenario.display()))?;
+    let source = PoseSource::for_scenario(&scenario, None).context("loading the scenario's trajectory")?;
+    let (mut pipeline, mut state) = Pipeline::build(
+        &scenario,
+        BuildOptions { expected_poses: source.samples(scenario.duration.max(args.time), 200), progress: None },
+    )
+    .with_context(|| format!("building {}", args.scenario.display()))?;
+    let dt = scenario.time_step;
+    let steps = ((args.time / dt) - 1e-9).ceil().max(0.0) as u64;
+    let mut input = FrameInput::default();
+    let mut report = FrameReport::default();
+    for k in 0..steps {
+        source.poses_at((k + 1) as f64 * dt, &mut input);
+        report = pipeline.step(&mut state, &input).with_context(|| format!("frame {k}"))?.clone();
+    }
+    let options = DrawOptions {
+        field: match args.field {
+            FieldArg::None => SurfaceField::None,
+            FieldArg::Displacement => SurfaceField::Displacement,
+            FieldArg::Pressure => SurfaceField::Pressure,
+        },
+        source_nodes: args.overlays,
+        pairs: args.overlays,
+        skull: false,
+    };
+    let view = match args.view {
+        ViewArg::Overview => ViewPreset::Overview,
+        ViewArg::Microscope => ViewPreset::Microscope,
+    };
+    let mut frames = super::frames::OffscreenFrames::new(args.size, options, view);
+    let image = frames.render(&pipeline, &state, &report)?;
+    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    capture::save_png(&image, &args.output).with_context(|| format!("writing {}", args.output.display()))?;
+    let forces: Vec<String> = pipeline
+        .spatula_names()
+        .iter()
+        .zip(&report.spatulas)
+        .map(|(n, s)| format!("{n} {:.3} N, {:.1} mmHg", s.force.norm(), s.mean_pressure_mmhg()))
+        .collect();
+    println!(
+        "wrote {} ({}x{}) at t = {:.3} s after {steps} frames; {}",
+        args.output.display(),
+        args.size.0,
+        args.size.1,
+        state.time_s,
+        forces.join("; ")
+    );
+    Ok(())
+}

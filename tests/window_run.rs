@@ -1,0 +1,143 @@
+//! The window under Xvfb: `fissure run` opens the default scene, a script
+//! records, pushes the frontal spatula into the fissure with the keyboard map
+//! (W: along the blade), switches view and colour, and the run stops after a
+//! set number of simulation frames with exit code 0. Then the recording round
+//! trip: the recorded CSV replayed headless reaches the same final state (hash)
+//! and its last pose is the window's final pose.
+//!
+//! Skips with a message when `Xvfb` is not installed (CI installs `xvfb`).
+//! Uses the software Vulkan driver and a private XDG_RUNTIME_DIR.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+struct Xvfb {
+    child: Child,
+    display: String,
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn start_xvfb() -> Option<Xvfb> {
+    let found = Command::new("sh").args(["-c", "command -v Xvfb"]).output().ok()?;
+    if !found.status.success() {
+        return None;
+    }
+    for n in 90..140u32 {
+        if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() || Path::new(&format!("/tmp/.X{n}-lock")).exists() {
+            continue;
+        }
+        let display = format!(":{n}");
+        let mut child = Command::new("Xvfb")
+            .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .ok()?;
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while Instant::now() < deadline {
+            if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
+                return Some(Xvfb { child, display });
+            }
+            if let Ok(Some(_)) = child.try_wait() {
+                break; // lost a race for this number: try the next
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = child.kill();
+        let _ = child.wait();
+    }
+    None
+}
+
+fn fissure(dir: &Path) -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_fissure"));
+    c.env("XDG_RUNTIME_DIR", dir).current_dir(env!("CARGO_MANIFEST_DIR"));
+    if std::env::var_os("VK_DRIVER_FILES").is_none() {
+        let lvp = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json";
+        if Path::new(lvp).exists() {
+            c.env("VK_DRIVER_FILES", lvp).env("WGPU_BACKEND", "vulkan");
+        }
+    }
+    c
+}
+
+fn line_after<'a>(text: &'a str, prefix: &str) -> Option<&'a str> {
+    text.lines().find_map(|l| l.trim_start().strip_prefix(prefix))
+}
+
+#[test]
+fn window_runs_scripted_frames_records_and_the_recording_replays_to_the_same_state() {
+    let Some(x) = start_xvfb() else {
+        eprintln!("skipping: Xvfb is not installed (apt-get install xvfb)");
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let recording: PathBuf = dir.path().join("rec.csv");
+    let script = dir.path().join("script.txt");
+    std::fs::write(
+        &script,
+        format!(
+            "0.0 record {}\n0.05 press W\n1.65 release W\n1.7 press E\n2.2 release E\n0.3 view microscope\n0.5 field pressure\n",
+            recording.display()
+        ),
+    )
+    .expect("write script");
+    let frames = 240;
+    let output = fissure(dir.path())
+        .env("DISPLAY", &x.display)
+        .args(["run", "config/sylvian.ron", "--present-mode", "fifo", "--size", "640x400", "--frames", &frames.to_string(), "--script"])
+        .arg(&script)
+        .output()
+        .expect("run fissure");
+    let stdout = String::from_utf8_lossy(&output.stdout).to_string();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "the window run must exit 0:\nstdout {stdout}\nstderr {stderr}");
+    assert!(!stderr.contains("running") || !stderr.contains("headless instead"), "the window must open under Xvfb, not fall back: {stderr}");
+    assert!(stdout.contains(&format!("simulation: {frames} frames")), "the run stops after {frames} frames: {stdout}");
+    let presented: u64 = line_after(&stdout, "window: ")
+        .and_then(|l| l.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("a window line with the presented frame count");
+    assert!(presented >= 1, "the window must present frames: {stdout}");
+    assert!(stdout.contains("0 failed"), "no simulation frame may fail: {stdout}");
+
+    // W held for 1.6 s at 10 mm/s moves the frontal blade 16 mm along +x (its
+    // blade axis is world +x); E then lifts it 5 mm along its face normal.
+    let frontal = line_after(&stdout, "frontal: final position_mm (").expect("frontal's final pose");
+    let x_mm: f64 = frontal.split(',').next().and_then(|v| v.trim().parse().ok()).expect("x in mm");
+    assert!((x_mm - (-117.09)).abs() < 1e-6, "frontal must end 16 mm deeper (-133.09 -> -117.09 mm), got {x_mm}");
+    let hash = line_after(&stdout, "final state ").expect("final state hash").trim().to_string();
+
+    // The recording: every frame of both spatulas, ending at the window's final pose.
+    let trajectory = fissure::scenario::Trajectory::load(&recording).expect("the recording parses as a trajectory");
+    assert_eq!(trajectory.samples(0).len(), frames, "one row per frame for spatula 0");
+    assert_eq!(trajectory.samples(1).len(), frames, "one row per frame for spatula 1");
+    let last = trajectory.samples(0).last().expect("rows");
+    assert!((last.position_mm[0] - x_mm).abs() < 1e-9, "recorded last pose {:?} vs window {x_mm}", last.position_mm);
+
+    // Replay it headless for the same frames: the same final state, bit for bit.
+    let out = dir.path().join("replay");
+    let replay = fissure(dir.path())
+        .args(["replay", "config/sylvian.ron", "--trajectory"])
+        .arg(&recording)
+        .args(["--set", &format!("duration_s={}", frames as f64 * 0.01), "--out"])
+        .arg(&out)
+        .output()
+        .expect("run replay");
+    let replay_out = String::from_utf8_lossy(&replay.stdout);
+    assert!(replay.status.success(), "replay failed: {}", String::from_utf8_lossy(&replay.stderr));
+    assert!(replay_out.contains(&format!("{frames} frames")), "replay plays the same frame count: {replay_out}");
+    let replay_hash = line_after(&replay_out, "final state ").expect("replay's final state").trim();
+    assert_eq!(replay_hash, hash, "replaying the recording must reach the window's final state");
+    assert!(replay_out.contains("frontal: peak force") && !replay_out.contains("frontal: peak force 0.000 N"), "the blade must have touched tissue so the replay check means something: {replay_out}");
+    let window_peak: f64 = frontal.split("peak force ").nth(1).and_then(|v| v.split_whitespace().next()).and_then(|v| v.parse().ok()).expect("window peak force");
+    let replay_peak: f64 = line_after(&replay_out, "frontal: peak force ").and_then(|v| v.split_whitespace().next()).and_then(|v| v.parse().ok()).expect("replay peak force");
+    assert!((window_peak - replay_peak).abs() <= 0.0005 + 1e-12, "peak force: window {window_peak} N vs replay {replay_peak} N (replay prints 3 decimals)");
+}
