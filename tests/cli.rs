@@ -72,11 +72,19 @@ fn check_of_a_missing_file_fails_with_its_name() {
 }
 
 #[test]
-fn bare_fissure_handles_the_default_scene() {
-    let out = fissure(&[]);
+fn bare_fissure_without_a_display_runs_the_default_scene_headless() {
+    // No DISPLAY / WAYLAND_DISPLAY: the window cannot open, so the default scene
+    // (config/sylvian.ron) runs headless through the same pipeline and says so.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_fissure"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("run fissure");
     assert!(out.status.success(), "bare fissure: {}", text(&out.stderr));
     let stdout = text(&out.stdout);
-    assert!(stdout.contains("config/sylvian.ron") && stdout.contains("ok: the scenario is valid"), "{stdout}");
+    assert!(stdout.contains("Sylvian fissure, two spatulas") && stdout.contains("500 frames"), "{stdout}");
+    assert!(text(&out.stderr).to_lowercase().contains("headless"), "it says it runs headless: {}", text(&out.stderr));
 }
 
 #[test]

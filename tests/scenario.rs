@@ -282,7 +282,7 @@ fn unknown_override_path_lists_the_valid_keys() {
     assert!(msg.contains("`collision`") && msg.contains("`spatulas`"), "the keys valid at the top level: {msg}");
 
     let err = Scenario::load(&path, &["collision.backnd=Gpu".to_string()]).expect_err("typo");
-    assert!(err.to_string().contains("expected `backend`"), "{err}");
+    assert!(err.to_string().contains("`backend`") && err.to_string().contains("`swept_culling`"), "{err}");
 
     let err = Scenario::load(&path, &["spatulas[5].name=x".to_string()]).expect_err("index");
     assert!(matches!(err, ScenarioError::Override { .. }) && err.to_string().contains("has 2 element"), "{err}");

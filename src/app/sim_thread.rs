@@ -182,6 +182,26 @@ impl Drop for SimThread {
     }
 }
 
+/// The pose a trajectory CSV reproduces: millimetres and a renormalised
+/// quaternion, as `Trajectory` reads them back. The simulation uses this
+/// representable pose so a recording replays bit for bit (iterated to a fixed
+/// point of the round trip; it settles in one or two passes).
+fn as_recorded(pose: Pose) -> Pose {
+    let mut p = pose;
+    for _ in 0..4 {
+        let q = p.rotation.quaternion();
+        let next = Pose {
+            position: (p.position * 1e3) * 1e-3,
+            rotation: crate::math::Quat::new_normalize(nalgebra::Quaternion::new(q.w, q.i, q.j, q.k)),
+        };
+        if next == p {
+            break;
+        }
+        p = next;
+    }
+    p
+}
+
 /// The session's poses so far (for a recording started mid-session).
 struct History {
     rows: Vec<(f64, Vec<Pose>)>,
@@ -330,6 +350,7 @@ fn run_loop(
                 InputBinding::Trajectory => b.trajectory.as_ref().and_then(|t| t.sample(k, t_next)).unwrap_or(current),
                 _ => current,
             };
+            let candidate = as_recorded(candidate);
             let pose = match guards.get_mut(k) {
                 Some(g) => g.offer(candidate),
                 None => candidate,

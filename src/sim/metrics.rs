@@ -10,7 +10,7 @@
 use super::report::{FrameReport, PASCALS_PER_MMHG, RETRACTION_DANGER_MMHG, StageId};
 use serde::Serialize;
 use std::fs::File;
-use std::io::{self, BufWriter, Write};
+use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
 /// Errors writing outputs; each names the file.
@@ -28,9 +28,13 @@ impl OutputError {
     }
 }
 
-/// Writes `metrics.csv` row by row.
+/// Writes `metrics.csv` row by row: each row is one `write_all` to the file;
+/// a failed write (e.g. a full disk) truncates the file back to the last whole
+/// row, so what is there always parses.
 pub struct MetricsWriter {
-    out: BufWriter<File>,
+    out: File,
+    /// Bytes of whole rows written so far.
+    committed: u64,
     path: PathBuf,
     stages: Vec<StageId>,
     spatulas: usize,
@@ -42,7 +46,7 @@ impl MetricsWriter {
     /// `spatula_names` name the per-spatula columns.
     pub fn create(path: &Path, stages: &[StageId], spatula_names: &[String]) -> Result<Self, OutputError> {
         let file = File::create(path).map_err(|e| OutputError::new(path, e))?;
-        let mut w = Self { out: BufWriter::new(file), path: path.to_path_buf(), stages: stages.to_vec(), spatulas: spatula_names.len(), line: String::new() };
+        let mut w = Self { out: file, committed: 0, path: path.to_path_buf(), stages: stages.to_vec(), spatulas: spatula_names.len(), line: String::new() };
         let mut header = vec!["frame".to_string(), "time_s".to_string()];
         header.extend(stages.iter().map(|s| format!("{}_ms", s.name())));
         header.push("frame_ms".into());
@@ -61,10 +65,23 @@ impl MetricsWriter {
     }
 
     fn write_line(&mut self) -> Result<(), OutputError> {
+        use std::io::{Seek, SeekFrom};
         self.line.push('\n');
-        let r = self.out.write_all(self.line.as_bytes()).and_then(|_| self.out.flush());
+        let r = self.out.write_all(self.line.as_bytes());
+        let len = self.line.len() as u64;
         self.line.clear();
-        r.map_err(|e| OutputError::new(&self.path, e))
+        match r {
+            Ok(()) => {
+                self.committed += len;
+                Ok(())
+            }
+            Err(e) => {
+                // Drop the torn tail: the file ends at the last whole row.
+                let _ = self.out.set_len(self.committed);
+                let _ = self.out.seek(SeekFrom::Start(self.committed));
+                Err(OutputError::new(&self.path, e))
+            }
+        }
     }
 
     /// Appends one frame and flushes it to the file.
