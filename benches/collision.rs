@@ -83,6 +83,14 @@ fn bench_surface(c: &mut Criterion, name: &str, t: &[[u32; 3]], p: &[Vec3]) {
 fn collision(c: &mut Criterion) {
     let (t, p) = icosphere(Vec3::zeros(), 60.0 * MM, 5);
     bench_surface(c, "icosphere-20k", &t, &p);
+    match fissure::mesh::phantom::generate(fissure::mesh::phantom::Preset::Paper12k) {
+        Ok(ph) => {
+            let s = ph.mesh.boundary();
+            let p = s.gather_positions(&ph.mesh.positions);
+            bench_surface(c, "paper-12k", &s.triangles, &p);
+        }
+        Err(e) => eprintln!("skip paper-12k: {e}"),
+    }
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/brain/brain_pial_coarse_surface.obj");
     match read_obj(path) {
         Some((t, p)) => bench_surface(c, "brain-41k", &t, &p),
