@@ -55,6 +55,18 @@ pub fn signed_volume(a: &Vec3, b: &Vec3, c: &Vec3, d: &Vec3) -> f64 {
     (b - a).dot(&(c - a).cross(&(d - a))) / 6.0
 }
 
+/// Axis-aligned bounding box (min, max) of `points`; (+inf, -inf) when empty.
+pub fn bounding_box(points: &[Vec3]) -> (Vec3, Vec3) {
+    points.iter().fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.inf(p), hi.sup(p)))
+}
+
+/// Multiplies every point by `factor`.
+pub fn scale_points(points: &mut [Vec3], factor: f64) {
+    for p in points {
+        *p *= factor;
+    }
+}
+
 impl TetMesh {
     /// Validates and orients a mesh. `regions` may be empty (all 0).
     ///
@@ -121,20 +133,12 @@ impl TetMesh {
 
     /// Axis-aligned bounding box (min, max), metres.
     pub fn bounding_box(&self) -> (Vec3, Vec3) {
-        let mut lo = Vec3::repeat(f64::INFINITY);
-        let mut hi = Vec3::repeat(f64::NEG_INFINITY);
-        for p in &self.positions {
-            lo = lo.inf(p);
-            hi = hi.sup(p);
-        }
-        (lo, hi)
+        bounding_box(&self.positions)
     }
 
     /// Multiplies every coordinate by `factor` (e.g. 1e-3 for a file in mm).
     pub fn scale(&mut self, factor: f64) {
-        for p in &mut self.positions {
-            *p *= factor;
-        }
+        scale_points(&mut self.positions, factor);
     }
 
     /// The boundary surface (faces used by exactly one tet), outward oriented.

@@ -249,20 +249,12 @@ impl TriSurface {
 
     /// Multiplies every coordinate by `factor` (e.g. 1e-3 for a file in mm).
     pub fn scale(&mut self, factor: f64) {
-        for p in &mut self.positions {
-            *p *= factor;
-        }
+        super::scale_points(&mut self.positions, factor);
     }
 
     /// Axis-aligned bounding box (min, max) of the vertices.
     pub fn bounding_box(&self) -> (Vec3, Vec3) {
-        let mut lo = Vec3::repeat(f64::INFINITY);
-        let mut hi = Vec3::repeat(f64::NEG_INFINITY);
-        for p in &self.positions {
-            lo = lo.inf(p);
-            hi = hi.sup(p);
-        }
-        (lo, hi)
+        super::bounding_box(&self.positions)
     }
 }
 
