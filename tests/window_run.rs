@@ -8,53 +8,11 @@
 //! Skips with a message when `Xvfb` is not installed (CI installs `xvfb`).
 //! Uses the software Vulkan driver and a private XDG_RUNTIME_DIR.
 
+mod common;
+
+use common::xvfb::start_xvfb;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
-
-struct Xvfb {
-    child: Child,
-    display: String,
-}
-
-impl Drop for Xvfb {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn start_xvfb() -> Option<Xvfb> {
-    let found = Command::new("sh").args(["-c", "command -v Xvfb"]).output().ok()?;
-    if !found.status.success() {
-        return None;
-    }
-    for n in 90..140u32 {
-        if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() || Path::new(&format!("/tmp/.X{n}-lock")).exists() {
-            continue;
-        }
-        let display = format!(":{n}");
-        let mut child = Command::new("Xvfb")
-            .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .ok()?;
-        let deadline = Instant::now() + Duration::from_secs(10);
-        while Instant::now() < deadline {
-            if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
-                return Some(Xvfb { child, display });
-            }
-            if let Ok(Some(_)) = child.try_wait() {
-                break; // lost a race for this number: try the next
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        let _ = child.kill();
-        let _ = child.wait();
-    }
-    None
-}
+use std::process::Command;
 
 fn fissure(dir: &Path) -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_fissure"));
@@ -74,7 +32,7 @@ fn line_after<'a>(text: &'a str, prefix: &str) -> Option<&'a str> {
 
 #[test]
 fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_and_forces() {
-    let Some(x) = start_xvfb() else {
+    let Some(x) = start_xvfb(90) else {
         eprintln!("skipping: Xvfb is not installed (apt-get install xvfb)");
         return;
     };

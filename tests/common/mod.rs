@@ -49,3 +49,4 @@ pub fn real_brain(file: &str) -> Option<PathBuf> {
         None
     }
 }
+pub mod xvfb;

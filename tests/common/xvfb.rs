@@ -1,0 +1,50 @@
+//! A private Xvfb display for window tests; killed on drop.
+
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+pub struct Xvfb {
+    child: Child,
+    pub display: String,
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Starts Xvfb on a free display number in `first..first + 50`; None when Xvfb is not installed.
+pub fn start_xvfb(first: u32) -> Option<Xvfb> {
+    let found = Command::new("sh").args(["-c", "command -v Xvfb"]).output().ok()?;
+    if !found.status.success() {
+        return None;
+    }
+    for n in first..first + 50 {
+        if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() || Path::new(&format!("/tmp/.X{n}-lock")).exists() {
+            continue;
+        }
+        let display = format!(":{n}");
+        let mut child = Command::new("Xvfb")
+            .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .ok()?;
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while Instant::now() < deadline {
+            if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
+                return Some(Xvfb { child, display });
+            }
+            if let Ok(Some(_)) = child.try_wait() {
+                break; // lost a race for this number: try the next
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let _ = child.kill();
+        let _ = child.wait();
+    }
+    None
+}
