@@ -37,7 +37,7 @@ fn a_pyigtl_client_moves_a_spatula_and_the_recording_shows_it() {
     std::fs::write(&script, format!("0.0 record {}\n", recording.display())).expect("script");
     // A pose above the brain (no contact), identity rotation, in millimetres.
     let target = [-120.0, 10.0, 30.0];
-    let mut window = fissure(dir.path())
+    let window = fissure(dir.path())
         .env("DISPLAY", &x.display)
         .args(["run", "config/sylvian.ron", "--set", "spatulas[0].input=OpenIgtLink(device: \"Frontal\")"])
         .args(["--present-mode", "fifo", "--size", "320x200", "--frames", "800", "--no-haptics", "--script"])
