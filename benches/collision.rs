@@ -24,26 +24,11 @@ fn layout(n: u32) -> NodeLayout {
     NodeLayout::Grid { along: n / across, across }
 }
 
+/// The real brain surface (OBJ, millimetres) in metres, through the project's own reader.
 fn read_obj(path: &str) -> Option<(Vec<[u32; 3]>, Vec<Vec3>)> {
-    let text = std::fs::read_to_string(path).ok()?;
-    let (mut t, mut p) = (Vec::new(), Vec::new());
-    for line in text.lines() {
-        let mut it = line.split_whitespace();
-        match it.next() {
-            Some("v") => {
-                let c: Vec<f64> = it.take(3).filter_map(|s| s.parse().ok()).collect();
-                p.push(Vec3::new(c[0], c[1], c[2]) * MM);
-            }
-            Some("f") => {
-                let idx: Vec<u32> = it.filter_map(|s| s.split('/').next()?.parse::<u32>().ok()).map(|i| i - 1).collect();
-                for k in 1..idx.len().saturating_sub(1) {
-                    t.push([idx[0], idx[k], idx[k + 1]]);
-                }
-            }
-            _ => {}
-        }
-    }
-    Some((t, p))
+    let mut s = fissure::mesh::io::load_surface(std::path::Path::new(path)).ok()?;
+    s.scale(MM);
+    Some((s.triangles, s.positions))
 }
 
 /// Two spatulas whose blades enter the surface from opposite sides near `centre`.

@@ -224,7 +224,7 @@ impl Pipeline {
                 scenario: scenario.source_path.clone(),
                 message: "the SkullSpheres effect needs a `skull`".into(),
             })?;
-            Some(SkullStage::new(skull, &surface.vertices, &rest, scenario.spatulas.len()))
+            Some(SkullStage::new(skull, &surface.vertices))
         } else {
             None
         };

@@ -67,7 +67,7 @@ pub struct SkullStage {
 pub const SKULL_CANDIDATE_BAND_M: f64 = 0.005;
 
 impl SkullStage {
-    pub fn new(skull: Skull, surface_nodes: &[u32], _rest: &[Vec3], _spatulas: usize) -> Self {
+    pub fn new(skull: Skull, surface_nodes: &[u32]) -> Self {
         Self { skull, nodes: surface_nodes.to_vec() }
     }
 

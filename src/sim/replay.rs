@@ -142,18 +142,20 @@ pub fn replay(
             break;
         }
         source.poses_at((k + 1) as f64 * dt, &mut input);
-        let report = match pipeline.step(&mut state, &input) {
-            Ok(r) => r.clone(),
+        // The report borrows the pipeline only until it is written (no per-frame copy).
+        match pipeline.step(&mut state, &input) {
+            Ok(report) => {
+                if let Err(e) = writer.write(report) {
+                    failure = Some(e.into());
+                    break;
+                }
+                summary.add(report, dt);
+            }
             Err(e) => {
                 failure = Some(ReplayError::Step { source: e, frames: k, dir: options.out_dir.clone() });
                 break;
             }
-        };
-        if let Err(e) = writer.write(&report) {
-            failure = Some(e.into());
-            break;
         }
-        summary.add(&report, dt);
         if options.vtk {
             let name = format!("frame_{k:05}.vtu");
             if let Err(e) = write_vtu(&mut pipeline, &mut state, &options.out_dir.join(&name)) {
