@@ -101,18 +101,10 @@ const FRAMES: u64 = 10_000;
 /// Stated bound: max |u| <= DISPLACEMENT_FACTOR x (largest enforced displacement of the frame).
 const DISPLACEMENT_FACTOR: f64 = 1.5;
 
+/// One test, not two: the allocation counter is process-wide, so a second walk
+/// running beside it would be counted as this one's allocations.
 #[test]
-fn ten_thousand_random_walk_frames_stay_finite_bounded_and_flat_and_return_to_rest() {
-    random_walk(false);
-}
-
-#[test]
-#[ignore = "BUG (FEM/pipeline: spatula contact is bilateral): in this walk a retreating blade face pulls the tissue after it, sum F.N < 0 over its held vertices (first at frame 154: -1.6e-3 N); run alone: --ignored --test-threads=1"]
-fn random_walk_blades_never_pull_the_tissue() {
-    random_walk(true);
-}
-
-fn random_walk(assert_no_adhesion: bool) {
+fn ten_thousand_random_walk_frames_stay_finite_bounded_flat_never_pull_and_return_to_rest() {
     let dir = tempfile::tempdir().unwrap();
     let mesh = common::block(8, 8, 4, Vec3::new(40.0, 40.0, 20.0), Vec3::new(-20.0, -20.0, 0.0));
     let blade = |name, base: [f64; 3]| Blade { along: 5, across: 3, ..Blade::flat(name, base) };
@@ -123,6 +115,9 @@ fn random_walk(assert_no_adhesion: bool) {
     // A containing sphere through the block's corners (+0.01 mm): the corners bulge into it under a press.
     scene.skull = Some("Some((containing: Some((center_mm: (0.0, 0.0, 10.0), radius_mm: 30.01))))".into());
     scene.effects = "Collision, Culling, SkullSpheres, ForceOutput, ContactPressure".into();
+    // Unilateral spatula contact: no held vertex may pull (with the paper's bilateral hold,
+    // 214 of these frames had a retreating face pulling its tissue, up to 3.1e-2 N).
+    scene.contact = "Unilateral";
     let (mut p, mut state) = scene.build(dir.path());
     let mut rng = Rng(0x5EED_F155_u64);
     let mut walkers = [
@@ -135,7 +130,7 @@ fn random_walk(assert_no_adhesion: bool) {
     let (mut frames_in_contact, mut frames_with_skull, mut max_inverted, mut max_cond) = (0u64, 0u64, 0u32, 0.0f64);
     let (mut live_at_1000, mut rss_at_1000, mut allocs_at_1000) = (0u64, 0u64, 0u64);
     let mut step_allocations = 0u64;
-    let (mut adhesive_frames, mut max_face_pull) = (0u64, 0.0f64);
+    let (mut adhesive_frames, mut max_face_pull, mut released_frames) = (0u64, 0.0f64, 0u64);
     for frame in 1..=FRAMES {
         for (w, slot) in walkers.iter_mut().zip(input.poses.iter_mut()) {
             w.step(&mut rng);
@@ -149,10 +144,11 @@ fn random_walk(assert_no_adhesion: bool) {
         let report = report.clone();
         let c = check_frame(&p, &state, &report, label);
         if c.max_face_pull_n > 0.0 {
-            assert!(!assert_no_adhesion, "{label}: frame {frame}: a blade face pulls the tissue: {:e} N", c.max_face_pull_n);
             adhesive_frames += 1;
             max_face_pull = max_face_pull.max(c.max_face_pull_n);
         }
+        assert!(c.max_face_pull_n == 0.0, "{label}: frame {frame}: a blade face pulls the tissue: {:e} N", c.max_face_pull_n);
+        released_frames += (c.released_vertices > 0) as u64;
         let max_target = common::scenes::max_enforced_m(&p);
         if max_target > 0.0 {
             frames_in_contact += 1;
@@ -182,7 +178,13 @@ fn random_walk(assert_no_adhesion: bool) {
          worst max|u| / max|U_enf| {worst_ratio:.6}; worst vertex pull / push {max_pull_ratio:.3}; max inverted (surface tets) {max_inverted}; max cond(W) {max_cond:.3e}",
         max_u_all * 1e3
     );
-    println!("{label}: {adhesive_frames} frames with a blade face pulling the tissue (bilateral contact), largest pull {max_face_pull:.3e} N");
+    println!(
+        "{label}: {adhesive_frames} frames with a blade face pulling the tissue, largest pull {max_face_pull:.3e} N; \
+         {released_frames} frames with held vertices released or sliding (their hold would have pulled)"
+    );
+    // Unilateral contact: with per-vertex release no held vertex pulls either (round-off allowance).
+    assert!(max_pull_ratio <= 1e-9, "{label}: a held vertex pulls the tissue: worst pull / push {max_pull_ratio:e}");
+    assert!(released_frames > 0, "{label}: the walk must retreat a pressing blade at least once (release path untested)");
     println!(
         "{label}: live heap {live_at_1000} B at frame 1000, {live_at_end} B at frame {FRAMES}; RSS {rss_at_1000} B -> {rss_at_end} B; \
          {allocs} allocations in frames 1001..{FRAMES} (test checks included), {step_allocations} inside Pipeline::step ({:.2} a frame)",

@@ -274,7 +274,7 @@ fn blade_pushing_vertices_into_an_excluding_sphere_wins_and_the_sphere_row_carri
     let centre = Vec3::new(0.0, 0.0, 0.010);
     let constraints = p.last_constraints().to_vec();
     let enforced_nodes: Vec<u32> =
-        constraints.iter().filter(|k| matches!(k.kind, fissure::fem::ConstraintKind::Enforced { .. })).map(|k| k.node).collect();
+        constraints.iter().filter(|k| k.kind.is_tool() && p.solver().released_nodes().binary_search(&k.node).is_err()).map(|k| k.node).collect();
     let mut conflicts = 0;
     for (k, cons) in constraints.iter().enumerate() {
         if matches!(cons.kind, fissure::fem::ConstraintKind::SphereOutside { .. }) && enforced_nodes.contains(&cons.node) {

@@ -15,7 +15,6 @@ use crate::render::{
     FieldKind, OrbitCamera, Overlays, PairSegment, ScalarField, SceneView, SkullSphere, SpatulaView,
 };
 use crate::sim::{FrameReport, Pipeline, SimState};
-use crate::fem::ConstraintKind;
 use crate::mesh::surface::NOT_ON_SURFACE;
 
 /// Pascals in one mmHg.
@@ -112,7 +111,7 @@ impl Snapshot {
         let surface = pipeline.surface();
         let reactions = &pipeline.last_solution().reactions;
         for (c, f) in pipeline.last_constraints().iter().zip(reactions) {
-            if !matches!(c.kind, ConstraintKind::Enforced { .. }) {
+            if !c.kind.is_tool() {
                 continue;
             }
             let v = surface.node_to_vertex.get(c.node as usize).copied().unwrap_or(NOT_ON_SURFACE);

@@ -21,6 +21,18 @@
 //!   [`super::dense`] (the earlier row is kept) and counted in
 //!   [`FrameSolution::dropped_rows`]; their reaction is zero. Never NaN.
 //!
+//! Tool contacts (`ConstraintKind::Contact`, what the pipeline makes of the
+//! spatulas' targets) are unilateral. Each frame every such node starts held
+//! (three rows: it sticks to the face, as in the paper); a hold whose reaction
+//! pulls (`F . n < 0`, n the face's outward normal) is demoted to one row on
+//! the face plane, `n . u >= n . g`, which the active set treats like a sphere
+//! row: active (the node slides on the face, pushed along n only) or inactive
+//! (released: zero force, not behind the plane). A node is never promoted back
+//! within a frame, so the loop terminates. A node claimed by faces with opposing
+//! normals (pinched between the blades), or by any bilateral `Enforced`
+//! constraint, stays held bilaterally. A sphere row applies to a tool node only
+//! once it is demoted.
+//!
 //! Skull spheres: a row `d . u >= b` with `d` the feasible radial direction,
 //! linearized at the node's current position; active-set loop: add violated
 //! candidates, else drop the most adhesive active row (lambda < 0), else
@@ -41,6 +53,16 @@ pub const SPHERE_TOLERANCE: f64 = 1e-9;
 /// Under-relaxation of the linearization point of active sphere rows (damps the
 /// period-2 oscillation that soft tissue under large contact forces shows).
 pub const RELINEARIZE_RELAXATION: f64 = 0.5;
+/// Relative tolerance of a tool contact: a held node is demoted when its
+/// push `F . n` is below `-CONTACT_TOLERANCE` times the largest nodal tool force;
+/// a released node's plane row is activated when it lies behind its face plane
+/// by more than `CONTACT_TOLERANCE_M + CONTACT_TOLERANCE |n . g|`.
+pub const CONTACT_TOLERANCE: f64 = 1e-9;
+/// Absolute part of the contact gap tolerance, m.
+pub const CONTACT_TOLERANCE_M: f64 = 1e-12;
+/// Active-set iterations in which every pulling hold is demoted at once;
+/// afterwards one at a time.
+pub const BULK_RELEASE_ITERATIONS: usize = 8;
 /// Lazily computed columns kept between frames (each is 3 x free DOFs f64).
 pub const LAZY_CAPACITY: usize = 128;
 
@@ -49,10 +71,32 @@ pub const LAZY_CAPACITY: usize = 128;
 pub enum ConstraintKind {
     /// Displacement from rest (m): three bilateral rows.
     Enforced { displacement: Vec3 },
+    /// A rigid tool face holding the node (spatula contact): the node is held at
+    /// `displacement` (m, from rest; three rows: it sticks while held) as long as
+    /// the reaction pushes the tissue along `normal` (the face's outward unit
+    /// normal; any finite non-zero vector, normalized here): `F . n >= 0`.
+    /// Where holding it would pull, the node is released; a released node may
+    /// not end behind the face plane through its target: `(u - displacement) . n >= 0`.
+    Contact { displacement: Vec3, normal: Vec3 },
     /// The node stays inside the sphere (centre m, radius m > 0): one unilateral radial row.
     SphereInside { center: Vec3, radius: f64 },
     /// The node stays outside the sphere (centre m, radius m > 0): one unilateral radial row.
     SphereOutside { center: Vec3, radius: f64 },
+}
+
+impl ConstraintKind {
+    /// The target displacement of a tool constraint (Enforced or Contact).
+    pub fn tool_displacement(&self) -> Option<Vec3> {
+        match *self {
+            ConstraintKind::Enforced { displacement } | ConstraintKind::Contact { displacement, .. } => Some(displacement),
+            _ => None,
+        }
+    }
+
+    /// True for tool constraints (Enforced or Contact); their owner is a spatula.
+    pub fn is_tool(&self) -> bool {
+        self.tool_displacement().is_some()
+    }
 }
 
 /// One constraint on one mesh node.
@@ -78,6 +122,11 @@ pub struct FrameSolution {
     pub sphere_forces: Vec<(u16, Vec3)>,
     /// Sphere rows active at the end of the frame.
     pub active_sphere_contacts: usize,
+    /// Unilateral tool contacts released this frame (their hold would have pulled).
+    pub released_contacts: usize,
+    /// Unilateral tool contacts that ended on their face plane with only a normal
+    /// push (holding them fully would have pulled; released they would penetrate).
+    pub sliding_contacts: usize,
     /// Largest surface displacement, m.
     pub max_displacement: f64,
     /// Estimate of cond(W) (`(max L_ii / min L_ii)^2`, a lower bound).
@@ -127,6 +176,9 @@ struct Candidate {
     active: bool,
     /// Linearization point (deformed position), m.
     at: Vec3,
+    /// A tool node demoted from held to its face plane: (normal, n . target, group).
+    /// Its row is `n . u >= n . g`; the sphere fields are unused.
+    plane: Option<(Vec3, f64, usize)>,
 }
 
 struct LazyColumn {
@@ -160,13 +212,24 @@ pub struct ConstrainedSolver {
     row_candidate: Vec<usize>,
     /// Persistent factor of W (see [`super::wfactor`] for the order rule).
     factor: ContactFactor,
-    /// Enforced nodes of the frame, ascending (for membership tests).
-    enforced_sorted: Vec<u32>,
+    /// Every node a tool claims this frame, ascending (group g), and per group:
+    /// its claims `group_claims[group_ptr[g]..group_ptr[g + 1]]` and their owners,
+    /// the mean target, the unilateral normal (None: held bilaterally), engaged or released.
+    claimed_sorted: Vec<u32>,
+    group_claims: Vec<usize>,
+    group_owner: Vec<u16>,
+    group_ptr: Vec<usize>,
+    group_targets: Vec<Vec3>,
+    group_normals: Vec<Option<Vec3>>,
+    group_engaged: Vec<bool>,
+    /// Engaged nodes ascending, and in factor order.
+    engaged_sorted: Vec<u32>,
     perm_nodes: Vec<u32>,
-    perm_claims: Vec<usize>,
-    perm_owner: Vec<u16>,
-    perm_ptr: Vec<usize>,
-    perm_targets: Vec<Vec3>,
+    /// Group of each engaged slot.
+    enforced_group: Vec<usize>,
+    /// Unilateral nodes released / sliding on their face plane in the last frame, ascending.
+    prev_released: Vec<u32>,
+    sliding: Vec<u32>,
     /// Sphere rows of W: against the enforced rows (column per sphere row) and among themselves.
     w_es: Vec<f64>,
     w_ss: Vec<f64>,
@@ -208,12 +271,18 @@ impl ConstrainedSolver {
             rows: Vec::new(),
             row_candidate: Vec::new(),
             factor: ContactFactor::default(),
-            enforced_sorted: Vec::new(),
+            claimed_sorted: Vec::new(),
+            group_claims: Vec::new(),
+            group_owner: Vec::new(),
+            group_ptr: Vec::new(),
+            group_targets: Vec::new(),
+            group_normals: Vec::new(),
+            group_engaged: Vec::new(),
+            engaged_sorted: Vec::new(),
             perm_nodes: Vec::new(),
-            perm_claims: Vec::new(),
-            perm_owner: Vec::new(),
-            perm_ptr: Vec::new(),
-            perm_targets: Vec::new(),
+            enforced_group: Vec::new(),
+            prev_released: Vec::new(),
+            sliding: Vec::new(),
             w_es: Vec::new(),
             w_ss: Vec::new(),
             lambda: Vec::new(),
@@ -247,6 +316,18 @@ impl ConstrainedSolver {
     /// The compliance.
     pub fn compliance(&self) -> &Compliance {
         &self.compliance
+    }
+
+    /// Unilateral tool nodes released in the last frame (their hold would have
+    /// pulled the tissue), ascending; their reactions are zero.
+    pub fn released_nodes(&self) -> &[u32] {
+        &self.prev_released
+    }
+
+    /// Unilateral tool nodes that ended the last frame on their face plane with a
+    /// normal push only (ascending): full holding pulled, release penetrated.
+    pub fn sliding_nodes(&self) -> &[u32] {
+        &self.sliding
     }
 
     /// Rows of the last frame's constraint system.
@@ -325,7 +406,7 @@ impl ConstrainedSolver {
         self.frame += 1;
         self.timings = PhaseTimings::default();
         self.validate(constraints)?;
-        self.group_enforced(constraints);
+        self.group_claims(constraints);
         self.collect_candidates(constraints);
         let lazy_before = self.lazy_computed;
         // Candidates that are neither surface nor ROI rows need their own columns to be evaluated.
@@ -336,16 +417,12 @@ impl ConstrainedSolver {
             }
         }
         self.ensure_lazy(&extra)?;
-        let enforced = std::mem::take(&mut self.perm_nodes);
-        let ensured = self.ensure_lazy(&enforced);
-        let t = std::time::Instant::now();
-        let mut factor = std::mem::take(&mut self.factor);
-        factor.update_enforced(&enforced, &|p, q| self.kinv(p, q));
-        self.factor = factor;
-        self.perm_nodes = enforced;
-        self.timings.factor += t.elapsed().as_secs_f64();
+        let claimed = std::mem::take(&mut self.claimed_sorted);
+        let ensured = self.ensure_lazy(&claimed);
+        self.claimed_sorted = claimed;
         ensured?;
-        let max_iterations = 100 + 2 * self.candidates.len();
+        self.arrange_engaged();
+        let max_iterations = 100 + 2 * (self.candidates.len() + self.claimed_sorted.len());
         let mut iterations = 0;
         loop {
             iterations += 1;
@@ -355,7 +432,7 @@ impl ConstrainedSolver {
             self.nodes = nodes;
             ensured?;
             self.solve_rows();
-            if self.candidates.is_empty() {
+            if self.candidates.is_empty() && self.group_normals.iter().all(Option::is_none) {
                 break;
             }
             // Evaluate every candidate at the current solution.
@@ -364,7 +441,23 @@ impl ConstrainedSolver {
             let mut any_add = false;
             for ci in 0..self.candidates.len() {
                 let c = self.candidates[ci];
-                let x = self.model.mesh.positions[c.node as usize] + self.displacement_of(c.node);
+                if self.engaged_sorted.binary_search(&c.node).is_ok() {
+                    // Held by a tool this iteration: the enforced displacement wins.
+                    self.candidates[ci].active = false;
+                    continue;
+                }
+                let u = self.displacement_of(c.node);
+                if let Some((n, b, _)) = c.plane {
+                    // Face plane: exact row, nothing to re-linearize.
+                    let violation = b - n.dot(&u);
+                    if !c.active && violation > CONTACT_TOLERANCE_M + CONTACT_TOLERANCE * b.abs() {
+                        any_add = true;
+                        worst_inactive = worst_inactive.max(violation);
+                        self.candidates[ci].active = true;
+                    }
+                    continue;
+                }
+                let x = self.model.mesh.positions[c.node as usize] + u;
                 let dist = (x - c.center).norm();
                 let violation = if c.inside { dist - c.radius } else { c.radius - dist };
                 let tol = SPHERE_TOLERANCE * c.radius;
@@ -381,6 +474,14 @@ impl ConstrainedSolver {
                 if iterations >= max_iterations {
                     return Err(self.not_converged(iterations, worst_inactive));
                 }
+                continue;
+            }
+            // Tool contacts: a held node whose hold pulls goes to its face plane.
+            if self.demote_pulling_holds(iterations) {
+                if iterations >= max_iterations {
+                    return Err(self.not_converged(iterations, worst_active));
+                }
+                self.arrange_engaged();
                 continue;
             }
             // Most adhesive active row (lambda < 0 pulls the tissue toward the skull).
@@ -403,7 +504,7 @@ impl ConstrainedSolver {
             if worst_active > 0.0 {
                 // Re-linearize active rows at the current positions.
                 for ci in 0..self.candidates.len() {
-                    if self.candidates[ci].active {
+                    if self.candidates[ci].active && self.candidates[ci].plane.is_none() {
                         let node = self.candidates[ci].node;
                         let x = self.model.mesh.positions[node as usize] + self.displacement_of(node);
                         let at = self.candidates[ci].at;
@@ -438,6 +539,7 @@ impl ConstrainedSolver {
             }
             let ok = match c.kind {
                 ConstraintKind::Enforced { displacement } => is_finite3(&displacement),
+                ConstraintKind::Contact { displacement, normal } => is_finite3(&displacement) && is_finite3(&normal) && normal.norm() > 0.0,
                 ConstraintKind::SphereInside { center, radius } | ConstraintKind::SphereOutside { center, radius } => {
                     is_finite3(&center) && radius.is_finite() && radius > 0.0
                 }
@@ -446,81 +548,170 @@ impl ConstrainedSolver {
                 return Err(FemError::InvalidConstraint {
                     index,
                     node: c.node,
-                    reason: "non-finite displacement or centre, or radius not > 0",
+                    reason: "non-finite displacement, normal or centre, zero normal, or radius not > 0",
                 });
             }
         }
         Ok(())
     }
 
-    /// Groups enforced constraints by node (ascending), averaging their targets.
-    fn group_enforced(&mut self, constraints: &[Constraint]) {
+    /// Groups the tool constraints by node (ascending), averaging their targets,
+    /// and decides which nodes are unilateral (every claim a `Contact`, normals
+    /// pairwise agreeing: `n_i . n_j > 0`); a node pinched between opposing faces,
+    /// or claimed by a bilateral `Enforced`, is held bilaterally.
+    fn group_claims(&mut self, constraints: &[Constraint]) {
         self.order.clear();
         for (i, c) in constraints.iter().enumerate() {
-            if matches!(c.kind, ConstraintKind::Enforced { .. }) && !self.model.is_fixed(c.node) {
+            if c.kind.is_tool() && !self.model.is_fixed(c.node) {
                 self.order.push((c.node, i));
             }
         }
         self.order.sort_unstable();
-        self.nodes.clear();
+        self.claimed_sorted.clear();
+        self.group_claims.clear();
+        self.group_owner.clear();
+        self.group_ptr.clear();
+        self.group_ptr.push(0);
+        self.group_targets.clear();
+        self.group_normals.clear();
+        self.group_engaged.clear();
+        let mut k = 0;
+        while k < self.order.len() {
+            let node = self.order[k].0;
+            let mut sum = Vec3::zeros();
+            let mut normal_sum = Vec3::zeros();
+            let mut unilateral = true;
+            let start = k;
+            while k < self.order.len() && self.order[k].0 == node {
+                let i = self.order[k].1;
+                match constraints[i].kind {
+                    ConstraintKind::Contact { displacement, normal } => {
+                        sum += displacement;
+                        let n = normal.normalize();
+                        for &j in &self.order[start..k] {
+                            if let ConstraintKind::Contact { normal: other, .. } = constraints[j.1].kind {
+                                if other.normalize().dot(&n) <= 0.0 {
+                                    unilateral = false;
+                                }
+                            }
+                        }
+                        normal_sum += n;
+                    }
+                    ConstraintKind::Enforced { displacement } => {
+                        sum += displacement;
+                        unilateral = false;
+                    }
+                    _ => {}
+                }
+                self.group_claims.push(i);
+                self.group_owner.push(constraints[i].owner);
+                k += 1;
+            }
+            let normal = if unilateral && normal_sum.norm() > 0.0 { Some(normal_sum.normalize()) } else { None };
+            self.claimed_sorted.push(node);
+            self.group_ptr.push(self.group_claims.len());
+            self.group_targets.push(sum / (k - start) as f64);
+            self.group_normals.push(normal);
+            // Every node starts held; a hold that pulls is demoted in the active-set loop.
+            self.group_engaged.push(true);
+        }
+    }
+
+    /// Arranges the engaged tool nodes in the factor's persistent order (see
+    /// `wfactor`) and updates the enforced factor to them.
+    fn arrange_engaged(&mut self) {
+        self.engaged_sorted.clear();
+        self.engaged_sorted.extend(self.claimed_sorted.iter().zip(&self.group_engaged).filter(|(_, e)| **e).map(|(n, _)| *n));
+        self.factor.order_for(&self.engaged_sorted, &mut self.perm_nodes);
         self.claims.clear();
         self.claim_owner.clear();
         self.claim_ptr.clear();
         self.claim_ptr.push(0);
         self.enforced_targets.clear();
-        let mut k = 0;
-        while k < self.order.len() {
-            let node = self.order[k].0;
-            let mut sum = Vec3::zeros();
-            let start = k;
-            while k < self.order.len() && self.order[k].0 == node {
-                let i = self.order[k].1;
-                if let ConstraintKind::Enforced { displacement } = constraints[i].kind {
-                    sum += displacement;
-                }
-                self.claims.push(i);
-                self.claim_owner.push(constraints[i].owner);
-                k += 1;
-            }
-            self.nodes.push(node);
-            self.claim_ptr.push(self.claims.len());
-            self.enforced_targets.push(sum / (k - start) as f64);
-        }
-        self.enforced_nodes = self.nodes.len();
-        // Persistent order (see `wfactor`): permute the grouping into it.
-        self.enforced_sorted.clear();
-        self.enforced_sorted.extend_from_slice(&self.nodes);
-        self.factor.order_for(&self.enforced_sorted, &mut self.perm_nodes);
-        self.perm_claims.clear();
-        self.perm_owner.clear();
-        self.perm_ptr.clear();
-        self.perm_ptr.push(0);
-        self.perm_targets.clear();
+        self.enforced_group.clear();
         for &node in &self.perm_nodes {
-            let Ok(k) = self.enforced_sorted.binary_search(&node) else { continue };
-            let (a, b) = (self.claim_ptr[k], self.claim_ptr[k + 1]);
-            self.perm_claims.extend_from_slice(&self.claims[a..b]);
-            self.perm_owner.extend_from_slice(&self.claim_owner[a..b]);
-            self.perm_ptr.push(self.perm_claims.len());
-            self.perm_targets.push(self.enforced_targets[k]);
+            let Ok(g) = self.claimed_sorted.binary_search(&node) else { continue };
+            let (a, b) = (self.group_ptr[g], self.group_ptr[g + 1]);
+            self.claims.extend_from_slice(&self.group_claims[a..b]);
+            self.claim_owner.extend_from_slice(&self.group_owner[a..b]);
+            self.claim_ptr.push(self.claims.len());
+            self.enforced_targets.push(self.group_targets[g]);
+            self.enforced_group.push(g);
         }
         self.nodes.clear();
         self.nodes.extend_from_slice(&self.perm_nodes);
-        std::mem::swap(&mut self.claims, &mut self.perm_claims);
-        std::mem::swap(&mut self.claim_owner, &mut self.perm_owner);
-        std::mem::swap(&mut self.claim_ptr, &mut self.perm_ptr);
-        std::mem::swap(&mut self.enforced_targets, &mut self.perm_targets);
+        self.enforced_nodes = self.nodes.len();
+        let t = std::time::Instant::now();
+        let mut factor = std::mem::take(&mut self.factor);
+        factor.update_enforced(&self.perm_nodes, &|p, q| self.kinv(p, q));
+        self.factor = factor;
+        self.timings.factor += t.elapsed().as_secs_f64();
+    }
+
+    /// Held tool nodes whose hold pulls the tissue (`F . n < 0`) leave the held
+    /// set for a row on their face plane (`n . u >= n . g`, unilateral, handled
+    /// with the sphere rows: active = sliding on the face, inactive = released).
+    /// All of them in the first `BULK_RELEASE_ITERATIONS` iterations, then the
+    /// most adhesive one per iteration. A node never returns to held within a
+    /// frame, so this terminates. Returns whether any node was demoted.
+    fn demote_pulling_holds(&mut self, iterations: usize) -> bool {
+        let scale = self.node_force[..self.enforced_nodes].iter().fold(0.0_f64, |m, f| m.max(f.norm()));
+        let mut most: Option<(usize, usize, f64)> = None;
+        let mut changed = false;
+        for k in 0..self.enforced_nodes {
+            let g = self.enforced_group[k];
+            let Some(n) = self.group_normals[g] else { continue };
+            let push = self.node_force[k].dot(&n);
+            if push < -CONTACT_TOLERANCE * scale {
+                if iterations <= BULK_RELEASE_ITERATIONS {
+                    self.demote(k, n);
+                    changed = true;
+                } else if most.is_none_or(|(_, _, m)| push < m) {
+                    most = Some((k, g, push));
+                }
+            }
+        }
+        if let Some((k, g, _)) = most {
+            if let Some(n) = self.group_normals[g] {
+                self.demote(k, n);
+                changed = true;
+            }
+        }
+        changed
+    }
+
+    /// Moves held slot `k` to a face-plane candidate (active: it starts on the plane).
+    fn demote(&mut self, k: usize, n: Vec3) {
+        let g = self.enforced_group[k];
+        self.group_engaged[g] = false;
+        let node = self.claimed_sorted[g];
+        let target = self.group_targets[g];
+        let owner = self.group_owner[self.group_ptr[g]];
+        let at = self.model.mesh.positions[node as usize] + target;
+        self.candidates.push(Candidate {
+            constraint: usize::MAX,
+            node,
+            owner,
+            center: Vec3::zeros(),
+            radius: 0.0,
+            inside: false,
+            active: true,
+            at,
+            plane: Some((n, n.dot(&target), g)),
+        });
     }
 
     fn collect_candidates(&mut self, constraints: &[Constraint]) {
         self.candidates.clear();
         for (i, c) in constraints.iter().enumerate() {
             let (center, radius, inside) = match c.kind {
-                ConstraintKind::Enforced { .. } => continue,
+                ConstraintKind::Enforced { .. } | ConstraintKind::Contact { .. } => continue,
                 ConstraintKind::SphereInside { center, radius } => (center, radius, true),
                 ConstraintKind::SphereOutside { center, radius } => (center, radius, false),
             };
-            if self.model.is_fixed(c.node) || self.enforced_sorted.binary_search(&c.node).is_ok() {
+            // A bilaterally held node takes no sphere row; a unilateral tool node does while released.
+            let bilateral = self.claimed_sorted.binary_search(&c.node).is_ok_and(|g| self.group_normals[g].is_none());
+            if self.model.is_fixed(c.node) || bilateral {
                 continue;
             }
             let rest = self.model.mesh.positions[c.node as usize];
@@ -529,7 +720,7 @@ impl ConstrainedSolver {
                 None => rest,
             };
             let active = self.prev_active.binary_search(&(c.node, c.owner, inside)).is_ok();
-            self.candidates.push(Candidate { constraint: i, node: c.node, owner: c.owner, center, radius, inside, active, at });
+            self.candidates.push(Candidate { constraint: i, node: c.node, owner: c.owner, center, radius, inside, active, at, plane: None });
         }
     }
 
@@ -545,7 +736,7 @@ impl ConstrainedSolver {
         }
         self.row_candidate.clear();
         for (ci, c) in self.candidates.iter().enumerate() {
-            if !c.active {
+            if !c.active || self.engaged_sorted.binary_search(&c.node).is_ok() {
                 continue;
             }
             let slot = match self.nodes[self.enforced_nodes..].iter().position(|&n| n == c.node) {
@@ -555,6 +746,11 @@ impl ConstrainedSolver {
                     self.nodes.len() - 1
                 }
             };
+            if let Some((n, b, _)) = c.plane {
+                self.rows.push(ConstraintRow { slot, dir: n, target: b });
+                self.row_candidate.push(ci);
+                continue;
+            }
             let rest = self.model.mesh.positions[c.node as usize];
             let radial = c.at - c.center;
             let len = radial.norm();
@@ -763,12 +959,21 @@ impl ConstrainedSolver {
         let enforced_rows = 3 * self.enforced_nodes;
         for (k, &ci) in self.row_candidate.iter().enumerate() {
             let row = enforced_rows + k;
-            out.reactions[self.candidates[ci].constraint] = self.rows[row].dir * self.lambda[row];
+            let force = self.rows[row].dir * self.lambda[row];
+            match self.candidates[ci].plane {
+                Some((_, _, g)) => {
+                    let claims = &self.group_claims[self.group_ptr[g]..self.group_ptr[g + 1]];
+                    for &c in claims {
+                        out.reactions[c] = force / claims.len() as f64;
+                    }
+                }
+                None => out.reactions[self.candidates[ci].constraint] = force,
+            }
         }
         out.owner_forces.clear();
         out.sphere_forces.clear();
         for (c, r) in constraints.iter().zip(&out.reactions) {
-            let list = if matches!(c.kind, ConstraintKind::Enforced { .. }) { &mut out.owner_forces } else { &mut out.sphere_forces };
+            let list = if c.kind.is_tool() { &mut out.owner_forces } else { &mut out.sphere_forces };
             match list.binary_search_by_key(&c.owner, |x| x.0) {
                 Ok(i) => list[i].1 += r,
                 Err(i) => list.insert(i, (c.owner, *r)),
@@ -776,11 +981,22 @@ impl ConstrainedSolver {
         }
         self.prev_active.clear();
         for c in &self.candidates {
-            if c.active {
+            if c.active && c.plane.is_none() {
                 self.prev_active.push((c.node, c.owner, c.inside));
             }
         }
         self.prev_active.sort_unstable();
+        self.prev_released.clear();
+        self.sliding.clear();
+        for c in &self.candidates {
+            if c.plane.is_some() {
+                if c.active { self.sliding.push(c.node) } else { self.prev_released.push(c.node) }
+            }
+        }
+        self.prev_released.sort_unstable();
+        self.sliding.sort_unstable();
+        out.released_contacts = self.prev_released.len();
+        out.sliding_contacts = self.sliding.len();
         out.active_sphere_contacts = self.row_candidate.len();
         let n = self.rows.len();
         out.rows = n;

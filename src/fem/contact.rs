@@ -8,7 +8,7 @@
 //! enforced by that spatula. Stays true: owners ascending; area 0 gives
 //! pressure 0 (reported as such, never Inf/NaN).
 
-use super::constrained::{Constraint, ConstraintKind};
+use super::constrained::Constraint;
 use crate::math::Vec3;
 use crate::mesh::BoundarySurface;
 use crate::mesh::surface::NOT_ON_SURFACE;
@@ -48,7 +48,7 @@ pub fn contact_patches(
     vertex_owner.clear();
     vertex_owner.resize(surface.vertices.len(), NONE);
     for (c, r) in constraints.iter().zip(reactions) {
-        if !matches!(c.kind, ConstraintKind::Enforced { .. }) {
+        if !c.kind.is_tool() {
             continue;
         }
         match out.binary_search_by_key(&c.owner, |p| p.owner) {

@@ -339,6 +339,23 @@ pub struct SolverFile {
     /// Folder for the compliance cache (relative to the working directory); `None`: no cache.
     #[serde(default)]
     pub cache_dir: Option<String>,
+    /// How a spatula holds the tissue it claims. Default `Bilateral` (the paper's).
+    #[serde(default)]
+    pub spatula_contact: SpatulaContact,
+}
+
+/// How a spatula holds the tissue it claims.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum SpatulaContact {
+    /// Every claimed vertex is held at its target (the paper's enforced
+    /// displacement): a retreating face can pull its tissue after it.
+    #[default]
+    Bilateral,
+    /// A held vertex sticks while the face pushes it; a hold that would pull is
+    /// released (or slides on the face): no adhesion. Not yet the default: a
+    /// released vertex is kept off its own face plane only, and in the Fig. 11
+    /// replay 11 vertices crossed a blade (docs/hard_cases.md).
+    Unilateral,
 }
 
 /// Number format of the stored compliance.

@@ -16,7 +16,7 @@ use nalgebra::{Matrix3, Rotation3, Unit};
 use super::error::ScenarioError;
 use super::file::{
     CollisionBackend, ComplianceStorage, Effect, FixedFile, InputFile, LayoutFile, LengthUnit, MeshSourceFile,
-    RegionOfInterestFile, RotationFile, ScenarioFile, SphereFile,
+    RegionOfInterestFile, RotationFile, ScenarioFile, SphereFile, SpatulaContact,
 };
 use super::overrides::Document;
 use super::trajectory::Trajectory;
@@ -194,6 +194,8 @@ pub struct SolverOptions {
     pub region_of_interest: RegionOfInterest,
     /// Compliance cache folder (as written: relative to the working directory); `None`: no cache.
     pub cache_dir: Option<PathBuf>,
+    /// How a spatula holds the tissue it claims.
+    pub spatula_contact: SpatulaContact,
 }
 
 /// Output options.
@@ -551,6 +553,7 @@ impl Scenario {
                 Some(d) => Some(PathBuf::from(d)),
                 None => None,
             },
+            spatula_contact: file.solver.spatula_contact,
         };
 
         let gravity = c.vec3("gravity_m_s2", file.gravity_m_s2)?;

@@ -108,6 +108,8 @@ pub struct Pipeline {
     solver: ConstrainedSolver,
     collision: Option<CollisionStage>,
     skull: Option<SkullStage>,
+    /// Spatula targets become unilateral `Contact` rows (else bilateral `Enforced`).
+    unilateral: bool,
     /// Tets whose four nodes are on the surface (inverted check without an interior solve).
     surface_tets: Vec<u32>,
     // scratch
@@ -140,6 +142,7 @@ impl Pipeline {
         let n = scenario.spatulas.len();
         Ok(Self {
             name: scenario.name.clone(),
+            unilateral: scenario.solver.spatula_contact == crate::scenario::SpatulaContact::Unilateral,
             effects: scenario.effects,
             time_step: scenario.time_step,
             shapes: scenario.spatulas.iter().map(|s| s.shape).collect(),
@@ -290,7 +293,11 @@ impl Pipeline {
                 self.constraints.push(Constraint {
                     node: self.surface.vertices[target.vertex as usize],
                     owner: target.spatula as u16,
-                    kind: ConstraintKind::Enforced { displacement: target.displacement },
+                    kind: if self.unilateral {
+                        ConstraintKind::Contact { displacement: target.displacement, normal: target.normal }
+                    } else {
+                        ConstraintKind::Enforced { displacement: target.displacement }
+                    },
                 });
             }
             for (s, c) in r.spatulas.iter_mut().zip(&out.per_spatula) {

@@ -88,6 +88,8 @@ pub struct Scene {
     pub roi: String,
     /// Collision backend name (`Bvh`, `Reference`).
     pub backend: &'static str,
+    /// `solver.spatula_contact`: `Bilateral` (the default, the paper's) or `Unilateral`.
+    pub contact: &'static str,
 }
 
 impl Scene {
@@ -105,6 +107,7 @@ impl Scene {
             effects: "Collision, Culling, ForceOutput".into(),
             roi: "All".into(),
             backend: "Bvh",
+            contact: "Bilateral",
         }
     }
 
@@ -133,7 +136,7 @@ impl Scene {
     spatulas: [{}],
     effects: [{}],
     collision: (backend: {}),
-    solver: (compliance_storage: F64, region_of_interest: {}, cache_dir: None),
+    solver: (compliance_storage: F64, region_of_interest: {}, cache_dir: None, spatula_contact: {}),
     time_step_s: 0.01,
     duration_s: 1.0,
 )"#,
@@ -147,6 +150,7 @@ impl Scene {
             self.effects,
             self.backend,
             self.roi,
+            self.contact,
         );
         Scenario::from_str(&text, &dir.join("scene.ron"), &[]).unwrap_or_else(|e| panic!("test scenario is invalid: {e}\n{text}"))
     }
@@ -197,6 +201,8 @@ pub struct FrameCheck {
     pub max_vertex_push_n: f64,
     /// Largest pull (-sum F . N over one face's held vertices, N) beyond round-off; 0 when no face pulls.
     pub max_face_pull_n: f64,
+    /// Unilateral contacts released or sliding this frame (their hold would have pulled).
+    pub released_vertices: usize,
     /// Estimate of cond(W) from the solver.
     pub conditioning: f64,
     pub dropped_rows: usize,
@@ -237,14 +243,43 @@ pub fn check_frame(pipeline: &Pipeline, state: &SimState, report: &FrameReport, 
     }
     let mut max_pull: f64 = 0.0;
     let mut max_push: f64 = 0.0;
+    let mut released_vertices = 0usize;
     let mut face_force = vec![[0.0f64; 2]; pipeline.spatula_shapes().len()];
+    let released = pipeline.solver().released_nodes();
+    let sliding = pipeline.solver().sliding_nodes();
     for (k, c) in constraints.iter().enumerate() {
-        if let ConstraintKind::Enforced { displacement } = c.kind {
+        if let Some(displacement) = c.kind.tool_displacement() {
             let v = surface.node_to_vertex[c.node as usize] as usize;
             if pipeline.solver().model().is_fixed(c.node) {
                 // Conflict rule (FEM): a constraint on a fixed node is ignored, its reaction is zero.
                 assert_eq!(solution.reactions[k], Vec3::zeros(), "{}", ctx(&format!("fixed vertex {v} carries a reaction")));
                 assert_eq!(state.surface_displacement[v], Vec3::zeros(), "{}", ctx(&format!("fixed vertex {v} moved")));
+                continue;
+            }
+            if released.binary_search(&c.node).is_ok() {
+                // A released unilateral contact: no force, and not behind its face plane.
+                assert_eq!(solution.reactions[k], Vec3::zeros(), "{}", ctx(&format!("released vertex {v} carries a reaction")));
+                let ConstraintKind::Contact { normal, .. } = c.kind else {
+                    panic!("{}", ctx(&format!("vertex {v} released but its constraint is bilateral")));
+                };
+                let gap = (state.surface_displacement[v] - displacement).dot(&normal.normalize());
+                assert!(gap >= -TARGET_TOLERANCE_M, "{}", ctx(&format!("released vertex {v} lies {:e} m behind its face plane", -gap)));
+                released_vertices += 1;
+                continue;
+            }
+            if sliding.binary_search(&c.node).is_ok() {
+                // Sliding on its face: on the plane, pushed along the normal only.
+                let ConstraintKind::Contact { normal, .. } = c.kind else {
+                    panic!("{}", ctx(&format!("vertex {v} slides but its constraint is bilateral")));
+                };
+                let n = normal.normalize();
+                let r = solution.reactions[k];
+                let gap = (state.surface_displacement[v] - displacement).dot(&n);
+                assert!(gap.abs() <= TARGET_TOLERANCE_M, "{}", ctx(&format!("sliding vertex {v} is {gap:e} m off its face plane")));
+                assert!((r - n * r.dot(&n)).norm() <= 1e-9 * r.norm() + 1e-15, "{}", ctx(&format!("sliding vertex {v}: force {r:?} not along the normal {n:?}")));
+                assert!(r.dot(&n) >= -1e-12 * (1.0 + r.norm()), "{}", ctx(&format!("sliding vertex {v} is pulled: {r:?}")));
+                max_push = max_push.max(r.dot(&n));
+                released_vertices += 1;
                 continue;
             }
             enforced_vertex[v] = true;
@@ -301,7 +336,7 @@ pub fn check_frame(pipeline: &Pipeline, state: &SimState, report: &FrameReport, 
                     }
                     assert!(r.dot(&outward) >= -1e-12 * (1.0 + r.norm()), "{}", ctx(&format!("excluding sphere pulls vertex {v}: {r:?}")));
                 }
-                ConstraintKind::Enforced { .. } => {}
+                ConstraintKind::Enforced { .. } | ConstraintKind::Contact { .. } => {}
             }
         }
         for (v, p) in state.surface_positions.iter().enumerate() {
@@ -329,6 +364,7 @@ pub fn check_frame(pipeline: &Pipeline, state: &SimState, report: &FrameReport, 
         max_vertex_pull_n: max_pull,
         max_vertex_push_n: max_push,
         max_face_pull_n: max_face_pull,
+        released_vertices,
         conditioning: solution.conditioning,
         dropped_rows: solution.dropped_rows,
     }
@@ -341,7 +377,7 @@ pub fn step_checked(pipeline: &mut Pipeline, state: &mut SimState, poses: &[fiss
     let check = check_frame(pipeline, state, &report, label);
     assert!(check.max_face_pull_n == 0.0, "{label}, frame {}: a blade face pulls the tissue (adhesive): {:e} N", report.frame, check.max_face_pull_n);
     println!(
-        "{label}: frame {} constrained {} skull {} max|u| {:.4e} m inverted {} ({}) cond(W) {:.3e} dropped {} pull {:.3e} N push {:.3e} N crossed {} penetrating {}",
+        "{label}: frame {} constrained {} skull {} max|u| {:.4e} m inverted {} ({}) cond(W) {:.3e} dropped {} released {} pull {:.3e} N push {:.3e} N crossed {} penetrating {}",
         report.frame,
         check.constrained_vertices,
         check.skull_contacts,
@@ -350,6 +386,7 @@ pub fn step_checked(pipeline: &mut Pipeline, state: &mut SimState, poses: &[fiss
         if report.inverted_scope_all { "all tets" } else { "surface tets" },
         check.conditioning,
         check.dropped_rows,
+        check.released_vertices,
         check.max_vertex_pull_n,
         check.max_vertex_push_n,
         report.crossed_vertices,
@@ -378,8 +415,13 @@ pub fn reference_disagreement(pipeline: &Pipeline, state: &SimState) -> f64 {
             }
         }
     }
+    let released = pipeline.solver().released_nodes();
+    let sliding = pipeline.solver().sliding_nodes();
     for c in pipeline.last_constraints() {
-        if let ConstraintKind::Enforced { displacement } = c.kind {
+        if let Some(displacement) = c.kind.tool_displacement() {
+            if released.binary_search(&c.node).is_ok() || sliding.binary_search(&c.node).is_ok() {
+                continue;
+            }
             for k in 0..3 {
                 prescribed.push((3 * c.node as usize + k, displacement[k]));
             }
@@ -404,8 +446,8 @@ pub fn max_enforced_m(pipeline: &Pipeline) -> f64 {
         .last_constraints()
         .iter()
         .filter_map(|c| match c.kind {
-            ConstraintKind::Enforced { displacement } if !pipeline.solver().model().is_fixed(c.node) => Some(displacement.norm()),
-            _ => None,
+            _ if pipeline.solver().model().is_fixed(c.node) => None,
+            kind => kind.tool_displacement().map(|d| d.norm()),
         })
         .fold(0.0, f64::max)
 }
