@@ -111,10 +111,7 @@ fn assert_paper(preset: Preset, nodes: usize, tets: usize, surface: usize) {
     let c = check(preset);
     assert!(within(c.nodes, nodes, 0.15), "{preset}: {} nodes, paper {nodes} (±15%)", c.nodes);
     assert!(within(c.tets, tets, 0.15), "{preset}: {} tets, paper {tets} (±15%)", c.tets);
-    // Known shortfall: uniform stuffing puts ~70% of the surface triangles the
-    // paper's graded mesh has (its mesh has 69% of its nodes on the surface).
-    let (s, t) = (c.surface as f64, surface as f64);
-    assert!(s >= 0.65 * t && s <= 1.15 * t, "{preset}: {} surface triangles, paper {surface} (-35%..+15%)", c.surface);
+    assert!(within(c.surface, surface, 0.15), "{preset}: {} surface triangles, paper {surface} (±15%, issue #2)", c.surface);
 }
 
 #[test]
@@ -131,7 +128,8 @@ fn paper_12k_matches_the_papers_counts() {
 fn small_and_blocks_are_about_5000_tets_under_1500_triangles() {
     for preset in [Preset::Small, Preset::VValley, Preset::UShape] {
         let c = check(preset);
-        assert!(within(c.tets, 5_000, 0.30), "{preset}: {} tets, expected about 5,000 (±30%)", c.tets);
+        // Issue #2: about 5,000 tets, taken as 4,250..5,750.
+        assert!((4_250..=5_750).contains(&c.tets), "{preset}: {} tets, expected about 5,000 (4,250..5,750)", c.tets);
         assert!(c.surface < 1_500, "{preset}: {} surface triangles, expected under 1,500", c.surface);
     }
 }

@@ -18,6 +18,18 @@
 //! Sylvian fissure: a planar cleft, tilted up towards the back, from the lateral
 //! surface inwards, separating the frontal-parietal lobe above from the temporal
 //! lobe below. Gyri: smooth sinusoidal relief of a few mm on the outer surface.
+//! Sulci (the paper-size presets; a real cortex has far more surface per volume
+//! than an ellipsoid, and the paper's meshes have about one surface triangle
+//! per three tets): eight grooves across the convexity, tilted like the central
+//! sulcus, and two temporal grooves parallel to and below each Sylvian cleft,
+//! all [`SULCUS_DEPTH`] deep and [`BrainShape::sulcus_width_mm`] wide. They stay
+//! clear of what scenarios use: the medial walls of the inter-hemispheric
+//! fissure stay flat (sulci keep |x| >= [`SULCUS_MEDIAL_KEEP`]), no sulcus
+//! comes within 13 mm of the Sylvian cleft over y in [2, 18] mm where the
+//! Sylvian landmark and its spatulas are, nor reaches the frontal underside
+//! the skull-base sphere touches. The `small`
+//! preset is smooth (no sulci, a shallow Sylvian cleft) so that it keeps under
+//! 1,500 surface triangles at about 5,000 tets.
 //! A brain-stem cylinder (region 3) hangs below the middle. Regions: 1 left
 //! hemisphere (x < 0), 2 right (x >= 0), 3 brain stem.
 //!
@@ -34,7 +46,7 @@ use crate::mesh::tetrahedralize::{TetrahedralizeError, tetrahedralize_sdf};
 /// The phantoms we can generate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Preset {
-    /// A coarse brain: about 5,000 tets, under 1,500 surface triangles.
+    /// A coarse, smooth brain: about 5,000 tets, under 1,500 surface triangles.
     Small,
     /// Sized like the paper's Fig. 5c model (9,126 nodes, 34,401 tets, 12,608 surface triangles).
     Paper9k,
@@ -64,9 +76,9 @@ impl Preset {
     /// Lattice edge length of the preset, metres (tuned to the target counts).
     pub fn edge(self) -> f64 {
         1e-3 * match self {
-            Preset::Small => 14.0,
-            Preset::Paper9k => 7.5,
-            Preset::Paper12k => 6.7,
+            Preset::Small => 15.5,
+            Preset::Paper9k => 7.3,
+            Preset::Paper12k => 6.6,
             Preset::VValley => 6.6,
             Preset::UShape => 6.5,
         }
@@ -186,21 +198,38 @@ pub struct BrainShape {
     pub interhemispheric_width_mm: f64,
     /// Width of each Sylvian cleft, mm (>= 1.2 lattice edges).
     pub sylvian_width_mm: f64,
-    /// Amplitude of the gyri relief, mm.
+    /// Depth of each Sylvian cleft from the lateral extreme of its hemisphere
+    /// (x = ±70 mm) inwards, mm (0..34).
+    pub sylvian_depth_mm: f64,
+    /// Amplitude of the gyri relief, mm (0..5).
     pub gyri_amplitude_mm: f64,
     /// Width of each sulcus groove, mm (>= 1.2 lattice edges).
     pub sulcus_width_mm: f64,
+    /// Whether the sulci are carved (see the module notes).
+    pub sulci: bool,
 }
 
 impl BrainShape {
-    /// The shape used by a brain preset: fissures 1.25 lattice edges wide.
+    /// The shape used by a brain preset. The paper-size presets keep the
+    /// fissure widths their landmarks (and so the scenario files and recorded
+    /// trajectories) were placed with: 1.25 times the lattice edges they were
+    /// first tuned with (7.5 mm for paper-9k, 6.7 mm for paper-12k), still
+    /// above 1.2 of today's edges; sulci are 1.25 edges wide. `small` is
+    /// smooth, its fissures 1.25 edges wide.
     pub fn of(preset: Preset) -> Self {
         let edge_mm = preset.edge() * 1e3;
+        let (fissure_width_mm, sylvian_depth_mm, sulci) = match preset {
+            Preset::Paper9k => (1.25 * 7.5, SYLVIAN_DEPTH, true),
+            Preset::Paper12k => (1.25 * 6.7, SYLVIAN_DEPTH, true),
+            Preset::Small | Preset::VValley | Preset::UShape => (1.25 * edge_mm, 10.0, false),
+        };
         Self {
-            interhemispheric_width_mm: 1.25 * edge_mm,
-            sylvian_width_mm: 1.25 * edge_mm,
+            interhemispheric_width_mm: fissure_width_mm,
+            sylvian_width_mm: fissure_width_mm,
+            sylvian_depth_mm,
             gyri_amplitude_mm: 2.5,
             sulcus_width_mm: 1.25 * edge_mm,
+            sulci,
         }
     }
 }
@@ -218,8 +247,32 @@ const SYLVIAN_Z: f64 = -8.0;
 const SYLVIAN_TILT: f64 = 0.35; // radians, rising towards the back (-y)
 const SYLVIAN_DEPTH: f64 = 24.0;
 const SYLVIAN_Y: (f64, f64) = (-45.0, 55.0);
-const SULCI_Y: [f64; 6] = [-66.0, -42.0, -18.0, 6.0, 30.0, 54.0];
-const SULCUS_DEPTH: f64 = 22.0;
+/// Sulci across the convexity, each the slab around the plane
+/// y - [`SULCUS_TILT`] z = y0, above a lowest z: (y0, lowest z), mm, about
+/// 20 mm apart, so that every gyrus between two grooves stays over 1.2
+/// lattice edges thick (thinner ones break off the mesh). None comes within
+/// 13 mm of the Sylvian cleft's plane over y in [2, 18] mm (the Sylvian
+/// landmark and the band its spatulas open): the two beside that band stop at
+/// z = -5 mm, the one above it at z = 12 mm. The frontal one runs down the
+/// lateral side to z = -25 mm (above the frontal underside the skull-base
+/// sphere touches), the occipital ones to z = -35 mm, across the back of the
+/// Sylvian cleft; the two at the poles only cut the upper half, so that no
+/// pole is cut off.
+const CONVEXITY_SULCI: [(f64, f64); 8] =
+    [(-68.0, 0.0), (-48.0, -35.0), (-28.0, -35.0), (-8.0, -5.0), (10.0, 12.0), (28.0, -5.0), (48.0, -25.0), (68.0, 0.0)];
+/// Backward lean of the convexity sulci (dy/dz), like the central sulcus.
+const SULCUS_TILT: f64 = 0.3;
+/// Temporal sulci: slabs parallel to the Sylvian plane at these signed
+/// distances from it (mm, negative = below), on the lateral side
+/// (|x| >= [`TEMPORAL_SULCI_X`]) over y in [`TEMPORAL_SULCI_Y`].
+const TEMPORAL_SULCI: [f64; 2] = [-20.0, -34.0];
+const TEMPORAL_SULCI_X: f64 = 45.0;
+const TEMPORAL_SULCI_Y: (f64, f64) = (-40.0, 50.0);
+/// Depth of every sulcus below the hemisphere's ellipsoid, mm.
+pub const SULCUS_DEPTH: f64 = 30.0;
+/// Sulci keep |x| >= this (mm): the inter-hemispheric fissure's medial walls
+/// stay flat (the landmark's entry is found at |x| = half gap + 1 mm).
+pub const SULCUS_MEDIAL_KEEP: f64 = 14.0;
 
 /// Polynomial smooth minimum (blend radius k, mm).
 fn smin(a: f64, b: f64, k: f64) -> f64 {
@@ -249,20 +302,31 @@ fn brain_sdf(p: &Vec3, shape: &BrainShape) -> f64 {
     let g = shape.gyri_amplitude_mm * (p.y / 14.0).sin() * (p.z / 12.0 + p.x / 20.0).sin();
     let shell = ellipsoid(p, &c, &SEMI);
     let mut hemi = shell + g;
-    // Sulci: grooves across the upper convexity, SULCUS_DEPTH deep.
-    for &y in &SULCI_Y {
-        let groove = (p.y - y - 0.3 * p.z).abs() - 0.5 * shape.sulcus_width_mm;
-        let groove = groove.max(-(shell + SULCUS_DEPTH)).max(-p.z - 5.0);
-        hemi = hemi.max(-groove);
+    let n = sylvian_normal();
+    let o = Vec3::new(0.0, 0.0, SYLVIAN_Z);
+    if shape.sulci {
+        // Each groove: a slab, cut to the SULCUS_DEPTH under the ellipsoid and
+        // to its extent; the solid minus the groove is max(solid, -groove).
+        let half_width = 0.5 * shape.sulcus_width_mm;
+        let under_shell = -(shell + SULCUS_DEPTH);
+        let medial = SULCUS_MEDIAL_KEEP - p.x.abs();
+        for &(y0, lowest_z) in &CONVEXITY_SULCI {
+            let groove = ((p.y - y0 - SULCUS_TILT * p.z).abs() - half_width).max(under_shell).max(lowest_z - p.z).max(medial);
+            hemi = hemi.max(-groove);
+        }
+        let along = (p.y - 0.5 * (TEMPORAL_SULCI_Y.0 + TEMPORAL_SULCI_Y.1)).abs() - 0.5 * (TEMPORAL_SULCI_Y.1 - TEMPORAL_SULCI_Y.0);
+        let lateral = TEMPORAL_SULCI_X - p.x.abs();
+        for &offset in &TEMPORAL_SULCI {
+            let groove = ((n.dot(&(p - o)) - offset).abs() - half_width).max(under_shell).max(along).max(lateral);
+            hemi = hemi.max(-groove);
+        }
     }
     // Flat medial face: the fissure wall at |x| = half_gap.
     let hemi = hemi.max(half_gap - p.x.abs());
     // Sylvian cleft on this side: slab around the tilted plane, from the
-    // lateral surface inwards over SYLVIAN_DEPTH, within a y range.
-    let n = sylvian_normal();
-    let o = Vec3::new(0.0, 0.0, SYLVIAN_Z);
+    // lateral surface inwards over the shape's Sylvian depth, within a y range.
     let slab = (n.dot(&(p - o))).abs() - 0.5 * shape.sylvian_width_mm;
-    let lateral = (HEMI_X + SEMI[0] - SYLVIAN_DEPTH) - p.x.abs();
+    let lateral = (HEMI_X + SEMI[0] - shape.sylvian_depth_mm) - p.x.abs();
     let along = (p.y - 0.5 * (SYLVIAN_Y.0 + SYLVIAN_Y.1)).abs() - 0.5 * (SYLVIAN_Y.1 - SYLVIAN_Y.0);
     let cleft = slab.max(lateral).max(along);
     let hemi = hemi.max(-cleft);
@@ -416,7 +480,7 @@ fn brain_landmarks(mesh: &TetMesh, shape: &BrainShape, sdf: &dyn Fn(&Vec3) -> f6
         // Walk inwards just above the cleft to find the lateral surface.
         let probe = first_inside(sdf, start + n * (0.5 * shape.sylvian_width_mm + 1.5) * mm, Vec3::new(-side, 0.0, 0.0), 0.08);
         let entry = Vec3::new(probe.x, start.y, start.z);
-        let floor_x = side * (HEMI_X + SEMI[0] - SYLVIAN_DEPTH) * mm;
+        let floor_x = side * (HEMI_X + SEMI[0] - shape.sylvian_depth_mm) * mm;
         Fissure {
             entry,
             inward: Vec3::new(-side, 0.0, 0.0),
@@ -470,10 +534,45 @@ mod tests {
     }
 
     #[test]
+    fn sulci_leave_the_landmark_zones_as_they_were() {
+        // The zones scenario files rely on keep their inside/outside: the
+        // medial walls of the inter-hemispheric fissure (|x| in [4, 13] mm),
+        // the band y in [2, 18] mm around the Sylvian landmark (13 mm either
+        // side of the cleft's plane, where its blades spread), and the frontal
+        // underside under the skull-base sphere.
+        let mut zones: Vec<Vec3> = Vec::new();
+        for i in 0..=40 {
+            for j in 0..=40 {
+                let (u, v) = (i as f64 / 40.0, j as f64 / 40.0);
+                zones.push(Vec3::new(4.0 + 9.0 * u, -80.0 + 160.0 * v, -2.0 + 57.0 * u * v));
+                let y = 2.0 + 16.0 * v;
+                zones.push(Vec3::new(-72.0 + 24.0 * u, y, SYLVIAN_Z - y * SYLVIAN_TILT.tan() - 14.0 + 28.0 * u));
+                zones.push(Vec3::new(5.0 + 30.0 * u, 25.0 + 40.0 * v, -60.0 + 30.0 * u * v));
+            }
+        }
+        let inside = |p: &Vec3, s: &BrainShape| brain_sdf(p, s) < 0.0;
+        for preset in [Preset::Paper9k, Preset::Paper12k] {
+            let with = BrainShape::of(preset);
+            let without = BrainShape { sulci: false, ..with };
+            for p in &zones {
+                for q in [*p, Vec3::new(-p.x, p.y, p.z)] {
+                    assert_eq!(inside(&q, &with), inside(&q, &without), "{preset}: sulci reach the landmark zone at {q}");
+                }
+            }
+            // Elsewhere they do cut: along a diagonal through both hemispheres.
+            let carved = (0..2000)
+                .map(|k| Vec3::new(-70.0 + 0.07 * k as f64, -80.0 + 0.08 * k as f64, 50.0 - 0.05 * k as f64))
+                .filter(|p| inside(p, &without) && !inside(p, &with))
+                .count();
+            assert!(carved > 20, "{preset}: the sulci must carve the convexity, {carved} of 2000 samples");
+        }
+    }
+
+    #[test]
     fn brain_field_has_gaps_where_the_fissures_are() {
         let s = BrainShape::of(Preset::Paper12k);
         // Inside a hemisphere, in the gap, in the Sylvian cleft, in the stem.
-        assert!(brain_sdf(&Vec3::new(30.0, 0.0, 20.0), &s) < 0.0, "hemisphere interior");
+        assert!(brain_sdf(&Vec3::new(30.0, 10.0, 0.0), &s) < 0.0, "hemisphere interior (the wide gyrus above the Sylvian landmark)");
         assert!(brain_sdf(&Vec3::new(0.0, 0.0, 30.0), &s) > 0.0, "inter-hemispheric gap is outside");
         assert!(brain_sdf(&Vec3::new(0.0, 0.0, -10.0), &s) < 0.0, "bridge below the gap is inside");
         let n = sylvian_normal();
@@ -483,6 +582,14 @@ mod tests {
         assert_eq!(brain_region(&Vec3::new(0.0, STEM_Y, -70.0)), 3);
         assert_eq!(brain_region(&Vec3::new(-30.0, 0.0, 0.0)), 1);
         assert_eq!(brain_region(&Vec3::new(30.0, 0.0, 0.0)), 2);
+        // A convexity sulcus cuts the upper lateral surface; a temporal one the temporal lobe.
+        let (y0, _) = CONVEXITY_SULCI[2];
+        let top = Vec3::new(40.0, y0 + SULCUS_TILT * 40.0, 40.0);
+        assert!(brain_sdf(&top, &s) > 0.0, "convexity sulcus at y0 = {y0} is open at {top}");
+        assert!(brain_sdf(&(top - Vec3::y() * 8.0), &s) < 0.0, "the gyrus beside it is solid");
+        let o = Vec3::new(-62.0, 10.0, SYLVIAN_Z - 10.0 * n.y / n.z);
+        assert!(brain_sdf(&(o + n * TEMPORAL_SULCI[0]), &s) > 0.0, "superior temporal sulcus is open");
+        assert!(brain_sdf(&(o + n * 0.5 * (TEMPORAL_SULCI[0] - 0.5 * s.sylvian_width_mm)), &s) < 0.0, "temporal gyrus between it and the Sylvian cleft is solid");
         assert!(block_sdf(&Vec3::new(0.0, 0.0, 25.0), true) > 0.0 && block_sdf(&Vec3::new(20.0, 0.0, 25.0), true) < 0.0);
         assert!(block_sdf(&Vec3::new(0.0, 0.0, 20.0), false) > 0.0 && block_sdf(&Vec3::new(0.0, 0.0, 10.0), false) < 0.0);
     }
