@@ -228,7 +228,7 @@ pub struct ConstrainedSolver {
     /// Group of each engaged slot.
     enforced_group: Vec<usize>,
     /// Unilateral nodes released / sliding on their face plane in the last frame, ascending.
-    prev_released: Vec<u32>,
+    released: Vec<u32>,
     sliding: Vec<u32>,
     /// Sphere rows of W: against the enforced rows (column per sphere row) and among themselves.
     w_es: Vec<f64>,
@@ -281,7 +281,7 @@ impl ConstrainedSolver {
             engaged_sorted: Vec::new(),
             perm_nodes: Vec::new(),
             enforced_group: Vec::new(),
-            prev_released: Vec::new(),
+            released: Vec::new(),
             sliding: Vec::new(),
             w_es: Vec::new(),
             w_ss: Vec::new(),
@@ -321,7 +321,7 @@ impl ConstrainedSolver {
     /// Unilateral tool nodes released in the last frame (their hold would have
     /// pulled the tissue), ascending; their reactions are zero.
     pub fn released_nodes(&self) -> &[u32] {
-        &self.prev_released
+        &self.released
     }
 
     /// Unilateral tool nodes that ended the last frame on their face plane with a
@@ -986,16 +986,16 @@ impl ConstrainedSolver {
             }
         }
         self.prev_active.sort_unstable();
-        self.prev_released.clear();
+        self.released.clear();
         self.sliding.clear();
         for c in &self.candidates {
             if c.plane.is_some() {
-                if c.active { self.sliding.push(c.node) } else { self.prev_released.push(c.node) }
+                if c.active { self.sliding.push(c.node) } else { self.released.push(c.node) }
             }
         }
-        self.prev_released.sort_unstable();
+        self.released.sort_unstable();
         self.sliding.sort_unstable();
-        out.released_contacts = self.prev_released.len();
+        out.released_contacts = self.released.len();
         out.sliding_contacts = self.sliding.len();
         out.active_sphere_contacts = self.row_candidate.len();
         let n = self.rows.len();
