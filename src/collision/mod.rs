@@ -73,7 +73,7 @@ pub use pairs::Pair;
 pub enum BackendKind {
     /// Every node against every triangle on the CPU, f64 (the oracle).
     Reference,
-    /// parry BVH refit per frame, f64, same answers as `reference`.
+    /// Our binned-SAH BVH, refit per frame, lines split over two threads; f64, bit for bit the answers of `reference`.
     Bvh,
     /// WGSL compute pass through wgpu, f32.
     Gpu,

@@ -1,7 +1,7 @@
 //! BVH backend: a binary bounding-volume hierarchy over the deformed surface's
-//! triangles, built once (median split on the longest centroid axis) and REFIT
-//! every frame (topology never changes), traversed per pair line NEAR-FIRST with
-//! our f64 watertight line test at the leaves.
+//! triangles, built once (binned surface-area heuristic over the rest positions,
+//! `bvh/build.rs`) and REFIT every frame (topology never changes), traversed per
+//! pair line NEAR-FIRST with our f64 watertight line test at the leaves.
 //!
 //! Why our own tree rather than parry's `Bvh` (the first version used it): a pair
 //! line needs four nearest hits around the blade (behind and in front of each
@@ -16,9 +16,19 @@
 //! node is skipped only when the line misses its box grown by `margin`, or when the
 //! line's parameter interval through that grown box lies outside the interval
 //! where a hit could still change the result ([`LineAccumulator::needed_interval`],
-//! itself widened by `margin`). `margin` is 1e-7 of the surface's bounding-box
-//! diagonal. Exact ties are kept (never pruned) and go to the lower triangle index
-//! by [`LineAccumulator::offer`], whatever the visiting order.
+//! itself widened by `margin`). `margin` is at least 1e-7 of the surface's
+//! bounding-box diagonal (boxes are stored grown by it). Exact ties are kept (never pruned) and go to the lower triangle index
+//! by [`LineAccumulator::offer`], whatever the visiting order. Lines are independent
+//! and land in fixed output slots, so splitting them (and the refit) over rayon's
+//! threads ([`BvhCaster::set_threads`], default min(pool, 2)) cannot change any answer.
+//!
+//! Cost per frame: the refit reads each leaf's distinct vertices once (about 2 per
+//! triangle instead of 3) in one backward sweep; a line costs about 50 node visits
+//! on a 41k-triangle brain, each testing both children's boxes with a branch-free
+//! slab test and pruning them against the needed interval before they are pushed.
+
+mod build;
+
 
 use super::{LineAccumulator, PairHits, PairLine, RayCaster, TriangleHit};
 use crate::collision::{BackendKind, CollisionError};
@@ -27,30 +37,333 @@ use crate::math::Vec3;
 
 /// Relative size of the conservative margin (of the surface's AABB diagonal).
 const MARGIN_RELATIVE: f64 = 1e-7;
-/// Most triangles in a leaf.
-const LEAF_SIZE: usize = 4;
 
-/// A tree node: a box and either two children (`count == 0`, children at
-/// `first` and `first + 1`) or a run of `count` triangles at `order[first..]`.
+/// Fewest pair lines worth splitting over threads.
+const PARALLEL_MIN_LINES: usize = 64;
+/// Pair lines per parallel task (tasks are load-balanced by rayon; results land in
+/// fixed slots, so the split never changes an answer).
+const LINES_PER_TASK: usize = 32;
+/// Fewest tree nodes worth refitting over threads.
+const PARALLEL_MIN_NODES: usize = 4096;
+
+thread_local! {
+    /// Traversal stack of a worker thread, reused across frames.
+    static STACK: std::cell::RefCell<Vec<Pending>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// A tree node: a box (stored grown by the margin) and either two children
+/// (`count == 0`, children at `first` and `first + 1`) or a run of `count` triangles
+/// at `order[first..]` whose distinct vertices are `leaf_vertices[vfirst..vfirst + vcount]`.
 #[derive(Debug, Clone, Copy)]
 struct Node {
     lo: [f64; 3],
     hi: [f64; 3],
     first: u32,
     count: u32,
+    vfirst: u32,
+    vcount: u32,
+}
+
+impl Node {
+    const EMPTY: Self = Self { lo: [f64::INFINITY; 3], hi: [f64::NEG_INFINITY; 3], first: 0, count: 0, vfirst: 0, vcount: 0 };
+}
+
+/// One pending node of a traversal: its index and the line's parameter interval
+/// through its (grown) box.
+#[derive(Debug, Clone, Copy)]
+struct Pending {
+    node: u32,
+    t0: f64,
+    t1: f64,
 }
 
 /// Refit-per-frame BVH ray caster.
 #[derive(Clone)]
 pub struct BvhCaster {
-    triangles: Vec<[u32; 3]>,
+    /// This frame's surface-vertex positions.
     positions: Vec<Vec3>,
-    /// Triangle indices in leaf order.
+    /// Every leaf's distinct vertices, leaf after leaf (a leaf's box needs each once).
+    leaf_vertices: Vec<u32>,
+    /// Original triangle indices in leaf order.
     order: Vec<u32>,
+    /// Triangles (vertex indices) in leaf order: `leaf_triangles[i] = triangles[order[i]]`.
+    leaf_triangles: Vec<[u32; 3]>,
     /// Nodes; every child has a larger index than its parent (refit runs backwards).
     nodes: Vec<Node>,
+    /// Margin the boxes are grown by, metres: at least `MARGIN_RELATIVE` of the
+    /// surface's bounding-box diagonal (set at construction, raised if the surface grows).
     margin: f64,
-    stack: Vec<(u32, f64)>,
+    stack: Vec<Pending>,
+    /// Threads to split the work over (1: all on the calling thread).
+    threads: usize,
+}
+
+#[inline(always)]
+fn min(a: f64, b: f64) -> f64 {
+    if b < a { b } else { a }
+}
+
+#[inline(always)]
+fn max(a: f64, b: f64) -> f64 {
+    if b > a { b } else { a }
+}
+
+/// A line prepared for box tests: origin and reciprocal direction.
+///
+/// A zero direction component gives an infinite reciprocal, and the slab test then
+/// needs no branch: outside the slab both bounds are +inf or both -inf (a miss),
+/// inside they are -inf and +inf (no constraint). An origin exactly on a slab
+/// boundary gives NaN, which [`min`] and [`max`] ignore, so that axis does not
+/// constrain the interval: the test stays conservative.
+#[derive(Clone, Copy)]
+struct BoxQuery {
+    o: [f64; 3],
+    inv: [f64; 3],
+}
+
+impl BoxQuery {
+    /// The line's parameter interval through box `n` (stored grown by the margin);
+    /// empty (a miss) when `t0 > t1 + margin`.
+    #[inline(always)]
+    fn interval(&self, n: &Node) -> (f64, f64) {
+        let mut t0 = f64::NEG_INFINITY;
+        let mut t1 = f64::INFINITY;
+        for a in 0..3 {
+            let ta = (n.lo[a] - self.o[a]) * self.inv[a];
+            let tb = (n.hi[a] - self.o[a]) * self.inv[a];
+            t0 = max(t0, min(ta, tb));
+            t1 = min(t1, max(ta, tb));
+        }
+        (t0, t1)
+    }
+}
+
+impl BvhCaster {
+    /// Builds the tree once over the triangles at `positions` (indices validated by the caller).
+    pub fn new(triangles: &[[u32; 3]], positions: &[Vec3]) -> Self {
+        let boxes: Vec<([f64; 3], [f64; 3])> = triangles.iter().map(|t| triangle_box(positions, t)).collect();
+        let centroids: Vec<[f64; 3]> = triangles
+            .iter()
+            .map(|t| {
+                let c = t.map(|i| positions[i as usize]).iter().sum::<Vec3>() / 3.0;
+                [c.x, c.y, c.z]
+            })
+            .collect();
+        let (mut nodes, order) = build::build(&boxes, &centroids);
+        let mut leaf_vertices = Vec::with_capacity(triangles.len() * 3 / 2);
+        let mut distinct = Vec::with_capacity(3 * build::MAX_LEAF);
+        for n in nodes.iter_mut().filter(|n| n.count > 0) {
+            distinct.clear();
+            distinct.extend(order[n.first as usize..(n.first + n.count) as usize].iter().flat_map(|&t| triangles[t as usize]));
+            distinct.sort_unstable();
+            distinct.dedup();
+            n.vfirst = leaf_vertices.len() as u32;
+            n.vcount = distinct.len() as u32;
+            leaf_vertices.extend_from_slice(&distinct);
+        }
+        let leaf_triangles = order.iter().map(|&t| triangles[t as usize]).collect();
+        let mut s = Self {
+            positions: positions.to_vec(),
+            leaf_vertices,
+            order,
+            leaf_triangles,
+            nodes,
+            margin: 0.0,
+            stack: Vec::with_capacity(128),
+            threads: default_threads(),
+        };
+        s.refit();
+        s
+    }
+
+    /// Recomputes every box bottom-up from `self.positions`, grown by the margin, in
+    /// one backward sweep (children come after their parents). With two threads the
+    /// root's two subtrees, each a contiguous run of the node array (depth-first
+    /// layout), are swept at the same time, then the top three nodes.
+    fn refit(&mut self) {
+        let (positions, leaf_vertices, m) = (&self.positions, &self.leaf_vertices, self.margin);
+        // Sweeps `nodes` (global indices `base..`) backwards; every child of a node in
+        // the run must lie in the run.
+        let sweep = |nodes: &mut [Node], base: usize| {
+            for k in (0..nodes.len()).rev() {
+                let n = nodes[k];
+                let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+                if n.count > 0 {
+                    (lo, hi) = leaf_box(&n, positions, leaf_vertices, m);
+                } else {
+                    let c = n.first as usize - base;
+                    let (a, b) = (&nodes[c], &nodes[c + 1]);
+                    for i in 0..3 {
+                        lo[i] = min(a.lo[i], b.lo[i]);
+                        hi[i] = max(a.hi[i], b.hi[i]);
+                    }
+                }
+                nodes[k].lo = lo;
+                nodes[k].hi = hi;
+            }
+        };
+        let len = self.nodes.len();
+        if self.threads > 1 && len >= PARALLEL_MIN_NODES && self.nodes[0].count == 0 {
+            // Root 0, children 1 and 2; node 1's descendants are 3..x, node 2's are x..len.
+            let x = if self.nodes[2].count == 0 { self.nodes[2].first as usize } else { len };
+            let (top, rest) = self.nodes.split_at_mut(3);
+            let (left, right) = rest.split_at_mut(x - 3);
+            rayon::join(|| sweep(left, 3), || sweep(right, x));
+            let mut top_and_children = |k: usize| sweep_one(top, k, &*left, &*right, x, positions, leaf_vertices, m);
+            top_and_children(2);
+            top_and_children(1);
+            let (a, b) = (top[1], top[2]);
+            for i in 0..3 {
+                top[0].lo[i] = min(a.lo[i], b.lo[i]);
+                top[0].hi[i] = max(a.hi[i], b.hi[i]);
+            }
+        } else {
+            sweep(&mut self.nodes, 0);
+        }
+        // The margin must stay at least MARGIN_RELATIVE of the diagonal: when the surface
+        // has grown past that (or on the first fit), grow every box by the difference.
+        let Some(root) = self.nodes.first() else { return };
+        let d = Vec3::new(root.hi[0] - root.lo[0], root.hi[1] - root.lo[1], root.hi[2] - root.lo[2]);
+        let wanted = MARGIN_RELATIVE * d.norm().max(f64::MIN_POSITIVE);
+        if wanted > self.margin && wanted.is_finite() {
+            let extra = 2.0 * wanted - self.margin; // headroom: no second pass while the surface stays this size
+            for n in &mut self.nodes {
+                for i in 0..3 {
+                    n.lo[i] -= extra;
+                    n.hi[i] += extra;
+                }
+            }
+            self.margin += extra;
+        }
+    }
+
+    /// Splits refit and casting over `threads` threads of rayon's pool (at least 1;
+    /// 1 keeps everything on the calling thread). Answers do not depend on it.
+    pub fn set_threads(&mut self, threads: usize) {
+        self.threads = threads.max(1);
+    }
+
+    /// Threads the work is split over.
+    pub fn threads(&self) -> usize {
+        self.threads
+    }
+
+    /// Nearest hits of one pair line.
+    pub fn cast_one(&mut self, line: &PairLine) -> PairHits {
+        let mut stack = std::mem::take(&mut self.stack);
+        let hits = self.cast_with(line, &mut stack);
+        self.stack = stack;
+        hits
+    }
+
+    /// Nearest hits of one pair line, with `stack` as scratch.
+    fn cast_with(&self, line: &PairLine, stack: &mut Vec<Pending>) -> PairHits {
+        let mut best = LineAccumulator::new(line.thickness);
+        let Some(query) = LineQuery::new(line.origin, line.direction) else {
+            return best.finish();
+        };
+        let Some(root) = self.nodes.first() else {
+            return best.finish();
+        };
+        let d = [line.direction.x, line.direction.y, line.direction.z];
+        let bq = BoxQuery { o: [line.origin.x, line.origin.y, line.origin.z], inv: d.map(|c| 1.0 / c) };
+        // Distance of an interval from the blade's mid-plane (line parameter -h/2).
+        let centre = -0.5 * line.thickness;
+        let gap = |t0: f64, t1: f64| {
+            if t0 > centre {
+                t0 - centre
+            } else if t1 < centre {
+                centre - t1
+            } else {
+                0.0
+            }
+        };
+        let m = self.margin;
+        let (mut need_lo, mut need_hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        stack.clear();
+        let (t0, t1) = bq.interval(root);
+        if t0 <= t1 + m {
+            stack.push(Pending { node: 0, t0, t1 });
+        }
+        while let Some(Pending { node, t0, t1 }) = stack.pop() {
+            // The needed interval may have shrunk since the push.
+            if t1 < need_lo || t0 > need_hi {
+                continue;
+            }
+            let n = &self.nodes[node as usize];
+            if n.count > 0 {
+                let range = n.first as usize..(n.first + n.count) as usize;
+                for (tri, &t) in self.leaf_triangles[range.clone()].iter().zip(&self.order[range]) {
+                    let [a, b, c] = tri.map(|i| &self.positions[i as usize]);
+                    if let Some(h) = query.intersect(a, b, c) {
+                        best.offer(TriangleHit { triangle: t, t: h.t, u: h.u, v: h.v });
+                    }
+                }
+                (need_lo, need_hi) = best.needed_interval(m);
+                continue;
+            }
+            let (l, r) = (n.first, n.first + 1);
+            let (a0, a1) = bq.interval(&self.nodes[l as usize]);
+            let (b0, b1) = bq.interval(&self.nodes[r as usize]);
+            // A child is kept when the line meets its box and the interval still matters there.
+            let keep_l = a0 <= a1 + m && a1 >= need_lo && a0 <= need_hi;
+            let keep_r = b0 <= b1 + m && b1 >= need_lo && b0 <= need_hi;
+            let (left, right) = (Pending { node: l, t0: a0, t1: a1 }, Pending { node: r, t0: b0, t1: b1 });
+            // Push the farther child first so the nearer one is opened next.
+            match (keep_l, keep_r) {
+                (true, true) => {
+                    if gap(a0, a1) <= gap(b0, b1) {
+                        stack.extend([right, left]);
+                    } else {
+                        stack.extend([left, right]);
+                    }
+                }
+                (true, false) => stack.push(left),
+                (false, true) => stack.push(right),
+                (false, false) => {}
+            }
+        }
+        best.finish()
+    }
+}
+
+/// Refits node `k` (1 or 2) of `top` (nodes 0..3) from its children, which lie in
+/// `left` (global 3..x) or `right` (global x..), or from its triangles if it is a leaf.
+#[allow(clippy::too_many_arguments)]
+fn sweep_one(top: &mut [Node], k: usize, left: &[Node], right: &[Node], x: usize, positions: &[Vec3], leaf_vertices: &[u32], m: f64) {
+    let n = top[k];
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    if n.count > 0 {
+        (lo, hi) = leaf_box(&n, positions, leaf_vertices, m);
+    } else {
+        let c = n.first as usize;
+        let (a, b) = if c >= x { (&right[c - x], &right[c + 1 - x]) } else { (&left[c - 3], &left[c + 1 - 3]) };
+        for i in 0..3 {
+            lo[i] = min(a.lo[i], b.lo[i]);
+            hi[i] = max(a.hi[i], b.hi[i]);
+        }
+    }
+    top[k].lo = lo;
+    top[k].hi = hi;
+}
+
+/// Box of a leaf's triangle vertices, grown by the margin `m`.
+#[inline]
+fn leaf_box(n: &Node, positions: &[Vec3], leaf_vertices: &[u32], m: f64) -> ([f64; 3], [f64; 3]) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for &v in &leaf_vertices[n.vfirst as usize..(n.vfirst + n.vcount) as usize] {
+        let q = &positions[v as usize];
+        for i in 0..3 {
+            lo[i] = min(lo[i], q[i]);
+            hi[i] = max(hi[i], q[i]);
+        }
+    }
+    (lo.map(|x| x - m), hi.map(|x| x + m))
+}
+
+/// Default thread count: the pool's size, at most 2 (the machines we target).
+fn default_threads() -> usize {
+    rayon::current_num_threads().clamp(1, 2)
 }
 
 fn triangle_box(positions: &[Vec3], t: &[u32; 3]) -> ([f64; 3], [f64; 3]) {
@@ -60,176 +373,15 @@ fn triangle_box(positions: &[Vec3], t: &[u32; 3]) -> ([f64; 3], [f64; 3]) {
     ([lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z])
 }
 
-impl BvhCaster {
-    /// Builds the tree once over the triangles at `positions` (indices validated by the caller).
-    pub fn new(triangles: &[[u32; 3]], positions: &[Vec3]) -> Self {
-        let mut s = Self {
-            triangles: triangles.to_vec(),
-            positions: positions.to_vec(),
-            order: (0..triangles.len() as u32).collect(),
-            nodes: Vec::with_capacity(2 * triangles.len() / LEAF_SIZE + 2),
-            margin: 0.0,
-            stack: Vec::with_capacity(128),
-        };
-        if !triangles.is_empty() {
-            let centroids: Vec<Vec3> =
-                triangles.iter().map(|t| t.map(|i| positions[i as usize]).iter().sum::<Vec3>() / 3.0).collect();
-            s.nodes.push(Node { lo: [0.0; 3], hi: [0.0; 3], first: 0, count: 0 });
-            s.split(0, 0, triangles.len(), &centroids);
-            s.refit();
-        }
-        s
-    }
-
-    /// Makes node `node` cover `order[start..end]`, splitting it while it is large.
-    fn split(&mut self, node: usize, start: usize, end: usize, centroids: &[Vec3]) {
-        if end - start <= LEAF_SIZE {
-            self.nodes[node] = Node { lo: [0.0; 3], hi: [0.0; 3], first: start as u32, count: (end - start) as u32 };
-            return;
-        }
-        let (mut lo, mut hi) = (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY));
-        for &t in &self.order[start..end] {
-            lo = lo.inf(&centroids[t as usize]);
-            hi = hi.sup(&centroids[t as usize]);
-        }
-        let axis = (hi - lo).imax();
-        let mid = (start + end) / 2;
-        // Deterministic median: sort by (coordinate, index).
-        self.order[start..end].sort_unstable_by(|&a, &b| {
-            centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis]).then(a.cmp(&b))
-        });
-        let left = self.nodes.len();
-        self.nodes.push(Node { lo: [0.0; 3], hi: [0.0; 3], first: 0, count: 0 });
-        self.nodes.push(Node { lo: [0.0; 3], hi: [0.0; 3], first: 0, count: 0 });
-        self.nodes[node] = Node { lo: [0.0; 3], hi: [0.0; 3], first: left as u32, count: 0 };
-        self.split(left, start, mid, centroids);
-        self.split(left + 1, mid, end, centroids);
-    }
-
-    /// Recomputes every box bottom-up from the current positions.
-    fn refit(&mut self) {
-        for k in (0..self.nodes.len()).rev() {
-            let n = self.nodes[k];
-            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-            if n.count > 0 {
-                for &t in &self.order[n.first as usize..(n.first + n.count) as usize] {
-                    let (a, b) = triangle_box(&self.positions, &self.triangles[t as usize]);
-                    for i in 0..3 {
-                        lo[i] = lo[i].min(a[i]);
-                        hi[i] = hi[i].max(b[i]);
-                    }
-                }
-            } else {
-                for c in [self.nodes[n.first as usize], self.nodes[n.first as usize + 1]] {
-                    for i in 0..3 {
-                        lo[i] = lo[i].min(c.lo[i]);
-                        hi[i] = hi[i].max(c.hi[i]);
-                    }
-                }
-            }
-            self.nodes[k].lo = lo;
-            self.nodes[k].hi = hi;
-        }
-        self.margin = match self.nodes.first() {
-            Some(root) => {
-                let d = Vec3::new(root.hi[0] - root.lo[0], root.hi[1] - root.lo[1], root.hi[2] - root.lo[2]);
-                MARGIN_RELATIVE * d.norm().max(f64::MIN_POSITIVE)
-            }
-            None => 0.0,
-        };
-    }
-
-    /// The line's parameter interval through node `n`'s box grown by the margin, or None.
-    #[inline]
-    fn interval(&self, n: &Node, o: &[f64; 3], d: &[f64; 3], inv: &[f64; 3]) -> Option<(f64, f64)> {
-        let m = self.margin;
-        let mut t0 = f64::NEG_INFINITY;
-        let mut t1 = f64::INFINITY;
-        for a in 0..3 {
-            let (l, h) = (n.lo[a] - m, n.hi[a] + m);
-            if d[a] == 0.0 {
-                if o[a] < l || o[a] > h {
-                    return None;
-                }
-            } else {
-                let ta = (l - o[a]) * inv[a];
-                let tb = (h - o[a]) * inv[a];
-                t0 = t0.max(ta.min(tb));
-                t1 = t1.min(ta.max(tb));
-            }
-        }
-        (t0 <= t1 + m).then_some((t0, t1))
-    }
-
-    /// Nearest hits of one pair line.
-    pub fn cast_one(&mut self, ray: &PairLine) -> PairHits {
-        let mut best = LineAccumulator::new(ray.thickness);
-        let Some(query) = LineQuery::new(ray.origin, ray.direction) else {
-            return best.finish();
-        };
-        if self.nodes.is_empty() {
-            return best.finish();
-        }
-        let o = [ray.origin.x, ray.origin.y, ray.origin.z];
-        let d = [ray.direction.x, ray.direction.y, ray.direction.z];
-        let inv = d.map(|c| if c != 0.0 { 1.0 / c } else { 0.0 });
-        // Distance of an interval from the blade's mid-plane (line parameter -h/2).
-        let centre = -0.5 * ray.thickness;
-        let gap = |(t0, t1): (f64, f64)| if t0 > centre { t0 - centre } else if t1 < centre { centre - t1 } else { 0.0 };
-        let m = self.margin;
-        let mut stack = std::mem::take(&mut self.stack);
-        stack.clear();
-        if let Some(iv) = self.interval(&self.nodes[0], &o, &d, &inv) {
-            stack.push((0, gap(iv)));
-        }
-        while let Some((k, _)) = stack.pop() {
-            let n = self.nodes[k as usize];
-            // Re-check against the interval that may have shrunk since the push.
-            let Some((t0, t1)) = self.interval(&n, &o, &d, &inv) else { continue };
-            let (need_lo, need_hi) = best.needed_interval(m);
-            if t1 < need_lo || t0 > need_hi {
-                continue;
-            }
-            if n.count > 0 {
-                for &t in &self.order[n.first as usize..(n.first + n.count) as usize] {
-                    let [a, b, c] = self.triangles[t as usize].map(|i| &self.positions[i as usize]);
-                    if let Some(h) = query.intersect(a, b, c) {
-                        best.offer(TriangleHit { triangle: t, t: h.t, u: h.u, v: h.v });
-                    }
-                }
-                continue;
-            }
-            let (l, r) = (n.first, n.first + 1);
-            let il = self.interval(&self.nodes[l as usize], &o, &d, &inv);
-            let ir = self.interval(&self.nodes[r as usize], &o, &d, &inv);
-            // Push the farther child first so the nearer one is opened next.
-            match (il, ir) {
-                (Some(a), Some(b)) => {
-                    let (ga, gb) = (gap(a), gap(b));
-                    if ga <= gb {
-                        stack.push((r, gb));
-                        stack.push((l, ga));
-                    } else {
-                        stack.push((l, ga));
-                        stack.push((r, gb));
-                    }
-                }
-                (Some(a), None) => stack.push((l, gap(a))),
-                (None, Some(b)) => stack.push((r, gap(b))),
-                (None, None) => {}
-            }
-        }
-        self.stack = stack;
-        best.finish()
-    }
-}
-
 impl RayCaster for BvhCaster {
     fn kind(&self) -> BackendKind {
         BackendKind::Bvh
     }
 
     fn update_surface(&mut self, positions: &[Vec3]) -> Result<(), CollisionError> {
+        if positions.len() != self.positions.len() {
+            return Err(CollisionError::VertexCount { expected: self.positions.len(), got: positions.len() });
+        }
         self.positions.copy_from_slice(positions);
         self.refit();
         Ok(())
@@ -237,9 +389,21 @@ impl RayCaster for BvhCaster {
 
     fn cast(&mut self, lines: &[PairLine], out: &mut Vec<PairHits>) -> Result<(), CollisionError> {
         out.clear();
-        for l in lines {
-            let h = self.cast_one(l);
-            out.push(h);
+        if self.threads > 1 && lines.len() >= PARALLEL_MIN_LINES {
+            use rayon::prelude::*;
+            out.resize(lines.len(), PairHits::default());
+            let this = &*self;
+            out.par_chunks_mut(LINES_PER_TASK).zip(lines.par_chunks(LINES_PER_TASK)).for_each(|(o, l)| {
+                STACK.with_borrow_mut(|stack| {
+                    for (o, l) in o.iter_mut().zip(l) {
+                        *o = this.cast_with(l, stack);
+                    }
+                })
+            });
+        } else {
+            let mut stack = std::mem::take(&mut self.stack);
+            out.extend(lines.iter().map(|l| self.cast_with(l, &mut stack)));
+            self.stack = stack;
         }
         Ok(())
     }
@@ -248,6 +412,82 @@ impl RayCaster for BvhCaster {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::collision::backend::reference::ReferenceCaster;
+
+    /// Deterministic pseudo-random numbers in [0, 1).
+    fn rng(state: &mut u64) -> f64 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        (*state >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Lines through a unit-scale scene: random directions, axis-aligned ones (exact
+    /// zero components: the branch-free slab test's infinite reciprocals), and origins
+    /// exactly on vertex coordinates (slab boundaries before the margin).
+    fn lines(positions: &[Vec3], n: usize, seed: u64) -> Vec<PairLine> {
+        let mut s = seed;
+        (0..n)
+            .map(|k| {
+                let p = positions[(rng(&mut s) * positions.len() as f64) as usize];
+                let direction = match k % 3 {
+                    0 => Vec3::new(rng(&mut s) - 0.5, rng(&mut s) - 0.5, rng(&mut s) - 0.5).normalize(),
+                    1 => [Vec3::x(), -Vec3::y(), Vec3::z()][k % 9 / 3],
+                    _ => Vec3::new(rng(&mut s) - 0.5, 0.0, rng(&mut s) - 0.5).normalize(),
+                };
+                let origin = if k % 2 == 0 { p } else { p * (0.5 + rng(&mut s)) };
+                PairLine { origin, direction, thickness: 0.01 + 0.05 * rng(&mut s) }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn one_and_two_threads_agree_with_the_reference_bit_for_bit() {
+        let (tris, rest) = crate::collision::scenes::icosphere(Vec3::zeros(), 1.0, 4);
+        let mut s = 7;
+        // A deformed surface (the tree was built on `rest` and is refit, not rebuilt).
+        let moved: Vec<Vec3> = rest.iter().map(|p| p * (1.0 + 0.2 * (rng(&mut s) - 0.5))).collect();
+        let lines = lines(&moved, 600, 11);
+        let mut reference = ReferenceCaster::new(&tris, &rest);
+        reference.update_surface(&moved).unwrap();
+        let mut expected = Vec::new();
+        reference.cast(&lines, &mut expected).unwrap();
+        assert!(expected.iter().filter(|h| h.face0.behind.is_some()).count() > 100, "the scene must produce hits");
+        for threads in [1, 2] {
+            let mut bvh = BvhCaster::new(&tris, &rest);
+            bvh.set_threads(threads);
+            bvh.update_surface(&moved).unwrap();
+            let mut got = Vec::new();
+            bvh.cast(&lines, &mut got).unwrap();
+            for (k, (g, e)) in got.iter().zip(&expected).enumerate() {
+                assert_eq!(g, e, "{threads} thread(s), line {k} ({:?}): bvh differs from reference", lines[k]);
+            }
+        }
+    }
+
+    #[test]
+    fn a_surface_grown_tenfold_raises_the_margin_and_keeps_answers() {
+        // Guards the margin rule: it must follow the deformed surface's size, not only the rest size.
+        let (tris, rest) = crate::collision::scenes::icosphere(Vec3::zeros(), 1.0, 3);
+        let grown: Vec<Vec3> = rest.iter().map(|p| p * 10.0).collect();
+        let mut bvh = BvhCaster::new(&tris, &rest);
+        let m0 = bvh.margin;
+        bvh.update_surface(&grown).unwrap();
+        assert!(bvh.margin >= MARGIN_RELATIVE * 20.0 * 3f64.sqrt(), "margin {} (was {m0}) must cover the grown diagonal", bvh.margin);
+        let lines = lines(&grown, 300, 5);
+        let (mut got, mut expected) = (Vec::new(), Vec::new());
+        bvh.cast(&lines, &mut got).unwrap();
+        ReferenceCaster::new(&tris, &grown).cast(&lines, &mut expected).unwrap();
+        assert_eq!(got, expected, "bvh on the grown surface differs from reference");
+    }
+
+    #[test]
+    fn a_wrong_vertex_count_is_an_error_not_a_panic() {
+        let (tris, rest) = crate::collision::scenes::icosphere(Vec3::zeros(), 1.0, 1);
+        let mut bvh = BvhCaster::new(&tris, &rest);
+        let err = bvh.update_surface(&rest[1..]).unwrap_err();
+        assert_eq!(err, CollisionError::VertexCount { expected: rest.len(), got: rest.len() - 1 });
+    }
 
     #[test]
     fn children_follow_parents_so_backward_refit_is_bottom_up() {
@@ -260,6 +500,7 @@ mod tests {
         }
         let mut seen = vec![0; tris.len()];
         for n in b.nodes.iter().filter(|n| n.count > 0) {
+            assert!(n.count as usize <= build::MAX_LEAF, "leaf of {} triangles exceeds MAX_LEAF", n.count);
             for &t in &b.order[n.first as usize..(n.first + n.count) as usize] {
                 seen[t as usize] += 1;
             }
