@@ -5,6 +5,10 @@
 //! skipped when absent).
 //!
 //! Run: `cargo bench --bench fem` (add `-- brain` or `-- paper` to run one model).
+//! Storage: env `FEM_BENCH_STORAGE` = `f32` (default) | `f64` | `lowrank<digits>`
+//! (e.g. `lowrank8`). After the frames, the last 300-constrained frame is solved
+//! again with an f64 compliance whose ROI is exactly its constrained nodes (a
+//! fresh model), and the relative displacement / reaction errors are printed.
 //! A plain `main` (harness = false) with explicit percentiles: the one-shot
 //! phases take seconds and cannot be repeated criterion-style.
 
@@ -56,7 +60,26 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
+fn storage_from_env() -> ComplianceStorage {
+    let v = std::env::var("FEM_BENCH_STORAGE").unwrap_or_default().to_ascii_lowercase();
+    match v.as_str() {
+        "" | "f32" => ComplianceStorage::F32,
+        "f64" => ComplianceStorage::F64,
+        s => match s.strip_prefix("lowrank").and_then(|d| d.parse::<u8>().ok()) {
+            Some(digits) => ComplianceStorage::LowRank { digits },
+            None => panic!("FEM_BENCH_STORAGE={v}: expected f32, f64 or lowrank<digits>"),
+        },
+    }
+}
+
+/// max |a - b| / max |b|
+fn rel_error(a: &[Vec3], b: &[Vec3]) -> f64 {
+    let diff = a.iter().zip(b).fold(0.0_f64, |m, (x, y)| m.max((x - y).norm()));
+    diff / b.iter().fold(0.0_f64, |m, x| m.max(x.norm())).max(f64::MIN_POSITIVE)
+}
+
 fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Path) {
+    let storage = storage_from_env();
     println!("== {name}: {} nodes, {} tets", mesh.node_count(), mesh.tets.len());
     let fixed = fix_bottom_of_each_component(mesh, 0.010);
     let materials = RegionMaterials::uniform(Material { young_modulus: 3.0e3, poisson_ratio: 0.45 });
@@ -89,7 +112,7 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
     }
     let t = Instant::now();
     let mut last = 0;
-    let compliance = Compliance::compute(&model, &roi, ComplianceStorage::F32, Some(cache), &mut |done, total| {
+    let compliance = Compliance::compute(&model, &roi, storage, Some(cache), &mut |done, total| {
         if done * 10 / total.max(1) > last {
             last = done * 10 / total.max(1);
             eprint!("{}% ", last * 10);
@@ -99,16 +122,22 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
     eprintln!();
     let cs = compliance.stats();
     println!(
-        "compliance (f32): {} rows x {} cols, {:.0} MB, precompute {:.2} s (incl. cache write {:.2} s total)",
+        "compliance ({storage:?}): {} rows x {} cols, {:.0} MB, precompute {:.2} s (incl. cache write {:.2} s total)",
         cs.rows,
         cs.cols,
         cs.bytes as f64 / 1e6,
         cs.compute_seconds,
         t.elapsed().as_secs_f64()
     );
+    if let ComplianceStorage::LowRank { .. } = storage {
+        println!(
+            "  blocks: {} compressed (mean rank {:.1}, max {}), {} dense",
+            cs.compressed_blocks, cs.mean_rank, cs.max_rank, cs.dense_blocks
+        );
+    }
     drop(compliance);
     let t = Instant::now();
-    let compliance = Compliance::compute(&model, &roi, ComplianceStorage::F32, Some(cache), &mut |_, _| {}).expect("reload");
+    let compliance = Compliance::compute(&model, &roi, storage, Some(cache), &mut |_, _| {}).expect("reload");
     println!("compliance reload from disk cache: {:.3} s (from_cache = {})", t.elapsed().as_secs_f64(), compliance.stats().from_cache);
     // Frame sequence: a window sliding over ROI vertices near the ROI's top, ordered by x.
     let top = roi.iter().copied().max_by(|a, b| mesh.positions[*a as usize].z.total_cmp(&mesh.positions[*b as usize].z)).unwrap();
@@ -118,6 +147,7 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
     near.truncate(2400.min(near.len()));
     near.sort_by(|a, b| mesh.positions[*a as usize].x.total_cmp(&mesh.positions[*b as usize].x).then(a.cmp(b)));
     let mut solver = ConstrainedSolver::new(model, compliance).expect("solver");
+    let mut last_frame: (Vec<Constraint>, FrameSolution) = (Vec::new(), FrameSolution::default());
     for (count, fresh) in [(100usize, 10usize), (300, 30)] {
         if near.len() < count + fresh {
             println!("not enough ROI vertices for {count} constrained");
@@ -161,6 +191,7 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
             "  mean phase times: gather {:.2} ms, factor+solve W {:.2} ms, candidates {:.2} ms, surface product {:.2} ms",
             phases[0], phases[1], phases[2], phases[3]
         );
+        last_frame = (cons.clone(), out.clone());
     }
     let mut all = Vec::new();
     let t = Instant::now();
@@ -171,6 +202,30 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
     element_stress(solver.model(), &all, &mut stress).expect("stress");
     println!("interior displacements (one sparse solve) {ti:.1} ms; element stress {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
     println!("peak resident memory so far: {:.0} MB", peak_rss_mb());
+    drop(solver);
+    if !last_frame.0.is_empty() {
+        // Error of this storage: the same frame with an exact f64 compliance over its constrained nodes only.
+        let (cons, out) = &last_frame;
+        let nodes: Vec<u32> = cons.iter().map(|c| c.node).collect();
+        let fixed = fix_bottom_of_each_component(mesh, 0.010);
+        let materials = RegionMaterials::uniform(Material { young_modulus: 3.0e3, poisson_ratio: 0.45 });
+        let exact = FemModel::new(mesh, &materials, &fixed, &FemOptions::default())
+            .and_then(|m| Compliance::compute(&m, &nodes, ComplianceStorage::F64, None, &mut |_, _| {}).map(|c| (m, c)))
+            .and_then(|(m, c)| ConstrainedSolver::new(m, c))
+            .and_then(|mut s| {
+                let mut r = FrameSolution::default();
+                s.step(cons, &mut r).map(|_| r)
+            });
+        match exact {
+            Ok(r) => println!(
+                "error vs f64 ({} constrained): displacement {:.2e}, reaction {:.2e} (relative, max norm)",
+                cons.len(),
+                rel_error(&out.displacement_surface, &r.displacement_surface),
+                rel_error(&out.reactions, &r.reactions)
+            ),
+            Err(e) => println!("f64 reference failed: {e}"),
+        }
+    }
 }
 
 fn main() {

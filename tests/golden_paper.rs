@@ -10,6 +10,7 @@
 //! - Fig. 14: two spatulas open the Sylvian fissure: its width at depth grows to
 //!   the blades' spread, and the skull spheres hold.
 
+use fissure::fem::ConstraintKind;
 use fissure::math::Vec3;
 use fissure::scenario::Scenario;
 use fissure::sim::replay::{ReplayOptions, replay};
@@ -70,15 +71,14 @@ fn fig12_v_valley_both_faces_push_and_culling_cancels_none() {
     // face claims it moves it to its side, which the monitor counts as one crossing. Nothing else may cross.
     assert!(s.max_crossed_vertices <= 1, "only the apex vertex on the mid-plane may change side: {}", s.max_crossed_vertices);
     // Both faces: checked over the last two frames with the collision stage's per-face targets
-    // (two, not one: at the wedged pose the apex line alternates between the faces every frame,
-    // see `fig12_v_valley_holds_steady_once_the_blade_stops` and docs/hard_cases.md).
+    // and the active barrier rows (the apex line once alternated between the faces every frame;
+    // `fig12_v_valley_holds_steady_once_the_blade_stops` guards the fix).
     let sc = Scenario::load(&repo("config/v_valley.ron"), &["solver.cache_dir=None".into()]).unwrap();
     let faces = faces_over_last_frames(&sc, "assets/trajectories/paper_fig12_v_valley.csv", 2);
     assert!(faces[0] > 0 && faces[1] > 0, "both faces constrain the walls: {faces:?}");
 }
 
 #[test]
-#[ignore = "BUG (collision/FEM coupling, also with bilateral contact): with the blade wedged at the V's apex and the pose held still, the apex line is claimed by one face, pushed onto that face's plane, then claimed through the blade by the other face: the force alternates +0.19 / -0.30 N every frame"]
 fn fig12_v_valley_holds_steady_once_the_blade_stops() {
     let (_, csv) = run("config/v_valley.ron", "assets/trajectories/paper_fig12_v_valley.csv", &[]);
     let fx = column(&csv, "spatula_force_x_n");
@@ -88,7 +88,8 @@ fn fig12_v_valley_holds_steady_once_the_blade_stops() {
     assert!(jump <= 1e-6, "at a still pose the force must settle: largest frame-to-frame change {jump:e} N");
 }
 
-/// Replays in-process and returns, per face, the number of vertices it held in the last `frames` frames.
+/// Replays in-process and returns, per face, the number of vertices it held or kept
+/// off its plane (an active barrier row) in the last `frames` frames.
 fn faces_over_last_frames(s: &Scenario, traj: &str, frames: usize) -> [usize; 2] {
     let source = PoseSource::for_scenario(s, Some(&repo(traj))).unwrap();
     let (mut p, mut state) = Pipeline::build(s, BuildOptions { expected_poses: source.samples(s.duration, 50), progress: None }).unwrap();
@@ -101,6 +102,15 @@ fn faces_over_last_frames(s: &Scenario, traj: &str, frames: usize) -> [usize; 2]
         if k + frames as u64 >= steps {
             for t in &p.collision().unwrap().output().targets {
                 faces[t.face as usize] += 1;
+            }
+            // Unilateral contact: a face also pushes through its barrier rows (vertices it keeps off its plane).
+            let axis = state.poses[0].rotation * Vec3::z();
+            for (c, r) in p.last_constraints().iter().zip(&p.last_solution().reactions) {
+                if let ConstraintKind::Barrier { normal, .. } = c.kind {
+                    if r.norm() > 0.0 {
+                        faces[usize::from(normal.dot(&axis) < 0.0)] += 1;
+                    }
+                }
             }
         }
     }

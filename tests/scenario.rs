@@ -314,3 +314,14 @@ fn trajectory_input_needs_a_trajectory_with_that_track() {
     let err = Scenario::load(&path, &["trajectory=\"bad.csv\"".to_string()]).expect_err("bad trajectory");
     assert!(err.to_string().contains("bad.csv:2:") && err.to_string().contains("unit"), "names the trajectory line: {err}");
 }
+
+#[test]
+fn low_rank_storage_is_read_and_its_digits_are_checked() {
+    let text = sylvian_text();
+    let from = "compliance_storage: F64";
+    assert!(text.contains(from), "the Sylvian scene must name its storage");
+    let (_dir, _path, ok) = load_text(&text.replacen(from, "compliance_storage: LowRank(digits: 8)", 1));
+    let s = ok.expect("LowRank(digits: 8) is valid");
+    assert_eq!(s.solver.compliance_storage, fissure::scenario::ComplianceStorage::LowRank { digits: 8 });
+    assert_bad(from, "compliance_storage: LowRank(digits: 3)", "solver.compliance_storage", "LowRank digits must be 4..=12, got 3");
+}

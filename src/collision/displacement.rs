@@ -57,6 +57,7 @@ pub(crate) fn resolve_targets(
     feasible: &[Pair],
     spatula_offsets: &[usize],
     contact_tolerances: &[f64],
+    other_side: &OtherSide<'_>,
     claims: &mut Vec<Claim>,
     targets: &mut Vec<VertexTarget>,
 ) {
@@ -67,7 +68,7 @@ pub(crate) fn resolve_targets(
         for &vertex in &triangles[p.triangle as usize] {
             let v = current[vertex as usize];
             let depth = (ray.origin - v).dot(&n);
-            if depth >= -contact_tolerances[p.spatula as usize] {
+            if depth >= -contact_tolerances[p.spatula as usize] && !other_side.holds(p.spatula as usize, p.face, &v, depth) {
                 let projected = v + n * depth;
                 claims.push(Claim(VertexTarget {
                     vertex,
@@ -90,9 +91,44 @@ pub(crate) fn resolve_targets(
     }
 }
 
+/// The rule that keeps a face from claiming tissue lying on the blade's OTHER
+/// face: a vertex at least a blade thickness (less the contact tolerance) behind
+/// the claiming face, which at the previous pose lay over the blade's footprint
+/// (grown by one thickness) at or beyond the other face, belongs to the other face; projecting it onto
+/// this face would pull it through the blade (at a V valley's apex the line
+/// pushed onto one face was otherwise claimed by the other face next frame, and
+/// the two alternated every frame). Without a previous pose the rule is off.
+pub(crate) struct OtherSide<'a> {
+    /// Spatula shapes (thickness, footprint).
+    pub shapes: &'a [crate::geometry::SpatulaShape],
+    pub previous: Option<&'a [crate::geometry::Pose]>,
+    pub tolerances: &'a [f64],
+}
+
+impl OtherSide<'_> {
+    /// True when vertex `v`, `depth` behind face `face` of spatula `s`, belongs to the other face.
+    fn holds(&self, s: usize, face: u8, v: &Vec3, depth: f64) -> bool {
+        let (Some(previous), Some(shape), Some(&tol)) = (self.previous, self.shapes.get(s), self.tolerances.get(s)) else {
+            return false;
+        };
+        let Some(pose) = previous.get(s) else { return false };
+        if depth < shape.thickness - tol {
+            return false;
+        }
+        let q = pose.rotation.inverse_transform_vector(&(v - pose.position));
+        let side = if face == 0 { q.z } else { -q.z };
+        // Over the footprint grown by one thickness (a vertex at the blade's edge is claimed through its triangle).
+        let m = shape.thickness;
+        let over = q.x >= -m && q.x <= shape.length + m && q.y.abs() <= 0.5 * shape.width + m;
+        over && side <= -0.5 * shape.thickness + tol
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    const NO_PREVIOUS: OtherSide<'static> = OtherSide { shapes: &[], previous: None, tolerances: &[] };
 
     #[test]
     fn deepest_claim_wins_and_front_vertices_stay_free() {
@@ -110,7 +146,7 @@ mod tests {
             Pair { spatula: 0, face: 0, node: 0, triangle: 0, t: -0.001 },
         ];
         let (mut claims, mut targets) = (Vec::new(), Vec::new());
-        resolve_targets(&triangles, &current, &rest, &rays, &feasible, &[0, 1, 2], &[0.0, 0.0], &mut claims, &mut targets);
+        resolve_targets(&triangles, &current, &rest, &rays, &feasible, &[0, 1, 2], &[0.0, 0.0], &NO_PREVIOUS, &mut claims, &mut targets);
         assert_eq!(targets.len(), 2, "vertex 2 lies in front of both planes and must stay free: {targets:?}");
         let t0 = targets[0];
         assert_eq!((t0.vertex, t0.spatula), (0, 0), "the deeper claim (spatula 0, depth 2 mm) must win vertex 0");
@@ -119,7 +155,7 @@ mod tests {
         // Order independence.
         let reversed: Vec<Pair> = feasible.iter().rev().copied().collect();
         let mut again = Vec::new();
-        resolve_targets(&triangles, &current, &rest, &rays, &reversed, &[0, 1, 2], &[0.0, 0.0], &mut claims, &mut again);
+        resolve_targets(&triangles, &current, &rest, &rays, &reversed, &[0, 1, 2], &[0.0, 0.0], &NO_PREVIOUS, &mut claims, &mut again);
         assert_eq!(again, targets, "targets must not depend on the order of the feasible pairs");
     }
 
@@ -132,7 +168,7 @@ mod tests {
             Pair { spatula: 0, face: 0, node: 0, triangle: 0, t: -0.001 },
         ];
         let (mut claims, mut targets) = (Vec::new(), Vec::new());
-        resolve_targets(&[[0, 1, 2]], &current, &current, &rays, &feasible, &[0, 1, 2], &[0.0, 0.0], &mut claims, &mut targets);
+        resolve_targets(&[[0, 1, 2]], &current, &current, &rays, &feasible, &[0, 1, 2], &[0.0, 0.0], &NO_PREVIOUS, &mut claims, &mut targets);
         assert!(targets.iter().all(|t| t.spatula == 0), "equal depth: the lower spatula index must win: {targets:?}");
     }
 }

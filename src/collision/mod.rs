@@ -201,6 +201,8 @@ pub struct CollisionStage {
     spatula_offsets: Vec<usize>,
     /// Contact tolerance of each spatula, metres.
     contact_tolerances: Vec<f64>,
+    /// The spatulas' shapes (for the other-face claim rule).
+    shapes: Vec<SpatulaShape>,
     caster: Box<dyn RayCaster>,
     flags: HisFlags,
     culler: culling::Culler,
@@ -295,6 +297,7 @@ impl CollisionStage {
             line_slots,
             spatula_offsets,
             contact_tolerances: spatulas.iter().map(|s| backend::CONTACT_TOLERANCE_RELATIVE * s.shape.thickness).collect(),
+            shapes: spatulas.iter().map(|s| s.shape).collect(),
             caster,
             flags: HisFlags::new(n),
             culler: culling::Culler::new(triangles.len()),
@@ -372,7 +375,23 @@ impl CollisionStage {
             let slot = self.spatula_offsets[p.spatula as usize] + p.node as usize;
             self.flags.set(slot, true);
         }
-        displacement::resolve_targets(&self.triangles, current, &self.rest, &self.work.rays, &out.feasible_pairs, &self.spatula_offsets, &self.contact_tolerances, &mut self.work.claims, &mut out.targets);
+        let other_side = displacement::OtherSide {
+            shapes: &self.shapes,
+            previous: self.previous_poses.as_deref(),
+            tolerances: &self.contact_tolerances,
+        };
+        displacement::resolve_targets(
+            &self.triangles,
+            current,
+            &self.rest,
+            &self.work.rays,
+            &out.feasible_pairs,
+            &self.spatula_offsets,
+            &self.contact_tolerances,
+            &other_side,
+            &mut self.work.claims,
+            &mut out.targets,
+        );
 
         match &mut self.previous_poses {
             Some(v) => v.copy_from_slice(poses),
@@ -433,6 +452,12 @@ impl CollisionStage {
     /// The last frame's output.
     pub fn output(&self) -> &CollisionOutput {
         &self.output
+    }
+
+    /// The last frame's nearest hits behind and in front of every source node,
+    /// one per ray slot, in the order of [`CollisionOutput::source_nodes`].
+    pub fn nearest_hits(&self) -> &[NearestHits] {
+        &self.work.hits
     }
 
     /// His-flags, one per ray slot (spatula by spatula, face 0 then face 1).

@@ -63,6 +63,8 @@ pub const CONTACT_TOLERANCE_M: f64 = 1e-12;
 /// Active-set iterations in which every pulling hold is demoted at once;
 /// afterwards one at a time.
 pub const BULK_RELEASE_ITERATIONS: usize = 8;
+/// Claim group of a face-plane candidate that is a blade barrier, not a demoted hold.
+const NO_GROUP: usize = usize::MAX;
 /// Lazily computed columns kept between frames (each is 3 x free DOFs f64).
 pub const LAZY_CAPACITY: usize = 128;
 
@@ -78,6 +80,13 @@ pub enum ConstraintKind {
     /// Where holding it would pull, the node is released; a released node may
     /// not end behind the face plane through its target: `(u - displacement) . n >= 0`.
     Contact { displacement: Vec3, normal: Vec3 },
+    /// A rigid tool face the node must not pass (a blade's non-penetration row
+    /// for a surface vertex near it that no ray claimed): `(u - displacement) . n >= 0`,
+    /// `displacement` (m, from rest) any point of the face plane, `normal` the
+    /// face's outward normal (finite, non-zero; normalized here). Unilateral: zero
+    /// force while the node is in front, a push along `n` only when it would pass.
+    /// Ignored while the node is held by a tool.
+    Barrier { displacement: Vec3, normal: Vec3 },
     /// The node stays inside the sphere (centre m, radius m > 0): one unilateral radial row.
     SphereInside { center: Vec3, radius: f64 },
     /// The node stays outside the sphere (centre m, radius m > 0): one unilateral radial row.
@@ -93,9 +102,10 @@ impl ConstraintKind {
         }
     }
 
-    /// True for tool constraints (Enforced or Contact); their owner is a spatula.
+    /// True for tool constraints (Enforced, Contact or Barrier); their owner is a
+    /// spatula and their reactions add to its force.
     pub fn is_tool(&self) -> bool {
-        self.tool_displacement().is_some()
+        matches!(self, ConstraintKind::Enforced { .. } | ConstraintKind::Contact { .. } | ConstraintKind::Barrier { .. })
     }
 }
 
@@ -124,6 +134,9 @@ pub struct FrameSolution {
     pub active_sphere_contacts: usize,
     /// Unilateral tool contacts released this frame (their hold would have pulled).
     pub released_contacts: usize,
+    /// Blade barrier rows active at the end of the frame (an unclaimed vertex kept
+    /// on a face plane it would otherwise have passed).
+    pub barrier_contacts: usize,
     /// Unilateral tool contacts that ended on their face plane with only a normal
     /// push (holding them fully would have pulled; released they would penetrate).
     pub sliding_contacts: usize,
@@ -176,8 +189,9 @@ struct Candidate {
     active: bool,
     /// Linearization point (deformed position), m.
     at: Vec3,
-    /// A tool node demoted from held to its face plane: (normal, n . target, group).
-    /// Its row is `n . u >= n . g`; the sphere fields are unused.
+    /// A face-plane row `n . u >= b`: (normal, b, group) for a tool node demoted
+    /// from held (its claim group), or group [`NO_GROUP`] for a blade barrier
+    /// (`constraint` is then its index). The sphere fields are unused.
     plane: Option<(Vec3, f64, usize)>,
 }
 
@@ -207,6 +221,8 @@ pub struct ConstrainedSolver {
     lazy_computed: usize,
     candidates: Vec<Candidate>,
     prev_active: Vec<(u32, u16, bool)>,
+    /// Blade barrier rows active at the end of the last frame (node, owner), ascending: this frame starts from them.
+    prev_barrier: Vec<(u32, u16)>,
     rows: Vec<ConstraintRow>,
     /// Candidate index of each sphere row (row - enforced rows).
     row_candidate: Vec<usize>,
@@ -268,6 +284,7 @@ impl ConstrainedSolver {
             lazy_computed: 0,
             candidates: Vec::new(),
             prev_active: Vec::new(),
+            prev_barrier: Vec::new(),
             rows: Vec::new(),
             row_candidate: Vec::new(),
             factor: ContactFactor::default(),
@@ -539,7 +556,9 @@ impl ConstrainedSolver {
             }
             let ok = match c.kind {
                 ConstraintKind::Enforced { displacement } => is_finite3(&displacement),
-                ConstraintKind::Contact { displacement, normal } => is_finite3(&displacement) && is_finite3(&normal) && normal.norm() > 0.0,
+                ConstraintKind::Contact { displacement, normal } | ConstraintKind::Barrier { displacement, normal } => {
+                    is_finite3(&displacement) && is_finite3(&normal) && normal.norm() > 0.0
+                }
                 ConstraintKind::SphereInside { center, radius } | ConstraintKind::SphereOutside { center, radius } => {
                     is_finite3(&center) && radius.is_finite() && radius > 0.0
                 }
@@ -562,7 +581,7 @@ impl ConstrainedSolver {
     fn group_claims(&mut self, constraints: &[Constraint]) {
         self.order.clear();
         for (i, c) in constraints.iter().enumerate() {
-            if c.kind.is_tool() && !self.model.is_fixed(c.node) {
+            if c.kind.tool_displacement().is_some() && !self.model.is_fixed(c.node) {
                 self.order.push((c.node, i));
             }
         }
@@ -706,6 +725,28 @@ impl ConstrainedSolver {
         for (i, c) in constraints.iter().enumerate() {
             let (center, radius, inside) = match c.kind {
                 ConstraintKind::Enforced { .. } | ConstraintKind::Contact { .. } => continue,
+                ConstraintKind::Barrier { displacement, normal } => {
+                    // A held node ignores it (skipped each iteration); a bilaterally held one never needs it.
+                    let bilateral = self.claimed_sorted.binary_search(&c.node).is_ok_and(|g| self.group_normals[g].is_none());
+                    if self.model.is_fixed(c.node) || bilateral {
+                        continue;
+                    }
+                    let n = normal.normalize();
+                    let at = self.model.mesh.positions[c.node as usize] + displacement;
+                    let active = self.prev_barrier.binary_search(&(c.node, c.owner)).is_ok();
+                    self.candidates.push(Candidate {
+                        constraint: i,
+                        node: c.node,
+                        owner: c.owner,
+                        center: Vec3::zeros(),
+                        radius: 0.0,
+                        inside: false,
+                        active,
+                        at,
+                        plane: Some((n, n.dot(&displacement), NO_GROUP)),
+                    });
+                    continue;
+                }
                 ConstraintKind::SphereInside { center, radius } => (center, radius, true),
                 ConstraintKind::SphereOutside { center, radius } => (center, radius, false),
             };
@@ -961,13 +1002,13 @@ impl ConstrainedSolver {
             let row = enforced_rows + k;
             let force = self.rows[row].dir * self.lambda[row];
             match self.candidates[ci].plane {
-                Some((_, _, g)) => {
+                Some((_, _, g)) if g != NO_GROUP => {
                     let claims = &self.group_claims[self.group_ptr[g]..self.group_ptr[g + 1]];
                     for &c in claims {
                         out.reactions[c] = force / claims.len() as f64;
                     }
                 }
-                None => out.reactions[self.candidates[ci].constraint] = force,
+                _ => out.reactions[self.candidates[ci].constraint] = force,
             }
         }
         out.owner_forces.clear();
@@ -986,18 +1027,29 @@ impl ConstrainedSolver {
             }
         }
         self.prev_active.sort_unstable();
+        self.prev_barrier.clear();
+        for c in &self.candidates {
+            if c.active && matches!(c.plane, Some((_, _, NO_GROUP))) {
+                self.prev_barrier.push((c.node, c.owner));
+            }
+        }
+        self.prev_barrier.sort_unstable();
         self.released.clear();
         self.sliding.clear();
+        out.barrier_contacts = 0;
         for c in &self.candidates {
-            if c.plane.is_some() {
-                if c.active { self.sliding.push(c.node) } else { self.released.push(c.node) }
+            match c.plane {
+                Some((_, _, NO_GROUP)) => out.barrier_contacts += usize::from(c.active && self.engaged_sorted.binary_search(&c.node).is_err()),
+                Some(_) if c.active => self.sliding.push(c.node),
+                Some(_) => self.released.push(c.node),
+                None => {}
             }
         }
         self.released.sort_unstable();
         self.sliding.sort_unstable();
         out.released_contacts = self.released.len();
         out.sliding_contacts = self.sliding.len();
-        out.active_sphere_contacts = self.row_candidate.len();
+        out.active_sphere_contacts = self.row_candidate.iter().filter(|&&ci| self.candidates[ci].plane.is_none()).count();
         let n = self.rows.len();
         out.rows = n;
         out.dropped_rows = self.factor.dropped().filter(|d| *d).count();

@@ -339,7 +339,7 @@ pub struct SolverFile {
     /// Folder for the compliance cache (relative to the working directory); `None`: no cache.
     #[serde(default)]
     pub cache_dir: Option<String>,
-    /// How a spatula holds the tissue it claims. Default `Bilateral` (the paper's).
+    /// How a spatula holds the tissue it claims. Default `Unilateral`.
     #[serde(default)]
     pub spatula_contact: SpatulaContact,
 }
@@ -349,12 +349,12 @@ pub struct SolverFile {
 pub enum SpatulaContact {
     /// Every claimed vertex is held at its target (the paper's enforced
     /// displacement): a retreating face can pull its tissue after it.
-    #[default]
     Bilateral,
     /// A held vertex sticks while the face pushes it; a hold that would pull is
-    /// released (or slides on the face): no adhesion. Not yet the default: a
-    /// released vertex is kept off its own face plane only, and in the Fig. 11
-    /// replay 11 vertices crossed a blade (docs/hard_cases.md).
+    /// released (or slides on the face): no adhesion. Every unclaimed vertex near
+    /// a blade gets a non-penetration row on the face it lies in front of
+    /// (`sim::barrier`), so released tissue never passes a blade.
+    #[default]
     Unilateral,
 }
 
@@ -366,6 +366,10 @@ pub enum ComplianceStorage {
     F64,
     /// f32 (half the memory; the solver states its measured error).
     F32,
+    /// Block-low-rank: far blocks compressed to a relative accuracy of
+    /// 10^-digits (4..=12), near blocks f64 (less memory; error measured in
+    /// `tests/fem_lowrank.rs`: digits 8 gives about 1e-9 on displacements).
+    LowRank { digits: u8 },
 }
 
 /// Region of interest for the precomputed compliance.

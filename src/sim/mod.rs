@@ -4,6 +4,7 @@
 //! (a stage not asked for is never constructed), stepped at a fixed time step by
 //! [`Pipeline::step`], each stage timed, reporting a [`FrameReport`].
 
+pub mod barrier;
 pub mod build;
 pub mod metrics;
 pub mod monitor;

@@ -110,6 +110,8 @@ pub struct Pipeline {
     skull: Option<SkullStage>,
     /// Spatula targets become unilateral `Contact` rows (else bilateral `Enforced`).
     unilateral: bool,
+    /// Blade barrier rows for unclaimed vertices near a blade (unilateral contact only).
+    barrier: Option<super::barrier::BarrierStage>,
     /// Tets whose four nodes are on the surface (inverted check without an interior solve).
     surface_tets: Vec<u32>,
     // scratch
@@ -140,9 +142,12 @@ impl Pipeline {
             .map(|(k, _)| k as u32)
             .collect();
         let n = scenario.spatulas.len();
+        let unilateral = scenario.solver.spatula_contact == crate::scenario::SpatulaContact::Unilateral;
+        let barrier = (unilateral && collision.is_some()).then(|| super::barrier::BarrierStage::new(surface.vertices.len()));
         Ok(Self {
             name: scenario.name.clone(),
-            unilateral: scenario.solver.spatula_contact == crate::scenario::SpatulaContact::Unilateral,
+            unilateral,
+            barrier,
             effects: scenario.effects,
             time_step: scenario.time_step,
             shapes: scenario.spatulas.iter().map(|s| s.shape).collect(),
@@ -260,6 +265,9 @@ impl Pipeline {
         if let Some(c) = &mut self.collision {
             c.reset_history();
         }
+        if let Some(b) = &mut self.barrier {
+            b.reset();
+        }
     }
 
     /// Runs one frame.
@@ -306,9 +314,20 @@ impl Pipeline {
                 s.feasible_pairs = c.feasible;
                 s.constrained_vertices = c.constrained_vertices;
             }
+            r.constrained_vertices = self.constraints.len() as u32;
+            if let Some(barrier) = &mut self.barrier {
+                use super::barrier::{Blades, SurfaceState};
+                let blades = Blades { shapes: &self.shapes, before: &self.previous_poses, after: &state.poses };
+                let surface = SurfaceState {
+                    triangles: &self.surface.triangles,
+                    start: &state.surface_positions,
+                    rest: &self.rest,
+                    nodes: &self.surface.vertices,
+                };
+                barrier.push_rows(blades, collision, surface, &mut self.constraints);
+            }
             r.times.set(StageId::Collision, t.elapsed().as_secs_f64());
         }
-        r.constrained_vertices = self.constraints.len() as u32;
 
         // Skull: unilateral candidate rows.
         if let Some(skull) = &self.skull {

@@ -88,7 +88,7 @@ pub struct Scene {
     pub roi: String,
     /// Collision backend name (`Bvh`, `Reference`).
     pub backend: &'static str,
-    /// `solver.spatula_contact`: `Bilateral` (the default, the paper's) or `Unilateral`.
+    /// `solver.spatula_contact`: `Unilateral` (the default) or `Bilateral` (the paper's).
     pub contact: &'static str,
 }
 
@@ -107,7 +107,7 @@ impl Scene {
             effects: "Collision, Culling, ForceOutput".into(),
             roi: "All".into(),
             backend: "Bvh",
-            contact: "Bilateral",
+            contact: "Unilateral",
         }
     }
 
@@ -247,7 +247,27 @@ pub fn check_frame(pipeline: &Pipeline, state: &SimState, report: &FrameReport, 
     let mut face_force = vec![[0.0f64; 2]; pipeline.spatula_shapes().len()];
     let released = pipeline.solver().released_nodes();
     let sliding = pipeline.solver().sliding_nodes();
+    let mut held_nodes: Vec<u32> = constraints
+        .iter()
+        .filter(|c| c.kind.tool_displacement().is_some() && released.binary_search(&c.node).is_err() && sliding.binary_search(&c.node).is_err())
+        .map(|c| c.node)
+        .collect();
+    held_nodes.sort_unstable();
     for (k, c) in constraints.iter().enumerate() {
+        if let ConstraintKind::Barrier { displacement, normal } = c.kind {
+            // A blade barrier: pushes along its normal only, and (unless a tool holds
+            // the node) the vertex is not behind the face plane.
+            let v = surface.node_to_vertex[c.node as usize] as usize;
+            let n = normal.normalize();
+            let r = solution.reactions[k];
+            assert!((r - n * r.dot(&n)).norm() <= 1e-9 * r.norm() + 1e-15, "{}", ctx(&format!("barrier on vertex {v}: force {r:?} not along {n:?}")));
+            assert!(r.dot(&n) >= -1e-12 * (1.0 + r.norm()), "{}", ctx(&format!("barrier pulls vertex {v}: {r:?}")));
+            if held_nodes.binary_search(&c.node).is_err() && !pipeline.solver().model().is_fixed(c.node) {
+                let gap = (state.surface_displacement[v] - displacement).dot(&n);
+                assert!(gap >= -TARGET_TOLERANCE_M, "{}", ctx(&format!("vertex {v} lies {:e} m behind a blade barrier", -gap)));
+            }
+            continue;
+        }
         if let Some(displacement) = c.kind.tool_displacement() {
             let v = surface.node_to_vertex[c.node as usize] as usize;
             if pipeline.solver().model().is_fixed(c.node) {
@@ -336,7 +356,7 @@ pub fn check_frame(pipeline: &Pipeline, state: &SimState, report: &FrameReport, 
                     }
                     assert!(r.dot(&outward) >= -1e-12 * (1.0 + r.norm()), "{}", ctx(&format!("excluding sphere pulls vertex {v}: {r:?}")));
                 }
-                ConstraintKind::Enforced { .. } | ConstraintKind::Contact { .. } => {}
+                ConstraintKind::Enforced { .. } | ConstraintKind::Contact { .. } | ConstraintKind::Barrier { .. } => {}
             }
         }
         for (v, p) in state.surface_positions.iter().enumerate() {
@@ -427,7 +447,16 @@ pub fn reference_disagreement(pipeline: &Pipeline, state: &SimState) -> f64 {
             }
         }
     }
-    let direct = fissure::fem::reference::solve_direct(mesh, model.lame(), &prescribed, &[]).expect("reference solve");
+    // Unilateral rows that are not holds (sliding, released, blade barriers) act on the
+    // tissue through their reactions: the direct solve gets them as nodal forces.
+    let mut forces = vec![Vec3::zeros(); mesh.node_count()];
+    for (c, r) in pipeline.last_constraints().iter().zip(&pipeline.last_solution().reactions) {
+        let held = c.kind.tool_displacement().is_some() && released.binary_search(&c.node).is_err() && sliding.binary_search(&c.node).is_err();
+        if c.kind.is_tool() && !held {
+            forces[c.node as usize] += r;
+        }
+    }
+    let direct = fissure::fem::reference::solve_direct(mesh, model.lame(), &prescribed, &forces).expect("reference solve");
     let surface = pipeline.surface();
     let mut err: f64 = 0.0;
     let mut scale: f64 = 0.0;
@@ -440,13 +469,21 @@ pub fn reference_disagreement(pipeline: &Pipeline, state: &SimState) -> f64 {
 }
 
 /// Largest enforced displacement of the last frame (collision targets and any
-/// contact the pipeline added after a solve), m.
+/// contact the pipeline added after a solve), m. A vertex a blade barrier pushed
+/// (active row: its reaction is not zero) counts with its displacement: the blade
+/// put it there.
 pub fn max_enforced_m(pipeline: &Pipeline) -> f64 {
+    let surface = pipeline.surface();
+    let solution = pipeline.last_solution();
     pipeline
         .last_constraints()
         .iter()
-        .filter_map(|c| match c.kind {
+        .zip(&solution.reactions)
+        .filter_map(|(c, r)| match c.kind {
             _ if pipeline.solver().model().is_fixed(c.node) => None,
+            ConstraintKind::Barrier { .. } if r.norm() > 0.0 => {
+                solution.displacement_surface.get(surface.node_to_vertex[c.node as usize] as usize).map(|u| u.norm())
+            }
             kind => kind.tool_displacement().map(|d| d.norm()),
         })
         .fold(0.0, f64::max)

@@ -11,9 +11,18 @@
 //! the blocks with row >= column are stored, column after column, each 3x3 block
 //! column-major: `(col_start(j) + i - j) * 9`, `col_start(j) = j n - j (j-1) / 2`.
 //! A ROI x ROI block above the diagonal is the transpose of its mirror.
-//! Stays true: entries are `K^-1` to round-off (f64) or rounded once to f32; a
-//! cache file is used only when its key (blake3 of model fingerprint, ROI,
-//! precision) and its checksum match; otherwise it is rebuilt and rewritten.
+//! Block-low-rank storage ([`ComplianceStorage::LowRank`], module `lowrank`):
+//! the same rows and columns cut into clusters of at most 64 nodes; far blocks
+//! are stored as `U V^T` within a relative tolerance, near ones dense; the
+//! per-frame product then costs about rows x rank instead of rows x forced
+//! columns.
+//! Stays true: entries are `K^-1` to round-off (f64), rounded once to f32, or
+//! within `10^-digits` (relative Frobenius, per block) for low rank; ROI x ROI
+//! blocks are exactly symmetric in every storage; a cache file is used only
+//! when its key (blake3 of model fingerprint, ROI, storage) and its checksum
+//! match; otherwise it is rebuilt and rewritten.
+
+mod lowrank;
 
 use super::FemError;
 use super::model::FemModel;
@@ -24,7 +33,7 @@ use std::time::Instant;
 
 const NO_ROW: u32 = u32::MAX;
 const CACHE_MAGIC: &[u8; 8] = b"FISSCOMP";
-const CACHE_VERSION: u32 = 2;
+const CACHE_VERSION: u32 = 3;
 /// ROI nodes solved together (3 right-hand sides each).
 const BATCH_NODES: usize = 32;
 /// Rows of one chunk of the surface product (9 f64 partials a row: 36 KiB, a multiple of 8 rows).
@@ -37,12 +46,31 @@ pub enum ComplianceStorage {
     F64,
     /// 4 bytes an entry; relative error of the solution measured in `tests/fem_fast_path.rs` (below 1e-5).
     F32,
+    /// Block low rank: every stored block within relative Frobenius error
+    /// `10^-digits` of the f64 block; factors and near-field blocks in f64.
+    /// Solution error measured in `tests/fem_lowrank.rs`.
+    LowRank {
+        /// Decimal digits of the per-block tolerance; valid 4..=12.
+        digits: u8,
+    },
+}
+
+impl ComplianceStorage {
+    /// Bytes 12 and 13 of the cache header and part of the cache key.
+    fn code(self) -> [u8; 2] {
+        match self {
+            ComplianceStorage::F64 => [8, 0],
+            ComplianceStorage::F32 => [4, 0],
+            ComplianceStorage::LowRank { digits } => [16, digits],
+        }
+    }
 }
 
 #[derive(Debug, Clone)]
 enum Values {
     F64(Vec<f64>),
     F32(Vec<f32>),
+    LowRank(Box<lowrank::BlockLowRank>),
 }
 
 /// What building or loading the compliance cost.
@@ -58,6 +86,13 @@ pub struct ComplianceStats {
     /// Stored rows (surface + ROI nodes) and columns (ROI nodes).
     pub rows: usize,
     pub cols: usize,
+    /// Low-rank storage only (0 otherwise): stored cluster blocks kept as `U V^T`.
+    pub compressed_blocks: usize,
+    /// Low-rank storage only (0 otherwise): stored cluster blocks kept dense.
+    pub dense_blocks: usize,
+    /// Low-rank storage only: mean and largest rank of the compressed blocks.
+    pub mean_rank: f64,
+    pub max_rank: usize,
 }
 
 /// `K^-1` over (surface ∪ ROI) x ROI nodes, symmetric storage.
@@ -89,6 +124,11 @@ impl Compliance {
         progress: &mut dyn FnMut(usize, usize),
     ) -> Result<Self, FemError> {
         let count = model.mesh.node_count();
+        if let ComplianceStorage::LowRank { digits } = storage
+            && !(4..=12).contains(&digits)
+        {
+            return Err(FemError::InvalidOption { field: "compliance storage LowRank.digits", value: digits as f64, reason: "must be in 4..=12" });
+        }
         let mut roi: Vec<u32> = Vec::with_capacity(roi_nodes.len());
         for &n in roi_nodes {
             if n as usize >= count {
@@ -125,7 +165,7 @@ impl Compliance {
         let path = cache_dir.map(|d| d.join(format!("compliance-{}.bin", hex(&key[..16]))));
         if let Some(p) = &path {
             let t = Instant::now();
-            match this.load(p, storage) {
+            match this.load(p, storage, model) {
                 Ok(values) => {
                     this.values = values;
                     this.stats = this.make_stats(0.0, t.elapsed().as_secs_f64(), true);
@@ -149,11 +189,23 @@ impl Compliance {
     }
 
     fn make_stats(&self, compute_seconds: f64, load_seconds: f64, from_cache: bool) -> ComplianceStats {
-        let bytes = match &self.values {
-            Values::F64(v) => v.len() * 8,
-            Values::F32(v) => v.len() * 4,
+        let (bytes, counts) = match &self.values {
+            Values::F64(v) => (v.len() * 8, Default::default()),
+            Values::F32(v) => (v.len() * 4, Default::default()),
+            Values::LowRank(b) => (b.bytes(), b.counts()),
         };
-        ComplianceStats { compute_seconds, load_seconds, bytes, from_cache, rows: self.row_nodes.len(), cols: self.n_cols }
+        ComplianceStats {
+            compute_seconds,
+            load_seconds,
+            bytes,
+            from_cache,
+            rows: self.row_nodes.len(),
+            cols: self.n_cols,
+            compressed_blocks: counts.compressed,
+            dense_blocks: counts.dense,
+            mean_rank: counts.mean_rank,
+            max_rank: counts.max_rank,
+        }
     }
 
     fn entry_count(&self) -> usize {
@@ -161,9 +213,14 @@ impl Compliance {
     }
 
     fn build(&self, model: &FemModel, storage: ComplianceStorage, progress: &mut dyn FnMut(usize, usize)) -> Result<Values, FemError> {
+        if let ComplianceStorage::LowRank { digits } = storage {
+            let layout = self.clusters(model);
+            let b = lowrank::BlockLowRank::build(model, &self.row_nodes, self.n_cols, layout, digits, progress)?;
+            return Ok(Values::LowRank(Box::new(b)));
+        }
         let len = self.entry_count();
         let mut values = match storage {
-            ComplianceStorage::F64 => {
+            ComplianceStorage::F64 | ComplianceStorage::LowRank { .. } => {
                 let mut v: Vec<f64> = Vec::new();
                 v.try_reserve_exact(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 8 })?;
                 v.resize(len, 0.0);
@@ -202,6 +259,7 @@ impl Compliance {
                 match &mut values {
                     Values::F64(v) => fill_column(&mut v[base..base + count], &row_dofs[j..], &cols, |x| x),
                     Values::F32(v) => fill_column(&mut v[base..base + count], &row_dofs[j..], &cols, |x| x as f32),
+                    Values::LowRank(_) => {}
                 }
             }
             j0 += nb;
@@ -227,9 +285,21 @@ impl Compliance {
 
     /// Precision of the stored entries.
     pub fn storage(&self) -> ComplianceStorage {
-        match self.values {
+        match &self.values {
             Values::F64(_) => ComplianceStorage::F64,
             Values::F32(_) => ComplianceStorage::F32,
+            Values::LowRank(b) => ComplianceStorage::LowRank { digits: b.digits() },
+        }
+    }
+
+    /// Low-rank storage only: the row cluster starts (clusters + 1 entries,
+    /// the last is the row count) and how many of the clusters are column
+    /// (ROI) clusters. Stored blocks are (row cluster I, column cluster J) with
+    /// I >= J; a ROI block with I < J is the transpose of (J, I).
+    pub fn low_rank_clusters(&self) -> Option<(&[u32], usize)> {
+        match &self.values {
+            Values::LowRank(b) => Some(b.clusters()),
+            _ => None,
         }
     }
 
@@ -261,6 +331,9 @@ impl Compliance {
     /// `K^-1[row node, col node]` by row and column index (`col < column_count()`).
     #[inline]
     pub fn block(&self, row: usize, col: usize) -> Matrix3<f64> {
+        if let Values::LowRank(b) = &self.values {
+            return b.block(row, col);
+        }
         if row >= col {
             self.stored(row, col)
         } else {
@@ -274,16 +347,19 @@ impl Compliance {
         match &self.values {
             Values::F64(v) => Matrix3::from_column_slice(&v[o..o + 9]),
             Values::F32(v) => Matrix3::from_iterator(v[o..o + 9].iter().map(|&x| x as f64)),
+            Values::LowRank(b) => b.block(row, col),
         }
     }
 
     /// `u[row] += sum_k K^-1[row, col_k] F_k` over every row, for forces
-    /// `(col, F)` sorted by ascending column. `scratch` (9 f64 a row) is
-    /// reused between calls; nothing else is allocated.
+    /// `(col, F)` sorted by ascending column. `scratch` (9 f64 a row; 3 a row
+    /// plus the largest rank for low rank) is reused between calls; nothing
+    /// else is allocated.
     pub fn accumulate(&self, forces: &[(usize, Vec3)], u: &mut [Vec3], scratch: &mut Vec<f64>) {
         match &self.values {
             Values::F64(v) => accumulate_impl(v, self.row_nodes.len(), self.n_cols, forces, u, scratch),
             Values::F32(v) => accumulate_impl(v, self.row_nodes.len(), self.n_cols, forces, u, scratch),
+            Values::LowRank(b) => b.accumulate(forces, u, scratch),
         }
     }
 
@@ -300,11 +376,17 @@ impl Compliance {
             hasher.update(bytes);
             w.write_all(bytes).map_err(err)
         };
-        put(&mut w, &self.header())?;
+        put(&mut w, &self.header(self.storage()))?;
         put(&mut w, bytemuck::cast_slice(&self.row_nodes))?;
         match &self.values {
             Values::F64(v) => put(&mut w, bytemuck::cast_slice(v))?,
             Values::F32(v) => put(&mut w, bytemuck::cast_slice(v))?,
+            Values::LowRank(b) => {
+                put(&mut w, bytemuck::cast_slice(&b.meta()))?;
+                for section in b.sections() {
+                    put(&mut w, section)?;
+                }
+            }
         }
         let sum = *hasher.finalize().as_bytes();
         w.write_all(&sum).map_err(err)?;
@@ -314,11 +396,12 @@ impl Compliance {
         Ok(())
     }
 
-    fn header(&self) -> Vec<u8> {
+    fn header(&self, storage: ComplianceStorage) -> Vec<u8> {
         let mut h = Vec::with_capacity(72);
         h.extend_from_slice(CACHE_MAGIC);
         h.extend_from_slice(&CACHE_VERSION.to_le_bytes());
-        h.extend_from_slice(&[match self.values { Values::F64(_) => 8u8, Values::F32(_) => 4u8 }, 0, 0, 0]);
+        let [code, digits] = storage.code();
+        h.extend_from_slice(&[code, digits, 0, 0]);
         h.extend_from_slice(&self.key);
         h.extend_from_slice(&(self.row_nodes.len() as u64).to_le_bytes());
         h.extend_from_slice(&(self.n_cols as u64).to_le_bytes());
@@ -326,14 +409,24 @@ impl Compliance {
     }
 
     /// Reads a cache file; any mismatch or corruption is an `Err(reason)`.
-    fn load(&self, path: &Path, storage: ComplianceStorage) -> Result<Values, String> {
+    /// Low-rank cluster layout: octree cells of the Morton codes the rows were sorted by.
+    fn clusters(&self, model: &FemModel) -> (Vec<u32>, usize) {
+        let positions = &model.mesh.positions;
+        let (roi, others) = self.row_nodes.split_at(self.n_cols);
+        lowrank::cluster_starts(&morton_codes(roi, positions), &morton_codes(others, positions))
+    }
+
+    fn load(&self, path: &Path, storage: ComplianceStorage, model: &FemModel) -> Result<Values, String> {
         let mut file = std::fs::File::open(path).map_err(|e| e.to_string())?;
         let len = self.entry_count();
-        let width = match storage { ComplianceStorage::F64 => 8, ComplianceStorage::F32 => 4 };
-        let mut want = self.header();
-        want[12] = width as u8;
-        let expected_size = want.len() + 4 * self.row_nodes.len() + width * len + 32;
+        let width = match storage { ComplianceStorage::F32 => 4, _ => 8 };
+        let want = self.header(storage);
         let size = file.metadata().map_err(|e| e.to_string())?.len() as usize;
+        let prefix = want.len() + 4 * self.row_nodes.len();
+        let expected_size = match storage {
+            ComplianceStorage::LowRank { .. } => size.max(prefix + 24 + 32),
+            _ => prefix + width * len + 32,
+        };
         if size != expected_size {
             return Err(format!("size {size} bytes, expected {expected_size}"));
         }
@@ -358,6 +451,14 @@ impl Compliance {
             Ok(())
         };
         let values = match storage {
+            ComplianceStorage::LowRank { digits } => {
+                let mut meta = [0u64; 3];
+                read_hashed(bytemuck::cast_slice_mut(&mut meta))?;
+                let remaining = size - prefix - 24 - 32;
+                let layout = self.clusters(model);
+                let b = lowrank::BlockLowRank::read(digits, self.row_nodes.len(), self.n_cols, layout, meta, remaining, &mut read_hashed)?;
+                Values::LowRank(Box::new(b))
+            }
             ComplianceStorage::F64 => {
                 let mut v: Vec<f64> = Vec::new();
                 v.try_reserve_exact(len).map_err(|_| "out of memory".to_string())?;
@@ -504,7 +605,14 @@ fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage) -> [u8; 
     h.update(&model.fingerprint);
     h.update(&(roi.len() as u64).to_le_bytes());
     h.update(bytemuck::cast_slice(roi));
-    h.update(&[match storage { ComplianceStorage::F64 => 8u8, ComplianceStorage::F32 => 4u8 }]);
+    h.update(&storage.code()[..1]);
+    if let ComplianceStorage::LowRank { digits } = storage {
+        // The clustering and admissibility parameters shape the stored blocks.
+        h.update(&[digits]);
+        h.update(&(lowrank::CLUSTER_NODES as u64).to_le_bytes());
+        h.update(&lowrank::ETA.to_le_bytes());
+        h.update(b"octree-cells");
+    }
     *h.finalize().as_bytes()
 }
 
@@ -513,6 +621,19 @@ fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage) -> [u8; 
 fn morton_sort(nodes: &mut [u32], positions: &[Vec3]) {
     if nodes.is_empty() {
         return;
+    }
+    let codes = morton_codes(nodes, positions);
+    let mut keyed: Vec<(u64, u32)> = codes.into_iter().zip(nodes.iter().copied()).collect();
+    keyed.sort_unstable();
+    for (n, (_, k)) in nodes.iter_mut().zip(keyed) {
+        *n = k;
+    }
+}
+
+/// Morton code (21 bits an axis) of every node in the nodes' bounding box.
+fn morton_codes(nodes: &[u32], positions: &[Vec3]) -> Vec<u64> {
+    if nodes.is_empty() {
+        return Vec::new();
     }
     let mut lo = Vec3::repeat(f64::INFINITY);
     let mut hi = Vec3::repeat(f64::NEG_INFINITY);
@@ -533,7 +654,7 @@ fn morton_sort(nodes: &mut [u32], positions: &[Vec3]) {
         let q = (positions[n as usize] - lo) / extent * 2_097_151.0;
         spread(q.x as u64) | spread(q.y as u64) << 1 | spread(q.z as u64) << 2
     };
-    nodes.sort_by_cached_key(|&n| (code(n), n));
+    nodes.iter().map(|&n| code(n)).collect()
 }
 
 fn hex(bytes: &[u8]) -> String {

@@ -1,0 +1,318 @@
+//! Blade barrier rows: with unilateral spatula contact, every surface vertex
+//! near a blade that no ray of that blade claimed gets one non-penetration row
+//! on the face it lies in front of, so a released or unclaimed vertex can end on
+//! the blade but never inside it or through it.
+//!
+//! In: the spatula shapes and poses before and after the frame's move, the
+//! collision stage's output for this frame (targets, feasible pairs, nearest
+//! hits), the surface triangles, the surface positions at the start of the
+//! frame and at rest. Out: [`ConstraintKind::Barrier`] rows appended to the
+//! frame's constraints (the solver's active set turns on only those that would
+//! be violated; an inactive row costs one candidate evaluation and no force).
+//!
+//! Which vertices, per spatula (at most one row a vertex and spatula; the first
+//! rule that gives one wins):
+//! 1. Over the footprint: start position, in the new pose's blade frame, over the
+//!    blade's footprint (grown by [`FOOTPRINT_MARGIN_M`]) and within
+//!    `thickness / 2 + BARRIER_BAND_M + travel` of its mid-plane, `travel` the
+//!    largest move of a footprint corner this frame (a fast blade gets a wider
+//!    band). Face: the side of the mid-plane the vertex was on at the PREVIOUS
+//!    pose when it lay over the old footprint and outside the old blade (the
+//!    swept-side rule of the collision stage: tissue never changes side of a
+//!    blade); otherwise the side it is on now.
+//! 2. Along the rays: the vertices of a triangle a source node's ray hits in
+//!    front of its face within the band, and the unclaimed vertices of a
+//!    feasible pair's triangle (the paper's claim covers whole triangles, which
+//!    reach past the footprint; without this a vertex claimed in one frame and
+//!    free in the next springs back behind the face plane and the contact
+//!    chatters between the two states). Face: the ray's. Only vertices in front
+//!    of (or on) the face plane at the start of the frame: one already behind it
+//!    lies beyond the blade's tip or edge, and a row would shove it sideways.
+//! 3. Claimed last frame: a vertex the blade's face claimed in the previous frame
+//!    and that no rule above covers keeps a row on that face while it lies within
+//!    the band of the face plane, over the footprint grown by [`BARRIER_BAND_M`],
+//!    and not behind the face plane. Without it a blade wedged in
+//!    a V valley alternated every frame between holding one wall and the other:
+//!    pushing one wall drags the apex, and the free wall bulged under the blade.
+//!
+//! A vertex a blade's rays claimed is that blade's contact (held, sliding or
+//! released on its own face) and gets no barrier from it.
+//!
+//! Stays true: the rows are a function of the inputs only (fixed order:
+//! spatula, rule 1 by surface vertex, rule 2 by ray); no allocation once the
+//! mark buffers have grown.
+
+use crate::collision::backend::NearestHits;
+use crate::collision::{CollisionStage, Pair, SourceNode, VertexTarget};
+use crate::fem::{Constraint, ConstraintKind};
+use crate::geometry::{Pose, SpatulaShape};
+use crate::math::Vec3;
+
+/// How far beyond a face (m) a vertex still gets a barrier row, besides the blade's travel.
+pub const BARRIER_BAND_M: f64 = 2.0e-3;
+/// Growth of the blade footprint (m) within which vertices get barrier rows.
+pub const FOOTPRINT_MARGIN_M: f64 = 0.0;
+/// A vertex within this distance (m) of a face counts as on that face's side.
+const SIDE_TOLERANCE_M: f64 = 1e-7;
+
+/// Per-frame barrier rows of every blade; holds only mark buffers.
+#[derive(Debug, Clone, Default)]
+pub struct BarrierStage {
+    /// Per surface vertex: bit s set when spatula s claimed it this frame.
+    claimed: Vec<u32>,
+    /// Per surface vertex: bit s set when it has a barrier row from spatula s.
+    barred: Vec<u32>,
+    /// Last frame's claims (surface vertex, spatula, face), in target order.
+    previous_claims: Vec<(u32, u8, u8)>,
+}
+
+/// The blades of one frame: shapes and poses before and after the move.
+#[derive(Debug, Clone, Copy)]
+pub struct Blades<'a> {
+    pub shapes: &'a [SpatulaShape],
+    pub before: &'a [Pose],
+    pub after: &'a [Pose],
+}
+
+/// The surface: triangles (surface-vertex indices), positions at the start of
+/// the frame and at rest, surface vertex -> mesh node.
+#[derive(Debug, Clone, Copy)]
+pub struct SurfaceState<'a> {
+    pub triangles: &'a [[u32; 3]],
+    pub start: &'a [Vec3],
+    pub rest: &'a [Vec3],
+    pub nodes: &'a [u32],
+}
+
+/// What the collision stage's rays saw this frame (rule 2): source nodes and
+/// their nearest hits (one per ray slot, same order) and the feasible pairs.
+#[derive(Debug, Clone, Copy)]
+pub struct Rays<'a> {
+    pub source_nodes: &'a [SourceNode],
+    pub hits: &'a [NearestHits],
+    pub feasible: &'a [Pair],
+}
+
+#[inline]
+fn local(pose: &Pose, p: &Vec3) -> Vec3 {
+    pose.rotation.inverse_transform_vector(&(p - pose.position))
+}
+
+#[inline]
+fn over_footprint(shape: &SpatulaShape, q: &Vec3, margin: f64) -> bool {
+    q.x >= -margin && q.x <= shape.length + margin && q.y.abs() <= 0.5 * shape.width + margin
+}
+
+/// Largest move (m) of a blade footprint corner from `before` to `after`.
+fn travel(shape: &SpatulaShape, before: &Pose, after: &Pose) -> f64 {
+    let mut m: f64 = 0.0;
+    for x in [0.0, shape.length] {
+        for y in [-0.5 * shape.width, 0.5 * shape.width] {
+            let c = Vec3::new(x, y, 0.0);
+            let a = after.position + after.rotation * c;
+            let b = before.position + before.rotation * c;
+            m = m.max((a - b).norm());
+        }
+    }
+    m
+}
+
+impl BarrierStage {
+    /// A stage for a surface of `surface_vertices` vertices.
+    pub fn new(surface_vertices: usize) -> Self {
+        Self { claimed: vec![0; surface_vertices], barred: vec![0; surface_vertices], previous_claims: Vec::new() }
+    }
+
+    /// Forgets last frame's claims (a scene reset or a teleported tool).
+    pub fn reset(&mut self) {
+        self.previous_claims.clear();
+    }
+
+    /// Appends the barrier rows of every spatula; returns how many. `collision`
+    /// has run this frame on `surface.start` with `blades.after`.
+    pub fn push_rows(&mut self, blades: Blades<'_>, collision: &CollisionStage, surface: SurfaceState<'_>, out: &mut Vec<Constraint>) -> usize {
+        let output = collision.output();
+        let rays = Rays { source_nodes: &output.source_nodes, hits: collision.nearest_hits(), feasible: &output.feasible_pairs };
+        self.push_rows_from(blades, &output.targets, Some(rays), surface, out)
+    }
+
+    /// [`Self::push_rows`] from the collision stage's pieces; `rays: None` applies rule 1 only.
+    pub fn push_rows_from(
+        &mut self,
+        blades: Blades<'_>,
+        targets: &[VertexTarget],
+        rays: Option<Rays<'_>>,
+        surface: SurfaceState<'_>,
+        out: &mut Vec<Constraint>,
+    ) -> usize {
+        let n_vertices = surface.start.len();
+        self.claimed.clear();
+        self.claimed.resize(n_vertices, 0);
+        self.barred.clear();
+        self.barred.resize(n_vertices, 0);
+        for t in targets {
+            if let Some(m) = self.claimed.get_mut(t.vertex as usize) {
+                *m |= 1u32 << (t.spatula as u32).min(31);
+            }
+        }
+        let before = out.len();
+        for (s, ((shape, pb), pa)) in blades.shapes.iter().zip(blades.before).zip(blades.after).enumerate() {
+            let half = 0.5 * shape.thickness;
+            let band = BARRIER_BAND_M + travel(shape, pb, pa);
+            let bit = 1u32 << (s as u32).min(31);
+            let axis = pa.rotation * Vec3::z();
+            // Rule 1: over the footprint.
+            for (v, p) in surface.start.iter().enumerate() {
+                if self.claimed[v] & bit != 0 {
+                    continue;
+                }
+                let q1 = local(pa, p);
+                if q1.z.abs() > half + band || !over_footprint(shape, &q1, FOOTPRINT_MARGIN_M) {
+                    continue;
+                }
+                let q0 = local(pb, p);
+                let side = if over_footprint(shape, &q0, 0.0) && q0.z.abs() >= half - SIDE_TOLERANCE_M {
+                    q0.z.signum()
+                } else if q1.z < 0.0 {
+                    -1.0
+                } else {
+                    1.0
+                };
+                self.push(v, s, axis * side, pa.position + axis * (side * half), surface, out);
+            }
+            // Rule 2: along the rays (front hits within the band, unclaimed vertices of feasible triangles).
+            let Some(rays) = rays else { continue };
+            let Some(first) = rays.source_nodes.iter().position(|n| n.spatula as usize == s) else { continue };
+            for (node, hits) in rays.source_nodes[first..].iter().zip(&rays.hits[first.min(rays.hits.len())..]).take_while(|(n, _)| n.spatula as usize == s) {
+                if let Some(h) = hits.front {
+                    if h.t <= band {
+                        self.bar_triangle(h.triangle, s, node.normal, node.position, surface, out);
+                    }
+                }
+            }
+            for pair in rays.feasible.iter().filter(|p| p.spatula as usize == s) {
+                // Source nodes are in slot order: spatula s's node j is at `first + j`.
+                match rays.source_nodes.get(first + pair.node as usize) {
+                    Some(node) if node.spatula == pair.spatula && node.node == pair.node => {
+                        self.bar_triangle(pair.triangle, s, node.normal, node.position, surface, out);
+                    }
+                    _ => {}
+                }
+            }
+        }
+        // Rule 3: claimed last frame.
+        for i in 0..self.previous_claims.len() {
+            let (v, s, face) = self.previous_claims[i];
+            let (v, s) = (v as usize, s as usize);
+            let (Some(shape), Some(pa), Some(pb)) = (blades.shapes.get(s), blades.after.get(s), blades.before.get(s)) else { continue };
+            if v >= n_vertices || (self.claimed[v] | self.barred[v]) & (1u32 << (s as u32).min(31)) != 0 {
+                continue;
+            }
+            let half = 0.5 * shape.thickness;
+            let band = BARRIER_BAND_M + travel(shape, pb, pa);
+            let q1 = local(pa, &surface.start[v]);
+            if q1.z.abs() > half + band || !over_footprint(shape, &q1, BARRIER_BAND_M) {
+                continue;
+            }
+            let n = pa.rotation * Vec3::z() * if face == 0 { 1.0 } else { -1.0 };
+            let face_point = pa.position + n * half;
+            if n.dot(&(surface.start[v] - face_point)) < -SIDE_TOLERANCE_M {
+                continue;
+            }
+            self.push(v, s, n, face_point, surface, out);
+        }
+        self.previous_claims.clear();
+        self.previous_claims.extend(targets.iter().map(|t| (t.vertex, t.spatula, t.face)));
+        out.len() - before
+    }
+
+    /// Rule 2 for one triangle seen from a face (outward normal `n`, a point `face_point` on it).
+    #[allow(clippy::too_many_arguments)]
+    fn bar_triangle(&mut self, triangle: u32, s: usize, n: Vec3, face_point: Vec3, surface: SurfaceState<'_>, out: &mut Vec<Constraint>) {
+        let Some(tri) = surface.triangles.get(triangle as usize) else { return };
+        let bit = 1u32 << (s as u32).min(31);
+        for &v in tri {
+            let v = v as usize;
+            if v >= surface.start.len() || (self.claimed[v] | self.barred[v]) & bit != 0 {
+                continue;
+            }
+            // Already behind the face plane (beyond the tip or an edge, or past the
+            // mid-plane: the other face's business): a row would shove it sideways.
+            if n.dot(&(surface.start[v] - face_point)) < -SIDE_TOLERANCE_M {
+                continue;
+            }
+            self.push(v, s, n, face_point, surface, out);
+        }
+    }
+
+    /// One row: vertex `v` stays in front of the plane through `face_point` with normal `n`.
+    fn push(&mut self, v: usize, s: usize, n: Vec3, face_point: Vec3, surface: SurfaceState<'_>, out: &mut Vec<Constraint>) {
+        self.barred[v] |= 1u32 << (s as u32).min(31);
+        let p = surface.start[v];
+        // The start position projected onto the face plane: a point of the plane near the vertex.
+        let on_plane = p - n * n.dot(&(p - face_point));
+        out.push(Constraint { node: surface.nodes[v], owner: s as u16, kind: ConstraintKind::Barrier { displacement: on_plane - surface.rest[v], normal: n } });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Quat;
+
+    fn blade() -> SpatulaShape {
+        SpatulaShape { length: 0.04, width: 0.01, thickness: 0.001 }
+    }
+
+    fn at(z: f64) -> Pose {
+        Pose { position: Vec3::new(0.0, 0.0, z), rotation: Quat::identity() }
+    }
+
+    fn rows(before: Pose, after: Pose, start: &[Vec3], targets: &[VertexTarget]) -> Vec<Constraint> {
+        let mut stage = BarrierStage::new(start.len());
+        let mut out = Vec::new();
+        let nodes: Vec<u32> = (0..start.len() as u32).map(|v| 10 + v).collect();
+        let shapes = [blade()];
+        let blades = Blades { shapes: &shapes, before: &[before], after: &[after] };
+        let surface = SurfaceState { triangles: &[], start, rest: start, nodes: &nodes };
+        stage.push_rows_from(blades, targets, None, surface, &mut out);
+        out
+    }
+
+    #[test]
+    fn a_vertex_the_blade_jumped_past_keeps_its_old_side() {
+        // The vertex lay 1 mm above the blade; the blade moved 3 mm up past it.
+        let start = [Vec3::new(0.02, 0.0, 0.001)];
+        let out = rows(at(0.0), at(0.003), &start, &[]);
+        assert_eq!(out.len(), 1, "the vertex is within the band of the moved blade");
+        let ConstraintKind::Barrier { displacement, normal } = out[0].kind else { panic!("not a barrier: {:?}", out[0].kind) };
+        assert_eq!(out[0].node, 10);
+        assert!((normal - Vec3::z()).norm() < 1e-15, "the +z face (its old side), got {normal:?}");
+        // The plane is the +z face at the new pose: z = 3.5 mm; the row asks u.z >= 2.5 mm.
+        assert!((normal.dot(&displacement) - 0.0025).abs() < 1e-12, "n . g = {}", normal.dot(&displacement));
+    }
+
+    #[test]
+    fn claimed_far_and_off_footprint_vertices_get_no_row() {
+        let start = [
+            Vec3::new(0.02, 0.0, -0.001),  // below: the -z face
+            Vec3::new(0.02, 0.0, 0.004),   // 3.5 mm above the face: outside the 2 mm band
+            Vec3::new(0.02, 0.008, 0.0),   // beside the blade (|y| > 5.5 mm)
+            Vec3::new(0.02, 0.0, 0.0008),  // claimed by the blade's rays
+        ];
+        let claim = VertexTarget { vertex: 3, displacement: Vec3::zeros(), spatula: 0, face: 0, normal: Vec3::z(), depth: 0.0, node: 0 };
+        let out = rows(at(0.0), at(0.0), &start, &[claim]);
+        assert_eq!(out.len(), 1, "only the vertex below the blade: {out:?}");
+        assert_eq!(out[0].node, 10);
+        let ConstraintKind::Barrier { normal, .. } = out[0].kind else { panic!() };
+        assert!((normal + Vec3::z()).norm() < 1e-15);
+    }
+
+    #[test]
+    fn a_fast_blade_widens_the_band() {
+        // 5 mm below the blade's new position, but the blade moved 5 mm this frame.
+        let start = [Vec3::new(0.02, 0.0, -0.0045)];
+        assert_eq!(rows(at(0.0), at(0.0), &start, &[]).len(), 0, "still blade: outside the band");
+        assert_eq!(rows(at(0.005), at(0.0), &start, &[]).len(), 1, "moving blade: inside the widened band");
+    }
+}
