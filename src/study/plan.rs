@@ -254,10 +254,11 @@ impl StudyPlan {
             sweeps.push(Sweep { knob: Knob::Backend, runs, reference });
         }
         if v.storage {
-            let runs = [ComplianceStorage::F64, ComplianceStorage::F32]
+            // Exact f64, rounded f32, block-low-rank at 8 and 6 digits: memory and time against accuracy.
+            let runs = [ComplianceStorage::F64, ComplianceStorage::F32, ComplianceStorage::LowRank { digits: 8 }, ComplianceStorage::LowRank { digits: 6 }]
                 .into_iter()
                 .enumerate()
-                .map(|(k, s)| RunSpec { label: format!("{s:?}").to_lowercase(), value: k as f64, settings: Settings { storage: s, ..base.clone() } })
+                .map(|(k, s)| RunSpec { label: storage_label(s), value: k as f64, settings: Settings { storage: s, ..base.clone() } })
                 .collect();
             sweeps.push(Sweep { knob: Knob::Storage, runs, reference: 0 });
         }
@@ -347,6 +348,15 @@ pub fn preset_plan(full: bool) -> StudyPlan {
             roi_radii_m: vec![0.015, 0.030],
         };
         StudyPlan::from_values("quick", motion, &values)
+    }
+}
+
+/// Short label of a compliance storage: `f64`, `f32`, `lowrank8`.
+pub fn storage_label(s: ComplianceStorage) -> String {
+    match s {
+        ComplianceStorage::F64 => "f64".into(),
+        ComplianceStorage::F32 => "f32".into(),
+        ComplianceStorage::LowRank { digits } => format!("lowrank{digits}"),
     }
 }
 
