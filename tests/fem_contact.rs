@@ -110,3 +110,62 @@ fn a_domed_press_never_pulls_and_nothing_ends_behind_the_face() {
     );
     assert!(out.released_contacts + out.sliding_contacts > 0, "some rim holds must have let go");
 }
+
+/// Blade barrier rows (`ConstraintKind::Barrier`): a row the solution does not
+/// violate carries no force and changes nothing; a press that drags a free
+/// neighbour below a barrier plane activates it: the neighbour ends on the plane,
+/// pushed along the normal only.
+#[test]
+fn barrier_rows_act_only_where_the_tissue_would_pass_the_face() {
+    let mesh = block(6, 4, 3);
+    let patch = top_patch(&mesh, 0.011);
+    let ring: Vec<u32> = top_patch(&mesh, 0.021).into_iter().filter(|n| !patch.contains(n)).collect();
+    assert!(ring.len() >= 8, "ring of {} nodes around the patch", ring.len());
+    let press = Vec3::new(0.0, 0.0, -0.003);
+    let mut solver = solver_for(&mesh);
+    let mut plain = FrameSolution::default();
+    let held = contacts(&patch, |_| press);
+    solver.step(&held, &mut plain).unwrap();
+    let node_to_vertex = solver.model().surface().node_to_vertex.clone();
+    let vertex = |n: u32| node_to_vertex[n as usize] as usize;
+    // The press drags the ring down by some amount below 3 mm.
+    let sag: Vec<f64> = ring.iter().map(|&n| -plain.displacement_surface[vertex(n)].z).collect();
+    let (min_sag, max_sag) = sag.iter().fold((f64::INFINITY, 0.0_f64), |(a, b), &s| (a.min(s), b.max(s)));
+    assert!(min_sag > 0.0 && max_sag < 0.003, "the ring sags 0..3 mm: {min_sag:e}..{max_sag:e} m");
+
+    // Barriers 5 mm down: never reached, no force, the solution is unchanged.
+    let with_far: Vec<Constraint> = held
+        .iter()
+        .copied()
+        .chain(ring.iter().map(|&n| Constraint { node: n, owner: 0, kind: ConstraintKind::Barrier { displacement: Vec3::new(0.0, 0.0, -0.005), normal: -DOWN } }))
+        .collect();
+    let mut far = FrameSolution::default();
+    solver.step(&with_far, &mut far).unwrap();
+    assert_eq!(far.barrier_contacts, 0, "a barrier below the sag stays inactive");
+    assert!(far.reactions[held.len()..].iter().all(|r| *r == Vec3::zeros()), "inactive barriers carry no force");
+    let diff = far.displacement_surface.iter().zip(&plain.displacement_surface).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    assert!(diff <= 1e-15, "inactive barriers change nothing: {diff:e} m");
+
+    // Barriers (a blade face below the ring, normal +z) at half the smallest sag: every ring node would pass.
+    let level = 0.5 * min_sag;
+    let with_near: Vec<Constraint> = held
+        .iter()
+        .copied()
+        .chain(ring.iter().map(|&n| Constraint { node: n, owner: 1, kind: ConstraintKind::Barrier { displacement: Vec3::new(0.0, 0.0, -level), normal: -DOWN } }))
+        .collect();
+    let mut near = FrameSolution::default();
+    solver.step(&with_near, &mut near).unwrap();
+    assert!(near.barrier_contacts > 0, "the sag passes the barrier plane: some rows must be active");
+    for (k, &n) in ring.iter().enumerate() {
+        let u = near.displacement_surface[vertex(n)];
+        let r = near.reactions[held.len() + k];
+        assert!(u.z >= -level - 1e-12, "ring node {n} ends {:e} m behind its barrier", -level - u.z);
+        assert!(r.x.abs() + r.y.abs() <= 1e-12 * r.norm().max(1e-300) && r.z >= 0.0, "barrier on {n} pushes along +z only: {r:?}");
+        if r.z > 0.0 {
+            assert!((u.z + level).abs() <= 1e-12, "an active barrier holds node {n} on its plane: {:e} m off", u.z + level);
+        }
+    }
+    let up: f64 = near.reactions[held.len()..].iter().map(|r| r.z).sum();
+    assert!(up > 0.0, "the barriers hold the ring up");
+    assert_eq!(near.owner_forces.len(), 2, "the barriers' owner (spatula 1) gets its own force sum");
+}

@@ -33,6 +33,12 @@
 //! constraint, stays held bilaterally. A sphere row applies to a tool node only
 //! once it is demoted.
 //!
+//! Blade barriers (`ConstraintKind::Barrier`, from `sim::barrier` for vertices
+//! near a blade that no ray claimed) are face-plane rows of the same kind as a
+//! demoted hold, inactive until the solution would pass the plane; a held node
+//! ignores them. The set active at the end of a frame is where the next frame
+//! starts (a still scene solves in one iteration).
+//!
 //! Skull spheres: a row `d . u >= b` with `d` the feasible radial direction,
 //! linearized at the node's current position; active-set loop: add violated
 //! candidates, else drop the most adhesive active row (lambda < 0), else
