@@ -33,7 +33,7 @@ use std::time::Instant;
 
 const NO_ROW: u32 = u32::MAX;
 const CACHE_MAGIC: &[u8; 8] = b"FISSCOMP";
-const CACHE_VERSION: u32 = 3;
+const CACHE_VERSION: u32 = 4;
 /// ROI nodes solved together (3 right-hand sides each).
 const BATCH_NODES: usize = 32;
 /// Rows of one chunk of the surface product (9 f64 partials a row: 36 KiB, a multiple of 8 rows).
