@@ -138,3 +138,52 @@ fn repeated_steps_are_bitwise_deterministic() {
     solver.step(&cons, &mut b).unwrap();
     assert_eq!(a, b, "the same constraints must give bitwise the same solution");
 }
+
+/// The surface product keeps the gathered rows `K^-1[c, 0..c]` of forced
+/// columns between calls: whatever it kept, the result is bitwise the one of a
+/// fresh workspace and matches the block-by-block sum; a persisting force set
+/// gathers nothing, new columns are gathered once.
+#[test]
+fn surface_product_reuses_gathered_rows_and_matches_the_block_sum() {
+    let mesh = block(5, 4, 3);
+    let fixed = bottom_fixed(&mesh);
+    let model = FemModel::new(&mesh, &uniform(BRAIN), &fixed, &FemOptions::default()).unwrap();
+    let roi = model.surface().vertices.clone();
+    for storage in [ComplianceStorage::F64, ComplianceStorage::F32] {
+        let c = Compliance::compute(&model, &roi, storage, None, &mut |_, _| {}).unwrap();
+        let (rows, cols) = (c.row_nodes().len(), c.column_count());
+        assert!(cols > 40, "the test wants a few dozen ROI columns, has {cols}");
+        let force = |k: usize| Vec3::new(0.3 - 0.01 * k as f64, 0.1 * (k % 7) as f64, -1.0 + 0.02 * k as f64);
+        // Sets of forced columns, ascending: shifting windows, a shrink, an empty frame, a grow back.
+        let sets: Vec<Vec<usize>> = vec![
+            (0..20).map(|k| 2 * k).collect(),
+            (3..23).map(|k| 2 * k).collect(),
+            (3..23).map(|k| 2 * k).collect(),
+            vec![5, cols - 1],
+            vec![],
+            (cols / 2..cols).collect(),
+            vec![0, 1, 2, cols / 3],
+        ];
+        let mut kept = fissure::fem::ProductWorkspace::default();
+        let mut previous: Vec<usize> = Vec::new();
+        for (frame, set) in sets.iter().enumerate() {
+            let forces: Vec<(usize, Vec3)> = set.iter().map(|&j| (j, force(j))).collect();
+            let mut u = vec![Vec3::new(1e-3, 0.0, -2e-3); rows];
+            c.accumulate(&forces, &mut u, &mut kept);
+            let new = set.iter().filter(|j| !previous.contains(j)).count();
+            assert_eq!(kept.rows_gathered(), new, "{storage:?} frame {frame}: only columns new since the last call are gathered");
+            let mut fresh_u = vec![Vec3::new(1e-3, 0.0, -2e-3); rows];
+            c.accumulate(&forces, &mut fresh_u, &mut fissure::fem::ProductWorkspace::default());
+            assert!(u == fresh_u, "{storage:?} frame {frame}: kept rows must give the bits of a fresh workspace");
+            let scale = forces.iter().map(|f| f.1.norm()).sum::<f64>().max(1.0) * (0..rows).map(|r| c.block(r, 0).norm()).fold(0.0, f64::max);
+            for (r, ur) in u.iter().enumerate() {
+                let mut expected = Vec3::new(1e-3, 0.0, -2e-3);
+                for &(j, f) in &forces {
+                    expected += c.block(r, j) * f;
+                }
+                assert!((ur - expected).norm() <= 1e-12 * scale, "{storage:?} frame {frame} row {r}: {ur:?} vs {expected:?}");
+            }
+            previous = set.clone();
+        }
+    }
+}

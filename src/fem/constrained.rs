@@ -49,7 +49,7 @@
 //! (except lazily computed columns); fixed iteration order everywhere.
 
 use super::FemError;
-use super::compliance::Compliance;
+use super::compliance::{Compliance, ProductWorkspace};
 use super::wfactor::ContactFactor;
 use super::model::FemModel;
 use crate::math::{Matrix3, Vec3, is_finite3};
@@ -264,8 +264,8 @@ pub struct ConstrainedSolver {
     /// Nodal forces of the last frame (node, force) for interior displacements.
     last_forces: Vec<(u32, Vec3)>,
     timings: PhaseTimings,
-    /// Scratch of the surface product (9 partial products a row).
-    product_scratch: Vec<f64>,
+    /// Scratch of the surface product (partial sums, gathered rows of forced columns).
+    product: ProductWorkspace,
 }
 
 impl ConstrainedSolver {
@@ -316,7 +316,7 @@ impl ConstrainedSolver {
             solve_scratch: None,
             last_forces: Vec::new(),
             timings: PhaseTimings::default(),
-            product_scratch: Vec::new(),
+            product: ProductWorkspace::default(),
         })
     }
 
@@ -965,7 +965,7 @@ impl ConstrainedSolver {
             }
         }
         self.col_forces.sort_unstable_by_key(|x| x.0);
-        self.compliance.accumulate(&self.col_forces, &mut self.u_rows, &mut self.product_scratch);
+        self.compliance.accumulate(&self.col_forces, &mut self.u_rows, &mut self.product);
         let n_free = self.model.dofs.dof_count();
         for (slot, f) in self.node_force.iter().enumerate() {
             let node = self.nodes[slot];

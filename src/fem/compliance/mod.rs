@@ -352,14 +352,28 @@ impl Compliance {
     }
 
     /// `u[row] += sum_k K^-1[row, col_k] F_k` over every row, for forces
-    /// `(col, F)` sorted by ascending column. `scratch` (9 f64 a row; 3 a row
-    /// plus the largest rank for low rank) is reused between calls; nothing
-    /// else is allocated.
-    pub fn accumulate(&self, forces: &[(usize, Vec3)], u: &mut [Vec3], scratch: &mut Vec<f64>) {
+    /// `(col, F)` sorted by ascending column. `workspace` is reused between
+    /// calls (for dense storage it keeps the rows `K^-1[c, 0..c]` of the forced
+    /// columns, see [`ProductWorkspace`]); once it has grown, nothing is allocated.
+    pub fn accumulate(&self, forces: &[(usize, Vec3)], u: &mut [Vec3], workspace: &mut ProductWorkspace) {
+        workspace.gathered = 0;
+        if workspace.key != self.key {
+            // Rows kept for another compliance are not ours.
+            workspace.rows32.clear();
+            workspace.rows64.clear();
+            workspace.key = self.key;
+        }
+        let n_rows = self.row_nodes.len();
         match &self.values {
-            Values::F64(v) => accumulate_impl(v, self.row_nodes.len(), self.n_cols, forces, u, scratch),
-            Values::F32(v) => accumulate_impl(v, self.row_nodes.len(), self.n_cols, forces, u, scratch),
-            Values::LowRank(b) => b.accumulate(forces, u, scratch),
+            Values::F64(v) => {
+                workspace.gathered = workspace.rows64.prepare(v, n_rows, forces);
+                accumulate_impl(v, n_rows, forces, &workspace.rows64.rows, u, &mut workspace.acc)
+            }
+            Values::F32(v) => {
+                workspace.gathered = workspace.rows32.prepare(v, n_rows, forces);
+                accumulate_impl(v, n_rows, forces, &workspace.rows32.rows, u, &mut workspace.acc)
+            }
+            Values::LowRank(b) => b.accumulate(forces, u, &mut workspace.acc),
         }
     }
 
@@ -510,18 +524,147 @@ impl Entry for f32 {
     }
 }
 
+/// Reusable memory of [`Compliance::accumulate`].
+///
+/// Dense storage keeps only the lower triangle, so the entries `K^-1[i, c]`
+/// with `i < c` of a forced ROI column `c` are row `c` of the stored triangle,
+/// one 3x3 block in each earlier column: a strided read. The workspace gathers
+/// that row once, when `c` first carries a force, and keeps it while `c` stays
+/// forced, so each frame streams contiguous memory (a contact that persists
+/// over frames pays the strided read once). Rows of columns no longer forced
+/// go to a spare list and are reused. Keyed by the compliance's key: used
+/// with another compliance it starts over.
+#[derive(Debug, Default)]
+pub struct ProductWorkspace {
+    /// Partial sums (9 f64 a row of a chunk) or the low-rank scratch.
+    acc: Vec<f64>,
+    rows32: RowStore<f32>,
+    rows64: RowStore<f64>,
+    key: [u8; 32],
+    gathered: usize,
+}
+
+impl ProductWorkspace {
+    /// Rows `K^-1[c, 0..c]` gathered from the strided storage in the last
+    /// [`Compliance::accumulate`] (forced columns that were not forced in the call before).
+    pub fn rows_gathered(&self) -> usize {
+        self.gathered
+    }
+
+    /// Rows kept for the forced columns of the last call.
+    pub fn rows_kept(&self) -> usize {
+        self.rows32.rows.len() + self.rows64.rows.len()
+    }
+}
+
+/// Rows `K^-1[c, 0..c]` (c blocks of 9 entries, the storage's block layout) of the
+/// forced columns of the last call, in the order of its forces.
+#[derive(Debug, Default)]
+struct RowStore<T> {
+    cols: Vec<usize>,
+    rows: Vec<Vec<T>>,
+    next_cols: Vec<usize>,
+    next_rows: Vec<Vec<T>>,
+    spare: Vec<Vec<T>>,
+}
+
+impl<T: Copy> RowStore<T> {
+    fn clear(&mut self) {
+        self.spare.extend(self.rows.drain(..));
+        self.cols.clear();
+    }
+
+    /// The spare buffer with the smallest capacity of at least `len` (else the
+    /// largest), so that in a steady state gathering allocates nothing.
+    fn take_spare(&mut self, len: usize) -> Vec<T> {
+        let mut best: Option<usize> = None;
+        for (k, b) in self.spare.iter().enumerate() {
+            let better = match best {
+                None => true,
+                Some(j) => {
+                    let (cap, best_cap) = (b.capacity(), self.spare[j].capacity());
+                    if best_cap >= len { cap >= len && cap < best_cap } else { cap > best_cap }
+                }
+            };
+            if better {
+                best = Some(k);
+            }
+        }
+        best.map(|k| self.spare.swap_remove(k)).unwrap_or_default()
+    }
+
+    /// Makes `rows[k]` the row of `forces[k].0` (ascending): kept rows are moved,
+    /// missing ones gathered. Returns how many were gathered.
+    fn prepare(&mut self, v: &[T], n_rows: usize, forces: &[(usize, Vec3)]) -> usize {
+        self.next_cols.clear();
+        self.next_rows.clear();
+        let mut gathered = 0;
+        let mut k = 0;
+        for &(c, _) in forces {
+            while k < self.cols.len() && self.cols[k] < c {
+                self.spare.push(std::mem::take(&mut self.rows[k]));
+                k += 1;
+            }
+            let row = if k < self.cols.len() && self.cols[k] == c {
+                k += 1;
+                std::mem::take(&mut self.rows[k - 1])
+            } else {
+                gathered += 1;
+                let mut row = self.take_spare(9 * c);
+                row.clear();
+                for i in 0..c {
+                    let o = (col_start(i, n_rows) + c - i) * 9;
+                    row.extend_from_slice(&v[o..o + 9]);
+                }
+                row
+            };
+            self.next_cols.push(c);
+            self.next_rows.push(row);
+        }
+        for row in &mut self.rows[k..] {
+            self.spare.push(std::mem::take(row));
+        }
+        std::mem::swap(&mut self.cols, &mut self.next_cols);
+        std::mem::swap(&mut self.rows, &mut self.next_rows);
+        gathered
+    }
+}
+
+/// `out[e] += run[e] * f[(e % 9) / 3]` (lower part: the block column's force
+/// component) or `f[e % 3]` (upper part: the transposed block), over a run of
+/// whole 3x3 blocks: a flat loop the compiler vectorizes (the pattern repeats
+/// every 9 entries, so it is unrolled to 72 = lcm(9, 8)).
+#[inline(always)]
+fn add_scaled_run<T: Entry>(out: &mut [f64], run: &[T], pattern9: [f64; 9]) {
+    let mut pattern = [0.0f64; 72];
+    for (e, p) in pattern.iter_mut().enumerate() {
+        *p = pattern9[e % 9];
+    }
+    let mut out_chunks = out.chunks_exact_mut(72);
+    let mut run_chunks = run.chunks_exact(72);
+    for (o, b) in (&mut out_chunks).zip(&mut run_chunks) {
+        for e in 0..72 {
+            o[e] += b[e].f() * pattern[e];
+        }
+    }
+    for ((o, b), p) in out_chunks.into_remainder().iter_mut().zip(run_chunks.remainder()).zip(&pattern) {
+        *o += b.f() * p;
+    }
+}
+
 /// The surface product kernel. Lower part (rows `i >= c` of each forced
 /// column `c`, a contiguous run of 3x3 blocks): every stored entry is multiplied
 /// by the force component of its block column and added into a per-row buffer
-/// of 9 partial products (`acc[9 i + e] += v[e] f[e / 3]`), a flat loop the
-/// compiler vectorizes (the force pattern repeats every 9 entries, so it is
-/// unrolled to 72 = lcm(9, 8)); the 9 partials are summed into `u` at the end.
-/// Upper part (rows `i < c`, both ROI): block `(c, i)^T` from column `i`.
+/// of 9 partial products (`acc[9 i + e] += v[e] f[e / 3]`); the 9 partials are
+/// summed into `u` at the end. Upper part (rows `i < c`, both ROI): the
+/// transposed blocks `(c, i)^T` from the gathered row of `c` (`rows[k]` for
+/// `forces[k]`, see [`ProductWorkspace`]), the same way with `f[e % 3]`.
 /// Rows are processed in chunks of [`ROW_CHUNK`] (partials stay in L1).
 /// Plain multiplies and adds (no fused multiply-add): the SIMD and scalar
-/// builds give the same bits.
+/// builds give the same bits, and every row's sum runs over the forces in
+/// ascending column order.
 #[inline(always)]
-fn accumulate_kernel<T: Entry>(v: &[T], n_rows: usize, n_cols: usize, forces: &[(usize, Vec3)], u: &mut [Vec3], acc: &mut Vec<f64>) {
+fn accumulate_kernel<T: Entry>(v: &[T], n_rows: usize, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
     acc.clear();
     acc.resize(9 * ROW_CHUNK, 0.0);
     // Row chunks keep the 9 partials of ROW_CHUNK rows in L1 while every forced column streams by.
@@ -536,66 +679,50 @@ fn accumulate_kernel<T: Entry>(v: &[T], n_rows: usize, n_cols: usize, forces: &[
             let start = r0.max(c);
             let base = (col_start(c, n_rows) + start - c) * 9;
             let len = (r1 - start) * 9;
-            let run = &v[base..base + len];
-            let out = &mut acc[9 * (start - r0)..9 * (r1 - r0)];
-            let mut pattern = [0.0f64; 72];
-            for (e, p) in pattern.iter_mut().enumerate() {
-                *p = f[(e % 9) / 3];
-            }
-            let mut out_chunks = out.chunks_exact_mut(72);
-            let mut run_chunks = run.chunks_exact(72);
-            for (o, b) in (&mut out_chunks).zip(&mut run_chunks) {
-                for e in 0..72 {
-                    o[e] += b[e].f() * pattern[e];
-                }
-            }
-            for ((o, b), p) in out_chunks.into_remainder().iter_mut().zip(run_chunks.remainder()).zip(&pattern) {
-                *o += b.f() * p;
-            }
+            add_scaled_run(&mut acc[9 * (start - r0)..9 * (r1 - r0)], &v[base..base + len], [f.x, f.x, f.x, f.y, f.y, f.y, f.z, f.z, f.z]);
         }
         for (ui, p) in u[r0..r1].iter_mut().zip(acc.chunks_exact(9)) {
             *ui += Vec3::new(p[0] + p[3] + p[6], p[1] + p[4] + p[7], p[2] + p[5] + p[8]);
         }
         r0 = r1;
     }
+    // Upper part: rows below the largest forced column.
+    let top = forces.last().map_or(0, |f| f.0);
     let mut first = 0;
-    for i in 0..n_cols {
-        while first < forces.len() && forces[first].0 <= i {
+    let mut r0 = 0;
+    while r0 < top {
+        let r1 = (r0 + ROW_CHUNK).min(top);
+        acc.iter_mut().for_each(|a| *a = 0.0);
+        while forces[first].0 <= r0 {
             first += 1;
         }
-        if first == forces.len() {
-            break;
+        for (&(c, f), row) in forces[first..].iter().zip(&rows[first..]) {
+            let end = c.min(r1);
+            add_scaled_run(&mut acc[..9 * (end - r0)], &row[9 * r0..9 * end], [f.x, f.y, f.z, f.x, f.y, f.z, f.x, f.y, f.z]);
         }
-        let base = col_start(i, n_rows);
-        let mut a = [0.0f64; 9];
-        for &(c, f) in &forces[first..] {
-            let o = (base + c - i) * 9;
-            let b = &v[o..o + 9];
-            let pattern = [f.x, f.y, f.z, f.x, f.y, f.z, f.x, f.y, f.z];
-            for e in 0..9 {
-                a[e] += b[e].f() * pattern[e];
-            }
+        for (ui, a) in u[r0..r1].iter_mut().zip(acc.chunks_exact(9)) {
+            *ui += Vec3::new(a[0] + a[1] + a[2], a[3] + a[4] + a[5], a[6] + a[7] + a[8]);
         }
-        u[i] += Vec3::new(a[0] + a[1] + a[2], a[3] + a[4] + a[5], a[6] + a[7] + a[8]);
+        r0 = r1;
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn accumulate_avx2<T: Entry>(v: &[T], n_rows: usize, n_cols: usize, forces: &[(usize, Vec3)], u: &mut [Vec3], acc: &mut Vec<f64>) {
-    accumulate_kernel(v, n_rows, n_cols, forces, u, acc)
+unsafe fn accumulate_avx2<T: Entry>(v: &[T], n_rows: usize, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
+    accumulate_kernel(v, n_rows, forces, rows, u, acc)
 }
 
 /// Dispatches the kernel to an AVX2 build when the CPU has it (runtime
 /// detection; no `RUSTFLAGS` needed). Both builds round identically.
-fn accumulate_impl<T: Entry>(v: &[T], n_rows: usize, n_cols: usize, forces: &[(usize, Vec3)], u: &mut [Vec3], acc: &mut Vec<f64>) {
+fn accumulate_impl<T: Entry>(v: &[T], n_rows: usize, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2 (checked just above).
-        unsafe { accumulate_avx2(v, n_rows, n_cols, forces, u, acc) };
+        unsafe { accumulate_avx2(v, n_rows, forces, rows, u, acc) };
         return;
     }
-    accumulate_kernel(v, n_rows, n_cols, forces, u, acc)
+    accumulate_kernel(v, n_rows, forces, rows, u, acc)
 }
 
 fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage) -> [u8; 32] {
