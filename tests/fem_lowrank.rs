@@ -8,7 +8,9 @@ mod common;
 
 use common::*;
 use fissure::fem::fixtures::{box_mesh, linspace};
-use fissure::fem::{Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemError, FemModel, FemOptions, FrameSolution};
+use fissure::fem::{
+    Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemError, FemModel, FemOptions, FrameSolution, ProductWorkspace,
+};
 use fissure::math::{Matrix3, Vec3};
 use fissure::mesh::TetMesh;
 use std::sync::OnceLock;
@@ -122,11 +124,11 @@ fn surface_product_matches_blocks_and_f64() {
     forces.extend((n_cols / 2..n_cols / 2 + 40).filter(|c| c % 7 != 0).map(|c| (c, Vec3::new(0.0, 0.0, -1.0))));
     forces.sort_by_key(|x| x.0);
     let mut u_ref = vec![Vec3::zeros(); n_rows];
-    let mut scratch = Vec::new();
+    let mut scratch = ProductWorkspace::default();
     f.f64.accumulate(&forces, &mut u_ref, &mut scratch);
     for (lr, digits) in [(&f.lr8, 8), (&f.lr4, 4)] {
         let mut u = vec![Vec3::zeros(); n_rows];
-        let mut scratch = Vec::new();
+        let mut scratch = ProductWorkspace::default();
         lr.accumulate(&forces, &mut u, &mut scratch);
         let by_blocks: Vec<Vec3> = (0..n_rows).map(|r| forces.iter().map(|&(c, fc)| lr.block(r, c) * fc).sum()).collect();
         let e_blocks = rel_error(&u, &by_blocks);
@@ -135,10 +137,10 @@ fn surface_product_matches_blocks_and_f64() {
         assert!(e_blocks < 1e-12, "digits {digits}: accumulate disagrees with block() by {e_blocks:e}");
         assert!(e_f64 < 10f64.powi(-digits), "digits {digits}: product off the f64 one by {e_f64:e}");
         // Accumulates on top of what u holds, and reuses the scratch without growing it.
-        let cap = scratch.capacity();
+        let cap = scratch.bytes();
         let before = u.clone();
         lr.accumulate(&forces, &mut u, &mut scratch);
-        assert_eq!(scratch.capacity(), cap, "the scratch must be reused, not regrown");
+        assert_eq!(scratch.bytes(), cap, "the scratch must be reused, not regrown");
         let twice: Vec<Vec3> = before.iter().map(|x| x * 2.0).collect();
         assert!(rel_error(&u, &twice) < 1e-14, "accumulate must add to u");
     }
@@ -216,7 +218,7 @@ fn all_blocks(c: &Compliance) -> Vec<f64> {
 fn product(c: &Compliance) -> Vec<Vec3> {
     let forces: Vec<(usize, Vec3)> = (0..c.column_count()).step_by(5).map(|k| (k, Vec3::new(0.3, -1.0, 0.7))).collect();
     let mut u = vec![Vec3::zeros(); c.row_nodes().len()];
-    c.accumulate(&forces, &mut u, &mut Vec::new());
+    c.accumulate(&forces, &mut u, &mut ProductWorkspace::default());
     u
 }
 

@@ -352,7 +352,13 @@ fn run_loop(
             };
             let candidate = as_recorded(candidate);
             let pose = match guards.get_mut(k) {
-                Some(g) => g.offer(candidate),
+                Some(g) => {
+                    let pose = g.offer(candidate);
+                    if let Some(warning) = g.take_warning() {
+                        *lock(&shared.status) = format!("spatula {}: {warning}", spatula.name);
+                    }
+                    pose
+                }
                 None => candidate,
             };
             input.poses.push(Some(pose));

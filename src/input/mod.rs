@@ -109,6 +109,7 @@ pub struct PoseGuard {
     last_good: Pose,
     rejected: u64,
     warned: bool,
+    shown: bool,
     label: &'static str,
 }
 
@@ -125,6 +126,7 @@ impl PoseGuard {
             last_good,
             rejected: 0,
             warned: false,
+            shown: false,
             label,
         }
     }
@@ -154,6 +156,19 @@ impl PoseGuard {
     /// How many candidates were refused.
     pub fn rejected(&self) -> u64 {
         self.rejected
+    }
+
+    /// The message a window shows once, right after the first refusal
+    /// (`Some` exactly once per guard; later refusals are only counted).
+    pub fn take_warning(&mut self) -> Option<String> {
+        if self.rejected == 0 || self.shown {
+            return None;
+        }
+        self.shown = true;
+        Some(format!(
+            "{}: refused a pose with a non-finite value or a non-unit quaternion; the last good pose holds",
+            self.label
+        ))
     }
 }
 
@@ -229,5 +244,21 @@ mod tests {
         );
         assert_eq!(guard.rejected(), 2);
         assert_eq!(guard.pose(), good);
+    }
+
+    #[test]
+    fn guard_warning_is_shown_once_after_the_first_refusal() {
+        let mut guard = PoseGuard::new(Pose::default(), "window");
+        assert_eq!(guard.take_warning(), None, "nothing refused yet");
+        guard.offer(Pose::default());
+        assert_eq!(guard.take_warning(), None, "a good pose is no reason to warn");
+        let mut bad = Pose::default();
+        bad.position.y = f64::INFINITY;
+        guard.offer(bad);
+        let shown = guard.take_warning().expect("the first refusal is shown");
+        assert!(shown.starts_with("window: refused a pose"), "{shown}");
+        guard.offer(bad);
+        assert_eq!(guard.take_warning(), None, "later refusals are only counted");
+        assert_eq!(guard.rejected(), 2);
     }
 }

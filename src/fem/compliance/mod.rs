@@ -555,6 +555,12 @@ impl ProductWorkspace {
     pub fn rows_kept(&self) -> usize {
         self.rows32.rows.len() + self.rows64.rows.len()
     }
+
+    /// Bytes reserved (partial sums, kept and spare rows): flat once the
+    /// frames' force sets have been seen.
+    pub fn bytes(&self) -> usize {
+        8 * self.acc.capacity() + self.rows32.bytes() + self.rows64.bytes()
+    }
 }
 
 /// Rows `K^-1[c, 0..c]` (c blocks of 9 entries, the storage's block layout) of the
@@ -569,6 +575,11 @@ struct RowStore<T> {
 }
 
 impl<T: Copy> RowStore<T> {
+    fn bytes(&self) -> usize {
+        let rows: usize = self.rows.iter().chain(&self.spare).map(Vec::capacity).sum();
+        rows * std::mem::size_of::<T>()
+    }
+
     fn clear(&mut self) {
         self.spare.extend(self.rows.drain(..));
         self.cols.clear();
@@ -612,6 +623,11 @@ impl<T: Copy> RowStore<T> {
                 gathered += 1;
                 let mut row = self.take_spare(9 * c);
                 row.clear();
+                if row.capacity() < 9 * c {
+                    // Power-of-two capacities: a spare fits most later rows, so
+                    // gathering stops allocating once the pool has grown.
+                    row.reserve_exact((9 * c).next_power_of_two());
+                }
                 for i in 0..c {
                     let o = (col_start(i, n_rows) + c - i) * 9;
                     row.extend_from_slice(&v[o..o + 9]);
