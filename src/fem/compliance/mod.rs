@@ -551,11 +551,6 @@ impl ProductWorkspace {
         self.gathered
     }
 
-    /// Rows kept for the forced columns of the last call.
-    pub fn rows_kept(&self) -> usize {
-        self.rows32.rows.len() + self.rows64.rows.len()
-    }
-
     /// Bytes reserved (partial sums, kept and spare rows): flat once the
     /// frames' force sets have been seen.
     pub fn bytes(&self) -> usize {
