@@ -6,11 +6,14 @@
 //! for a surface (or ROI) node i and a ROI node j, and accumulates
 //! `u_rows += K^-1[rows, cols] F` for a few nodal forces.
 //!
-//! Layout (symmetric storage): rows are the free ROI nodes (Morton order) followed
-//! by every other free surface node (Morton order); columns are the ROI nodes. Only
-//! the blocks with row >= column are stored, column after column, each 3x3 block
-//! column-major: `(col_start(j) + i - j) * 9`, `col_start(j) = j n - j (j-1) / 2`.
-//! A ROI x ROI block above the diagonal is the transpose of its mirror.
+//! Layout (symmetric storage): rows are the free ROI nodes followed by every
+//! other free surface node, each group sorted by free component (the bodies
+//! `K` does not couple, such as the two hemispheres) and then Morton order;
+//! columns are the ROI nodes. Only the blocks with row >= column and both nodes
+//! in one component are stored (`K^-1` between components is exactly zero),
+//! column after column, each 3x3 block column-major (see [`Layout`]; with one
+//! component, block `(i, j)` sits at `j n - j (j-1) / 2 + i - j`). A ROI x ROI
+//! block above the diagonal is the transpose of its mirror.
 //! Block-low-rank storage ([`ComplianceStorage::LowRank`], module `lowrank`):
 //! the same rows and columns cut into clusters of at most 64 nodes; far blocks
 //! are stored as `U V^T` within a relative tolerance, near ones dense; the
@@ -33,7 +36,7 @@ use std::time::Instant;
 
 const NO_ROW: u32 = u32::MAX;
 const CACHE_MAGIC: &[u8; 8] = b"FISSCOMP";
-const CACHE_VERSION: u32 = 4;
+const CACHE_VERSION: u32 = 5;
 /// ROI nodes solved together (3 right-hand sides each).
 const BATCH_NODES: usize = 32;
 /// Rows of one chunk of the surface product (9 f64 partials a row: 36 KiB, a multiple of 8 rows).
@@ -101,15 +104,129 @@ pub struct Compliance {
     values: Values,
     row_nodes: Vec<u32>,
     n_cols: usize,
+    /// Which rows each column stores (dense storage; unused for low rank).
+    layout: Layout,
     node_row: Vec<u32>,
     key: [u8; 32],
     model_fingerprint: [u8; 32],
     stats: ComplianceStats,
 }
 
-#[inline]
-fn col_start(j: usize, n_rows: usize) -> usize {
-    j * n_rows - j * j.saturating_sub(1) / 2
+/// Which rows of a column dense storage holds. `K` couples only nodes joined
+/// by a chain of tets through free nodes, so `K^-1` is block diagonal over the
+/// connected components of the free-node graph (the real brain's two
+/// hemispheres are two bodies): a block between components is exactly zero and
+/// is not stored. Rows are grouped by component (ROI rows of component 0, of
+/// component 1, ..., then the other rows the same way), so column `j` of
+/// component `k` stores two runs of consecutive rows: ROI rows `j..roi_end(k)`
+/// and the other rows of `k`. With one component this is the plain packed
+/// lower triangle (`offset(j) = j n - j (j-1) / 2`).
+#[derive(Debug, Clone, Default)]
+struct Layout {
+    /// Component of each row (0.. in the order the rows are grouped).
+    row_comp: Vec<u32>,
+    /// Per component: ROI rows `[s[0], s[1])`, other rows `[s[2], s[3])`.
+    spans: Vec<[usize; 4]>,
+    /// Per column (+1): offset in blocks of its first stored block.
+    col_off: Vec<usize>,
+}
+
+impl Layout {
+    /// `row_comp` must be non-decreasing over the first `n_cols` rows and over the rest.
+    fn new(row_comp: Vec<u32>, n_cols: usize) -> Self {
+        let n_comp = row_comp.iter().map(|&c| c as usize + 1).max().unwrap_or(0);
+        let mut spans = vec![[0usize; 4]; n_comp];
+        for (k, s) in spans.iter_mut().enumerate() {
+            let k = k as u32;
+            s[0] = row_comp[..n_cols].partition_point(|&c| c < k);
+            s[1] = row_comp[..n_cols].partition_point(|&c| c <= k);
+            s[2] = n_cols + row_comp[n_cols..].partition_point(|&c| c < k);
+            s[3] = n_cols + row_comp[n_cols..].partition_point(|&c| c <= k);
+        }
+        let mut col_off = Vec::with_capacity(n_cols + 1);
+        let mut off = 0;
+        col_off.push(0);
+        for j in 0..n_cols {
+            let s = spans[row_comp[j] as usize];
+            off += (s[1] - j) + (s[3] - s[2]);
+            col_off.push(off);
+        }
+        Self { row_comp, spans, col_off }
+    }
+
+    /// Stored blocks.
+    fn blocks(&self) -> usize {
+        self.col_off.last().copied().unwrap_or(0)
+    }
+
+    /// Block offset of `(row, col)`, `row >= col`, or `None` when the two are
+    /// in different components (the block is exactly zero).
+    #[inline]
+    fn offset(&self, row: usize, col: usize) -> Option<usize> {
+        let k = self.row_comp[col];
+        if self.row_comp[row] != k {
+            return None;
+        }
+        let s = &self.spans[k as usize];
+        Some(if row < s[1] { self.col_off[col] + row - col } else { self.col_off[col] + (s[1] - col) + row - s[2] })
+    }
+
+    /// The two runs of stored rows of column `j`: `(first row, end row, block offset)`.
+    #[inline]
+    fn runs(&self, j: usize) -> [(usize, usize, usize); 2] {
+        let s = &self.spans[self.row_comp[j] as usize];
+        let o = self.col_off[j];
+        [(j, s[1], o), (s[2], s[3], o + s[1] - j)]
+    }
+
+    /// First ROI row of column `j`'s component: the rows `i < j` it couples to are `upper_start(j)..j`.
+    #[inline]
+    fn upper_start(&self, j: usize) -> usize {
+        self.spans[self.row_comp[j] as usize][0]
+    }
+}
+
+/// Component of every free node in the graph of tets through free nodes
+/// (`u32::MAX` for fixed or unused nodes), numbered by lowest node: deterministic.
+fn free_components(model: &FemModel) -> Vec<u32> {
+    let n = model.mesh.node_count();
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn find(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            let p = parent[x as usize];
+            parent[x as usize] = parent[p as usize];
+            x = p;
+        }
+        x
+    }
+    for t in &model.mesh.tets {
+        let mut prev: Option<u32> = None;
+        for &v in t.iter().filter(|&&v| !model.is_fixed(v)) {
+            if let Some(p) = prev {
+                let (a, b) = (find(&mut parent, p), find(&mut parent, v));
+                if a != b {
+                    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+                    parent[hi as usize] = lo;
+                }
+            }
+            prev = Some(v);
+        }
+    }
+    let mut id = vec![u32::MAX; n];
+    let mut comp = vec![u32::MAX; n];
+    let mut next = 0;
+    for v in 0..n as u32 {
+        if model.dofs.dof(v).is_none() {
+            continue;
+        }
+        let r = find(&mut parent, v) as usize;
+        if id[r] == u32::MAX {
+            id[r] = next;
+            next += 1;
+        }
+        comp[v as usize] = id[r];
+    }
+    comp
 }
 
 impl Compliance {
@@ -146,8 +263,17 @@ impl Compliance {
         // consecutive columns, so the per-frame product streams through memory.
         morton_sort(&mut roi, &model.mesh.positions);
         morton_sort(&mut others, &model.mesh.positions);
+        // Dense storage groups rows by free component (see [`Layout`]); the sort
+        // is stable, so each component keeps its Morton order.
+        let dense = !matches!(storage, ComplianceStorage::LowRank { .. });
+        let comp = if dense { free_components(model) } else { Vec::new() };
+        if dense {
+            roi.sort_by_key(|&n| comp[n as usize]);
+            others.sort_by_key(|&n| comp[n as usize]);
+        }
         let mut row_nodes = roi.clone();
         row_nodes.extend_from_slice(&others);
+        let layout = if dense { Layout::new(row_nodes.iter().map(|&n| comp[n as usize]).collect(), n_cols) } else { Layout::default() };
         let mut node_row = vec![NO_ROW; count];
         for (r, &n) in row_nodes.iter().enumerate() {
             node_row[n as usize] = r as u32;
@@ -157,6 +283,7 @@ impl Compliance {
             values: Values::F64(Vec::new()),
             row_nodes,
             n_cols,
+            layout,
             node_row,
             key,
             model_fingerprint: model.fingerprint,
@@ -209,7 +336,7 @@ impl Compliance {
     }
 
     fn entry_count(&self) -> usize {
-        col_start(self.n_cols, self.row_nodes.len()) * 9
+        self.layout.blocks() * 9
     }
 
     fn build(&self, model: &FemModel, storage: ComplianceStorage, progress: &mut dyn FnMut(usize, usize)) -> Result<Values, FemError> {
@@ -221,20 +348,13 @@ impl Compliance {
         let len = self.entry_count();
         let mut values = match storage {
             ComplianceStorage::F64 | ComplianceStorage::LowRank { .. } => {
-                let mut v: Vec<f64> = Vec::new();
-                v.try_reserve_exact(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 8 })?;
-                v.resize(len, 0.0);
-                Values::F64(v)
+                Values::F64(bytemuck::allocation::try_zeroed_vec(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 8 })?)
             }
             ComplianceStorage::F32 => {
-                let mut v: Vec<f32> = Vec::new();
-                v.try_reserve_exact(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 4 })?;
-                v.resize(len, 0.0);
-                Values::F32(v)
+                Values::F32(bytemuck::allocation::try_zeroed_vec(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 4 })?)
             }
         };
         let n_free = model.dofs.dof_count();
-        let n_rows = self.row_nodes.len();
         let row_dofs: Vec<usize> = self.row_nodes.iter().map(|&n| model.dofs.dof(n).unwrap_or(0)).collect();
         let mut rhs = faer::Mat::<f64>::zeros(n_free, 3 * BATCH_NODES);
         let mut scratch = model.chol.scratch(3 * BATCH_NODES)?;
@@ -252,14 +372,15 @@ impl Compliance {
             model.chol.solve_in_place(rhs.as_mut().subcols_mut(0, 3 * nb), &mut scratch);
             for b in 0..nb {
                 let j = j0 + b;
-                let base = col_start(j, n_rows) * 9;
                 let cols = [rhs.col(3 * b), rhs.col(3 * b + 1), rhs.col(3 * b + 2)];
                 let cols = cols.map(|c| c.try_as_col_major().map(|c| c.as_slice()).unwrap_or(&[]));
-                let count = (n_rows - j) * 9;
-                match &mut values {
-                    Values::F64(v) => fill_column(&mut v[base..base + count], &row_dofs[j..], &cols, |x| x),
-                    Values::F32(v) => fill_column(&mut v[base..base + count], &row_dofs[j..], &cols, |x| x as f32),
-                    Values::LowRank(_) => {}
+                for (r0, r1, off) in self.layout.runs(j) {
+                    let (base, count) = (off * 9, (r1 - r0) * 9);
+                    match &mut values {
+                        Values::F64(v) => fill_column(&mut v[base..base + count], &row_dofs[r0..r1], &cols, |x| x),
+                        Values::F32(v) => fill_column(&mut v[base..base + count], &row_dofs[r0..r1], &cols, |x| x as f32),
+                        Values::LowRank(_) => {}
+                    }
                 }
             }
             j0 += nb;
@@ -343,7 +464,9 @@ impl Compliance {
 
     #[inline]
     fn stored(&self, row: usize, col: usize) -> Matrix3<f64> {
-        let o = (col_start(col, self.row_nodes.len()) + row - col) * 9;
+        let Some(o) = self.layout.offset(row, col).map(|b| b * 9) else {
+            return Matrix3::zeros();
+        };
         match &self.values {
             Values::F64(v) => Matrix3::from_column_slice(&v[o..o + 9]),
             Values::F32(v) => Matrix3::from_iterator(v[o..o + 9].iter().map(|&x| x as f64)),
@@ -363,15 +486,15 @@ impl Compliance {
             workspace.rows64.clear();
             workspace.key = self.key;
         }
-        let n_rows = self.row_nodes.len();
+        let layout = &self.layout;
         match &self.values {
             Values::F64(v) => {
-                workspace.gathered = workspace.rows64.prepare(v, n_rows, forces);
-                accumulate_impl(v, n_rows, forces, &workspace.rows64.rows, u, &mut workspace.acc)
+                workspace.gathered = workspace.rows64.prepare(v, layout, forces);
+                accumulate_impl(v, layout, forces, &workspace.rows64.rows, u, &mut workspace.acc)
             }
             Values::F32(v) => {
-                workspace.gathered = workspace.rows32.prepare(v, n_rows, forces);
-                accumulate_impl(v, n_rows, forces, &workspace.rows32.rows, u, &mut workspace.acc)
+                workspace.gathered = workspace.rows32.prepare(v, layout, forces);
+                accumulate_impl(v, layout, forces, &workspace.rows32.rows, u, &mut workspace.acc)
             }
             Values::LowRank(b) => b.accumulate(forces, u, &mut workspace.acc),
         }
@@ -474,16 +597,13 @@ impl Compliance {
                 Values::LowRank(Box::new(b))
             }
             ComplianceStorage::F64 => {
-                let mut v: Vec<f64> = Vec::new();
-                v.try_reserve_exact(len).map_err(|_| "out of memory".to_string())?;
-                v.resize(len, 0.0);
+                // Zeroed allocation: fresh pages, filled once by the read (no memset pass).
+                let mut v: Vec<f64> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| "out of memory".to_string())?;
                 read_hashed(bytemuck::cast_slice_mut(&mut v))?;
                 Values::F64(v)
             }
             ComplianceStorage::F32 => {
-                let mut v: Vec<f32> = Vec::new();
-                v.try_reserve_exact(len).map_err(|_| "out of memory".to_string())?;
-                v.resize(len, 0.0);
+                let mut v: Vec<f32> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| "out of memory".to_string())?;
                 read_hashed(bytemuck::cast_slice_mut(&mut v))?;
                 Values::F32(v)
             }
@@ -558,8 +678,8 @@ impl ProductWorkspace {
     }
 }
 
-/// Rows `K^-1[c, 0..c]` (c blocks of 9 entries, the storage's block layout) of the
-/// forced columns of the last call, in the order of its forces.
+/// Rows `K^-1[c, s..c]` (`s` = [`Layout::upper_start`]; blocks of 9 entries, the
+/// storage's block layout) of the forced columns of the last call, in the order of its forces.
 #[derive(Debug, Default)]
 struct RowStore<T> {
     cols: Vec<usize>,
@@ -601,7 +721,7 @@ impl<T: Copy> RowStore<T> {
 
     /// Makes `rows[k]` the row of `forces[k].0` (ascending): kept rows are moved,
     /// missing ones gathered. Returns how many were gathered.
-    fn prepare(&mut self, v: &[T], n_rows: usize, forces: &[(usize, Vec3)]) -> usize {
+    fn prepare(&mut self, v: &[T], layout: &Layout, forces: &[(usize, Vec3)]) -> usize {
         self.next_cols.clear();
         self.next_rows.clear();
         let mut gathered = 0;
@@ -616,15 +736,17 @@ impl<T: Copy> RowStore<T> {
                 std::mem::take(&mut self.rows[k - 1])
             } else {
                 gathered += 1;
-                let mut row = self.take_spare(9 * c);
+                let s = layout.upper_start(c);
+                let len = 9 * (c - s);
+                let mut row = self.take_spare(len);
                 row.clear();
-                if row.capacity() < 9 * c {
+                if row.capacity() < len {
                     // Power-of-two capacities: a spare fits most later rows, so
                     // gathering stops allocating once the pool has grown.
-                    row.reserve_exact((9 * c).next_power_of_two());
+                    row.reserve_exact(len.next_power_of_two());
                 }
-                for i in 0..c {
-                    let o = (col_start(i, n_rows) + c - i) * 9;
+                for i in s..c {
+                    let o = (layout.col_off[i] + c - i) * 9;
                     row.extend_from_slice(&v[o..o + 9]);
                 }
                 row
@@ -664,18 +786,19 @@ fn add_scaled_run<T: Entry>(out: &mut [f64], run: &[T], pattern9: [f64; 9]) {
 }
 
 /// The surface product kernel. Lower part (rows `i >= c` of each forced
-/// column `c`, a contiguous run of 3x3 blocks): every stored entry is multiplied
-/// by the force component of its block column and added into a per-row buffer
-/// of 9 partial products (`acc[9 i + e] += v[e] f[e / 3]`); the 9 partials are
-/// summed into `u` at the end. Upper part (rows `i < c`, both ROI): the
-/// transposed blocks `(c, i)^T` from the gathered row of `c` (`rows[k]` for
-/// `forces[k]`, see [`ProductWorkspace`]), the same way with `f[e % 3]`.
-/// Rows are processed in chunks of [`ROW_CHUNK`] (partials stay in L1).
-/// Plain multiplies and adds (no fused multiply-add): the SIMD and scalar
-/// builds give the same bits, and every row's sum runs over the forces in
-/// ascending column order.
+/// column `c`: its two runs of 3x3 blocks, see [`Layout::runs`]): every stored
+/// entry is multiplied by the force component of its block column and added
+/// into a per-row buffer of 9 partial products (`acc[9 i + e] += v[e] f[e / 3]`);
+/// the 9 partials are summed into `u` at the end. Upper part (ROI rows
+/// `upper_start(c) <= i < c`): the transposed blocks `(c, i)^T` from the
+/// gathered row of `c` (`rows[k]` for `forces[k]`, see [`ProductWorkspace`]),
+/// the same way with `f[e % 3]`. Rows are processed in chunks of
+/// [`ROW_CHUNK`] (partials stay in L1). Plain multiplies and adds (no fused
+/// multiply-add): the SIMD and scalar builds give the same bits, and every
+/// row's sum runs over the forces in ascending column order.
 #[inline(always)]
-fn accumulate_kernel<T: Entry>(v: &[T], n_rows: usize, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
+fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
+    let n_rows = layout.row_comp.len();
     acc.clear();
     acc.resize(9 * ROW_CHUNK, 0.0);
     // Row chunks keep the 9 partials of ROW_CHUNK rows in L1 while every forced column streams by.
@@ -684,20 +807,21 @@ fn accumulate_kernel<T: Entry>(v: &[T], n_rows: usize, forces: &[(usize, Vec3)],
         let r1 = (r0 + ROW_CHUNK).min(n_rows);
         acc.iter_mut().for_each(|a| *a = 0.0);
         for &(c, f) in forces {
-            if c >= r1 {
-                break;
+            for (s0, s1, off) in layout.runs(c) {
+                let (lo, hi) = (s0.max(r0), s1.min(r1));
+                if lo < hi {
+                    let base = (off + lo - s0) * 9;
+                    let run = &v[base..base + (hi - lo) * 9];
+                    add_scaled_run(&mut acc[9 * (lo - r0)..9 * (hi - r0)], run, [f.x, f.x, f.x, f.y, f.y, f.y, f.z, f.z, f.z]);
+                }
             }
-            let start = r0.max(c);
-            let base = (col_start(c, n_rows) + start - c) * 9;
-            let len = (r1 - start) * 9;
-            add_scaled_run(&mut acc[9 * (start - r0)..9 * (r1 - r0)], &v[base..base + len], [f.x, f.x, f.x, f.y, f.y, f.y, f.z, f.z, f.z]);
         }
         for (ui, p) in u[r0..r1].iter_mut().zip(acc.chunks_exact(9)) {
             *ui += Vec3::new(p[0] + p[3] + p[6], p[1] + p[4] + p[7], p[2] + p[5] + p[8]);
         }
         r0 = r1;
     }
-    // Upper part: rows below the largest forced column.
+    // Upper part: ROI rows below the largest forced column.
     let top = forces.last().map_or(0, |f| f.0);
     let mut first = 0;
     let mut r0 = 0;
@@ -708,8 +832,11 @@ fn accumulate_kernel<T: Entry>(v: &[T], n_rows: usize, forces: &[(usize, Vec3)],
             first += 1;
         }
         for (&(c, f), row) in forces[first..].iter().zip(&rows[first..]) {
-            let end = c.min(r1);
-            add_scaled_run(&mut acc[..9 * (end - r0)], &row[9 * r0..9 * end], [f.x, f.y, f.z, f.x, f.y, f.z, f.x, f.y, f.z]);
+            let s = layout.upper_start(c);
+            let (lo, hi) = (s.max(r0), c.min(r1));
+            if lo < hi {
+                add_scaled_run(&mut acc[9 * (lo - r0)..9 * (hi - r0)], &row[9 * (lo - s)..9 * (hi - s)], [f.x, f.y, f.z, f.x, f.y, f.z, f.x, f.y, f.z]);
+            }
         }
         for (ui, a) in u[r0..r1].iter_mut().zip(acc.chunks_exact(9)) {
             *ui += Vec3::new(a[0] + a[1] + a[2], a[3] + a[4] + a[5], a[6] + a[7] + a[8]);
@@ -720,20 +847,20 @@ fn accumulate_kernel<T: Entry>(v: &[T], n_rows: usize, forces: &[(usize, Vec3)],
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn accumulate_avx2<T: Entry>(v: &[T], n_rows: usize, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
-    accumulate_kernel(v, n_rows, forces, rows, u, acc)
+unsafe fn accumulate_avx2<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
+    accumulate_kernel(v, layout, forces, rows, u, acc)
 }
 
 /// Dispatches the kernel to an AVX2 build when the CPU has it (runtime
 /// detection; no `RUSTFLAGS` needed). Both builds round identically.
-fn accumulate_impl<T: Entry>(v: &[T], n_rows: usize, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
+fn accumulate_impl<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2 (checked just above).
-        unsafe { accumulate_avx2(v, n_rows, forces, rows, u, acc) };
+        unsafe { accumulate_avx2(v, layout, forces, rows, u, acc) };
         return;
     }
-    accumulate_kernel(v, n_rows, forces, rows, u, acc)
+    accumulate_kernel(v, layout, forces, rows, u, acc)
 }
 
 fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage) -> [u8; 32] {
