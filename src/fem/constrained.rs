@@ -52,6 +52,7 @@ use super::FemError;
 use super::compliance::{Compliance, ProductWorkspace};
 use super::wfactor::ContactFactor;
 use super::model::FemModel;
+use super::prefetch::Prefetcher;
 use crate::math::{Matrix3, Vec3, is_finite3};
 
 /// Relative tolerance of a sphere constraint (times its radius).
@@ -73,6 +74,13 @@ pub const BULK_RELEASE_ITERATIONS: usize = 8;
 const NO_GROUP: usize = usize::MAX;
 /// Lazily computed columns kept between frames (each is 3 x free DOFs f64).
 pub const LAZY_CAPACITY: usize = 128;
+/// Nodes in one background batch of lazy columns ([`ConstrainedSolver::prefetch`]).
+pub const PREFETCH_BATCH: usize = 16;
+/// Background batches in flight at most (further requests wait).
+pub const PREFETCH_OPEN: usize = 2;
+/// Frames after its request at which a background batch is joined (the frame
+/// waits for it then if the worker is late).
+pub const PREFETCH_JOIN_FRAMES: u64 = 15;
 
 /// What a constraint asks of its node.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -214,6 +222,8 @@ pub struct ConstrainedSolver {
     compliance: Compliance,
     frame: u64,
     lazy: Vec<LazyColumn>,
+    /// Background solves of lazy columns (see [`Self::prefetch`]).
+    prefetcher: Prefetcher,
     // --- per frame scratch ---
     order: Vec<(u32, usize)>,
     /// Distinct constrained nodes of the frame (enforced first, then active spheres).
@@ -275,11 +285,13 @@ impl ConstrainedSolver {
             return Err(FemError::InvalidOption { field: "compliance", value: f64::NAN, reason: "was computed for another model" });
         }
         let rows = compliance.row_nodes().len();
+        let prefetcher = Prefetcher::new(std::sync::Arc::clone(&model.chol), model.dofs.clone());
         Ok(Self {
             model,
             compliance,
             frame: 0,
             lazy: Vec::new(),
+            prefetcher,
             order: Vec::new(),
             nodes: Vec::new(),
             claim_ptr: Vec::new(),
@@ -429,6 +441,7 @@ impl ConstrainedSolver {
         self.frame += 1;
         self.timings = PhaseTimings::default();
         self.validate(constraints)?;
+        self.join_due_batches();
         self.group_claims(constraints);
         self.collect_candidates(constraints);
         let lazy_before = self.lazy_computed;
@@ -836,29 +849,50 @@ impl ConstrainedSolver {
         Matrix3::zeros()
     }
 
-    /// Computes K^-1 columns for the listed nodes that are not ROI columns.
+    /// Computes K^-1 columns for the listed nodes that are not ROI columns:
+    /// joins the background batches holding any of them (waiting if needed),
+    /// then solves the rest in one batch.
     fn ensure_lazy(&mut self, nodes: &[u32]) -> Result<(), FemError> {
         let frame = self.frame;
         let mut missing: Vec<u32> = Vec::new();
-        for &n in nodes {
-            if self.compliance.col_of(n).is_some() || self.model.is_fixed(n) {
-                continue;
-            }
-            match self.lazy.binary_search_by_key(&n, |c| c.node) {
-                Ok(i) => self.lazy[i].last_used = frame,
-                Err(_) => {
-                    if !missing.contains(&n) {
-                        missing.push(n);
+        loop {
+            missing.clear();
+            for &n in nodes {
+                if self.compliance.col_of(n).is_some() || self.model.is_fixed(n) {
+                    continue;
+                }
+                match self.lazy.binary_search_by_key(&n, |c| c.node) {
+                    Ok(i) => self.lazy[i].last_used = frame,
+                    Err(_) => {
+                        if !missing.contains(&n) {
+                            missing.push(n);
+                        }
                     }
                 }
+            }
+            // A node of an open background batch: join that batch (in request order) first.
+            let open = self.prefetcher.open().iter().find(|b| missing.iter().any(|n| b.nodes.binary_search(n).is_ok())).map(|b| b.id);
+            // Each join removes an open batch, so this ends.
+            match open {
+                Some(id) => self.join_batch(id),
+                None => break,
             }
         }
         if missing.is_empty() {
             return Ok(());
         }
         missing.sort_unstable();
-        // Evict least recently used columns not needed this frame.
-        while self.lazy.len() + missing.len() > LAZY_CAPACITY {
+        self.make_room(missing.len());
+        let columns = super::prefetch::solve_columns(&self.model.chol, &self.model.dofs, &missing)?;
+        self.lazy_computed += columns.len();
+        self.insert_columns(columns);
+        Ok(())
+    }
+
+    /// Evicts least recently used columns not needed this frame until `count` more fit.
+    fn make_room(&mut self, count: usize) {
+        let frame = self.frame;
+        while self.lazy.len() + count > LAZY_CAPACITY {
             let victim = self
                 .lazy
                 .iter()
@@ -873,28 +907,75 @@ impl ConstrainedSolver {
                 None => break,
             }
         }
-        let n_free = self.model.dofs.dof_count();
-        let m = missing.len();
-        let mut rhs = faer::Mat::<f64>::zeros(n_free, 3 * m);
-        for (b, &n) in missing.iter().enumerate() {
-            if let Some(d) = self.model.dofs.dof(n) {
-                for c in 0..3 {
-                    rhs[(d + c, 3 * b + c)] = 1.0;
-                }
+    }
+
+    /// Adds solved columns (nodes not yet cached), stamped with this frame.
+    fn insert_columns(&mut self, columns: Vec<super::prefetch::NodeColumns>) {
+        for (node, values) in columns {
+            if let Err(at) = self.lazy.binary_search_by_key(&node, |c| c.node) {
+                self.lazy.insert(at, LazyColumn { node, values, last_used: self.frame });
             }
         }
-        let mut scratch = self.model.chol.scratch(3 * m)?;
-        self.model.chol.solve_in_place(rhs.as_mut(), &mut scratch);
-        for (b, &n) in missing.iter().enumerate() {
-            let mut values = Vec::with_capacity(3 * n_free);
-            for c in 0..3 {
-                values.extend((0..n_free).map(|i| rhs[(i, 3 * b + c)]));
-            }
-            let at = self.lazy.binary_search_by_key(&n, |c| c.node).unwrap_or_else(|e| e);
-            self.lazy.insert(at, LazyColumn { node: n, values, last_used: frame });
+    }
+
+    /// Joins background batch `id`: its columns enter the cache (as many as fit).
+    fn join_batch(&mut self, id: u64) {
+        if let Some(columns) = self.prefetcher.join(id) {
+            let fresh: Vec<_> = columns.into_iter().filter(|(n, _)| self.lazy.binary_search_by_key(n, |c| c.node).is_err()).collect();
+            self.make_room(fresh.len());
+            let room = LAZY_CAPACITY.saturating_sub(self.lazy.len());
+            self.insert_columns(fresh.into_iter().take(room).collect());
         }
-        self.lazy_computed += m;
-        Ok(())
+    }
+
+    /// Joins every background batch whose join frame has come.
+    fn join_due_batches(&mut self) {
+        while let Some(id) = self.prefetcher.open().iter().find(|b| b.join_frame <= self.frame).map(|b| b.id) {
+            self.join_batch(id);
+        }
+    }
+
+    /// Asks the background thread for the K^-1 columns of `nodes` (in the given
+    /// order of priority, e.g. nearest to a spatula first) so that a contact
+    /// there later needs no sparse solve in the frame. Nodes that are ROI
+    /// columns, fixed, cached or already requested are skipped; at most
+    /// [`PREFETCH_BATCH`] nodes a call and [`PREFETCH_OPEN`] batches in flight.
+    /// The batch is joined [`PREFETCH_JOIN_FRAMES`] frames later, or earlier
+    /// when a frame needs one of its nodes; results never depend on timing
+    /// (see [`super::prefetch`]). Returns the number of nodes requested.
+    pub fn prefetch(&mut self, nodes: &[u32]) -> usize {
+        if self.prefetcher.open().len() >= PREFETCH_OPEN {
+            return 0;
+        }
+        let mut batch: Vec<u32> = Vec::new();
+        for &n in nodes {
+            if batch.len() == PREFETCH_BATCH {
+                break;
+            }
+            if (n as usize) >= self.model.mesh.node_count()
+                || self.compliance.col_of(n).is_some()
+                || self.model.is_fixed(n)
+                || batch.contains(&n)
+                || self.lazy.binary_search_by_key(&n, |c| c.node).is_ok()
+                || self.prefetcher.is_open(n)
+            {
+                continue;
+            }
+            batch.push(n);
+        }
+        batch.sort_unstable();
+        let count = batch.len();
+        if self.prefetcher.request(batch, self.frame + PREFETCH_JOIN_FRAMES) { count } else { 0 }
+    }
+
+    /// True when `node` is a column of the precomputed compliance (inside the ROI).
+    pub fn is_roi_column(&self, node: u32) -> bool {
+        self.compliance.col_of(node).is_some()
+    }
+
+    /// Nodes whose columns are cached (lazy, outside the ROI), ascending.
+    pub fn cached_lazy_nodes(&self) -> impl Iterator<Item = u32> + '_ {
+        self.lazy.iter().map(|c| c.node)
     }
 
     /// Gathers the sphere rows of W, extends the enforced factor with them,

@@ -21,6 +21,7 @@ pub mod element;
 pub mod error;
 pub mod factor;
 pub mod model;
+pub mod prefetch;
 pub mod reference;
 pub mod fixtures;
 pub mod stress;

@@ -55,7 +55,7 @@ pub struct FemModel {
     pub(crate) dofs: DofMap,
     pub(crate) lame: Vec<(f64, f64)>,
     pub(crate) k: LowerCsc,
-    pub(crate) chol: SparseCholesky,
+    pub(crate) chol: std::sync::Arc<SparseCholesky>,
     /// Body force per free DOF (N), empty without gravity.
     pub(crate) body_force: Vec<f64>,
     /// K^-1 body force per free DOF (m), empty without gravity.
@@ -114,7 +114,7 @@ impl FemModel {
             numeric_seconds: chol.numeric_seconds,
             unused_nodes: dofs.unused_nodes,
         };
-        Ok(Self { surface: mesh.boundary(), mesh: mesh.clone(), dofs, lame, k, chol, body_force: body, u0, fingerprint, stats })
+        Ok(Self { surface: mesh.boundary(), mesh: mesh.clone(), dofs, lame, k, chol: std::sync::Arc::new(chol), body_force: body, u0, fingerprint, stats })
     }
 
     /// Build statistics.

@@ -106,7 +106,7 @@ pub fn fixed_nodes(mesh: &TetMesh, fixed: &[FixedRegion]) -> Vec<bool> {
 }
 
 /// Distance from `p` to the segment a-b.
-fn distance_to_segment(p: &Vec3, a: &Vec3, b: &Vec3) -> f64 {
+pub(super) fn distance_to_segment(p: &Vec3, a: &Vec3, b: &Vec3) -> f64 {
     let ab = b - a;
     let len2 = ab.norm_squared();
     let s = if len2 > 0.0 { ((p - a).dot(&ab) / len2).clamp(0.0, 1.0) } else { 0.0 };

@@ -65,6 +65,9 @@ pub struct SkullStage {
 /// within this distance of violating a sphere (m). The active-set solve then
 /// keeps only the rows that must push.
 pub const SKULL_CANDIDATE_BAND_M: f64 = 0.005;
+/// Surface vertices outside the ROI within this distance of a blade's edge get
+/// their compliance columns solved in the background (m).
+pub const PREFETCH_MARGIN_M: f64 = 0.010;
 
 impl SkullStage {
     pub fn new(skull: Skull, surface_nodes: &[u32]) -> Self {
@@ -114,6 +117,11 @@ pub struct Pipeline {
     barrier: Option<super::barrier::BarrierStage>,
     /// Tets whose four nodes are on the surface (inverted check without an interior solve).
     surface_tets: Vec<u32>,
+    /// Surface vertices outside the compliance's ROI (only with collision):
+    /// those near a blade get their columns solved in the background.
+    outside_roi: Vec<u32>,
+    prefetch_near: Vec<(f64, u32)>,
+    prefetch_nodes: Vec<u32>,
     // scratch
     constraints: Vec<Constraint>,
     solution: FrameSolution,
@@ -144,7 +152,19 @@ impl Pipeline {
         let n = scenario.spatulas.len();
         let unilateral = scenario.solver.spatula_contact == crate::scenario::SpatulaContact::Unilateral;
         let barrier = (unilateral && collision.is_some()).then(|| super::barrier::BarrierStage::new(surface.vertices.len()));
+        let outside_roi = match &collision {
+            Some(_) => (0..surface.vertices.len() as u32)
+                .filter(|&v| {
+                    let node = surface.vertices[v as usize];
+                    !solver.is_roi_column(node) && !solver.model().is_fixed(node)
+                })
+                .collect(),
+            None => Vec::new(),
+        };
         Ok(Self {
+            outside_roi,
+            prefetch_near: Vec::new(),
+            prefetch_nodes: Vec::new(),
             name: scenario.name.clone(),
             unilateral,
             barrier,
@@ -348,6 +368,14 @@ impl Pipeline {
         }
         r.max_displacement_m = self.solution.max_displacement;
         r.skull_contacts = self.solution.active_sphere_contacts as u32;
+        prefetch_near_blades(
+            &mut self.solver,
+            &self.outside_roi,
+            &self.surface.vertices,
+            &self.shapes,
+            state,
+            (&mut self.prefetch_near, &mut self.prefetch_nodes),
+        );
         r.times.set(StageId::Solve, t.elapsed().as_secs_f64());
 
         // Forces, contact areas and pressures.
@@ -461,4 +489,41 @@ fn count_inverted_all(mesh: &TetMesh, u: &[Vec3]) -> u32 {
             signed_volume(&p[0], &p[1], &p[2], &p[3]) <= 0.0
         })
         .count() as u32
+}
+
+/// Asks the solver to solve, in the background, the columns of surface
+/// vertices outside the ROI (`outside`, surface vertex indices) within
+/// `width/2 + PREFETCH_MARGIN_M` of a blade's centre line, nearest first (a
+/// contact there in the next frames then costs no sparse solve in the frame).
+/// Nothing when the ROI covers the surface.
+fn prefetch_near_blades(
+    solver: &mut ConstrainedSolver,
+    outside: &[u32],
+    surface_nodes: &[u32],
+    shapes: &[SpatulaShape],
+    state: &SimState,
+    (near, nodes): (&mut Vec<(f64, u32)>, &mut Vec<u32>),
+) {
+    if outside.is_empty() {
+        return;
+    }
+    near.clear();
+    for (pose, shape) in state.poses.iter().zip(shapes) {
+        let a = pose.transform_point(&Vec3::zeros());
+        let b = pose.transform_point(&Vec3::new(shape.length, 0.0, 0.0));
+        let reach = 0.5 * shape.width + PREFETCH_MARGIN_M;
+        for &v in outside {
+            let d = super::build::distance_to_segment(&state.surface_positions[v as usize], &a, &b);
+            if d <= reach {
+                near.push((d, surface_nodes[v as usize]));
+            }
+        }
+    }
+    if near.is_empty() {
+        return;
+    }
+    near.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+    nodes.clear();
+    nodes.extend(near.iter().map(|x| x.1));
+    solver.prefetch(nodes);
 }
