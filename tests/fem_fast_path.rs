@@ -145,8 +145,11 @@ fn repeated_steps_are_bitwise_deterministic() {
 /// gathers nothing, new columns are gathered once.
 #[test]
 fn surface_product_reuses_gathered_rows_and_matches_the_block_sum() {
-    let mesh = block(5, 4, 3);
-    let fixed = bottom_fixed(&mesh);
+    // One body, and two (a fixed wall splits a longer block): the layout with two runs a column.
+    let one = block(5, 4, 3);
+    let two = fissure::fem::fixtures::box_mesh(&fissure::fem::fixtures::linspace(0.0, 0.12, 12), &fissure::fem::fixtures::linspace(0.0, 0.04, 4), &fissure::fem::fixtures::linspace(0.0, 0.03, 3)).unwrap();
+    let wall = |m: &TetMesh| -> Vec<bool> { m.positions.iter().map(|p| p.z.abs() < 1e-12 || (p.x - 0.05).abs() < 1e-9).collect() };
+    for (mesh, fixed) in [(one.clone(), bottom_fixed(&one)), (two.clone(), wall(&two))] {
     let model = FemModel::new(&mesh, &uniform(BRAIN), &fixed, &FemOptions::default()).unwrap();
     let roi = model.surface().vertices.clone();
     for storage in [ComplianceStorage::F64, ComplianceStorage::F32] {
@@ -183,8 +186,34 @@ fn surface_product_reuses_gathered_rows_and_matches_the_block_sum() {
                 }
                 assert!((ur - expected).norm() <= 1e-12 * scale, "{storage:?} frame {frame} row {r}: {ur:?} vs {expected:?}");
             }
+            // Bitwise: the documented arithmetic, one row at a time (9 partials
+            // over the forces in ascending column order, lower blocks then the
+            // transposed upper ones), whatever the kernel's chunking and fusing.
+            for (r, ur) in u.iter().enumerate() {
+                let mut want = Vec3::new(1e-3, 0.0, -2e-3);
+                let mut p = [0.0f64; 9];
+                for &(j, f) in forces.iter().filter(|x| x.0 <= r) {
+                    let b = c.block(r, j);
+                    for e in 0..9 {
+                        p[e] += b[(e % 3, e / 3)] * f[e / 3];
+                    }
+                }
+                want += Vec3::new(p[0] + p[3] + p[6], p[1] + p[4] + p[7], p[2] + p[5] + p[8]);
+                if r < cols {
+                    let mut a = [0.0f64; 9];
+                    for &(j, f) in forces.iter().filter(|x| x.0 > r) {
+                        let b = c.block(j, r);
+                        for e in 0..9 {
+                            a[e] += b[(e % 3, e / 3)] * f[e % 3];
+                        }
+                    }
+                    want += Vec3::new(a[0] + a[1] + a[2], a[3] + a[4] + a[5], a[6] + a[7] + a[8]);
+                }
+                assert!(*ur == want, "{storage:?} frame {frame} row {r}: {ur:?}, the documented arithmetic gives {want:?}");
+            }
             previous = set.clone();
         }
+    }
     }
 }
 

@@ -177,8 +177,11 @@ pub struct PhaseTimings {
     pub factor: f64,
     /// Evaluating skull candidates (active-set bookkeeping).
     pub candidates: f64,
-    /// The surface product `u = u0 + K^-1 C^T lambda` over every surface row.
+    /// The surface product `u = u0 + K^-1 C^T lambda` over every surface row
+    /// (`surface_gather` included).
     pub surface: f64,
+    /// Part of `surface`: gathering the rows `K^-1[c, ..c]` of newly forced columns.
+    pub surface_gather: f64,
 }
 
 /// One row of C: `dir . u[node] = target`.
@@ -557,6 +560,7 @@ impl ConstrainedSolver {
         let t = std::time::Instant::now();
         self.update_surface();
         self.timings.surface += t.elapsed().as_secs_f64();
+        self.timings.surface_gather += self.product.gather_seconds();
         self.write_solution(constraints, out, iterations, self.lazy_computed - lazy_before);
         Ok(())
     }
