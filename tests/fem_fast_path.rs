@@ -178,6 +178,12 @@ fn surface_product_reuses_gathered_rows_and_matches_the_block_sum() {
             let mut fresh_u = vec![Vec3::new(1e-3, 0.0, -2e-3); rows];
             c.accumulate(&forces, &mut fresh_u, &mut fissure::fem::ProductWorkspace::default());
             assert!(u == fresh_u, "{storage:?} frame {frame}: kept rows must give the bits of a fresh workspace");
+            // Small chunks: columns covering a whole chunk stream in groups, the ones whose diagonal falls inside go alone.
+            for chunk in [1, 7, 16, 40] {
+                let mut chunked = vec![Vec3::new(1e-3, 0.0, -2e-3); rows];
+                c.accumulate(&forces, &mut chunked, &mut fissure::fem::ProductWorkspace::with_chunk_rows(chunk));
+                assert!(u == chunked, "{storage:?} frame {frame}: chunks of {chunk} rows change the bits");
+            }
             let scale = forces.iter().map(|f| f.1.norm()).sum::<f64>().max(1.0) * (0..rows).map(|r| c.block(r, 0).norm()).fold(0.0, f64::max);
             for (r, ur) in u.iter().enumerate() {
                 let mut expected = Vec3::new(1e-3, 0.0, -2e-3);

@@ -492,18 +492,19 @@ impl Compliance {
             workspace.key = self.key;
         }
         let layout = &self.layout;
+        let chunk = workspace.chunk();
         match &self.values {
             Values::F64(v) => {
                 let t = Instant::now();
                 workspace.gathered = workspace.rows64.prepare(v, layout, forces);
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(v, layout, forces, &workspace.rows64.rows, u, &mut workspace.acc)
+                accumulate_impl(v, layout, forces, &workspace.rows64.rows, u, &mut workspace.acc, chunk)
             }
             Values::F32(v) => {
                 let t = Instant::now();
                 workspace.gathered = workspace.rows32.prepare(v, layout, forces);
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(v, layout, forces, &workspace.rows32.rows, u, &mut workspace.acc)
+                accumulate_impl(v, layout, forces, &workspace.rows32.rows, u, &mut workspace.acc, chunk)
             }
             Values::LowRank(b) => b.accumulate(forces, u, &mut workspace.acc),
         }
@@ -692,6 +693,8 @@ pub struct ProductWorkspace {
     key: [u8; 32],
     gathered: usize,
     gather_seconds: f64,
+    /// Rows a chunk of the product (0: [`ROW_CHUNK`]).
+    chunk_rows: usize,
 }
 
 impl ProductWorkspace {
@@ -699,6 +702,18 @@ impl ProductWorkspace {
     /// [`Compliance::accumulate`] (forced columns that were not forced in the call before).
     pub fn rows_gathered(&self) -> usize {
         self.gathered
+    }
+
+    /// A workspace whose product runs in chunks of `rows` rows instead of
+    /// [`ROW_CHUNK`]: for tests that need many chunks on a small mesh (the
+    /// result is bitwise the same for any chunk size).
+    #[doc(hidden)]
+    pub fn with_chunk_rows(rows: usize) -> Self {
+        Self { chunk_rows: rows.max(1), ..Self::default() }
+    }
+
+    fn chunk(&self) -> usize {
+        if self.chunk_rows == 0 { ROW_CHUNK } else { self.chunk_rows }
     }
 
     /// Seconds the last [`Compliance::accumulate`] spent gathering those rows.
@@ -886,9 +901,9 @@ fn upper_pattern(f: &Vec3) -> [f64; 9] {
 /// order. Plain multiplies and adds (no fused multiply-add): the SIMD and
 /// scalar builds give the same bits.
 #[inline(always)]
-fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
+fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
     acc.clear();
-    acc.resize(9 * ROW_CHUNK, 0.0);
+    acc.resize(9 * chunk, 0.0);
     let col_off = &layout.col_off;
     for s in &layout.spans {
         let f_lo = forces.partition_point(|f| f.0 < s[0]);
@@ -901,7 +916,7 @@ fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)
         // Lower part, ROI rows: columns c <= r0 cover the chunk, r0 < c < r1 its rows from c on.
         let mut r0 = s[0];
         while r0 < s[1] {
-            let r1 = (r0 + ROW_CHUNK).min(s[1]);
+            let r1 = (r0 + chunk).min(s[1]);
             let len = 9 * (r1 - r0);
             let out = &mut acc[..len];
             out.iter_mut().for_each(|a| *a = 0.0);
@@ -928,7 +943,7 @@ fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)
         // Lower part, the component's other rows: every column covers every chunk.
         let mut r0 = s[2];
         while r0 < s[3] {
-            let r1 = (r0 + ROW_CHUNK).min(s[3]);
+            let r1 = (r0 + chunk).min(s[3]);
             let len = 9 * (r1 - r0);
             let out = &mut acc[..len];
             out.iter_mut().for_each(|a| *a = 0.0);
@@ -951,7 +966,7 @@ fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)
         let top = fk[fk.len() - 1].0;
         let mut r0 = s[0];
         while r0 < top {
-            let r1 = (r0 + ROW_CHUNK).min(top);
+            let r1 = (r0 + chunk).min(top);
             let len = 9 * (r1 - r0);
             let out = &mut acc[..len];
             out.iter_mut().for_each(|a| *a = 0.0);
@@ -973,32 +988,32 @@ fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn accumulate_avx2<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
-    accumulate_kernel(v, layout, forces, rows, u, acc)
+unsafe fn accumulate_avx2<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
+    accumulate_kernel(v, layout, forces, rows, u, acc, chunk)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn accumulate_avx512<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
-    accumulate_kernel(v, layout, forces, rows, u, acc)
+unsafe fn accumulate_avx512<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
+    accumulate_kernel(v, layout, forces, rows, u, acc, chunk)
 }
 
 /// Dispatches the kernel to an AVX-512 or AVX2 build when the CPU has it
 /// (runtime detection; no `RUSTFLAGS` needed). Every build rounds identically.
-fn accumulate_impl<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>) {
+fn accumulate_impl<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx512f") {
         // SAFETY: the CPU supports AVX-512F (checked just above).
-        unsafe { accumulate_avx512(v, layout, forces, rows, u, acc) };
+        unsafe { accumulate_avx512(v, layout, forces, rows, u, acc, chunk) };
         return;
     }
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2 (checked just above).
-        unsafe { accumulate_avx2(v, layout, forces, rows, u, acc) };
+        unsafe { accumulate_avx2(v, layout, forces, rows, u, acc, chunk) };
         return;
     }
-    accumulate_kernel(v, layout, forces, rows, u, acc)
+    accumulate_kernel(v, layout, forces, rows, u, acc, chunk)
 }
 
 fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage) -> [u8; 32] {
