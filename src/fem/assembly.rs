@@ -64,27 +64,33 @@ impl DofMap {
     }
 }
 
+/// Union-find root of `x` (path halving); roots are the lowest node of their set.
+pub(crate) fn find(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        let p = parent[x as usize];
+        parent[x as usize] = parent[p as usize];
+        x = p;
+    }
+    x
+}
+
+/// Joins the sets of `a` and `b` under the lower root.
+pub(crate) fn join(parent: &mut [u32], a: u32, b: u32) {
+    let (a, b) = (find(parent, a), find(parent, b));
+    if a != b {
+        let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+        parent[hi as usize] = lo;
+    }
+}
+
 /// Errors with [`FemError::UnfixedComponent`] when a connected component of the
 /// tet graph has no fixed node. Components are numbered by their lowest node.
 pub fn check_components(mesh: &TetMesh, fixed: &[bool]) -> Result<(), FemError> {
     let n = mesh.node_count();
     let mut parent: Vec<u32> = (0..n as u32).collect();
-    fn find(parent: &mut [u32], mut x: u32) -> u32 {
-        while parent[x as usize] != x {
-            let p = parent[x as usize];
-            parent[x as usize] = parent[p as usize];
-            x = p;
-        }
-        x
-    }
     for t in &mesh.tets {
         for k in 1..4 {
-            let a = find(&mut parent, t[0]);
-            let b = find(&mut parent, t[k]);
-            if a != b {
-                let (lo, hi) = if a < b { (a, b) } else { (b, a) };
-                parent[hi as usize] = lo;
-            }
+            join(&mut parent, t[0], t[k]);
         }
     }
     let mut used = vec![false; n];

@@ -28,6 +28,7 @@
 mod lowrank;
 
 use super::FemError;
+use super::assembly::{find, join};
 use super::model::FemModel;
 use crate::math::{Matrix3, Vec3};
 use std::io::{Read, Write};
@@ -191,23 +192,11 @@ impl Layout {
 fn free_components(model: &FemModel) -> Vec<u32> {
     let n = model.mesh.node_count();
     let mut parent: Vec<u32> = (0..n as u32).collect();
-    fn find(parent: &mut [u32], mut x: u32) -> u32 {
-        while parent[x as usize] != x {
-            let p = parent[x as usize];
-            parent[x as usize] = parent[p as usize];
-            x = p;
-        }
-        x
-    }
     for t in &model.mesh.tets {
         let mut prev: Option<u32> = None;
         for &v in t.iter().filter(|&&v| !model.is_fixed(v)) {
             if let Some(p) = prev {
-                let (a, b) = (find(&mut parent, p), find(&mut parent, v));
-                if a != b {
-                    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
-                    parent[hi as usize] = lo;
-                }
+                join(&mut parent, p, v);
             }
             prev = Some(v);
         }
@@ -875,6 +864,14 @@ fn add_columns<'a, T: Entry + 'a>(out: &mut [f64], count: usize, run: impl Fn(us
     }
 }
 
+/// `u[i] += ` the 9 partials of row i summed by block row (`e % 3`).
+#[inline(always)]
+fn flush_lower(u: &mut [Vec3], partials: &[f64]) {
+    for (ui, p) in u.iter_mut().zip(partials.chunks_exact(9)) {
+        *ui += Vec3::new(p[0] + p[3] + p[6], p[1] + p[4] + p[7], p[2] + p[5] + p[8]);
+    }
+}
+
 #[inline(always)]
 fn lower_pattern(f: &Vec3) -> [f64; 9] {
     [f.x, f.x, f.x, f.y, f.y, f.y, f.z, f.z, f.z]
@@ -935,9 +932,7 @@ fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)
                 let o = 9 * col_off[c];
                 add_scaled_runs::<T, 1>(&mut out[9 * (c - r0)..], [&v[o..o + 9 * (r1 - c)]], [lower_pattern(&f)]);
             }
-            for (ui, p) in u[r0..r1].iter_mut().zip(out.chunks_exact(9)) {
-                *ui += Vec3::new(p[0] + p[3] + p[6], p[1] + p[4] + p[7], p[2] + p[5] + p[8]);
-            }
+            flush_lower(&mut u[r0..r1], out);
             r0 = r1;
         }
         // Lower part, the component's other rows: every column covers every chunk.
@@ -957,9 +952,7 @@ fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)
                 },
                 |i| lower_pattern(&fk[i].1),
             );
-            for (ui, p) in u[r0..r1].iter_mut().zip(out.chunks_exact(9)) {
-                *ui += Vec3::new(p[0] + p[3] + p[6], p[1] + p[4] + p[7], p[2] + p[5] + p[8]);
-            }
+            flush_lower(&mut u[r0..r1], out);
             r0 = r1;
         }
         // Upper part: ROI rows s[0] <= i < c; columns r0 < c < r1 cover [r0, c), c >= r1 the chunk.
@@ -979,6 +972,7 @@ fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)
             let (fu, ru) = (&fk[n_part..], &rows_k[n_part..]);
             add_columns(out, fu.len(), |i| &ru[i][o..o + len], |i| upper_pattern(&fu[i].1));
             for (ui, a) in u[r0..r1].iter_mut().zip(out.chunks_exact(9)) {
+                // the transposed blocks: partial e belongs to component e / 3
                 *ui += Vec3::new(a[0] + a[1] + a[2], a[3] + a[4] + a[5], a[6] + a[7] + a[8]);
             }
             r0 = r1;
