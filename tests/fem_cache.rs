@@ -58,7 +58,24 @@ fn reload_is_bitwise_equal_and_corruption_is_rebuilt() {
     assert_ne!(a.key(), e.key());
     // f32 storage of the same model is another key too
     let f = Compliance::compute(&m, &roi, ComplianceStorage::F32, Some(dir.path()), &mut |_, _| {}).unwrap();
-    assert!(!f.stats().from_cache && f.stats().bytes * 2 == a.stats().bytes, "f32 halves the storage");
+    let n = f.column_count();
+    let roi_lower_entries = 9 * n * (n + 1) / 2;
+    assert!(!f.stats().from_cache, "f32 storage is another key");
+    assert_eq!(f.stats().bytes, a.stats().bytes / 2 + 2 * roi_lower_entries, "f32 halves the storage, plus 2 bytes a ROI x ROI entry");
+    let g = Compliance::compute(&m, &roi, ComplianceStorage::F32, Some(dir.path()), &mut |_, _| {}).unwrap();
+    assert!(g.stats().from_cache);
+    assert_eq!(all_blocks(&f), all_blocks(&g), "reloaded f32 entries (with their corrections) must be bitwise equal");
+    // ROI x ROI entries carry their correction: f64 to about 1e-12; the others are f32.
+    let (mut worst_roi, mut worst_f32) = (0.0f64, 0.0f64);
+    for col in 0..n {
+        for row in col..f.row_nodes().len() {
+            let (x, y) = (a.block(row, col), f.block(row, col));
+            let e = (x - y).abs().max() / a.block(col, col).abs().max();
+            if row < n { worst_roi = worst_roi.max(e) } else { worst_f32 = worst_f32.max(e) }
+        }
+    }
+    println!("f32 storage: ROI x ROI error {worst_roi:e}, other rows {worst_f32:e} (relative to the diagonal)");
+    assert!(worst_roi < 1e-11, "ROI x ROI entries with their correction: {worst_roi:e}");
     // a compliance of another model is refused by the solver
     assert!(ConstrainedSolver::new(m2, a).is_err(), "compliance and model must match");
 }

@@ -832,13 +832,14 @@ impl ConstrainedSolver {
         }
     }
 
-    /// K^-1 block between two nodes (both free; lazy columns ensured).
+    /// K^-1 block between two nodes (both free; lazy columns ensured). A node
+    /// outside the ROI reads its lazy column (f64 from a sparse solve) even when
+    /// the other is a ROI column, since the compliance keeps ROI x other-surface
+    /// entries only to f32 (for the product) and W must be exact.
     fn kinv(&self, p: u32, q: u32) -> Matrix3<f64> {
-        if let (Some(rp), Some(cq)) = (self.compliance.row_of(p), self.compliance.col_of(q)) {
-            return self.compliance.block(rp, cq);
-        }
-        if let (Some(rq), Some(cp)) = (self.compliance.row_of(q), self.compliance.col_of(p)) {
-            return self.compliance.block(rq, cp).transpose();
+        let (cp, cq) = (self.compliance.col_of(p), self.compliance.col_of(q));
+        if let (Some(cp), Some(cq)) = (cp, cq) {
+            return self.compliance.block(cp, cq);
         }
         let dofs = &self.model.dofs;
         let n_free = dofs.dof_count();
@@ -849,6 +850,12 @@ impl ConstrainedSolver {
         if let (Ok(l), Some(dq)) = (self.lazy.binary_search_by_key(&p, |c| c.node), dofs.dof(q)) {
             let v = &self.lazy[l].values;
             return Matrix3::from_fn(|r, c| v[r * n_free + dq + c]);
+        }
+        if let (Some(rp), Some(cq)) = (self.compliance.row_of(p), cq) {
+            return self.compliance.block(rp, cq);
+        }
+        if let (Some(rq), Some(cp)) = (self.compliance.row_of(q), cp) {
+            return self.compliance.block(rq, cp).transpose();
         }
         Matrix3::zeros()
     }

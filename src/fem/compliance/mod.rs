@@ -37,7 +37,7 @@ use std::time::Instant;
 
 const NO_ROW: u32 = u32::MAX;
 const CACHE_MAGIC: &[u8; 8] = b"FISSCOMP";
-const CACHE_VERSION: u32 = 5;
+const CACHE_VERSION: u32 = 6;
 /// ROI nodes solved together (3 right-hand sides each).
 const BATCH_NODES: usize = 32;
 /// Rows of one chunk of the surface product (9 f64 partials a row: 36 KiB, a multiple of 8 rows).
@@ -48,7 +48,12 @@ const ROW_CHUNK: usize = 512;
 pub enum ComplianceStorage {
     /// 8 bytes an entry; the fast path matches a direct solve to about 1e-12.
     F64,
-    /// 4 bytes an entry; relative error of the solution measured in `tests/fem_fast_path.rs` (below 1e-5).
+    /// 4 bytes an entry for the surface product, plus 2 bytes of correction
+    /// on each ROI x ROI entry (the ones `W` is gathered from: f32 rounding
+    /// there, times cond(W), made reactions err by 2e-5 on paper-12k), so `W`
+    /// is exact to about 1e-12; the surface displacement carries the f32
+    /// rounding (about 1e-6 relative). Measured in `tests/fem_fast_path.rs`
+    /// and `cargo bench --bench fem`.
     F32,
     /// Block low rank: every stored block within relative Frobenius error
     /// `10^-digits` of the f64 block; factors and near-field blocks in f64.
@@ -73,7 +78,9 @@ impl ComplianceStorage {
 #[derive(Debug, Clone)]
 enum Values {
     F64(Vec<f64>),
-    F32(Vec<f32>),
+    /// f32 entries and, for the ROI x ROI entries ([`Layout::lo_offset`]), the
+    /// rest `x - f32(x)` in units of 2^-15 of the f32's ulp ([`split_f32`]).
+    F32(Vec<f32>, Vec<i16>),
     LowRank(Box<lowrank::BlockLowRank>),
 }
 
@@ -130,6 +137,8 @@ struct Layout {
     spans: Vec<[usize; 4]>,
     /// Per column (+1): offset in blocks of its first stored block.
     col_off: Vec<usize>,
+    /// Per column (+1): offset in blocks of its ROI run among all ROI runs.
+    lo_off: Vec<usize>,
 }
 
 impl Layout {
@@ -145,19 +154,36 @@ impl Layout {
             s[3] = n_cols + row_comp[n_cols..].partition_point(|&c| c <= k);
         }
         let mut col_off = Vec::with_capacity(n_cols + 1);
-        let mut off = 0;
+        let mut lo_off = Vec::with_capacity(n_cols + 1);
+        let (mut off, mut lo) = (0, 0);
         col_off.push(0);
+        lo_off.push(0);
         for j in 0..n_cols {
             let s = spans[row_comp[j] as usize];
             off += (s[1] - j) + (s[3] - s[2]);
+            lo += s[1] - j;
             col_off.push(off);
+            lo_off.push(lo);
         }
-        Self { row_comp, spans, col_off }
+        Self { row_comp, spans, col_off, lo_off }
     }
 
     /// Stored blocks.
     fn blocks(&self) -> usize {
         self.col_off.last().copied().unwrap_or(0)
+    }
+
+    /// Blocks in the ROI runs (the ROI x ROI lower triangle).
+    fn lo_blocks(&self) -> usize {
+        self.lo_off.last().copied().unwrap_or(0)
+    }
+
+    /// Block offset of `(row, col)`, `row >= col`, among the ROI runs, or
+    /// `None` when `row` is not a ROI row of `col`'s component.
+    #[inline]
+    fn lo_offset(&self, row: usize, col: usize) -> Option<usize> {
+        let k = self.row_comp[col];
+        (self.row_comp[row] == k && row < self.spans[k as usize][1]).then(|| self.lo_off[col] + row - col)
     }
 
     /// Block offset of `(row, col)`, `row >= col`, or `None` when the two are
@@ -307,7 +333,7 @@ impl Compliance {
     fn make_stats(&self, compute_seconds: f64, load_seconds: f64, from_cache: bool) -> ComplianceStats {
         let (bytes, counts) = match &self.values {
             Values::F64(v) => (v.len() * 8, Default::default()),
-            Values::F32(v) => (v.len() * 4, Default::default()),
+            Values::F32(v, lo) => (v.len() * 4 + lo.len() * 2, Default::default()),
             Values::LowRank(b) => (b.bytes(), b.counts()),
         };
         ComplianceStats {
@@ -344,7 +370,9 @@ impl Compliance {
             ComplianceStorage::F32 => {
                 let mut v: Vec<f32> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 4 })?;
                 advise_huge_pages(&mut v);
-                Values::F32(v)
+                let n_lo = self.layout.lo_blocks() * 9;
+                let lo: Vec<i16> = bytemuck::allocation::try_zeroed_vec(n_lo).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: n_lo * 2 })?;
+                Values::F32(v, lo)
             }
         };
         let n_free = model.dofs.dof_count();
@@ -367,11 +395,17 @@ impl Compliance {
                 let j = j0 + b;
                 let cols = [rhs.col(3 * b), rhs.col(3 * b + 1), rhs.col(3 * b + 2)];
                 let cols = cols.map(|c| c.try_as_col_major().map(|c| c.as_slice()).unwrap_or(&[]));
-                for (r0, r1, off) in self.layout.runs(j) {
+                for (run, (r0, r1, off)) in self.layout.runs(j).into_iter().enumerate() {
                     let (base, count) = (off * 9, (r1 - r0) * 9);
                     match &mut values {
                         Values::F64(v) => fill_column(&mut v[base..base + count], &row_dofs[r0..r1], &cols, |x| x),
-                        Values::F32(v) => fill_column(&mut v[base..base + count], &row_dofs[r0..r1], &cols, |x| x as f32),
+                        Values::F32(v, lo) => {
+                            fill_column(&mut v[base..base + count], &row_dofs[r0..r1], &cols, |x| split_f32(x).0);
+                            if run == 0 {
+                                let b = self.layout.lo_off[j] * 9;
+                                fill_column(&mut lo[b..b + count], &row_dofs[r0..r1], &cols, |x| split_f32(x).1);
+                            }
+                        }
                         Values::LowRank(_) => {}
                     }
                 }
@@ -401,7 +435,7 @@ impl Compliance {
     pub fn storage(&self) -> ComplianceStorage {
         match &self.values {
             Values::F64(_) => ComplianceStorage::F64,
-            Values::F32(_) => ComplianceStorage::F32,
+            Values::F32(..) => ComplianceStorage::F32,
             Values::LowRank(b) => ComplianceStorage::LowRank { digits: b.digits() },
         }
     }
@@ -455,6 +489,18 @@ impl Compliance {
         }
     }
 
+    /// The block as the surface product reads it: for f32 storage the f32
+    /// entries without their ROI x ROI correction; otherwise [`Self::block`].
+    pub fn product_block(&self, row: usize, col: usize) -> Matrix3<f64> {
+        let (r, c, transpose) = if row >= col { (row, col, false) } else { (col, row, true) };
+        let m = match (&self.values, self.layout.offset(r, c)) {
+            (Values::F32(v, _), Some(b)) => Matrix3::from_iterator(v[9 * b..9 * b + 9].iter().map(|&x| x as f64)),
+            (Values::F32(..), None) => Matrix3::zeros(),
+            _ => return self.block(row, col),
+        };
+        if transpose { m.transpose() } else { m }
+    }
+
     #[inline]
     fn stored(&self, row: usize, col: usize) -> Matrix3<f64> {
         let Some(o) = self.layout.offset(row, col).map(|b| b * 9) else {
@@ -462,7 +508,10 @@ impl Compliance {
         };
         match &self.values {
             Values::F64(v) => Matrix3::from_column_slice(&v[o..o + 9]),
-            Values::F32(v) => Matrix3::from_iterator(v[o..o + 9].iter().map(|&x| x as f64)),
+            Values::F32(v, lo) => match self.layout.lo_offset(row, col) {
+                Some(b) => Matrix3::from_fn(|r, c| join_f32(v[o + 3 * c + r], lo[9 * b + 3 * c + r])),
+                None => Matrix3::from_iterator(v[o..o + 9].iter().map(|&x| x as f64)),
+            },
             Values::LowRank(b) => b.block(row, col),
         }
     }
@@ -489,7 +538,7 @@ impl Compliance {
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
                 accumulate_impl(v, layout, forces, &workspace.rows64.rows, u, &mut workspace.acc, chunk)
             }
-            Values::F32(v) => {
+            Values::F32(v, _) => {
                 let t = Instant::now();
                 workspace.gathered = workspace.rows32.prepare(v, layout, forces);
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
@@ -516,7 +565,10 @@ impl Compliance {
         put(&mut w, bytemuck::cast_slice(&self.row_nodes))?;
         match &self.values {
             Values::F64(v) => put(&mut w, bytemuck::cast_slice(v))?,
-            Values::F32(v) => put(&mut w, bytemuck::cast_slice(v))?,
+            Values::F32(v, lo) => {
+                put(&mut w, bytemuck::cast_slice(v))?;
+                put(&mut w, bytemuck::cast_slice(lo))?;
+            }
             Values::LowRank(b) => {
                 put(&mut w, bytemuck::cast_slice(&b.meta()))?;
                 for section in b.sections() {
@@ -555,13 +607,15 @@ impl Compliance {
     fn load(&self, path: &Path, storage: ComplianceStorage, model: &FemModel) -> Result<Values, String> {
         let mut file = std::fs::File::open(path).map_err(|e| e.to_string())?;
         let len = self.entry_count();
+        let n_lo = self.layout.lo_blocks() * 9;
         let width = match storage { ComplianceStorage::F32 => 4, _ => 8 };
+        let lo_bytes = match storage { ComplianceStorage::F32 => 2 * n_lo, _ => 0 };
         let want = self.header(storage);
         let size = file.metadata().map_err(|e| e.to_string())?.len() as usize;
         let prefix = want.len() + 4 * self.row_nodes.len();
         let expected_size = match storage {
             ComplianceStorage::LowRank { .. } => size.max(prefix + 24 + 32),
-            _ => prefix + width * len + 32,
+            _ => prefix + width * len + lo_bytes + 32,
         };
         if size != expected_size {
             return Err(format!("size {size} bytes, expected {expected_size}"));
@@ -606,7 +660,9 @@ impl Compliance {
                 let mut v: Vec<f32> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| "out of memory".to_string())?;
                 advise_huge_pages(&mut v);
                 read_hashed(bytemuck::cast_slice_mut(&mut v))?;
-                Values::F32(v)
+                let mut lo: Vec<i16> = bytemuck::allocation::try_zeroed_vec(n_lo).map_err(|_| "out of memory".to_string())?;
+                read_hashed(bytemuck::cast_slice_mut(&mut lo))?;
+                Values::F32(v, lo)
             }
         };
         let mut sum = [0u8; 32];
@@ -616,6 +672,30 @@ impl Compliance {
         }
         Ok(values)
     }
+}
+
+/// `x` as an f32 and the rest `x - f32(x)` in units of 2^-15 of that f32's
+/// ulp (the rest is at most half an ulp, so it fits an i16): [`join_f32`]
+/// gives `x` back to about 2^-39 relative.
+#[inline]
+fn split_f32(x: f64) -> (f32, i16) {
+    let hi = x as f32;
+    let rest = x - hi as f64;
+    (hi, (rest / f32_unit(hi)).round().clamp(i16::MIN as f64, i16::MAX as f64) as i16)
+}
+
+/// Inverse of [`split_f32`].
+#[inline]
+fn join_f32(hi: f32, lo: i16) -> f64 {
+    hi as f64 + lo as f64 * f32_unit(hi)
+}
+
+/// 2^-15 of the ulp of an f32 (subnormals and zero: of the smallest subnormal).
+#[inline]
+fn f32_unit(hi: f32) -> f64 {
+    let exp = ((hi.to_bits() >> 23) & 0xff).max(1) as u64;
+    // 2^(exp - 127 - 23 - 15) as an f64 (its biased exponent exp + 858 is always normal).
+    f64::from_bits((exp + 1023 - 165) << 52)
 }
 
 /// Asks Linux for transparent huge pages under a large buffer before it is
