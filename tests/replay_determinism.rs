@@ -56,7 +56,7 @@ fn without_timings(csv: &str) -> String {
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let keep: Vec<bool> = header.iter().map(|h| !h.ends_with("_ms")).collect();
-    std::iter::once(header.join(","))
+    std::iter::once(header.iter().zip(&keep).filter(|(_, k)| **k).map(|(h, _)| *h).collect::<Vec<_>>().join(","))
         .chain(lines.map(|l| l.split(',').zip(&keep).filter(|(_, k)| **k).map(|(v, _)| v).collect::<Vec<_>>().join(",")))
         .collect::<Vec<_>>()
         .join("\n")
@@ -120,8 +120,11 @@ fn an_interrupted_replay_keeps_its_rows_and_says_so() {
 
 /// A region of interest that covers only where the blade comes down: the
 /// slide leaves it, so columns are prefetched on the background thread and
-/// solved on demand. Two replays still agree to the bit, and with the region
-/// covering everything the forces agree to round-off.
+/// solved on demand. Two replays agree to the bit. Against the all-surface
+/// ROI every frame agrees to round-off until the first frame whose contact
+/// set differs: a claim is a discrete decision (a ray against a triangle), so
+/// round-off between two differently built compliances can flip a borderline
+/// vertex, and from then on the runs are two different (each exact) motions.
 #[test]
 fn replays_with_contacts_outside_the_roi_are_bitwise_identical() {
     let dir = tempfile::tempdir().unwrap();
@@ -138,10 +141,25 @@ fn replays_with_contacts_outside_the_roi_are_bitwise_identical() {
     assert_eq!(runs[0].1.final_state_hash, runs[1].1.final_state_hash);
     let all = scene(dir.path());
     let out = dir.path().join("all");
-    let opts = ReplayOptions { out_dir: out, trajectory: None, vtk: false };
-    let full = replay(&all, &opts, &AtomicBool::new(false), &mut |_, _, _, _| Ok(()), None).expect("replay");
-    let (a, b) = (runs[0].1.spatulas[0].peak_force_n, full.spatulas[0].peak_force_n);
-    assert!(a > 0.0 && (a - b).abs() <= 1e-8 * b, "peak force {a} N with a small ROI, {b} N with all: lazy columns must be exact");
-    assert!((runs[0].1.max_displacement_mm - full.max_displacement_mm).abs() <= 1e-8 * full.max_displacement_mm);
+    let opts = ReplayOptions { out_dir: out.clone(), trajectory: None, vtk: false };
+    replay(&all, &opts, &AtomicBool::new(false), &mut |_, _, _, _| Ok(()), None).expect("replay");
+    let reference = without_timings(&std::fs::read_to_string(out.join("metrics.csv")).unwrap());
+    let header: Vec<&str> = reference.lines().next().unwrap().split(',').collect();
+    let count_col = header.iter().position(|h| *h == "constrained_vertices").expect("constrained_vertices column");
+    let mut compared = 0;
+    for (s_row, a_row) in runs[0].0.lines().zip(reference.lines()).skip(1) {
+        let (s, a): (Vec<&str>, Vec<&str>) = (s_row.split(',').collect(), a_row.split(',').collect());
+        if s[count_col] != a[count_col] {
+            break;
+        }
+        for ((x, y), name) in s.iter().zip(&a).zip(&header) {
+            if let (Ok(x), Ok(y)) = (x.parse::<f64>(), y.parse::<f64>()) {
+                assert!((x - y).abs() <= 1e-10 * x.abs().max(y.abs()).max(1e-12), "frame {}: {name} {x} with a small ROI, {y} with all", s[0]);
+            }
+        }
+        if s[count_col] != "0" {
+            compared += 1;
+        }
+    }
+    assert!(compared >= 5, "only {compared} frames with contacts before the runs diverged");
 }
-
