@@ -102,3 +102,45 @@ fn results_do_not_depend_on_when_the_worker_finishes() {
         assert!(x == y, "frame {k} differs between a patient and an impatient run");
     }
 }
+
+/// A batch joined while the cache is nearly full takes room only from columns
+/// unused since before the last frame: it never evicts the columns of a
+/// contact that is still held, so those frames solve nothing themselves.
+#[test]
+fn a_joined_batch_never_evicts_columns_in_use() {
+    use fissure::fem::constrained::LAZY_CAPACITY;
+    let mesh = block(16, 8, 4);
+    let fixed = bottom_fixed(&mesh);
+    let model = FemModel::new(&mesh, &uniform(BRAIN), &fixed, &FemOptions::default()).expect("model");
+    let roi: Vec<u32> = model.surface().vertices.iter().copied().filter(|&n| mesh.positions[n as usize].x <= 0.006).collect();
+    let c = Compliance::compute(&model, &roi, ComplianceStorage::F64, None, &mut |_, _| {}).expect("compliance");
+    let mut solver = ConstrainedSolver::new(model, c).expect("solver");
+    // Hold 120 top-face nodes outside the ROI: 120 lazy columns of LAZY_CAPACITY.
+    let held: Vec<Constraint> = (0..mesh.node_count() as u32)
+        .filter(|&n| {
+            let p = mesh.positions[n as usize];
+            (p.z - 0.03).abs() < 1e-12 && p.x > 0.006
+        })
+        .take(120)
+        .map(|n| Constraint { node: n, owner: 0, kind: ConstraintKind::Enforced { displacement: Vec3::new(0.0, 0.0, -0.001) } })
+        .collect();
+    assert_eq!(held.len(), 120);
+    assert!(held.len() + PREFETCH_BATCH > LAZY_CAPACITY, "the joined batch must not fit without evicting");
+    let mut out = FrameSolution::default();
+    solver.step(&held, &mut out).expect("step");
+    assert_eq!(out.lazy_solves, 120);
+    // Guesses: side-face nodes outside the ROI, not held.
+    let side: Vec<u32> = (0..mesh.node_count() as u32)
+        .filter(|&n| {
+            let p = mesh.positions[n as usize];
+            p.y.abs() < 1e-12 && p.z > 1e-9 && p.z < 0.03 - 1e-9 && p.x > 0.006
+        })
+        .collect();
+    assert_eq!(solver.prefetch(&side), PREFETCH_BATCH);
+    for frame in 0..(PREFETCH_JOIN_FRAMES + 3) {
+        solver.step(&held, &mut out).expect("step");
+        assert_eq!(out.lazy_solves, 0, "frame {frame}: a held contact's columns were evicted by a guess");
+    }
+    let cached = solver.cached_lazy_nodes().count();
+    assert!(cached <= LAZY_CAPACITY && cached > 120, "the batch took the free room: {cached} cached");
+}

@@ -893,22 +893,22 @@ impl ConstrainedSolver {
             return Ok(());
         }
         missing.sort_unstable();
-        self.make_room(missing.len());
+        self.make_room(missing.len(), frame);
         let columns = super::prefetch::solve_columns(&self.model.chol, &self.model.dofs, &missing)?;
         self.lazy_computed += columns.len();
-        self.insert_columns(columns);
+        self.insert_columns(columns, frame);
         Ok(())
     }
 
-    /// Evicts least recently used columns not needed this frame until `count` more fit.
-    fn make_room(&mut self, count: usize) {
-        let frame = self.frame;
+    /// Evicts least recently used columns last used before frame `keep_from`
+    /// until `count` more fit (or none is left to evict).
+    fn make_room(&mut self, count: usize, keep_from: u64) {
         while self.lazy.len() + count > LAZY_CAPACITY {
             let victim = self
                 .lazy
                 .iter()
                 .enumerate()
-                .filter(|(_, c)| c.last_used < frame)
+                .filter(|(_, c)| c.last_used < keep_from)
                 .min_by_key(|(_, c)| (c.last_used, c.node))
                 .map(|(i, _)| i);
             match victim {
@@ -920,22 +920,26 @@ impl ConstrainedSolver {
         }
     }
 
-    /// Adds solved columns (nodes not yet cached), stamped with this frame.
-    fn insert_columns(&mut self, columns: Vec<super::prefetch::NodeColumns>) {
+    /// Adds solved columns (nodes not yet cached), stamped as last used at `stamp`.
+    fn insert_columns(&mut self, columns: Vec<super::prefetch::NodeColumns>, stamp: u64) {
         for (node, values) in columns {
             if let Err(at) = self.lazy.binary_search_by_key(&node, |c| c.node) {
-                self.lazy.insert(at, LazyColumn { node, values, last_used: self.frame });
+                self.lazy.insert(at, LazyColumn { node, values, last_used: stamp });
             }
         }
     }
 
-    /// Joins background batch `id`: its columns enter the cache (as many as fit).
+    /// Joins background batch `id`: its columns enter the cache as far as
+    /// columns unused since before the last frame make room (a guess never
+    /// evicts a column a contact used last frame), stamped one frame old, so
+    /// a column a frame needs wins over a guess.
     fn join_batch(&mut self, id: u64) {
         if let Some(columns) = self.prefetcher.join(id) {
             let fresh: Vec<_> = columns.into_iter().filter(|(n, _)| self.lazy.binary_search_by_key(n, |c| c.node).is_err()).collect();
-            self.make_room(fresh.len());
+            let last = self.frame.saturating_sub(1);
+            self.make_room(fresh.len(), last);
             let room = LAZY_CAPACITY.saturating_sub(self.lazy.len());
-            self.insert_columns(fresh.into_iter().take(room).collect());
+            self.insert_columns(fresh.into_iter().take(room).collect(), last);
         }
     }
 
@@ -955,7 +959,7 @@ impl ConstrainedSolver {
     /// when a frame needs one of its nodes; results never depend on timing
     /// (see [`super::prefetch`]). Returns the number of nodes requested.
     pub fn prefetch(&mut self, nodes: &[u32]) -> usize {
-        if self.prefetcher.open().len() >= PREFETCH_OPEN {
+        if !self.can_prefetch() {
             return 0;
         }
         let mut batch: Vec<u32> = Vec::new();
@@ -977,6 +981,12 @@ impl ConstrainedSolver {
         batch.sort_unstable();
         let count = batch.len();
         if self.prefetcher.request(batch, self.frame + PREFETCH_JOIN_FRAMES) { count } else { 0 }
+    }
+
+    /// False while [`PREFETCH_OPEN`] batches are in flight (a request now
+    /// would be ignored, so a caller can skip choosing its nodes).
+    pub fn can_prefetch(&self) -> bool {
+        self.prefetcher.open().len() < PREFETCH_OPEN
     }
 
     /// True when `node` is a column of the precomputed compliance (inside the ROI).

@@ -67,12 +67,12 @@ pub struct OpenBatch {
 type Reply = (u64, Result<Vec<NodeColumns>, FemError>);
 
 /// The background worker and its open batches. The thread starts with the
-/// first request and ends when this is dropped.
+/// first request; dropping this closes its channel, and the thread ends after
+/// its current batch (it is not waited for: closing a scene never stalls on a solve).
 pub struct Prefetcher {
     chol: Arc<SparseCholesky>,
     dofs: DofMap,
     link: Option<(Sender<(u64, Vec<u32>)>, Receiver<Reply>)>,
-    worker: Option<std::thread::JoinHandle<()>>,
     open: Vec<OpenBatch>,
     /// Replies received for open batches not yet joined.
     arrived: Vec<Reply>,
@@ -90,7 +90,7 @@ impl std::fmt::Debug for Prefetcher {
 impl Prefetcher {
     /// A prefetcher for the factor `chol` (no thread yet).
     pub fn new(chol: Arc<SparseCholesky>, dofs: DofMap) -> Self {
-        Self { chol, dofs, link: None, worker: None, open: Vec::new(), arrived: Vec::new(), next_id: 0, failed: false }
+        Self { chol, dofs, link: None, open: Vec::new(), arrived: Vec::new(), next_id: 0, failed: false }
     }
 
     /// Batches requested and not yet joined, in request order.
@@ -123,10 +123,7 @@ impl Prefetcher {
                 }
             });
             match spawned {
-                Ok(handle) => {
-                    self.worker = Some(handle);
-                    self.link = Some((req_tx, rep_rx));
-                }
+                Ok(_) => self.link = Some((req_tx, rep_rx)),
                 Err(e) => {
                     tracing::warn!("lazy-column worker did not start ({e}); columns outside the ROI are solved on demand");
                     self.failed = true;
@@ -183,14 +180,5 @@ impl Prefetcher {
         self.open.clear();
         self.arrived.clear();
         self.link = None;
-    }
-}
-
-impl Drop for Prefetcher {
-    fn drop(&mut self) {
-        // Closing the request channel ends the worker after its current batch;
-        // it is not waited for (closing a scene never stalls on a solve).
-        self.link = None;
-        self.worker.take();
     }
 }

@@ -495,7 +495,7 @@ fn count_inverted_all(mesh: &TetMesh, u: &[Vec3]) -> u32 {
 /// vertices outside the ROI (`outside`, surface vertex indices) within
 /// `width/2 + PREFETCH_MARGIN_M` of a blade's centre line, nearest first (a
 /// contact there in the next frames then costs no sparse solve in the frame).
-/// Nothing when the ROI covers the surface.
+/// Nothing when the ROI covers the surface or no batch can be requested now.
 fn prefetch_near_blades(
     solver: &mut ConstrainedSolver,
     outside: &[u32],
@@ -504,7 +504,7 @@ fn prefetch_near_blades(
     state: &SimState,
     (near, nodes): (&mut Vec<(f64, u32)>, &mut Vec<u32>),
 ) {
-    if outside.is_empty() {
+    if outside.is_empty() || !solver.can_prefetch() {
         return;
     }
     near.clear();
