@@ -155,7 +155,7 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
         }
         let frames = ((near.len() - count) / fresh).min(60);
         let mut times = Vec::new();
-        let mut phases = [0.0f64; 5];
+        let mut phases = [0.0f64; 6];
         let mut out = FrameSolution::default();
         let mut cons: Vec<Constraint> = Vec::new();
         for k in 0..frames {
@@ -170,7 +170,7 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
             times.push(t.elapsed().as_secs_f64() * 1e3);
             if k > 0 {
                 let p = solver.timings();
-                for (acc, x) in phases.iter_mut().zip([p.gather, p.factor, p.candidates, p.surface, p.surface_gather]) {
+                for (acc, x) in phases.iter_mut().zip([p.gather, p.factor, p.candidates, p.surface, p.surface_gather, p.lazy]) {
                     *acc += x * 1e3 / (frames - 1) as f64;
                 }
             }
@@ -188,8 +188,8 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
             out.max_displacement * 1e3
         );
         println!(
-            "  mean phase times: gather {:.2} ms, factor+solve W {:.2} ms, candidates {:.2} ms, surface product {:.2} ms (of which gathering rows of new columns {:.2} ms)",
-            phases[0], phases[1], phases[2], phases[3], phases[4]
+            "  mean phase times: gather {:.2} ms, factor+solve W {:.2} ms, candidates {:.2} ms, surface product {:.2} ms (of which gathering rows of new columns {:.2} ms), lazy columns {:.2} ms",
+            phases[0], phases[1], phases[2], phases[3], phases[4], phases[5]
         );
         last_frame = (cons.clone(), out.clone());
     }

@@ -182,6 +182,9 @@ pub struct PhaseTimings {
     pub surface: f64,
     /// Part of `surface`: gathering the rows `K^-1[c, ..c]` of newly forced columns.
     pub surface_gather: f64,
+    /// Columns outside the ROI: joining background batches (waiting for the
+    /// worker when it is late) and sparse solves in the frame.
+    pub lazy: f64,
 }
 
 /// One row of C: `dir . u[node] = target`.
@@ -444,9 +447,12 @@ impl ConstrainedSolver {
         self.frame += 1;
         self.timings = PhaseTimings::default();
         self.validate(constraints)?;
+        let t = std::time::Instant::now();
         self.join_due_batches();
+        self.timings.lazy += t.elapsed().as_secs_f64();
         self.group_claims(constraints);
         self.collect_candidates(constraints);
+        self.touch_candidate_columns();
         let lazy_before = self.lazy_computed;
         // Candidates that are neither surface nor ROI rows need their own columns to be evaluated.
         let mut extra: Vec<u32> = Vec::new();
@@ -788,6 +794,18 @@ impl ConstrainedSolver {
         }
     }
 
+    /// Marks the cached lazy columns of this frame's candidates (skull, barrier)
+    /// as used, so a guess never evicts the column of a vertex that may engage
+    /// in this frame's active-set solve.
+    fn touch_candidate_columns(&mut self) {
+        let frame = self.frame;
+        for c in &self.candidates {
+            if let Ok(i) = self.lazy.binary_search_by_key(&c.node, |l| l.node) {
+                self.lazy[i].last_used = frame;
+            }
+        }
+    }
+
     /// Rows: 3 per enforced node, then one per active candidate.
     fn build_rows(&mut self) {
         self.rows.clear();
@@ -864,6 +882,13 @@ impl ConstrainedSolver {
     /// joins the background batches holding any of them (waiting if needed),
     /// then solves the rest in one batch.
     fn ensure_lazy(&mut self, nodes: &[u32]) -> Result<(), FemError> {
+        let t = std::time::Instant::now();
+        let result = self.ensure_lazy_untimed(nodes);
+        self.timings.lazy += t.elapsed().as_secs_f64();
+        result
+    }
+
+    fn ensure_lazy_untimed(&mut self, nodes: &[u32]) -> Result<(), FemError> {
         let frame = self.frame;
         let mut missing: Vec<u32> = Vec::new();
         loop {

@@ -376,7 +376,7 @@ pub enum ComplianceStorage {
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum RegionOfInterestFile {
-    /// Chosen by the solver from the spatulas' reach.
+    /// Chosen by the solver: the spatulas' reach, plus the vertices near a skull sphere at rest.
     #[default]
     Auto,
     /// Every surface vertex.

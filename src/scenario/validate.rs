@@ -177,7 +177,7 @@ impl EffectSet {
 /// Region of interest for the precomputed compliance, SI.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum RegionOfInterest {
-    /// Chosen by the solver.
+    /// Chosen by the solver: the spatulas' reach, plus the vertices near a skull sphere at rest.
     Auto,
     /// Every surface vertex.
     All,

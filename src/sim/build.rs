@@ -116,7 +116,10 @@ pub(super) fn distance_to_segment(p: &Vec3, a: &Vec3, b: &Vec3) -> f64 {
 /// Surface nodes (mesh node ids) of the region of interest.
 ///
 /// `Auto`: every surface vertex within `width/2 + AUTO_ROI_MARGIN_M` of a blade's
-/// centre line at any of `poses` (the initial poses and the trajectory's samples).
+/// centre line at any of `poses` (the initial poses and the trajectory's samples),
+/// and, when the scene asks for skull spheres, every vertex that is a skull
+/// candidate at rest (within `SKULL_CANDIDATE_BAND_M` of a sphere), so a skull
+/// contact there never waits for a sparse solve.
 pub fn region_of_interest(
     scenario: &Scenario,
     mesh: &TetMesh,
@@ -137,12 +140,14 @@ pub fn region_of_interest(
                     segments.push((a, b, 0.5 * sp.shape.width + AUTO_ROI_MARGIN_M));
                 }
             }
+            let skull = scenario.skull.filter(|_| scenario.effects.contains(Effect::SkullSpheres));
             surface_nodes
                 .iter()
                 .copied()
                 .filter(|&n| {
                     let p = mesh.positions[n as usize];
                     segments.iter().any(|(a, b, r)| distance_to_segment(&p, a, b) <= *r)
+                        || skull.is_some_and(|s| super::pipeline::is_skull_candidate(&s, &p))
                 })
                 .collect()
         }

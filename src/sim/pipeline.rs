@@ -65,6 +65,27 @@ pub struct SkullStage {
 /// within this distance of violating a sphere (m). The active-set solve then
 /// keeps only the rows that must push.
 pub const SKULL_CANDIDATE_BAND_M: f64 = 0.005;
+/// How far `p` is from violating each sphere (m; negative when it does):
+/// `(containing, excluding)`, `None` for a sphere the skull does not have.
+pub fn sphere_gaps(skull: &Skull, p: &Vec3) -> (Option<f64>, Option<f64>) {
+    (
+        skull.containing.map(|s| s.radius - (p - s.center).norm()),
+        skull.excluding.map(|s| (p - s.center).norm() - s.radius),
+    )
+}
+
+/// True when `p` gets a skull candidate row: within [`SKULL_CANDIDATE_BAND_M`]
+/// of violating a sphere.
+pub fn is_skull_candidate(skull: &Skull, p: &Vec3) -> bool {
+    let (inside, outside) = sphere_gaps(skull, p);
+    inside.into_iter().chain(outside).any(|gap| gap < SKULL_CANDIDATE_BAND_M)
+}
+
+/// Surface vertices outside the ROI within this distance of violating a skull
+/// sphere get their compliance columns solved in the background (m). Tighter
+/// than the candidate band: most candidates never engage, and each guess costs
+/// the worker a sparse solve (in the default scene 6 vertices, against 26 in the band).
+pub const SKULL_PREFETCH_GAP_M: f64 = 0.001;
 /// Surface vertices outside the ROI within this distance of a blade's edge get
 /// their compliance columns solved in the background (m).
 pub const PREFETCH_MARGIN_M: f64 = 0.010;
@@ -79,13 +100,14 @@ impl SkullStage {
         let before = out.len();
         for (v, p) in positions.iter().enumerate() {
             let node = self.nodes[v];
-            if let Some(s) = self.skull.containing {
-                if (p - s.center).norm() > s.radius - SKULL_CANDIDATE_BAND_M {
+            let (inside, outside) = sphere_gaps(&self.skull, p);
+            if let (Some(s), Some(gap)) = (self.skull.containing, inside) {
+                if gap < SKULL_CANDIDATE_BAND_M {
                     out.push(Constraint { node, owner: 0, kind: ConstraintKind::SphereInside { center: s.center, radius: s.radius } });
                 }
             }
-            if let Some(s) = self.skull.excluding {
-                if (p - s.center).norm() < s.radius + SKULL_CANDIDATE_BAND_M {
+            if let (Some(s), Some(gap)) = (self.skull.excluding, outside) {
+                if gap < SKULL_CANDIDATE_BAND_M {
                     out.push(Constraint { node, owner: 1, kind: ConstraintKind::SphereOutside { center: s.center, radius: s.radius } });
                 }
             }
@@ -152,14 +174,16 @@ impl Pipeline {
         let n = scenario.spatulas.len();
         let unilateral = scenario.solver.spatula_contact == crate::scenario::SpatulaContact::Unilateral;
         let barrier = (unilateral && collision.is_some()).then(|| super::barrier::BarrierStage::new(surface.vertices.len()));
-        let outside_roi = match &collision {
-            Some(_) => (0..surface.vertices.len() as u32)
+        // Contacts come from the blades and the skull spheres: without either, no lazy column is ever needed.
+        let outside_roi = if collision.is_some() || skull.is_some() {
+            (0..surface.vertices.len() as u32)
                 .filter(|&v| {
                     let node = surface.vertices[v as usize];
                     !solver.is_roi_column(node) && !solver.model().is_fixed(node)
                 })
-                .collect(),
-            None => Vec::new(),
+                .collect()
+        } else {
+            Vec::new()
         };
         Ok(Self {
             outside_roi,
@@ -368,11 +392,11 @@ impl Pipeline {
         }
         r.max_displacement_m = self.solution.max_displacement;
         r.skull_contacts = self.solution.active_sphere_contacts as u32;
-        prefetch_near_blades(
+        prefetch_lazy_columns(
             &mut self.solver,
             &self.outside_roi,
             &self.surface.vertices,
-            &self.shapes,
+            (&self.shapes, self.skull.as_ref().map(SkullStage::skull)),
             state,
             (&mut self.prefetch_near, &mut self.prefetch_nodes),
         );
@@ -491,21 +515,36 @@ fn count_inverted_all(mesh: &TetMesh, u: &[Vec3]) -> u32 {
         .count() as u32
 }
 
-/// Asks the solver to solve, in the background, the columns of surface
-/// vertices outside the ROI (`outside`, surface vertex indices) within
-/// `width/2 + PREFETCH_MARGIN_M` of a blade's centre line, nearest first (a
-/// contact there in the next frames then costs no sparse solve in the frame).
-/// Nothing when the ROI covers the surface or no batch can be requested now.
-fn prefetch_near_blades(
+/// Asks the solver for the compliance columns of surface vertices outside the
+/// ROI (`outside`, surface vertex indices) that a contact may soon need, most
+/// urgent first: vertices within [`SKULL_PREFETCH_GAP_M`] of violating a
+/// skull sphere, least gap first, then vertices within `width/2 + PREFETCH_MARGIN_M`
+/// of a blade's centre line, nearest first. A contact there in the next frames
+/// then costs no sparse solve in the frame. Nothing when the ROI covers the
+/// surface or no batch can be requested now.
+fn prefetch_lazy_columns(
     solver: &mut ConstrainedSolver,
     outside: &[u32],
     surface_nodes: &[u32],
-    shapes: &[SpatulaShape],
+    (shapes, skull): (&[SpatulaShape], Option<&Skull>),
     state: &SimState,
     (near, nodes): (&mut Vec<(f64, u32)>, &mut Vec<u32>),
 ) {
     if outside.is_empty() || !solver.can_prefetch() {
         return;
+    }
+    nodes.clear();
+    if let Some(skull) = skull {
+        near.clear();
+        for &v in outside {
+            let (inside, outside) = sphere_gaps(skull, &state.surface_positions[v as usize]);
+            let gap = inside.into_iter().chain(outside).fold(f64::INFINITY, f64::min);
+            if gap < SKULL_PREFETCH_GAP_M {
+                near.push((gap, surface_nodes[v as usize]));
+            }
+        }
+        near.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+        nodes.extend(near.iter().map(|x| x.1));
     }
     near.clear();
     for (pose, shape) in state.poses.iter().zip(shapes) {
@@ -519,11 +558,9 @@ fn prefetch_near_blades(
             }
         }
     }
-    if near.is_empty() {
-        return;
-    }
     near.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-    nodes.clear();
     nodes.extend(near.iter().map(|x| x.1));
-    solver.prefetch(nodes);
+    if !nodes.is_empty() {
+        solver.prefetch(nodes);
+    }
 }

@@ -1,0 +1,48 @@
+//! Frames of a replay that take long, and why (lazy solves, phases):
+//! `cargo run --release --example stall_probe -- config/sylvian.ron [ms] [PATH=VALUE..]`.
+use fissure::scenario::Scenario;
+use fissure::sim::replay::PoseSource;
+use fissure::sim::{BuildOptions, FrameInput, Pipeline};
+use std::path::Path;
+use std::time::Instant;
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let path = args.get(1).map(String::as_str).unwrap_or("config/sylvian.ron");
+    let slow: f64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(3.0);
+    let overrides: Vec<String> = args.iter().skip(3).cloned().collect();
+    let scenario = Scenario::load(Path::new(path), &overrides).expect("scenario");
+    let source = PoseSource::for_scenario(&scenario, None).expect("trajectory");
+    let (mut pipeline, mut state) =
+        Pipeline::build(&scenario, BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None }).expect("build");
+    let mut input = FrameInput::default();
+    let dt = scenario.time_step;
+    let mut times = Vec::new();
+    for k in 0..scenario.step_count() {
+        source.poses_at((k + 1) as f64 * dt, &mut input);
+        let t = Instant::now();
+        let rep = pipeline.step(&mut state, &input).expect("step").clone();
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        times.push(ms);
+        let s = pipeline.last_solution();
+        let p = pipeline.solver().timings();
+        if ms > slow {
+            println!(
+                "frame {k}: {ms:.2} ms, rows {}, lazy solves {}, skull {}, gather {:.2} factor {:.2} cand {:.2} surface {:.2} lazy {:.2} ms, solve stage {:.2} collision {:.2}",
+                s.rows,
+                s.lazy_solves,
+                s.active_sphere_contacts,
+                p.gather * 1e3,
+                p.factor * 1e3,
+                p.candidates * 1e3,
+                p.surface * 1e3,
+                p.lazy * 1e3,
+                rep.times.get(fissure::sim::StageId::Solve).unwrap_or(0.0) * 1e3,
+                rep.times.get(fissure::sim::StageId::Collision).unwrap_or(0.0) * 1e3,
+            );
+        }
+    }
+    times.sort_by(|a, b| a.total_cmp(b));
+    let n = times.len();
+    println!("{n} frames: p50 {:.2}, p95 {:.2}, max {:.2} ms", times[n / 2], times[n * 95 / 100], times[n - 1]);
+}
