@@ -9,6 +9,7 @@ use fissure::fem::fixtures::{box_mesh, linspace, sphere_shell};
 use fissure::fem::reference::solve_direct;
 use fissure::fem::{
     Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, Material,
+    element_stress,
 };
 use fissure::math::Vec3;
 
@@ -67,6 +68,25 @@ fn patch_test_through_the_fast_path() {
     solver.interior_displacements(&mut all).unwrap();
     let e = rel_error(&all, &exact);
     assert!(e < 1e-10, "interior nodes must follow the linear field, relative error {e:e}");
+    // Every tet carries the field's constant strain eps = sym(g e_z^T): closed
+    // forms for its largest principal strain and von Mises stress.
+    let mut stress = Vec::new();
+    element_stress(solver.model(), &all, &mut stress).unwrap();
+    let shear2 = (g.x * g.x + g.y * g.y) / 4.0;
+    let max_principal = g.z / 2.0 + (g.z * g.z / 4.0 + shear2).sqrt();
+    let (_, mu) = BRAIN.lame();
+    let eps_norm2 = g.z * g.z + 2.0 * shear2;
+    let von_mises = 2.0 * mu * (1.5 * (eps_norm2 - g.z * g.z / 3.0)).sqrt();
+    for (t, s) in stress.iter().enumerate() {
+        assert!((s.max_principal_strain - max_principal).abs() < 1e-9 * max_principal, "tet {t}: principal strain {} vs {max_principal}", s.max_principal_strain);
+        assert!((s.von_mises - von_mises).abs() < 1e-9 * von_mises, "tet {t}: von Mises {} vs {von_mises}", s.von_mises);
+    }
+    // A small rigid rotation strains nothing.
+    let omega = Vec3::new(0.002, -0.001, 0.003);
+    let rigid: Vec<Vec3> = mesh.positions.iter().map(|p| omega.cross(p)).collect();
+    element_stress(solver.model(), &rigid, &mut stress).unwrap();
+    let worst = stress.iter().fold(0.0_f64, |m, s| m.max(s.von_mises).max(s.max_principal_strain.abs()));
+    assert!(worst < 1e-12, "rigid rotation gives stress or strain {worst:e}");
 }
 
 /// Lamé: thick sphere a < r < b, u(a) = u_a radially, free outer surface.
