@@ -139,6 +139,45 @@ impl LazyColumnUse {
     }
 }
 
+/// The automatic ROI of the default scene: the blades' reach plus the skull
+/// candidates at rest, least gap first and at most `AUTO_ROI_SKULL_MAX` of
+/// them; without the SkullSpheres effect the skull adds nothing.
+#[test]
+fn the_automatic_roi_takes_the_skull_candidates_at_rest_up_to_its_cap() {
+    use fissure::sim::build::{AUTO_ROI_SKULL_MAX, load_mesh, region_of_interest};
+    use fissure::sim::pipeline::{SKULL_CANDIDATE_BAND_M, skull_gap};
+    let roi_of = |sets: &[&str]| {
+        let s = Scenario::load(&repo("config/sylvian.ron"), &sets.iter().map(|x| x.to_string()).collect::<Vec<_>>()).unwrap();
+        let mesh = load_mesh(&s).unwrap();
+        let surface = fissure::mesh::BoundarySurface::of(&mesh);
+        let initial: Vec<_> = s.spatulas.iter().map(|sp| sp.initial_pose).collect();
+        let roi = region_of_interest(&s, &mesh, &surface.vertices, &[initial]);
+        (s, mesh, surface, roi)
+    };
+    let no_skull_effect = "effects=[Collision, Culling, ForceOutput]";
+    let tight = "skull=Some((containing: Some((center_mm: (0.0, 0.0, -12.4), radius_mm: 88.0)), excluding: None))";
+    let (_, _, _, blades) = roi_of(&[no_skull_effect]);
+    assert_eq!(roi_of(&[no_skull_effect, tight]).3, blades, "a skull the scene does not simulate adds nothing");
+    // the scene's own skull (26 candidates), then one hugging the brain (hundreds)
+    for (skull, expect_capped) in [(None, false), (Some(tight), true)] {
+        let sets: Vec<&str> = skull.into_iter().collect();
+        let (s, mesh, surface, roi) = roi_of(&sets);
+        assert!(roi.windows(2).all(|w| w[0] < w[1]), "ascending, distinct");
+        assert!(blades.iter().all(|n| roi.binary_search(n).is_ok()), "the blades' reach stays");
+        let added: Vec<u32> = roi.iter().copied().filter(|n| blades.binary_search(n).is_err()).collect();
+        let sk = s.skull.unwrap();
+        let gap = |n: u32| skull_gap(&sk, &mesh.positions[n as usize]);
+        let band: Vec<u32> = surface.vertices.iter().copied().filter(|&n| blades.binary_search(&n).is_err() && gap(n) < SKULL_CANDIDATE_BAND_M).collect();
+        println!("skull override {skull:?}: {} in the band outside the blades' reach, {} added", band.len(), added.len());
+        assert!(added.iter().all(|&n| gap(n) < SKULL_CANDIDATE_BAND_M), "only skull candidates are added");
+        assert_eq!(added.len(), band.len().min(AUTO_ROI_SKULL_MAX));
+        assert_eq!(band.len() > AUTO_ROI_SKULL_MAX, expect_capped, "this skull tests the cap");
+        // least gap first: every candidate left out is at least as far as every one taken
+        let worst_in = added.iter().map(|&n| gap(n)).fold(f64::NEG_INFINITY, f64::max);
+        assert!(band.iter().filter(|n| added.binary_search(n).is_err()).all(|&n| gap(n) >= worst_in));
+    }
+}
+
 /// With a region of interest that leaves out the vertices touching the skull,
 /// their columns are solved in the background before they engage: still no
 /// frame solves one itself.

@@ -7,7 +7,7 @@
 //! load) and the initial [`SimState`]. Stays true: a stage whose effect is not
 //! in the scene is `None` and costs nothing per frame.
 
-use super::pipeline::{Pipeline, SimState, SkullStage};
+use super::pipeline::{Pipeline, SKULL_CANDIDATE_BAND_M, SimState, SkullStage};
 use super::report::StageId;
 use crate::collision::{BackendKind, CollisionConfig, CollisionStage, SpatulaSpec};
 use crate::fem::{self, BodyForce, Compliance, ConstrainedSolver, FemModel, FemOptions, RegionMaterials};
@@ -40,6 +40,12 @@ pub enum BuildError {
 /// How far (m) from a spatula blade's centre line the automatic region of
 /// interest reaches, beyond half the blade's width.
 pub const AUTO_ROI_MARGIN_M: f64 = 0.020;
+
+/// At most this many skull candidates at rest join the automatic region of
+/// interest, least gap first (each costs a column of every surface row; the
+/// rest get their columns in the background when they come within
+/// `SKULL_PREFETCH_GAP_M` of a sphere).
+pub const AUTO_ROI_SKULL_MAX: usize = 64;
 
 /// Loads the scene's mesh in metres.
 pub fn load_mesh(scenario: &Scenario) -> Result<TetMesh, BuildError> {
@@ -117,9 +123,9 @@ pub(super) fn distance_to_segment(p: &Vec3, a: &Vec3, b: &Vec3) -> f64 {
 ///
 /// `Auto`: every surface vertex within `width/2 + AUTO_ROI_MARGIN_M` of a blade's
 /// centre line at any of `poses` (the initial poses and the trajectory's samples),
-/// and, when the scene asks for skull spheres, every vertex that is a skull
-/// candidate at rest (within `SKULL_CANDIDATE_BAND_M` of a sphere), so a skull
-/// contact there never waits for a sparse solve.
+/// and, when the scene asks for skull spheres, the skull candidates at rest
+/// (within `SKULL_CANDIDATE_BAND_M` of a sphere; least gap first, at most
+/// [`AUTO_ROI_SKULL_MAX`]), so a skull contact there never waits for a sparse solve.
 pub fn region_of_interest(
     scenario: &Scenario,
     mesh: &TetMesh,
@@ -140,16 +146,28 @@ pub fn region_of_interest(
                     segments.push((a, b, 0.5 * sp.shape.width + AUTO_ROI_MARGIN_M));
                 }
             }
-            let skull = scenario.skull.filter(|_| scenario.effects.contains(Effect::SkullSpheres));
-            surface_nodes
+            let mut roi: Vec<u32> = surface_nodes
                 .iter()
                 .copied()
                 .filter(|&n| {
                     let p = mesh.positions[n as usize];
                     segments.iter().any(|(a, b, r)| distance_to_segment(&p, a, b) <= *r)
-                        || skull.is_some_and(|s| super::pipeline::is_skull_candidate(&s, &p))
                 })
-                .collect()
+                .collect();
+            if let Some(skull) = scenario.skull.filter(|_| scenario.effects.contains(Effect::SkullSpheres)) {
+                let mut near: Vec<(f64, u32)> = surface_nodes
+                    .iter()
+                    .filter(|n| roi.binary_search(n).is_err())
+                    .filter_map(|&n| {
+                        let gap = super::pipeline::skull_gap(&skull, &mesh.positions[n as usize]);
+                        (gap < SKULL_CANDIDATE_BAND_M).then_some((gap, n))
+                    })
+                    .collect();
+                near.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+                roi.extend(near.iter().take(AUTO_ROI_SKULL_MAX).map(|x| x.1));
+                roi.sort_unstable();
+            }
+            roi
         }
     }
 }

@@ -74,11 +74,11 @@ pub fn sphere_gaps(skull: &Skull, p: &Vec3) -> (Option<f64>, Option<f64>) {
     )
 }
 
-/// True when `p` gets a skull candidate row: within [`SKULL_CANDIDATE_BAND_M`]
-/// of violating a sphere.
-pub fn is_skull_candidate(skull: &Skull, p: &Vec3) -> bool {
+/// How far `p` is from violating the nearer sphere (m; infinite without spheres).
+/// A vertex gets a skull candidate row when this is under [`SKULL_CANDIDATE_BAND_M`].
+pub fn skull_gap(skull: &Skull, p: &Vec3) -> f64 {
     let (inside, outside) = sphere_gaps(skull, p);
-    inside.into_iter().chain(outside).any(|gap| gap < SKULL_CANDIDATE_BAND_M)
+    inside.into_iter().chain(outside).fold(f64::INFINITY, f64::min)
 }
 
 /// Surface vertices outside the ROI within this distance of violating a skull
@@ -537,8 +537,7 @@ fn prefetch_lazy_columns(
     if let Some(skull) = skull {
         near.clear();
         for &v in outside {
-            let (inside, outside) = sphere_gaps(skull, &state.surface_positions[v as usize]);
-            let gap = inside.into_iter().chain(outside).fold(f64::INFINITY, f64::min);
+            let gap = skull_gap(skull, &state.surface_positions[v as usize]);
             if gap < SKULL_PREFETCH_GAP_M {
                 near.push((gap, surface_nodes[v as usize]));
             }
