@@ -30,9 +30,12 @@ pub fn largest_symmetric_eigenvalue(a: &Matrix3<f64>) -> f64 {
     let q = a.trace() / 3.0;
     let (d0, d1, d2) = (a[(0, 0)] - q, a[(1, 1)] - q, a[(2, 2)] - q);
     let p2 = d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * off;
-    if !(p2 > 0.0) {
-        // a multiple of the identity (or not finite: propagate)
-        return if p2 == 0.0 { q } else { f64::NAN };
+    if p2.is_nan() {
+        return f64::NAN;
+    }
+    if p2 <= 0.0 {
+        // a multiple of the identity
+        return q;
     }
     let p = (p2 / 6.0).sqrt();
     // B = (A - qI) / p; r = det(B) / 2, in [-1, 1] up to rounding

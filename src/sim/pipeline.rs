@@ -101,15 +101,15 @@ impl SkullStage {
         for (v, p) in positions.iter().enumerate() {
             let node = self.nodes[v];
             let (inside, outside) = sphere_gaps(&self.skull, p);
-            if let (Some(s), Some(gap)) = (self.skull.containing, inside) {
-                if gap < SKULL_CANDIDATE_BAND_M {
-                    out.push(Constraint { node, owner: 0, kind: ConstraintKind::SphereInside { center: s.center, radius: s.radius } });
-                }
+            if let (Some(s), Some(gap)) = (self.skull.containing, inside)
+                && gap < SKULL_CANDIDATE_BAND_M
+            {
+                out.push(Constraint { node, owner: 0, kind: ConstraintKind::SphereInside { center: s.center, radius: s.radius } });
             }
-            if let (Some(s), Some(gap)) = (self.skull.excluding, outside) {
-                if gap < SKULL_CANDIDATE_BAND_M {
-                    out.push(Constraint { node, owner: 1, kind: ConstraintKind::SphereOutside { center: s.center, radius: s.radius } });
-                }
+            if let (Some(s), Some(gap)) = (self.skull.excluding, outside)
+                && gap < SKULL_CANDIDATE_BAND_M
+            {
+                out.push(Constraint { node, owner: 1, kind: ConstraintKind::SphereOutside { center: s.center, radius: s.radius } });
             }
         }
         out.len() - before
