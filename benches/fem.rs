@@ -149,49 +149,38 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
     let mut solver = ConstrainedSolver::new(model, compliance).expect("solver");
     let mut last_frame: (Vec<Constraint>, FrameSolution) = (Vec::new(), FrameSolution::default());
     for (count, fresh) in [(100usize, 10usize), (300, 30)] {
-        if near.len() < count + fresh {
+        let Some(m) = measure(&mut solver, &near, count, fresh, 60) else {
             println!("not enough ROI vertices for {count} constrained");
             continue;
-        }
-        let frames = ((near.len() - count) / fresh).min(60);
-        let mut times = Vec::new();
-        let mut phases = [0.0f64; 6];
-        let mut out = FrameSolution::default();
-        let mut cons: Vec<Constraint> = Vec::new();
-        for k in 0..frames {
-            cons.clear();
-            cons.extend(near[k * fresh..k * fresh + count].iter().map(|&n| Constraint {
-                node: n,
-                owner: 0,
-                kind: ConstraintKind::Enforced { displacement: Vec3::new(0.0, 0.0, -0.002) },
-            }));
-            let t = Instant::now();
-            solver.step(&cons, &mut out).expect("step");
-            times.push(t.elapsed().as_secs_f64() * 1e3);
-            if k > 0 {
-                let p = solver.timings();
-                for (acc, x) in phases.iter_mut().zip([p.gather, p.factor, p.candidates, p.surface, p.surface_gather, p.lazy]) {
-                    *acc += x * 1e3 / (frames - 1) as f64;
-                }
-            }
-        }
-        let mut sorted = times[1..].to_vec();
-        sorted.sort_by(|a, b| a.total_cmp(b));
+        };
         println!(
             "frame solve + surface update, {count} constrained ({} rows), {fresh} new/frame, {} frames: p50 {:.2} ms, p95 {:.2} ms, max {:.2} ms; cond(W) est. {:.2e}, max |u| {:.2} mm",
-            out.rows,
-            sorted.len(),
-            percentile(&sorted, 0.5),
-            percentile(&sorted, 0.95),
-            sorted.last().unwrap(),
-            out.conditioning,
-            out.max_displacement * 1e3
+            m.out.rows,
+            m.frames,
+            m.p50,
+            m.p95,
+            m.max,
+            m.out.conditioning,
+            m.out.max_displacement * 1e3
         );
+        let p = m.phases;
         println!(
             "  mean phase times: gather {:.2} ms, factor+solve W {:.2} ms, candidates {:.2} ms, surface product {:.2} ms (of which gathering rows of new columns {:.2} ms), lazy columns {:.2} ms",
-            phases[0], phases[1], phases[2], phases[3], phases[4], phases[5]
+            p[0], p[1], p[2], p[3], p[4], p[5]
         );
-        last_frame = (cons.clone(), out.clone());
+        last_frame = (m.cons, m.out);
+    }
+    // Frame time against the number of constrained vertices (a tenth new each frame): a table and a plot.
+    let mut sweep = Vec::new();
+    for count in [25usize, 50, 100, 150, 200, 250, 300] {
+        if let Some(m) = measure(&mut solver, &near, count, count / 10, 40) {
+            sweep.push((count, m));
+        }
+    }
+    let dir = cache.parent().unwrap_or(cache).join("sweep");
+    match write_sweep(name, &sweep, &dir) {
+        Ok(png) => println!("constrained-vertex sweep ({} counts): {}", sweep.len(), png.display()),
+        Err(e) => println!("constrained-vertex sweep not written: {e}"),
     }
     let mut all = Vec::new();
     let t = Instant::now();
@@ -226,6 +215,135 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
             Err(e) => println!("f64 reference failed: {e}"),
         }
     }
+}
+
+/// Frame times of a window of `count` constrained vertices sliding over `near`
+/// by `fresh` a frame (the oldest leave): percentiles over frames 1.., mean
+/// phase times (ms: gather, W, candidates, product, new-row gather, lazy), the
+/// last frame's constraints and solution. `None` when `near` is too short.
+struct Measure {
+    frames: usize,
+    p50: f64,
+    p95: f64,
+    max: f64,
+    phases: [f64; 6],
+    cons: Vec<Constraint>,
+    out: FrameSolution,
+}
+
+fn measure(solver: &mut ConstrainedSolver, near: &[u32], count: usize, fresh: usize, max_frames: usize) -> Option<Measure> {
+    if near.len() < count + fresh || fresh == 0 {
+        return None;
+    }
+    let frames = ((near.len() - count) / fresh).min(max_frames);
+    let mut times = Vec::new();
+    let mut phases = [0.0f64; 6];
+    let mut out = FrameSolution::default();
+    let mut cons: Vec<Constraint> = Vec::new();
+    for k in 0..frames {
+        cons.clear();
+        cons.extend(near[k * fresh..k * fresh + count].iter().map(|&n| Constraint {
+            node: n,
+            owner: 0,
+            kind: ConstraintKind::Enforced { displacement: Vec3::new(0.0, 0.0, -0.002) },
+        }));
+        let t = Instant::now();
+        solver.step(&cons, &mut out).expect("step");
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        if k > 0 {
+            let p = solver.timings();
+            for (acc, x) in phases.iter_mut().zip([p.gather, p.factor, p.candidates, p.surface, p.surface_gather, p.lazy]) {
+                *acc += x * 1e3 / (frames - 1) as f64;
+            }
+        }
+    }
+    let mut sorted = times[1..].to_vec();
+    sorted.sort_by(|a, b| a.total_cmp(b));
+    Some(Measure {
+        frames: sorted.len(),
+        p50: percentile(&sorted, 0.5),
+        p95: percentile(&sorted, 0.95),
+        max: *sorted.last()?,
+        phases,
+        cons,
+        out,
+    })
+}
+
+/// Writes `DIR/NAME_constrained_sweep.csv` and `.png`: frame p50 and p95, mean W and
+/// mean product time against the constrained vertices, with issue #4's 3 ms
+/// bar. Returns the PNG's path.
+fn write_sweep(name: &str, sweep: &[(usize, Measure)], dir: &Path) -> Result<PathBuf, String> {
+    use plotters::prelude::*;
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let mut csv = String::from("constrained,new_per_frame,p50_ms,p95_ms,max_ms,w_ms,product_ms,new_row_gather_ms\n");
+    for (count, m) in sweep {
+        csv += &format!("{count},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}\n", count / 10, m.p50, m.p95, m.max, m.phases[1], m.phases[3], m.phases[4]);
+    }
+    let csv_path = dir.join(format!("{name}_constrained_sweep.csv"));
+    std::fs::write(&csv_path, csv).map_err(|e| format!("{}: {e}", csv_path.display()))?;
+    let png = dir.join(format!("{name}_constrained_sweep.png"));
+    let root = BitMapBackend::new(&png, (1000, 640)).into_drawing_area();
+    let err = |e: &dyn std::fmt::Display| e.to_string();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let x_max = sweep.iter().map(|s| s.0).max().unwrap_or(300) as f64 * 1.05;
+    let y_max = sweep.iter().map(|s| s.1.p95).fold(3.5_f64, f64::max) * 1.1;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(format!("{name}: exact frame solve + surface update (a tenth of the vertices new each frame)"), ("sans-serif", 22))
+        .margin(16)
+        .x_label_area_size(48)
+        .y_label_area_size(64)
+        .build_cartesian_2d(0.0..x_max, 0.0..y_max)
+        .map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc("constrained vertices (3 rows each)")
+        .y_desc("time per frame, ms")
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .y_label_formatter(&|y| format!("{y:.0}"))
+        .label_style(("sans-serif", 16))
+        .draw()
+        .map_err(|e| err(&e))?;
+    let series: [(&str, RGBColor, fn(&Measure) -> f64); 4] = [
+        ("frame p95", RGBColor(23, 190, 207), |m| m.p95),
+        ("frame p50", RGBColor(31, 119, 180), |m| m.p50),
+        ("W gather + factor + solve (mean)", RGBColor(214, 39, 40), |m| m.phases[1]),
+        ("surface product (mean)", RGBColor(44, 160, 44), |m| m.phases[3]),
+    ];
+    for (label, color, f) in series {
+        let pts: Vec<(f64, f64)> = sweep.iter().map(|(c, m)| (*c as f64, f(m))).collect();
+        chart
+            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(3)))
+            .map_err(|e| err(&e))?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(3)));
+        chart.draw_series(pts.iter().map(|&p| Circle::new(p, 5, color.filled()))).map_err(|e| err(&e))?;
+    }
+    let bar = RGBColor(90, 90, 90);
+    chart
+        .draw_series(LineSeries::new(vec![(0.0, 3.0), (x_max, 3.0)], bar.stroke_width(2)))
+        .map_err(|e| err(&e))?
+        .label("issue #4 bar: p95 3 ms at 300 vertices")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], bar.stroke_width(2)));
+    // Context: the largest contact set of the default scene's replay (`fissure replay config/sylvian.ron`).
+    let scene = RGBColor(148, 103, 189);
+    chart
+        .draw_series(DashedLineSeries::new(vec![(37.0, 0.0), (37.0, y_max)], 8, 6, scene.stroke_width(2)))
+        .map_err(|e| err(&e))?
+        .label("largest contact set in the default scene's replay: 37 vertices")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], scene.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 16))
+        .draw()
+        .map_err(|e| err(&e))?;
+    root.present().map_err(|e| err(&e))?;
+    drop(chart);
+    drop(root);
+    Ok(png)
 }
 
 fn main() {
