@@ -72,3 +72,52 @@ fn bad_arguments_are_refused_with_a_message() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(stderr.contains("1..=8192"), "the error must say the valid range: {stderr}");
 }
+
+/// `--field strain` colours the surface by the largest principal strain when
+/// the scene computes stress: high strain (viridis teals to yellows) shows where the blades stretch the fissure's walls; without the
+/// StressField effect the field is refused with a message naming the fix.
+#[test]
+fn strain_field_shows_where_the_blades_stretch_the_tissue() {
+    let refused = Command::new(env!("CARGO_BIN_EXE_fissure"))
+        .args(["screenshot"])
+        .arg(scenario())
+        .args(["--field", "strain", "-o", "/nonexistent/x.png"])
+        .output()
+        .expect("run fissure");
+    assert!(!refused.status.success(), "strain without StressField must be refused");
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(stderr.contains("StressField") && stderr.contains("sylvian.ron"), "the error must name the file and the missing effect: {stderr}");
+
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("strain.png");
+    let output = Command::new(env!("CARGO_BIN_EXE_fissure"))
+        .args(["screenshot"])
+        .arg(scenario())
+        .args(["--time", "4.0", "--size", "400x250", "--view", "microscope", "--field", "strain"])
+        .args(["--set", "effects=[Collision, Culling, SkullSpheres, ForceOutput, ContactPressure, StressField]"])
+        .args(["--set", "time_step_s=0.02", "--set", "solver.cache_dir=None", "-o"])
+        .arg(&out)
+        .env("XDG_RUNTIME_DIR", dir.path())
+        .output()
+        .expect("run fissure");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    if !output.status.success() && stderr.contains("no GPU adapter") {
+        eprintln!("skipping: no GPU adapter ({stderr})");
+        return;
+    }
+    assert!(output.status.success(), "screenshot failed: {stderr}");
+    let image = image::open(&out).expect("a PNG was written").to_rgba8();
+    let _ = image.save(std::env::temp_dir().join("screenshot_test_strain.png"));
+    // viridis from teal up: green above red, and not below blue (the blade's steel is blue above green)
+    let strained = image
+        .pixels()
+        .filter(|p| {
+            let [r, g, b, _] = p.0.map(i32::from);
+            g > r + 20 && g + 10 > b
+        })
+        .count();
+    let (_, brain, _, _) = classify(&image);
+    println!("strained (green above red) pixels: {strained}, pink pixels: {brain}");
+    assert!(strained > 200, "strained tissue must show in greens and yellows: {strained} pixels");
+    assert!(brain < 50, "the surface is coloured by strain, not the plain pink: {brain} pink pixels");
+}

@@ -30,12 +30,19 @@ pub enum SurfaceField {
     Displacement,
     /// Contact pressure at each constrained vertex, mmHg (0..2x the 20 mmHg line).
     Pressure,
+    /// Largest principal strain of the tets under each vertex (0..[`STRAIN_FULL_SCALE`]);
+    /// only a scene with the StressField effect has it (plain otherwise).
+    Strain,
 }
 
 /// Displacement mapped to the top of the colour map, mm.
 pub const DISPLACEMENT_FULL_SCALE_MM: f64 = 10.0;
 /// Pressure mapped to the top of the colour map, mmHg (twice the 20 mmHg line).
 pub const PRESSURE_FULL_SCALE_MMHG: f64 = 40.0;
+/// Largest principal strain mapped to the top of the colour map (10 %: the low
+/// end of the tissue strain thresholds for axonal injury reported in the
+/// literature, about 10-20 %; strain above it shows at the top).
+pub const STRAIN_FULL_SCALE: f64 = 0.1;
 
 /// Switches that change what is drawn (not what is simulated).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -66,6 +73,12 @@ pub struct Snapshot {
     pub displacement_mm: Vec<f64>,
     /// Contact pressure per surface vertex, mmHg (0 where not in contact).
     pub pressure_mmhg: Vec<f64>,
+    /// Largest principal strain per surface vertex: the mean over the tets that
+    /// own its boundary triangles. Empty when the scene computes no stress
+    /// (no StressField effect).
+    pub strain: Vec<f64>,
+    /// Scratch of [`surface_strain`]: boundary triangles per vertex.
+    strain_count: Vec<u32>,
     /// Spatula poses the frame used.
     pub poses: Vec<Pose>,
     /// The frame's report (timings, pairs, forces, pressures).
@@ -125,6 +138,7 @@ impl Snapshot {
                 }
             }
         }
+        surface_strain(surface, &state.stress, &mut self.strain, &mut self.strain_count);
         self.source_nodes.clear();
         self.pairs.clear();
         if let Some(collision) = pipeline.collision() {
@@ -142,6 +156,39 @@ impl Snapshot {
             for (p, _) in &out.culled_pairs {
                 self.pairs.extend(segment(p.spatula, p.face, p.node, p.t, false));
             }
+        }
+    }
+}
+
+/// Per surface vertex, the mean largest principal strain of the tets that own
+/// its boundary triangles, into `out`; empty when `stress` has no entry per tet
+/// (the scene computes no stress). `count` is scratch.
+pub fn surface_strain(
+    surface: &crate::mesh::BoundarySurface,
+    stress: &[crate::fem::ElementStress],
+    out: &mut Vec<f64>,
+    count: &mut Vec<u32>,
+) {
+    out.clear();
+    if stress.is_empty() || surface.triangle_tet.iter().any(|&t| t as usize >= stress.len()) {
+        return;
+    }
+    let n = surface.vertices.len();
+    out.resize(n, 0.0);
+    count.clear();
+    count.resize(n, 0);
+    for (tri, &tet) in surface.triangles.iter().zip(&surface.triangle_tet) {
+        let e = stress[tet as usize].max_principal_strain;
+        for &v in tri {
+            if let (Some(slot), Some(c)) = (out.get_mut(v as usize), count.get_mut(v as usize)) {
+                *slot += e;
+                *c += 1;
+            }
+        }
+    }
+    for (slot, c) in out.iter_mut().zip(count.iter()) {
+        if *c > 0 {
+            *slot /= f64::from(*c);
         }
     }
 }
@@ -255,6 +302,13 @@ impl SceneBuffers {
                 map: crate::render::ColorMap::BlueWhiteRed,
                 range: (-PRESSURE_FULL_SCALE_MMHG, PRESSURE_FULL_SCALE_MMHG),
             }),
+            SurfaceField::Strain if snapshot.strain.len() == snapshot.surface_positions.len() => Some(ScalarField {
+                values: &snapshot.strain,
+                kind: FieldKind::Strain,
+                map: FieldKind::Strain.default_map(),
+                range: (0.0, STRAIN_FULL_SCALE),
+            }),
+            SurfaceField::Strain => None,
         };
         view.spatulas = &self.spatulas;
         view.skull = &self.skull;
@@ -316,5 +370,33 @@ mod tests {
         assert!((areas[1] - 1.0 / 3.0).abs() < 1e-12, "vertex 1 touches two triangles: {}", areas[1]);
         let bad = vertex_areas(&rest[..2], &[[0, 1, 7]]);
         assert_eq!(bad.len(), 2, "an out-of-range index must not panic or grow the list");
+    }
+
+    /// Each vertex gets the mean strain of the tets owning its boundary
+    /// triangles; no stress (or too little) gives no field, never a panic.
+    #[test]
+    fn surface_strain_averages_the_boundary_tets_of_each_vertex() {
+        let mesh = crate::fem::fixtures::box_mesh(&[0.0, 1.0, 2.0], &[0.0, 1.0], &[0.0, 1.0]).unwrap();
+        let surface = crate::mesh::BoundarySurface::of(&mesh);
+        let stress: Vec<crate::fem::ElementStress> =
+            (0..mesh.tets.len()).map(|t| crate::fem::ElementStress { von_mises: 0.0, max_principal_strain: 0.01 * (t as f64 + 1.0) }).collect();
+        let (mut out, mut count) = (Vec::new(), Vec::new());
+        surface_strain(&surface, &stress, &mut out, &mut count);
+        assert_eq!(out.len(), surface.vertices.len());
+        for (v, &got) in out.iter().enumerate() {
+            let owners: Vec<f64> = surface
+                .triangles
+                .iter()
+                .zip(&surface.triangle_tet)
+                .filter(|(tri, _)| tri.contains(&(v as u32)))
+                .map(|(_, &t)| stress[t as usize].max_principal_strain)
+                .collect();
+            let mean = owners.iter().sum::<f64>() / owners.len() as f64;
+            assert!((got - mean).abs() < 1e-15, "vertex {v}: {got} vs {mean}");
+        }
+        surface_strain(&surface, &[], &mut out, &mut count);
+        assert!(out.is_empty(), "no stress, no field");
+        surface_strain(&surface, &stress[..1], &mut out, &mut count);
+        assert!(out.is_empty(), "stress of another mesh, no field");
     }
 }

@@ -268,6 +268,7 @@ impl App {
             SurfaceField::None => FieldChoice::None,
             SurfaceField::Displacement => FieldChoice::Field(FieldKind::DisplacementMm),
             SurfaceField::Pressure => FieldChoice::Field(FieldKind::ContactPressureMmHg),
+            SurfaceField::Strain => FieldChoice::Field(FieldKind::Strain),
         };
     }
 
@@ -411,8 +412,8 @@ impl App {
             FieldChoice::None => self.draw.field = SurfaceField::None,
             FieldChoice::Field(FieldKind::DisplacementMm) => self.draw.field = SurfaceField::Displacement,
             FieldChoice::Field(FieldKind::ContactPressureMmHg) => self.draw.field = SurfaceField::Pressure,
-            // Strain needs the interior solve of the StressField effect; shown plain.
-            FieldChoice::Field(FieldKind::Strain) => self.draw.field = SurfaceField::None,
+            // Plain when the scene has no StressField effect (the panel says so).
+            FieldChoice::Field(FieldKind::Strain) => self.draw.field = SurfaceField::Strain,
         }
         let Some(gpu) = self.gpu.as_mut() else { return };
         let mut textures = std::mem::take(&mut full.textures_delta);
@@ -491,7 +492,12 @@ impl App {
 }
 
 fn panel_data_of(front: &Snapshot, fps: f64) -> PanelData {
-    let mut data = PanelData { fps, sim_frame_ms: front.report.times.total() * 1e3, ..PanelData::default() };
+    let mut data = PanelData {
+        fps,
+        sim_frame_ms: front.report.times.total() * 1e3,
+        strain_available: !front.strain.is_empty(),
+        ..PanelData::default()
+    };
     for (slot, s) in data.spatulas.iter_mut().zip(&front.report.spatulas) {
         slot.force_n = [s.force.x, s.force.y, s.force.z];
         slot.mean_pressure_mmhg = s.mean_pressure_mmhg();
@@ -576,10 +582,12 @@ impl ApplicationHandler for App {
                         PhysicalKey::Code(KeyCode::KeyM) => self.preset(ViewPreset::Microscope),
                         PhysicalKey::Code(KeyCode::KeyO) => self.preset(ViewPreset::Overview),
                         PhysicalKey::Code(KeyCode::KeyF) => {
+                            let strain = !self.front.strain.is_empty();
                             self.set_field(match self.draw.field {
                                 SurfaceField::None => SurfaceField::Displacement,
                                 SurfaceField::Displacement => SurfaceField::Pressure,
-                                SurfaceField::Pressure => SurfaceField::None,
+                                SurfaceField::Pressure if strain => SurfaceField::Strain,
+                                SurfaceField::Pressure | SurfaceField::Strain => SurfaceField::None,
                             });
                         }
                         PhysicalKey::Code(KeyCode::KeyR) => {

@@ -26,6 +26,8 @@ pub enum FieldArg {
     None,
     Displacement,
     Pressure,
+    /// Largest principal strain (the scene needs the StressField effect).
+    Strain,
 }
 
 #[derive(Debug, clap::Args)]
@@ -68,6 +70,13 @@ pub fn parse_size(text: &str) -> Result<(u32, u32), String> {
 pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.time.is_finite() && args.time >= 0.0, "--time must be a finite number of seconds >= 0, got {}", args.time);
     let scenario = Scenario::load(&args.scenario, &args.set).with_context(|| format!("loading {}", args.scenario.display()))?;
+    if matches!(args.field, FieldArg::Strain) {
+        anyhow::ensure!(
+            scenario.effects.contains(fissure::scenario::Effect::StressField),
+            "{}: --field strain needs the StressField effect; add it to the scene's `effects` (or --set 'effects=[..., StressField]')",
+            args.scenario.display()
+        );
+    }
     let source = PoseSource::for_scenario(&scenario, None).context("loading the scenario's trajectory")?;
     let (mut pipeline, mut state) = Pipeline::build(
         &scenario,
@@ -87,6 +96,7 @@ pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
             FieldArg::None => SurfaceField::None,
             FieldArg::Displacement => SurfaceField::Displacement,
             FieldArg::Pressure => SurfaceField::Pressure,
+            FieldArg::Strain => SurfaceField::Strain,
         },
         source_nodes: args.overlays,
         pairs: args.overlays,

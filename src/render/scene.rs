@@ -22,7 +22,7 @@ pub const BACKGROUND: [f32; 3] = [0.015, 0.018, 0.025];
 pub enum FieldKind {
     /// Displacement magnitude, millimetres.
     DisplacementMm,
-    /// Equivalent strain, dimensionless.
+    /// Largest principal strain, dimensionless.
     Strain,
     /// Contact (retraction) pressure, mmHg.
     ContactPressureMmHg,
@@ -33,7 +33,7 @@ impl FieldKind {
     pub fn label(self) -> &'static str {
         match self {
             FieldKind::DisplacementMm => "displacement (mm)",
-            FieldKind::Strain => "strain (-)",
+            FieldKind::Strain => "max principal strain (-)",
             FieldKind::ContactPressureMmHg => "contact pressure (mmHg)",
         }
     }
