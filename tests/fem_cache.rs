@@ -106,3 +106,67 @@ fn contact_pressure_per_spatula() {
     assert!((p.mean_pressure_mmhg * PA_PER_MMHG - p.mean_pressure_pa).abs() < 1e-9 * p.mean_pressure_pa);
     println!("top-face press 1 mm: force {:.4} N, pressure {:.1} Pa = {:.2} mmHg", p.force.norm(), p.mean_pressure_pa, p.mean_pressure_mmhg);
 }
+
+/// Sets a file's modification time `age_s` seconds in the past.
+fn age(path: &std::path::Path, age_s: u64) {
+    let t = std::time::SystemTime::now() - std::time::Duration::from_secs(age_s);
+    std::fs::File::options().append(true).open(path).unwrap().set_modified(t).unwrap();
+}
+
+/// The cache directory stays under its budget: the least recently used
+/// compliance files go first, a load counts as a use, half-written files of a
+/// dead run go once stale, and files that are not ours stay.
+#[test]
+fn the_cache_directory_keeps_the_most_recently_used_files_within_its_budget() {
+    use fissure::fem::compliance::prune_cache_dir;
+    let dir = tempfile::tempdir().unwrap();
+    let file = |name: &str, bytes: usize, age_s: u64| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, vec![0u8; bytes]).unwrap();
+        age(&p, age_s);
+        p
+    };
+    let oldest = file("compliance-aaaa.bin", 400, 3000);
+    let older = file("compliance-bbbb.bin", 400, 2000);
+    let recent = file("compliance-cccc.bin", 400, 1000);
+    let kept = file("compliance-dddd.bin", 400, 0);
+    let stale_tmp = file("compliance-eeee.tmp123", 50, 7200);
+    let fresh_tmp = file("compliance-ffff.tmp456", 50, 10);
+    let other = file("notes.bin", 5000, 9000);
+    prune_cache_dir(&kept, 1300);
+    // kept 400 + recent 400 + older 400 = 1200 <= 1300; oldest would make 1600
+    assert!(kept.exists() && recent.exists() && older.exists(), "the newest files that fit stay");
+    assert!(!oldest.exists(), "the least recently used file goes");
+    assert!(!stale_tmp.exists() && fresh_tmp.exists(), "only stale half-written files go");
+    assert!(other.exists(), "files not named compliance-* are never touched");
+    prune_cache_dir(&kept, 0);
+    assert!(kept.exists() && !recent.exists() && !older.exists(), "the file just written stays even over budget");
+
+    // A reload marks its file as used.
+    let m = model(3e3);
+    let roi = m.surface().vertices.clone();
+    let cache = tempfile::tempdir().unwrap();
+    Compliance::compute(&m, &roi, ComplianceStorage::F64, Some(cache.path()), &mut |_, _| {}).unwrap();
+    let written: Vec<_> = std::fs::read_dir(cache.path()).unwrap().flatten().map(|e| e.path()).collect();
+    assert_eq!(written.len(), 1, "one cache file: {written:?}");
+    age(&written[0], 5000);
+    let before = std::fs::metadata(&written[0]).unwrap().modified().unwrap();
+    let again = Compliance::compute(&m, &roi, ComplianceStorage::F64, Some(cache.path()), &mut |_, _| {}).unwrap();
+    assert!(again.stats().from_cache);
+    assert!(std::fs::metadata(&written[0]).unwrap().modified().unwrap() > before, "a load marks the file as recently used");
+}
+
+/// A cache that cannot be written loses nothing: the compliance computed is
+/// returned (with a warning), equal to one computed without a cache.
+#[test]
+fn an_unwritable_cache_directory_is_not_an_error() {
+    let m = model(3e3);
+    let roi = m.surface().vertices.clone();
+    let dir = tempfile::tempdir().unwrap();
+    let blocker = dir.path().join("not_a_dir");
+    std::fs::write(&blocker, b"a file where the cache directory should be").unwrap();
+    let cached = Compliance::compute(&m, &roi, ComplianceStorage::F64, Some(&blocker.join("cache")), &mut |_, _| {}).unwrap();
+    let plain = Compliance::compute(&m, &roi, ComplianceStorage::F64, None, &mut |_, _| {}).unwrap();
+    assert!(!cached.stats().from_cache);
+    assert_eq!(all_blocks(&cached), all_blocks(&plain));
+}

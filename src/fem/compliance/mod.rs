@@ -311,6 +311,10 @@ impl Compliance {
                 Ok(values) => {
                     this.values = values;
                     this.stats = this.make_stats(0.0, t.elapsed().as_secs_f64(), true);
+                    // Most recently used first when the directory is pruned.
+                    if let Err(e) = std::fs::File::options().append(true).open(p).and_then(|f| f.set_modified(std::time::SystemTime::now())) {
+                        tracing::debug!("compliance cache {}: could not mark as used ({e})", p.display());
+                    }
                     progress(n_cols, n_cols);
                     return Ok(this);
                 }
@@ -325,7 +329,15 @@ impl Compliance {
         this.values = this.build(model, storage, progress)?;
         this.stats = this.make_stats(t.elapsed().as_secs_f64(), 0.0, false);
         if let Some(p) = &path {
-            this.save(p)?;
+            // The cache only saves time next run: a failure to write it loses
+            // nothing computed, so it is a warning, not an error.
+            match this.save(p) {
+                Ok(()) => prune_cache_dir(p, CACHE_DIR_BUDGET_BYTES),
+                Err(e) => {
+                    let _ = std::fs::remove_file(tmp_path(p));
+                    tracing::warn!("{e}; the compliance is used without a cache");
+                }
+            }
         }
         Ok(this)
     }
@@ -553,7 +565,7 @@ impl Compliance {
         if let Some(dir) = path.parent() {
             std::fs::create_dir_all(dir).map_err(err)?;
         }
-        let tmp: PathBuf = path.with_extension(format!("tmp{}", std::process::id()));
+        let tmp = tmp_path(path);
         let file = std::fs::File::create(&tmp).map_err(err)?;
         let mut w = std::io::BufWriter::with_capacity(1 << 22, file);
         let mut hasher = blake3::Hasher::new();
@@ -1189,6 +1201,64 @@ fn morton_codes(nodes: &[u32], positions: &[Vec3]) -> Vec<u64> {
 
 fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// A cache directory keeps its compliance files under this many bytes: after a
+/// new file is written, the least recently used others (modification time;
+/// a load marks a file as used) are removed until the rest fit.
+pub const CACHE_DIR_BUDGET_BYTES: u64 = 4 << 30;
+/// Half-written files (`compliance-*.tmp<pid>`) older than this are removed
+/// when the directory is pruned (a run that died while writing left them).
+const STALE_TMP_SECS: u64 = 3600;
+
+/// The file a cache is written to before it is renamed into place.
+fn tmp_path(path: &Path) -> PathBuf {
+    path.with_extension(format!("tmp{}", std::process::id()))
+}
+
+/// Removes the least recently used compliance files of `kept`'s directory
+/// until those left (with `kept`, which always stays) fit in `budget` bytes,
+/// and stale half-written files. Touches only files named `compliance-*`;
+/// failures are logged, never errors (the cache only saves time).
+pub fn prune_cache_dir(kept: &Path, budget: u64) {
+    let Some(dir) = kept.parent() else { return };
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    let now = std::time::SystemTime::now();
+    let mut files: Vec<(std::time::SystemTime, u64, PathBuf)> = Vec::new();
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        let Ok(meta) = entry.metadata() else { continue };
+        if !meta.is_file() || !name.starts_with("compliance-") {
+            continue;
+        }
+        let modified = meta.modified().unwrap_or(std::time::UNIX_EPOCH);
+        let is_tmp = path.extension().is_some_and(|e| e.to_string_lossy().starts_with("tmp"));
+        if is_tmp {
+            let old = now.duration_since(modified).is_ok_and(|age| age.as_secs() > STALE_TMP_SECS);
+            if old && let Err(e) = std::fs::remove_file(&path) {
+                tracing::warn!("compliance cache: could not remove stale {} ({e})", path.display());
+            }
+            continue;
+        }
+        if path.extension().is_some_and(|e| e == "bin") && path != kept {
+            files.push((modified, meta.len(), path));
+        }
+    }
+    let mut used = std::fs::metadata(kept).map(|m| m.len()).unwrap_or(0);
+    // newest first; ties by path, so the choice does not depend on directory order
+    files.sort_by(|a, b| b.0.cmp(&a.0).then_with(|| a.2.cmp(&b.2)));
+    for (_, len, path) in files {
+        if used + len <= budget {
+            used += len;
+            continue;
+        }
+        match std::fs::remove_file(&path) {
+            Ok(()) => tracing::info!("compliance cache: removed least recently used {} ({} MB) to stay under {} MB", path.display(), len >> 20, budget >> 20),
+            Err(e) => tracing::warn!("compliance cache: could not remove {} ({e})", path.display()),
+        }
+    }
 }
 
 #[cfg(test)]
