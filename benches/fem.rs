@@ -304,7 +304,8 @@ fn write_sweep(name: &str, sweep: &[(usize, Measure)], dir: &Path) -> Result<Pat
         .label_style(("sans-serif", 16))
         .draw()
         .map_err(|e| err(&e))?;
-    let series: [(&str, RGBColor, fn(&Measure) -> f64); 4] = [
+    type Series = (&'static str, RGBColor, fn(&Measure) -> f64);
+    let series: [Series; 4] = [
         ("frame p95", RGBColor(23, 190, 207), |m| m.p95),
         ("frame p50", RGBColor(31, 119, 180), |m| m.p50),
         ("W gather + factor + solve (mean)", RGBColor(214, 39, 40), |m| m.phases[1]),
