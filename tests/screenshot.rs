@@ -29,14 +29,16 @@ fn classify(image: &image::RgbaImage) -> (usize, usize, usize, usize) {
     (background, brain, cool, warm)
 }
 
-#[test]
-fn default_scene_shows_the_brain_and_both_spatulas() {
+/// Runs `fissure screenshot` on the default scene with `args` into `DIR/name`;
+/// the image, or `None` (after saying so) when the binary finds no GPU adapter.
+fn shoot(name: &str, args: &[&str]) -> Option<(image::RgbaImage, String)> {
     let dir = tempfile::tempdir().expect("temp dir");
-    let out = dir.path().join("shot.png");
+    let out = dir.path().join(name);
     let output = Command::new(env!("CARGO_BIN_EXE_fissure"))
         .args(["screenshot"])
         .arg(scenario())
-        .args(["--time", "4.5", "--size", "480x300", "-o"])
+        .args(args)
+        .arg("-o")
         .arg(&out)
         .env("XDG_RUNTIME_DIR", dir.path())
         .output()
@@ -44,14 +46,19 @@ fn default_scene_shows_the_brain_and_both_spatulas() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     if !output.status.success() && stderr.contains("no GPU adapter") {
         eprintln!("skipping: no GPU adapter ({stderr})");
-        return;
+        return None;
     }
     assert!(output.status.success(), "screenshot failed: {stderr}");
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    assert!(stdout.contains("after 450 frames"), "4.5 s at 10 ms is 450 frames: {stdout}");
     let image = image::open(&out).expect("a PNG was written").to_rgba8();
+    let _ = image.save(std::env::temp_dir().join(format!("screenshot_test_{name}")));
+    Some((image, String::from_utf8_lossy(&output.stdout).into_owned()))
+}
+
+#[test]
+fn default_scene_shows_the_brain_and_both_spatulas() {
+    let Some((image, stdout)) = shoot("default.png", &["--time", "4.5", "--size", "480x300"]) else { return };
+    assert!(stdout.contains("after 450 frames"), "4.5 s at 10 ms is 450 frames: {stdout}");
     assert_eq!(image.dimensions(), (480, 300), "--size must set the image size");
-    let _ = image.save(std::env::temp_dir().join("screenshot_test_default.png"));
     let total = (480 * 300) as usize;
     let (background, brain, cool, warm) = classify(&image);
     assert!(background > total / 5, "the background must show around the brain: {background} of {total}");
@@ -74,8 +81,9 @@ fn bad_arguments_are_refused_with_a_message() {
 }
 
 /// `--field strain` colours the surface by the largest principal strain when
-/// the scene computes stress: high strain (viridis teals to yellows) shows where the blades stretch the fissure's walls; without the
-/// StressField effect the field is refused with a message naming the fix.
+/// the scene computes stress: high strain (viridis teals to yellows) shows
+/// where the blades stretch the fissure's walls; without the StressField
+/// effect the field is refused with a message naming the fix.
 #[test]
 fn strain_field_shows_where_the_blades_stretch_the_tissue() {
     let refused = Command::new(env!("CARGO_BIN_EXE_fissure"))
@@ -88,26 +96,23 @@ fn strain_field_shows_where_the_blades_stretch_the_tissue() {
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert!(stderr.contains("StressField") && stderr.contains("sylvian.ron"), "the error must name the file and the missing effect: {stderr}");
 
-    let dir = tempfile::tempdir().expect("temp dir");
-    let out = dir.path().join("strain.png");
-    let output = Command::new(env!("CARGO_BIN_EXE_fissure"))
-        .args(["screenshot"])
-        .arg(scenario())
-        .args(["--time", "4.0", "--size", "400x250", "--view", "microscope", "--field", "strain"])
-        .args(["--set", "effects=[Collision, Culling, SkullSpheres, ForceOutput, ContactPressure, StressField]"])
-        .args(["--set", "time_step_s=0.02", "--set", "solver.cache_dir=None", "-o"])
-        .arg(&out)
-        .env("XDG_RUNTIME_DIR", dir.path())
-        .output()
-        .expect("run fissure");
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    if !output.status.success() && stderr.contains("no GPU adapter") {
-        eprintln!("skipping: no GPU adapter ({stderr})");
-        return;
-    }
-    assert!(output.status.success(), "screenshot failed: {stderr}");
-    let image = image::open(&out).expect("a PNG was written").to_rgba8();
-    let _ = image.save(std::env::temp_dir().join("screenshot_test_strain.png"));
+    let args = [
+        "--time",
+        "4.0",
+        "--size",
+        "400x250",
+        "--view",
+        "microscope",
+        "--field",
+        "strain",
+        "--set",
+        "effects=[Collision, Culling, SkullSpheres, ForceOutput, ContactPressure, StressField]",
+        "--set",
+        "time_step_s=0.02",
+        "--set",
+        "solver.cache_dir=None",
+    ];
+    let Some((image, _)) = shoot("strain.png", &args) else { return };
     // viridis from teal up: green above red, and not below blue (the blade's steel is blue above green)
     let strained = image
         .pixels()
