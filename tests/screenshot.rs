@@ -80,22 +80,12 @@ fn bad_arguments_are_refused_with_a_message() {
     assert!(stderr.contains("1..=8192"), "the error must say the valid range: {stderr}");
 }
 
-/// `--field strain` colours the surface by the largest principal strain when
-/// the scene computes stress: high strain (viridis teals to yellows) shows
-/// where the blades stretch the fissure's walls; without the StressField
-/// effect the field is refused with a message naming the fix.
+/// `--field strain` colours the surface by the largest principal strain:
+/// high strain (viridis teals to yellows) shows where the blades stretch the
+/// fissure's walls. The default scene has no StressField stage, so the
+/// screenshot computes the stress of the frame it shows.
 #[test]
 fn strain_field_shows_where_the_blades_stretch_the_tissue() {
-    let refused = Command::new(env!("CARGO_BIN_EXE_fissure"))
-        .args(["screenshot"])
-        .arg(scenario())
-        .args(["--field", "strain", "-o", "/nonexistent/x.png"])
-        .output()
-        .expect("run fissure");
-    assert!(!refused.status.success(), "strain without StressField must be refused");
-    let stderr = String::from_utf8_lossy(&refused.stderr);
-    assert!(stderr.contains("StressField") && stderr.contains("sylvian.ron"), "the error must name the file and the missing effect: {stderr}");
-
     let args = [
         "--time",
         "4.0",
@@ -105,8 +95,6 @@ fn strain_field_shows_where_the_blades_stretch_the_tissue() {
         "microscope",
         "--field",
         "strain",
-        "--set",
-        "effects=[Collision, Culling, SkullSpheres, ForceOutput, ContactPressure, StressField]",
         "--set",
         "time_step_s=0.02",
         "--set",

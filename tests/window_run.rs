@@ -1,6 +1,7 @@
 //! The window under Xvfb: `fissure run` opens the default scene, a script
 //! records, pushes the frontal spatula into the fissure with the keyboard map
-//! (W: along the blade), switches view and colour, and the run stops after a
+//! (W: along the blade), switches view and colour (pressure, then strain from
+//! the background stress worker), and the run stops after a
 //! set number of simulation frames with exit code 0. Then the recording round
 //! trip: the recorded CSV holds every frame's poses, ends at the window's
 //! final pose, and replayed headless gives the window's peak force.
@@ -42,7 +43,7 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
     std::fs::write(
         &script,
         format!(
-            "0.0 record {}\n0.05 press W\n1.65 release W\n1.7 press E\n2.2 release E\n0.3 view microscope\n0.5 field pressure\n",
+            "0.0 record {}\n0.05 press W\n1.65 release W\n1.7 press E\n2.2 release E\n0.3 view microscope\n0.5 field pressure\n1.2 field strain\n",
             recording.display()
         ),
     )
@@ -65,6 +66,13 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
         .expect("a window line with the presented frame count");
     assert!(presented >= 1, "the window must present frames: {stdout}");
     assert!(stdout.contains("0 failed"), "no simulation frame may fail: {stdout}");
+    // From 1.2 s the strain colour is shown; sylvian.ron has no StressField
+    // stage, so its stress comes from the background worker.
+    let strain_frames: u64 = line_after(&stdout, "strain colour from the background stress worker: ")
+        .and_then(|l| l.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("a line counting the frames shown with background strain");
+    assert!(strain_frames > 0, "the strain colour must get stress from the worker: {stdout}");
 
     // W held for 1.6 s at 10 mm/s moves the frontal blade 16 mm along +x (its
     // blade axis is world +x); E then lifts it 5 mm along its face normal.

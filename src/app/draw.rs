@@ -138,7 +138,7 @@ impl Snapshot {
                 }
             }
         }
-        surface_strain(surface, &state.stress, &mut self.strain, &mut self.strain_count);
+        self.set_strain(surface, &state.stress);
         self.source_nodes.clear();
         self.pairs.clear();
         if let Some(collision) = pipeline.collision() {
@@ -157,6 +157,14 @@ impl Snapshot {
                 self.pairs.extend(segment(p.spatula, p.face, p.node, p.t, false));
             }
         }
+    }
+}
+
+impl Snapshot {
+    /// Sets [`Snapshot::strain`] from per-tet stress (empty when `stress` is
+    /// not one entry per tet of `surface`'s mesh).
+    pub fn set_strain(&mut self, surface: &crate::mesh::BoundarySurface, stress: &[crate::fem::ElementStress]) {
+        surface_strain(surface, stress, &mut self.strain, &mut self.strain_count);
     }
 }
 

@@ -3,7 +3,7 @@
 //!
 //! In: text, one action a line: `TIME_S ACTION [ARG]`, `#` starts a comment.
 //! Actions: `press KEY`, `release KEY` (KEY: W A S D Q E Up Down Left Right
-//! PageUp PageDown Tab Shift), `record PATH`, `stop`, `field none|displacement|pressure`,
+//! PageUp PageDown Tab Shift), `record PATH`, `stop`, `field none|displacement|pressure|strain`,
 //! `view overview|microscope`, `quit`. Out: a [`Script`] sorted by time.
 //! Stays true: key and record actions fire on the simulation thread at the first
 //! frame whose simulated time reaches TIME_S, so a script drives the simulation
@@ -106,7 +106,8 @@ impl Script {
                     Some("none") => SurfaceField::None,
                     Some("displacement") => SurfaceField::Displacement,
                     Some("pressure") => SurfaceField::Pressure,
-                    _ => return Err(need("none, displacement or pressure")),
+                    Some("strain") => SurfaceField::Strain,
+                    _ => return Err(need("none, displacement, pressure or strain")),
                 }),
                 "view" => ScriptAction::View(match arg {
                     Some("overview") => ViewPreset::Overview,

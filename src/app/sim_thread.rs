@@ -44,6 +44,10 @@ pub enum SimCommand {
     SetBackend(CollisionBackend),
     /// Load another scenario (rebuild, restart at time 0).
     LoadScenario(PathBuf),
+    /// The window shows (true) or stops showing the strain colour: a scene
+    /// without the StressField stage then gets its stress from a background
+    /// worker on the other core (never waited for; a frame or more behind).
+    ShowStrain(bool),
     /// Stop after the current frame.
     Quit,
 }
@@ -86,6 +90,8 @@ pub struct SimExit {
     pub state_hash: String,
     pub failed_frames: u64,
     pub recording: Option<PathBuf>,
+    /// Frames published with a strain field from the background stress worker.
+    pub background_strain_frames: u64,
 }
 
 /// Options of the thread.
@@ -217,6 +223,48 @@ fn start_recording(path: &PathBuf, history: &History) -> Result<TrajectoryRecord
     Ok(rec)
 }
 
+/// The strain colour for a scene without the StressField stage: a background
+/// worker, started when the window first asks for strain.
+#[derive(Default)]
+struct BackgroundStrain {
+    wanted: bool,
+    worker: Option<crate::fem::StressWorker>,
+    /// Set when the worker could not start or stopped: no more tries.
+    failed: bool,
+    /// The newest stress the worker finished (empty: none yet).
+    stress: Vec<crate::fem::ElementStress>,
+}
+
+impl BackgroundStrain {
+    /// Posts this frame's forces and picks up the newest finished stress;
+    /// true when there is stress to show. Never waits; failures go to the status line once.
+    fn update(&mut self, pipeline: &Pipeline, state: &SimState, shared: &SimShared) -> bool {
+        if !self.wanted || self.failed || pipeline.effects().contains(Effect::StressField) {
+            return false;
+        }
+        if self.worker.is_none() {
+            match crate::fem::StressWorker::start(pipeline.solver().model()) {
+                Ok(w) => self.worker = Some(w),
+                Err(e) => {
+                    self.failed = true;
+                    *lock(&shared.status) = format!("strain colour unavailable: {e}");
+                    return false;
+                }
+            }
+        }
+        let Some(worker) = self.worker.as_mut() else { return false };
+        worker.post(state.frame, pipeline.solver().last_forces());
+        worker.take(&mut self.stress);
+        if let Some(reason) = worker.take_failure() {
+            self.failed = true;
+            self.worker = None;
+            *lock(&shared.status) = format!("strain colour stopped: {reason}");
+            return false;
+        }
+        !self.stress.is_empty()
+    }
+}
+
 fn run_loop(
     mut b: Built,
     shared: &SimShared,
@@ -239,6 +287,7 @@ fn run_loop(
     exit.peak_force_n = vec![0.0; b.state.poses.len()];
     let mut next = Instant::now();
     let mut quit = false;
+    let mut strain = BackgroundStrain::default();
     'outer: loop {
         // Commands from the window.
         loop {
@@ -286,12 +335,19 @@ fn run_loop(
                     Ok(s) => rebuild = Some(s),
                     Err(e) => *lock(&shared.status) = format!("cannot load {}: {e}", path.display()),
                 },
+                SimCommand::ShowStrain(on) => {
+                    strain.wanted = on;
+                    strain.stress.clear();
+                }
             }
             if let Some(s) = rebuild {
                 // A rebuild restarts at rest: the history and any recording end here.
                 match build(s, shared) {
                     Ok(nb) => {
                         b = nb;
+                        // another model: the worker's factor and mesh are stale
+                        strain.worker = None;
+                        strain.stress.clear();
                         guards = b.state.poses.iter().map(|p| PoseGuard::new(*p, "window")).collect();
                         history.rows.clear();
                         recorder = None;
@@ -386,6 +442,10 @@ fn run_loop(
                     h.publish(Arc::new(model));
                 }
                 back.capture(&b.pipeline, &b.state, &report, &b.areas);
+                if strain.update(&b.pipeline, &b.state, shared) {
+                    back.set_strain(b.pipeline.surface(), &strain.stress);
+                    exit.background_strain_frames += 1;
+                }
                 shared.frames.publish(&mut back);
             }
             Err(e) => {

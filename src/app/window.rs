@@ -124,6 +124,8 @@ struct App {
     generation: u64,
     buffers: SceneBuffers,
     draw: DrawOptions,
+    /// What the simulation was last told about the strain colour.
+    strain_told: bool,
     camera: OrbitCamera,
     camera_set: bool,
     keyboard: KeyboardController,
@@ -225,6 +227,7 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
         generation: 0,
         buffers: SceneBuffers::default(),
         draw: DrawOptions::default(),
+        strain_told: false,
         camera: OrbitCamera::default(),
         camera_set: false,
         keyboard: KeyboardController::new(KeyboardMapping::default()),
@@ -260,6 +263,16 @@ impl App {
     fn preset(&mut self, preset: ViewPreset) {
         // camera_for needs the pipeline only for the mesh box and blade shapes, both in SceneStatic.
         self.camera = camera_for_static(preset, &self.scene, &self.front.poses);
+    }
+
+    /// Tells the simulation whether the strain colour is shown (it then
+    /// computes stress in the background when the scene has no StressField stage).
+    fn tell_strain(&mut self) {
+        let on = self.draw.field == SurfaceField::Strain;
+        if on != self.strain_told {
+            self.strain_told = on;
+            self.send(SimCommand::ShowStrain(on));
+        }
     }
 
     fn set_field(&mut self, field: SurfaceField) {
@@ -412,9 +425,9 @@ impl App {
             FieldChoice::None => self.draw.field = SurfaceField::None,
             FieldChoice::Field(FieldKind::DisplacementMm) => self.draw.field = SurfaceField::Displacement,
             FieldChoice::Field(FieldKind::ContactPressureMmHg) => self.draw.field = SurfaceField::Pressure,
-            // Plain when the scene has no StressField effect (the panel says so).
             FieldChoice::Field(FieldKind::Strain) => self.draw.field = SurfaceField::Strain,
         }
+        self.tell_strain();
         let Some(gpu) = self.gpu.as_mut() else { return };
         let mut textures = std::mem::take(&mut full.textures_delta);
         let paint_jobs = self.egui.tessellate(full.shapes, full.pixels_per_point);
@@ -492,12 +505,7 @@ impl App {
 }
 
 fn panel_data_of(front: &Snapshot, fps: f64) -> PanelData {
-    let mut data = PanelData {
-        fps,
-        sim_frame_ms: front.report.times.total() * 1e3,
-        strain_available: !front.strain.is_empty(),
-        ..PanelData::default()
-    };
+    let mut data = PanelData { fps, sim_frame_ms: front.report.times.total() * 1e3, ..PanelData::default() };
     for (slot, s) in data.spatulas.iter_mut().zip(&front.report.spatulas) {
         slot.force_n = [s.force.x, s.force.y, s.force.z];
         slot.mean_pressure_mmhg = s.mean_pressure_mmhg();
@@ -582,12 +590,11 @@ impl ApplicationHandler for App {
                         PhysicalKey::Code(KeyCode::KeyM) => self.preset(ViewPreset::Microscope),
                         PhysicalKey::Code(KeyCode::KeyO) => self.preset(ViewPreset::Overview),
                         PhysicalKey::Code(KeyCode::KeyF) => {
-                            let strain = !self.front.strain.is_empty();
                             self.set_field(match self.draw.field {
                                 SurfaceField::None => SurfaceField::Displacement,
                                 SurfaceField::Displacement => SurfaceField::Pressure,
-                                SurfaceField::Pressure if strain => SurfaceField::Strain,
-                                SurfaceField::Pressure | SurfaceField::Strain => SurfaceField::None,
+                                SurfaceField::Pressure => SurfaceField::Strain,
+                                SurfaceField::Strain => SurfaceField::None,
                             });
                         }
                         PhysicalKey::Code(KeyCode::KeyR) => {

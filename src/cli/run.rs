@@ -124,6 +124,9 @@ pub fn run(scenario: Option<&Path>, set: &[String], headless_only: bool, args: &
             if let Some(r) = &sim.recording {
                 println!("  recorded {}", r.display());
             }
+            if sim.background_strain_frames > 0 {
+                println!("  strain colour from the background stress worker: {} frames", sim.background_strain_frames);
+            }
             println!("  final state {}", sim.state_hash);
             Ok(())
         }

@@ -26,7 +26,7 @@ pub enum FieldArg {
     None,
     Displacement,
     Pressure,
-    /// Largest principal strain (the scene needs the StressField effect).
+    /// Largest principal strain (computed for the shown frame when the scene has no StressField stage).
     Strain,
 }
 
@@ -70,13 +70,6 @@ pub fn parse_size(text: &str) -> Result<(u32, u32), String> {
 pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.time.is_finite() && args.time >= 0.0, "--time must be a finite number of seconds >= 0, got {}", args.time);
     let scenario = Scenario::load(&args.scenario, &args.set).with_context(|| format!("loading {}", args.scenario.display()))?;
-    if matches!(args.field, FieldArg::Strain) {
-        anyhow::ensure!(
-            scenario.effects.contains(fissure::scenario::Effect::StressField),
-            "{}: --field strain needs the StressField effect; add it to the scene's `effects` (or --set 'effects=[..., StressField]')",
-            args.scenario.display()
-        );
-    }
     let source = PoseSource::for_scenario(&scenario, None).context("loading the scenario's trajectory")?;
     let (mut pipeline, mut state) = Pipeline::build(
         &scenario,
@@ -90,6 +83,11 @@ pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
     for k in 0..steps {
         source.poses_at((k + 1) as f64 * dt, &mut input);
         report = pipeline.step(&mut state, &input).with_context(|| format!("frame {k}"))?.clone();
+    }
+    if matches!(args.field, FieldArg::Strain) && state.stress.is_empty() {
+        // No StressField stage: the stress of this one frame, on demand.
+        let u = pipeline.node_displacement(&state).context("interior displacements for --field strain")?;
+        fissure::fem::element_stress(pipeline.solver().model(), &u, &mut state.stress).context("stress for --field strain")?;
     }
     let options = DrawOptions {
         field: match args.field {

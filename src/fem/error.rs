@@ -49,6 +49,9 @@ pub enum FemError {
     /// A memory request could not be met.
     #[error("out of memory while allocating {what} ({bytes} bytes)")]
     OutOfMemory { what: &'static str, bytes: usize },
+    /// A background thread could not be started.
+    #[error("{what} thread did not start: {reason}")]
+    ThreadStart { what: &'static str, reason: String },
 }
 
 fn region_name(region: Option<u32>) -> String {

@@ -13,6 +13,7 @@
 //! (+ `dense`, skull rows inside) -> `stress`, `contact`.
 
 pub mod assembly;
+pub mod background_stress;
 pub mod compliance;
 pub mod constrained;
 pub mod contact;
@@ -33,4 +34,5 @@ pub use contact::{ContactPatch, PA_PER_MMHG, RETRACTION_DANGER_PA, contact_patch
 pub use element::{Material, RegionMaterials};
 pub use error::FemError;
 pub use model::{BodyForce, FemModel, FemOptions, FemStats};
-pub use stress::{ElementStress, element_stress};
+pub use background_stress::StressWorker;
+pub use stress::{ElementStress, element_stress, tet_stress};

@@ -47,7 +47,15 @@ pub fn largest_symmetric_eigenvalue(a: &Matrix3<f64>) -> f64 {
 
 /// Computes [`ElementStress`] for every tet into `out` (resized).
 pub fn element_stress(model: &FemModel, displacement: &[Vec3], out: &mut Vec<ElementStress>) -> Result<(), FemError> {
-    let mesh = model.mesh();
+    tet_stress(model.mesh(), model.lame(), displacement, out)
+}
+
+/// [`element_stress`] from the mesh and the Lame parameters per tet (what a
+/// background worker keeps of a model).
+pub fn tet_stress(mesh: &crate::mesh::TetMesh, lame: &[(f64, f64)], displacement: &[Vec3], out: &mut Vec<ElementStress>) -> Result<(), FemError> {
+    if lame.len() != mesh.tets.len() {
+        return Err(FemError::LengthMismatch { what: "Lame parameters", expected: mesh.tets.len(), got: lame.len() });
+    }
     if displacement.len() != mesh.node_count() {
         return Err(FemError::LengthMismatch { what: "nodal displacements", expected: mesh.node_count(), got: displacement.len() });
     }
@@ -58,7 +66,7 @@ pub fn element_stress(model: &FemModel, displacement: &[Vec3], out: &mut Vec<Ele
         let u = tet.map(|n| displacement[n as usize]);
         let (g, _) = shape_gradients(&p);
         let e = strain(&g, &u);
-        let (lambda, mu) = model.lame()[t];
+        let (lambda, mu) = lame[t];
         let s = stress(&e, lambda, mu);
         let dev = s - Matrix3::identity() * (s.trace() / 3.0);
         let von_mises = (1.5 * dev.component_mul(&dev).sum()).sqrt();

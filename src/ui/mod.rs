@@ -151,8 +151,6 @@ pub struct PanelData {
     /// Simulation frame time, ms.
     pub sim_frame_ms: f64,
     pub spatulas: [SpatulaReadout; 2],
-    /// The scene computes stress (StressField), so the strain colour has data.
-    pub strain_available: bool,
 }
 
 /// Field shown on the surface.
@@ -255,11 +253,6 @@ pub fn draw_panel(
                 FieldKind::Strain,
                 FieldKind::ContactPressureMmHg,
             ] {
-                if kind == FieldKind::Strain && !data.strain_available {
-                    ui.add_enabled(false, egui::RadioButton::new(false, kind.label()))
-                        .on_disabled_hover_text("needs the StressField effect in the scene's effects (an interior solve each frame)");
-                    continue;
-                }
                 ui.radio_value(&mut state.field, FieldChoice::Field(kind), kind.label());
             }
             ui.checkbox(&mut state.show_source_nodes, "source nodes");

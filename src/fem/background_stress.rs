@@ -1,0 +1,182 @@
+//! Per-tet stress on a background thread, for a display that wants it without
+//! the scene's synchronous StressField stage.
+//!
+//! In: after a frame, that frame's nodal forces on the tissue
+//! ([`super::ConstrainedSolver::last_forces`]). Out: now and then, the stress
+//! of every tet for the newest frame the worker finished (one interior sparse
+//! solve and the stress pass, about 20 ms on paper-12k, on the other core).
+//! Stays true: the simulation never waits for it (a newer request replaces one
+//! not yet started, so the worker is never more than one solve behind); values
+//! equal what [`super::element_stress`] gives for the same forces; a worker
+//! that fails reports it once and stops; dropping this ends the thread after
+//! its current solve without waiting for it. Not for replays: which frames get
+//! stress depends on timing (replays use the StressField stage).
+
+use super::assembly::DofMap;
+use super::constrained::displacements_from_forces;
+use super::factor::SparseCholesky;
+use super::stress::{ElementStress, tet_stress};
+use super::{FemError, FemModel};
+use crate::math::Vec3;
+use crate::mesh::TetMesh;
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+
+/// What the worker keeps of the model.
+struct Inputs {
+    chol: Arc<SparseCholesky>,
+    dofs: DofMap,
+    body_force: Vec<f64>,
+    mesh: TetMesh,
+    lame: Vec<(f64, f64)>,
+}
+
+#[derive(Default)]
+struct Exchange {
+    /// The newest frame's forces not yet taken by the worker.
+    request: Option<(u64, Vec<(u32, Vec3)>)>,
+    /// The newest finished frame and its stress, until taken.
+    result: Option<(u64, Vec<ElementStress>)>,
+    /// Set when the owner is dropped.
+    closed: bool,
+    /// Set (with the reason) when the worker failed.
+    failed: Option<String>,
+}
+
+type Shared = Arc<(Mutex<Exchange>, Condvar)>;
+
+fn lock(shared: &Shared) -> MutexGuard<'_, Exchange> {
+    shared.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// The background stress worker of one model.
+pub struct StressWorker {
+    shared: Shared,
+    failure_reported: bool,
+}
+
+impl std::fmt::Debug for StressWorker {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("StressWorker").finish_non_exhaustive()
+    }
+}
+
+impl StressWorker {
+    /// Starts the worker thread for `model` (a copy of its mesh and materials,
+    /// the shared factor). Err when the thread cannot start.
+    pub fn start(model: &FemModel) -> Result<Self, FemError> {
+        let inputs = Inputs {
+            chol: Arc::clone(&model.chol),
+            dofs: model.dofs.clone(),
+            body_force: model.body_force.clone(),
+            mesh: model.mesh.clone(),
+            lame: model.lame.clone(),
+        };
+        let shared: Shared = Arc::default();
+        let theirs = Arc::clone(&shared);
+        std::thread::Builder::new()
+            .name("fissure-stress".into())
+            .spawn(move || work(&inputs, &theirs))
+            .map_err(|e| FemError::ThreadStart { what: "background stress", reason: e.to_string() })?;
+        Ok(Self { shared, failure_reported: false })
+    }
+
+    /// Asks for the stress of frame `frame` with these forces; replaces a
+    /// request the worker has not started. Never waits for the worker.
+    pub fn post(&self, frame: u64, forces: &[(u32, Vec3)]) {
+        let mut x = lock(&self.shared);
+        match x.request.as_mut() {
+            Some((f, v)) => {
+                *f = frame;
+                v.clear();
+                v.extend_from_slice(forces);
+            }
+            None => x.request = Some((frame, forces.to_vec())),
+        }
+        drop(x);
+        self.shared.1.notify_one();
+    }
+
+    /// Moves the newest finished stress into `out` and returns its frame;
+    /// `None` when nothing new has finished since the last call.
+    pub fn take(&self, out: &mut Vec<ElementStress>) -> Option<u64> {
+        let (frame, stress) = lock(&self.shared).result.take()?;
+        *out = stress;
+        Some(frame)
+    }
+
+    /// The reason the worker stopped, the first time it is asked after the failure.
+    pub fn take_failure(&mut self) -> Option<String> {
+        if self.failure_reported {
+            return None;
+        }
+        let reason = lock(&self.shared).failed.clone()?;
+        self.failure_reported = true;
+        Some(reason)
+    }
+
+    /// Waits until the worker has finished frame `frame` or a later one and
+    /// moves that stress into `out` (tests and tools; the frame loop never waits).
+    /// `None` when the worker failed.
+    pub fn wait_for(&self, frame: u64, out: &mut Vec<ElementStress>) -> Option<u64> {
+        let mut x = lock(&self.shared);
+        loop {
+            if x.failed.is_some() {
+                return None;
+            }
+            if let Some((f, _)) = &x.result
+                && *f >= frame
+            {
+                let (f, stress) = x.result.take()?;
+                *out = stress;
+                return Some(f);
+            }
+            x = self.shared.1.wait(x).unwrap_or_else(std::sync::PoisonError::into_inner);
+        }
+    }
+}
+
+impl Drop for StressWorker {
+    fn drop(&mut self) {
+        lock(&self.shared).closed = true;
+        self.shared.1.notify_all();
+    }
+}
+
+fn work(inputs: &Inputs, shared: &Shared) {
+    let (mut rhs, mut scratch, mut nodes) = (Vec::new(), None, Vec::new());
+    loop {
+        let (frame, forces) = {
+            let mut x = lock(shared);
+            loop {
+                if x.closed {
+                    return;
+                }
+                if let Some(request) = x.request.take() {
+                    break request;
+                }
+                x = shared.1.wait(x).unwrap_or_else(std::sync::PoisonError::into_inner);
+            }
+        };
+        let mut stress = Vec::new();
+        let result = displacements_from_forces(
+            (&inputs.chol, &inputs.dofs, &inputs.body_force),
+            inputs.mesh.node_count(),
+            &forces,
+            (&mut rhs, &mut scratch),
+            &mut nodes,
+        )
+        .and_then(|()| tet_stress(&inputs.mesh, &inputs.lame, &nodes, &mut stress));
+        let mut x = lock(shared);
+        match result {
+            Ok(()) => x.result = Some((frame, stress)),
+            Err(e) => {
+                x.failed = Some(format!("background stress stopped: {e}"));
+                drop(x);
+                shared.1.notify_all();
+                return;
+            }
+        }
+        drop(x);
+        shared.1.notify_all();
+    }
+}
