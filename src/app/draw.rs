@@ -31,7 +31,7 @@ pub enum SurfaceField {
     /// Contact pressure at each constrained vertex, mmHg (0..2x the 20 mmHg line).
     Pressure,
     /// Largest principal strain of the tets under each vertex (0..[`STRAIN_FULL_SCALE`]);
-    /// only a scene with the StressField effect has it (plain otherwise).
+    /// plain while the snapshot has no strain yet.
     Strain,
 }
 
@@ -74,8 +74,8 @@ pub struct Snapshot {
     /// Contact pressure per surface vertex, mmHg (0 where not in contact).
     pub pressure_mmhg: Vec<f64>,
     /// Largest principal strain per surface vertex: the mean over the tets that
-    /// own its boundary triangles. Empty when the scene computes no stress
-    /// (no StressField effect).
+    /// own its boundary triangles, from the StressField stage or the window's
+    /// background stress worker. Empty when neither has given stress.
     pub strain: Vec<f64>,
     /// Scratch of [`surface_strain`]: boundary triangles per vertex.
     strain_count: Vec<u32>,

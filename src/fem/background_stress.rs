@@ -7,7 +7,8 @@
 //! solve and the stress pass, about 20 ms on paper-12k, on the other core).
 //! Stays true: the simulation never waits for it (a newer request replaces one
 //! not yet started, so the worker is never more than one solve behind); values
-//! equal what [`super::element_stress`] gives for the same forces; a worker
+//! equal what [`super::element_stress`] gives for the same forces; buffers go
+//! back and forth, so a steady state allocates nothing; a worker
 //! that fails reports it once and stops; dropping this ends the thread after
 //! its current solve without waiting for it. Not for replays: which frames get
 //! stress depends on timing (replays use the StressField stage).
@@ -40,6 +41,9 @@ struct Exchange {
     closed: bool,
     /// Set (with the reason) when the worker failed.
     failed: Option<String>,
+    /// Buffers handed back for reuse, so that a steady state allocates nothing.
+    spare_forces: Vec<(u32, Vec3)>,
+    spare_stress: Vec<ElementStress>,
 }
 
 type Shared = Arc<(Mutex<Exchange>, Condvar)>;
@@ -90,7 +94,12 @@ impl StressWorker {
                 v.clear();
                 v.extend_from_slice(forces);
             }
-            None => x.request = Some((frame, forces.to_vec())),
+            None => {
+                let mut v = std::mem::take(&mut x.spare_forces);
+                v.clear();
+                v.extend_from_slice(forces);
+                x.request = Some((frame, v));
+            }
         }
         drop(x);
         self.shared.1.notify_one();
@@ -99,8 +108,9 @@ impl StressWorker {
     /// Moves the newest finished stress into `out` and returns its frame;
     /// `None` when nothing new has finished since the last call.
     pub fn take(&self, out: &mut Vec<ElementStress>) -> Option<u64> {
-        let (frame, stress) = lock(&self.shared).result.take()?;
-        *out = stress;
+        let mut x = lock(&self.shared);
+        let (frame, stress) = x.result.take()?;
+        x.spare_stress = std::mem::replace(out, stress);
         Some(frame)
     }
 
@@ -127,7 +137,7 @@ impl StressWorker {
                 && *f >= frame
             {
                 let (f, stress) = x.result.take()?;
-                *out = stress;
+                x.spare_stress = std::mem::replace(out, stress);
                 return Some(f);
             }
             x = self.shared.1.wait(x).unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -145,19 +155,18 @@ impl Drop for StressWorker {
 fn work(inputs: &Inputs, shared: &Shared) {
     let (mut rhs, mut scratch, mut nodes) = (Vec::new(), None, Vec::new());
     loop {
-        let (frame, forces) = {
+        let (frame, forces, mut stress) = {
             let mut x = lock(shared);
             loop {
                 if x.closed {
                     return;
                 }
-                if let Some(request) = x.request.take() {
-                    break request;
+                if let Some((frame, forces)) = x.request.take() {
+                    break (frame, forces, std::mem::take(&mut x.spare_stress));
                 }
                 x = shared.1.wait(x).unwrap_or_else(std::sync::PoisonError::into_inner);
             }
         };
-        let mut stress = Vec::new();
         let result = displacements_from_forces(
             (&inputs.chol, &inputs.dofs, &inputs.body_force),
             inputs.mesh.node_count(),
@@ -167,8 +176,14 @@ fn work(inputs: &Inputs, shared: &Shared) {
         )
         .and_then(|()| tet_stress(&inputs.mesh, &inputs.lame, &nodes, &mut stress));
         let mut x = lock(shared);
+        x.spare_forces = forces;
         match result {
-            Ok(()) => x.result = Some((frame, stress)),
+            // an unread older result goes back as a spare
+            Ok(()) => {
+                if let Some((_, old)) = x.result.replace((frame, stress)) {
+                    x.spare_stress = old;
+                }
+            }
             Err(e) => {
                 x.failed = Some(format!("background stress stopped: {e}"));
                 drop(x);
