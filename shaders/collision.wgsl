@@ -1,17 +1,37 @@
-// Collision compute pass: for every node-pair line (origin at the face-0 node,
-// direction its normal, origin.w = blade thickness h), the nearest surface triangles
-// behind and in front of BOTH nodes (face-0 node at t = 0, face-1 node at t = -h),
-// brute force over all triangles (the paper's GPU method), f32. Same watertight line test and tie rules as `src/geometry/ray.rs`
-// (Woop et al. 2013 with an (eps, eps^2) perturbation for edge functions that are
-// exactly 0); triangles are visited in ascending order and only a strictly nearer
-// hit replaces the kept one, so an exact tie goes to the lower triangle index.
-// Positions and rays are relative to a centre chosen on the CPU (f32 precision).
+// Collision traversal: one thread per node-pair line (origin at the face-0 node,
+// direction its normal; origin.w = blade thickness h, direction.w = contact
+// tolerance e). It walks the refit BVH near-first and returns, for each of the four
+// nearest-hit slots of the line, up to two CANDIDATE triangles (original indices).
+// The CPU then decides every slot in f64 from the candidates (`backend/gpu.rs`), so
+// the answers are the f64 backends' answers bit for bit; this pass only has to make
+// sure the f64 winner is among the candidates, or flag the line for the CPU.
+//
+// Slots (line parameter t; thresholds T0 = e, T1 = -h - e; window w):
+//   0 a: face 0 behind, largest t  <= T0 (accepts t32 <= T0 + w)
+//   1 b: face 0 front,  smallest t >  T0 (accepts t32 >  T0 - w)
+//   2 c: face 1 behind, smallest t >= T1 (accepts t32 >= T1 - w)
+//   3 d: face 1 front,  largest t  <  T1 (accepts t32 <  T1 + w)
+// Each slot keeps its best three by key (key = t for b and c, -t for a and d; an
+// exact tie goes to the lower triangle index). An entry is CLEAR when its t32 lies
+// more than w from the slot's threshold (its f64 side is then certain). The f64
+// winner has key <= (first clear entry's key) + w, so the slot returns its best two
+// and flags the line when its third is also that close (a cluster of three), or
+// when no clear entry exists among three. Hits whose f32 error bound exceeds w/8
+// (a line grazing a triangle) are remembered with their t range; the line is
+// flagged when such a range meets the final needed interval.
+// The same watertight line test and edge rules as `src/geometry/ray.rs` (Woop et
+// al. 2013), f32, coordinates relative to a centre chosen on the CPU. No value here
+// is ever infinite or NaN: the shader language lets compilers assume so.
 
 struct Params {
-    ray_count: u32,
-    triangle_count: u32,
+    line_count: u32,
     _pad0: u32,
     _pad1: u32,
+    _pad2: u32,
+    window: f32,      // w, metres
+    coord_scale: f32, // S: largest |coordinate| of positions and origins (relative to the centre)
+    _pad3: f32,
+    _pad4: f32,
 };
 
 struct Ray {
@@ -19,29 +39,22 @@ struct Ray {
     direction: vec4<f32>,
 };
 
-struct Slot {
-    triangle: u32,
-    t: f32,
-    u: f32,
-    v: f32,
-};
-
-// a: largest t <= e (face 0 behind), b: smallest t > e (face 0 front),
-// c: smallest t >= -h - e (face 1 behind), d: largest t < -h - e (face 1 front).
-struct Hits {
-    a: Slot,
-    b: Slot,
-    c: Slot,
-    d: Slot,
-};
-
 const NO_HIT: u32 = 0xffffffffu;
+const BIG: f32 = 1.0e30;
+const EPS: f32 = 1.1920929e-7;
+const STACK: u32 = 64u;
+const UNCERTAIN_MAX: u32 = 4u;
+// Per line out: 8 candidate ids (a1 a2 b1 b2 c1 c2 d1 d2) and a flag word.
+const OUT_STRIDE: u32 = 9u;
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> triangles: array<vec4<u32>>;
-@group(0) @binding(3) var<storage, read> rays: array<Ray>;
-@group(0) @binding(4) var<storage, read_write> hits: array<Hits>;
+@group(0) @binding(2) var<storage, read> topo: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read> boxes: array<vec4<f32>>;
+// Per leaf-order triangle: (v0, v1, v2, original index).
+@group(0) @binding(4) var<storage, read> leaf_tris: array<vec4<u32>>;
+@group(0) @binding(5) var<storage, read> rays: array<Ray>;
+@group(0) @binding(6) var<storage, read_write> out: array<u32>;
 
 fn perturbed_sign(e: f32, dx: f32, dy: f32) -> i32 {
     if (e > 0.0) { return 1; }
@@ -53,18 +66,101 @@ fn perturbed_sign(e: f32, dx: f32, dy: f32) -> i32 {
     return 0;
 }
 
+var<private> keys: array<f32, 12>;
+var<private> ids: array<u32, 8>;
+var<private> counts: array<u32, 4>;
+var<private> thresholds: vec2<f32>;
+var<private> win: f32;
+
+fn key_of(s: u32, t: f32) -> f32 {
+    if (s == 0u || s == 3u) { return -t; }
+    return t;
+}
+
+fn threshold_of(s: u32) -> f32 {
+    if (s < 2u) { return thresholds.x; }
+    return thresholds.y;
+}
+
+fn accepts(s: u32, t: f32) -> bool {
+    switch s {
+        case 0u: { return t <= thresholds.x + win; }
+        case 1u: { return t > thresholds.x - win; }
+        case 2u: { return t >= thresholds.y - win; }
+        default: { return t < thresholds.y + win; }
+    }
+}
+
+// Entries with key <= the returned bound may still be the slot's f64 winner.
+fn slot_bound(s: u32) -> f32 {
+    let thr = threshold_of(s);
+    for (var q = 0u; q < counts[s]; q = q + 1u) {
+        let k = keys[3u * s + q];
+        if (abs(key_of(s, k) - thr) > win) {
+            return k + win;
+        }
+    }
+    return BIG;
+}
+
+fn insert(s: u32, k: f32, tri: u32) {
+    let base = 3u * s;
+    let cnt = counts[s];
+    var pos = cnt;
+    for (var q = 0u; q < cnt; q = q + 1u) {
+        let kq = keys[base + q];
+        if (k < kq || (k == kq && q < 2u && tri < ids[2u * s + q])) {
+            pos = q;
+            break;
+        }
+    }
+    if (pos >= 3u) {
+        return;
+    }
+    var q = 2u;
+    loop {
+        if (q <= pos) { break; }
+        keys[base + q] = keys[base + q - 1u];
+        if (q < 2u) {
+            ids[2u * s + q] = ids[2u * s + q - 1u];
+        }
+        q = q - 1u;
+    }
+    keys[base + pos] = k;
+    if (pos < 2u) {
+        ids[2u * s + pos] = tri;
+    }
+    counts[s] = min(cnt + 1u, 3u);
+}
+
+// The needed interval of t: hits outside it cannot change any slot.
+fn needed() -> vec2<f32> {
+    let lo = min(-slot_bound(0u), -slot_bound(3u));
+    let hi = max(slot_bound(1u), slot_bound(2u));
+    return vec2<f32>(lo, hi);
+}
+
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let r = gid.x;
-    if (r >= params.ray_count) {
+    if (r >= params.line_count) {
         return;
     }
     let o = rays[r].origin.xyz;
     let h = rays[r].origin.w;
-    let e = rays[r].direction.w; // contact tolerance (see backend/mod.rs)
+    let e = rays[r].direction.w;
     let d = rays[r].direction.xyz;
-    let none = Slot(NO_HIT, 0.0, 0.0, 0.0);
-    var out = Hits(none, none, none, none);
+    thresholds = vec2<f32>(e, -h - e);
+    win = params.window;
+    for (var i = 0u; i < 4u; i = i + 1u) {
+        counts[i] = 0u;
+    }
+    for (var i = 0u; i < 8u; i = i + 1u) {
+        ids[i] = NO_HIT;
+    }
+    var flag = 0u;
+    let ob = r * OUT_STRIDE;
+
     let ad = abs(d);
     var kz: u32 = 2u;
     if (ad.x >= ad.y && ad.x >= ad.z) {
@@ -73,7 +169,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         kz = 1u;
     }
     if (d[kz] == 0.0) {
-        hits[r] = out;
+        for (var i = 0u; i < 8u; i = i + 1u) { out[ob + i] = NO_HIT; }
+        out[ob + 8u] = 0u;
         return;
     }
     let kx = (kz + 1u) % 3u;
@@ -81,49 +178,159 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let sz = 1.0 / d[kz];
     let sx = d[kx] * sz;
     let sy = d[ky] * sz;
-    for (var k: u32 = 0u; k < params.triangle_count; k = k + 1u) {
-        let tri = triangles[k];
-        let a = positions[tri.x].xyz - o;
-        let b = positions[tri.y].xyz - o;
-        let c = positions[tri.z].xyz - o;
-        let ax = a[kx] - sx * a[kz];
-        let ay = a[ky] - sy * a[kz];
-        let bx = b[kx] - sx * b[kz];
-        let by = b[ky] - sy * b[kz];
-        let cx = c[kx] - sx * c[kz];
-        let cy = c[ky] - sy * c[kz];
-        let eu = cx * by - cy * bx;
-        let ev = ax * cy - ay * cx;
-        let ew = bx * ay - by * ax;
-        let su = perturbed_sign(eu, cx - bx, cy - by);
-        let sv = perturbed_sign(ev, ax - cx, ay - cy);
-        let sw = perturbed_sign(ew, bx - ax, by - ay);
-        if (su == 0 || su != sv || su != sw) {
-            continue;
-        }
-        let det = eu + ev + ew;
-        if (det == 0.0) {
-            continue;
-        }
-        let inv = 1.0 / det;
-        let t = (eu * (sz * a[kz]) + ev * (sz * b[kz]) + ew * (sz * c[kz])) * inv;
-        let u = ev * inv;
-        let v = ew * inv;
-        // Reject non-finite values (a vanishing determinant): x - x is 0 only when x is finite.
-        if (!((t - t) == 0.0) || !((u - u) == 0.0) || !((v - v) == 0.0)) {
-            continue;
-        }
-        let hit = Slot(k, t, u, v);
-        if (t <= e) {
-            if (out.a.triangle == NO_HIT || t > out.a.t) { out.a = hit; }
-        } else {
-            if (out.b.triangle == NO_HIT || t < out.b.t) { out.b = hit; }
-        }
-        if (t >= -h - e) {
-            if (out.c.triangle == NO_HIT || t < out.c.t) { out.c = hit; }
-        } else {
-            if (out.d.triangle == NO_HIT || t > out.d.t) { out.d = hit; }
+    // Reciprocal direction for the slab test, never infinite.
+    let dd = select(d, select(vec3<f32>(1.0e-30), vec3<f32>(-1.0e-30), d < vec3<f32>(0.0)), abs(d) < vec3<f32>(1.0e-30));
+    let inv = 1.0 / dd;
+    // Error of one sheared coordinate against the f64 line: f32 rounding of positions,
+    // origin, direction and the shear (doubled for safety); see gpu.rs.
+    let scale = params.coord_scale;
+    // Blade centre (line parameter -h/2), for near-first ordering.
+    let centre = -0.5 * h;
+
+    var un_lo: array<f32, 4>;
+    var un_hi: array<f32, 4>;
+    var un_count = 0u;
+
+    var stack_node: array<u32, 64>;
+    var stack_t: array<vec2<f32>, 64>;
+    var sp = 0u;
+    {
+        let ta = (boxes[0].xyz - o) * inv;
+        let tb = (boxes[1].xyz - o) * inv;
+        let t0 = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), min(ta.z, tb.z));
+        let t1 = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z));
+        if (t0 <= t1) {
+            stack_node[0] = 0u;
+            stack_t[0] = vec2<f32>(t0, t1);
+            sp = 1u;
         }
     }
-    hits[r] = out;
+    var need = vec2<f32>(-BIG, BIG);
+    loop {
+        if (sp == 0u) { break; }
+        sp = sp - 1u;
+        let node = stack_node[sp];
+        let iv = stack_t[sp];
+        if (iv.y < need.x || iv.x > need.y) {
+            continue;
+        }
+        let n = topo[node];
+        if (n.y > 0u) {
+            for (var i = 0u; i < n.y; i = i + 1u) {
+                let tri = leaf_tris[n.x + i];
+                let a = positions[tri.x].xyz - o;
+                let b = positions[tri.y].xyz - o;
+                let c = positions[tri.z].xyz - o;
+                let ax = a[kx] - sx * a[kz];
+                let ay = a[ky] - sy * a[kz];
+                let bx = b[kx] - sx * b[kz];
+                let by = b[ky] - sy * b[kz];
+                let cx = c[kx] - sx * c[kz];
+                let cy = c[ky] - sy * c[kz];
+                let eu = cx * by - cy * bx;
+                let ev = ax * cy - ay * cx;
+                let ew = bx * ay - by * ax;
+                let su = perturbed_sign(eu, cx - bx, cy - by);
+                let sv = perturbed_sign(ev, ax - cx, ay - cy);
+                let sw = perturbed_sign(ew, bx - ax, by - ay);
+                let za = sz * a[kz];
+                let zb = sz * b[kz];
+                let zc = sz * c[kz];
+                // Coordinate error against the f64 line, then the edge functions' error.
+                let reach = max(max(max(abs(ax), abs(ay)), max(abs(bx), abs(by))), max(max(abs(cx), abs(cy)), max(abs(za), max(abs(zb), abs(zc)))));
+                let dc = 2.0 * EPS * (scale + 2.0 * reach);
+                let ee = 2.0 * dc * (abs(ax) + abs(ay) + abs(bx) + abs(by) + abs(cx) + abs(cy)) + 2.0 * EPS * (abs(cx * by) + abs(cy * bx) + abs(ax * cy) + abs(ay * cx) + abs(bx * ay) + abs(by * ax));
+                let inside = !(su == 0 || su != sv || su != sw);
+                // A near miss (within rounding of the inside) may be an f64 hit with no f32
+                // neighbour to stand for it (a line touching a silhouette vertex or edge):
+                // it becomes a candidate like a hit, and the CPU decides.
+                let near = (eu >= -ee && ev >= -ee && ew >= -ee) || (eu <= ee && ev <= ee && ew <= ee);
+                if (!inside && !near) {
+                    continue;
+                }
+                let det = eu + ev + ew;
+                let zlo = min(min(za, zb), zc);
+                let zhi = max(max(za, zb), zc);
+                if (abs(det) <= 2.0 * ee) {
+                    // Grazing: t is anywhere on the triangle's extent along the line.
+                    if (un_count < UNCERTAIN_MAX) {
+                        un_lo[un_count] = zlo - dc;
+                        un_hi[un_count] = zhi + dc;
+                        un_count = un_count + 1u;
+                    } else {
+                        flag = 1u;
+                    }
+                    continue;
+                }
+                let t = (eu * za + ev * zb + ew * zc) / det;
+                let err_t = dc + 2.0 * ee * (zhi - zlo) / abs(det) + 4.0 * EPS * abs(t);
+                if (err_t > 0.125 * win) {
+                    if (un_count < UNCERTAIN_MAX) {
+                        un_lo[un_count] = max(zlo, t - err_t) - dc;
+                        un_hi[un_count] = min(zhi, t + err_t) + dc;
+                        un_count = un_count + 1u;
+                    } else {
+                        flag = 1u;
+                    }
+                }
+                for (var s = 0u; s < 4u; s = s + 1u) {
+                    if (accepts(s, t)) {
+                        insert(s, key_of(s, t), tri.w);
+                    }
+                }
+            }
+            need = needed();
+            continue;
+        }
+        let l = n.x;
+        let la = (boxes[2u * l].xyz - o) * inv;
+        let lb = (boxes[2u * l + 1u].xyz - o) * inv;
+        let a0 = max(max(min(la.x, lb.x), min(la.y, lb.y)), min(la.z, lb.z));
+        let a1 = min(min(max(la.x, lb.x), max(la.y, lb.y)), max(la.z, lb.z));
+        let ra = (boxes[2u * l + 2u].xyz - o) * inv;
+        let rb = (boxes[2u * l + 3u].xyz - o) * inv;
+        let b0 = max(max(min(ra.x, rb.x), min(ra.y, rb.y)), min(ra.z, rb.z));
+        let b1 = min(min(max(ra.x, rb.x), max(ra.y, rb.y)), max(ra.z, rb.z));
+        let keep_l = a0 <= a1 && a1 >= need.x && a0 <= need.y;
+        let keep_r = b0 <= b1 && b1 >= need.x && b0 <= need.y;
+        if (sp + 2u > STACK) {
+            flag = 1u;
+            break;
+        }
+        let gl = max(max(a0 - centre, centre - a1), 0.0);
+        let gr = max(max(b0 - centre, centre - b1), 0.0);
+        if (keep_l && keep_r) {
+            if (gl <= gr) {
+                stack_node[sp] = l + 1u; stack_t[sp] = vec2<f32>(b0, b1);
+                stack_node[sp + 1u] = l; stack_t[sp + 1u] = vec2<f32>(a0, a1);
+            } else {
+                stack_node[sp] = l; stack_t[sp] = vec2<f32>(a0, a1);
+                stack_node[sp + 1u] = l + 1u; stack_t[sp + 1u] = vec2<f32>(b0, b1);
+            }
+            sp = sp + 2u;
+        } else if (keep_l) {
+            stack_node[sp] = l; stack_t[sp] = vec2<f32>(a0, a1);
+            sp = sp + 1u;
+        } else if (keep_r) {
+            stack_node[sp] = l + 1u; stack_t[sp] = vec2<f32>(b0, b1);
+            sp = sp + 1u;
+        }
+    }
+    // Clusters of three, or no clear entry among three: the CPU decides the line.
+    for (var s = 0u; s < 4u; s = s + 1u) {
+        if (counts[s] == 3u && keys[3u * s + 2u] <= slot_bound(s)) {
+            flag = 1u;
+        }
+    }
+    // A grazing hit whose t range meets the needed interval: the CPU decides the line.
+    let fin = needed();
+    for (var i = 0u; i < un_count; i = i + 1u) {
+        if (un_hi[i] >= fin.x - win && un_lo[i] <= fin.y + win) {
+            flag = 1u;
+        }
+    }
+    for (var i = 0u; i < 8u; i = i + 1u) {
+        out[ob + i] = ids[i];
+    }
+    out[ob + 8u] = flag;
 }

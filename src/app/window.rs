@@ -384,7 +384,7 @@ impl App {
                     egui::ComboBox::from_label("backend")
                         .selected_text(format!("{backend:?}"))
                         .show_ui(ui, |ui| {
-                            for b in [CollisionBackend::Reference, CollisionBackend::Bvh, CollisionBackend::Gpu] {
+                            for b in [CollisionBackend::Reference, CollisionBackend::Bvh, CollisionBackend::Gpu, CollisionBackend::Auto] {
                                 ui.selectable_value(&mut backend, b, format!("{b:?}"));
                             }
                         });

@@ -4,6 +4,7 @@
 //! `anyhow::Result` whose chain `main` prints. Library errors are typed; this
 //! layer only adds context (which file, which command).
 
+mod bench;
 mod check;
 mod frames;
 mod mesh;
@@ -90,6 +91,16 @@ pub enum Command {
     /// Mesh tools: inspect, generate phantoms, tetrahedralize surfaces, convert.
     #[command(subcommand)]
     Mesh(MeshCommand),
+    /// Benchmarks that run from the release binary alone (e.g. on a GPU machine).
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Collision stage per backend in one run: paper-12k at 150 / 500 / 2000 nodes a
+    /// face and both real brains at 500 / 2000, p50 / p95 a frame, the GPU's breakdown.
+    Collision(bench::CollisionArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -180,5 +191,6 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
             mesh::tetrahedralize(&surface, &output, edge, units)
         }
         Some(Command::Mesh(MeshCommand::Convert { input, output })) => mesh::convert(&input, &output),
+        Some(Command::Bench(BenchCommand::Collision(args))) => bench::collision(&args),
     }
 }

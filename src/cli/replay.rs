@@ -87,6 +87,12 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
         );
     }
     println!("  max displacement {:.2} mm, tissue pulled through a blade: {} vertices (max in a frame)", summary.max_displacement_mm, summary.max_crossed_vertices);
+    if let Some(b) = &summary.collision_backend {
+        println!("  collision backend: {b}");
+    }
+    for note in &summary.collision_notes {
+        println!("  collision: {note}");
+    }
     println!("  final state {}", summary.final_state_hash);
     println!("  wrote {}/metrics.csv, {}/summary.json{}", out_dir.display(), out_dir.display(), if vtk { ", series.pvd" } else { "" });
     Ok(summary)

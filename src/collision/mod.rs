@@ -53,6 +53,7 @@
 //! The stage allocates only at construction and when its reused Vecs grow.
 
 pub mod backend;
+pub mod bench;
 pub mod culling;
 pub mod displacement;
 pub mod pairs;
@@ -75,9 +76,17 @@ pub enum BackendKind {
     Reference,
     /// Our binned-SAH BVH, refit per frame, lines split over two threads; f64, bit for bit the answers of `reference`.
     Bvh,
-    /// WGSL compute pass through wgpu, f32.
+    /// Our BVH refit and traversed on the GPU (wgpu compute, f32), every answer then
+    /// decided in f64 on the CPU: bit for bit the answers of `reference`.
     Gpu,
+    /// A request, never the backend in use: time `bvh` and `gpu` side by side on the
+    /// first [`AUTO_TRIAL_FRAMES`] frames that cast lines and keep the faster (both
+    /// give the same answers, so the choice never changes a result).
+    Auto,
 }
+
+/// Frames with lines that an `Auto` stage times both backends on.
+pub const AUTO_TRIAL_FRAMES: usize = 8;
 
 /// Stage configuration.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -209,9 +218,24 @@ pub struct CollisionStage {
     work: Workspace,
     output: CollisionOutput,
     warnings: Vec<String>,
+    /// An `Auto` stage's trial: the GPU caster timed beside `caster` (the bvh).
+    trial: Option<AutoTrial>,
     /// Poses of the last successful frame (for swept-side culling), if any.
     previous_poses: Option<Vec<Pose>>,
     swept_culling: bool,
+}
+
+/// An `Auto` stage's side-by-side timing of `bvh` (the stage's caster) and `gpu`.
+struct AutoTrial {
+    gpu: Box<dyn RayCaster>,
+    bvh_seconds: Vec<f64>,
+    gpu_seconds: Vec<f64>,
+    hits: Vec<PairHits>,
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() { f64::NAN } else { v[v.len() / 2] }
 }
 
 /// Checks triangle indices and finiteness of positions.
@@ -264,6 +288,7 @@ impl CollisionStage {
         }
         spatula_offsets.push(slots.len());
         let mut warnings = Vec::new();
+        let mut trial = None;
         let caster: Box<dyn RayCaster> = match config.backend {
             BackendKind::Reference => Box::new(backend::reference::ReferenceCaster::new(triangles, rest)),
             BackendKind::Bvh => Box::new(backend::bvh::BvhCaster::new(triangles, rest)),
@@ -274,6 +299,15 @@ impl CollisionStage {
                     Box::new(backend::bvh::BvhCaster::new(triangles, rest))
                 }
             },
+            BackendKind::Auto => {
+                match backend::gpu::GpuCaster::new(triangles, rest, line_slots.len()) {
+                    Ok(g) => {
+                        trial = Some(AutoTrial { gpu: Box::new(g), bvh_seconds: Vec::new(), gpu_seconds: Vec::new(), hits: Vec::new() })
+                    }
+                    Err(e) => warnings.push(format!("auto collision backend: bvh (no GPU: {e})")),
+                }
+                Box::new(backend::bvh::BvhCaster::new(triangles, rest))
+            }
         };
         let n = slots.len();
         let work = Workspace {
@@ -304,6 +338,7 @@ impl CollisionStage {
             work,
             output,
             warnings,
+            trial,
             previous_poses: None,
             swept_culling: true,
         })
@@ -336,8 +371,7 @@ impl CollisionStage {
             let r = &self.work.rays[l.slots[0]];
             self.work.lines.push(PairLine { origin: r.origin, direction: r.direction, thickness: l.thickness });
         }
-        self.caster.update_surface(current)?;
-        self.caster.cast(&self.work.lines, &mut self.work.pair_hits)?;
+        self.cast_lines(current)?;
         for (l, h) in self.line_slots.iter().zip(&self.work.pair_hits) {
             self.work.hits[l.slots[0]] = h.face0;
             self.work.hits[l.slots[1]] = h.face1;
@@ -427,6 +461,95 @@ impl CollisionStage {
         Ok(&self.output)
     }
 
+    /// Casts this frame's lines into `work.pair_hits`: the caster, an `Auto` trial
+    /// beside it, and the switch to `bvh` when the GPU fails mid-run.
+    fn cast_lines(&mut self, current: &[Vec3]) -> Result<(), CollisionError> {
+        let t0 = std::time::Instant::now();
+        let first = self.caster.update_surface(current).and_then(|()| self.caster.cast(&self.work.lines, &mut self.work.pair_hits));
+        let bvh_seconds = t0.elapsed().as_secs_f64();
+        match first {
+            Ok(()) => {}
+            Err(CollisionError::Gpu(cause)) => {
+                self.warnings.push(format!("GPU collision backend failed ({cause}); using bvh for the rest of the run"));
+                let mut bvh = backend::bvh::BvhCaster::new(&self.triangles, &self.rest);
+                bvh.update_surface(current)?;
+                bvh.cast(&self.work.lines, &mut self.work.pair_hits)?;
+                self.caster = Box::new(bvh);
+                self.trial = None;
+                return Ok(());
+            }
+            Err(e) => return Err(e),
+        }
+        if self.work.lines.is_empty() {
+            return Ok(());
+        }
+        let Some(trial) = &mut self.trial else { return Ok(()) };
+        let t1 = std::time::Instant::now();
+        let gpu = trial.gpu.update_surface(current).and_then(|()| trial.gpu.cast(&self.work.lines, &mut trial.hits));
+        let gpu_seconds = t1.elapsed().as_secs_f64();
+        let verdict = match gpu {
+            Err(e) => Some(format!("auto collision backend: bvh (the GPU failed in the trial: {e})")),
+            Ok(()) if trial.hits != self.work.pair_hits => {
+                Some("auto collision backend: bvh (the GPU's answers differed from bvh's in the trial; please report this)".to_string())
+            }
+            Ok(()) => {
+                trial.bvh_seconds.push(bvh_seconds);
+                trial.gpu_seconds.push(gpu_seconds);
+                None
+            }
+        };
+        if let Some(v) = verdict {
+            self.warnings.push(v);
+            self.trial = None;
+            return Ok(());
+        }
+        if trial.bvh_seconds.len() >= AUTO_TRIAL_FRAMES {
+            let (b, g) = (median(&mut trial.bvh_seconds), median(&mut trial.gpu_seconds));
+            let Some(trial) = self.trial.take() else { return Ok(()) };
+            let chosen = if g < b { "gpu" } else { "bvh" };
+            self.warnings.push(format!(
+                "auto collision backend: {chosen} (median over {AUTO_TRIAL_FRAMES} frames: gpu {:.3} ms, bvh {:.3} ms)",
+                g * 1e3,
+                b * 1e3
+            ));
+            if g < b {
+                self.caster = trial.gpu;
+            }
+        }
+        Ok(())
+    }
+
+    /// Where the last frame's cast spent its time, when the GPU backend is in use.
+    pub fn gpu_timings(&self) -> Option<backend::gpu::GpuTimings> {
+        self.caster.gpu_timings()
+    }
+
+    /// The GPU adapter's name, when the GPU backend is in use (or in an `Auto` trial).
+    pub fn gpu_name(&self) -> Option<String> {
+        self.caster.device_name().or_else(|| self.trial.as_ref().and_then(|t| t.gpu.device_name()))
+    }
+
+    /// Splits the `bvh` backend's work over `threads` threads (the default is
+    /// min(rayon's pool, 2)); other backends ignore it. Answers do not change.
+    pub fn set_cpu_threads(&mut self, threads: usize) {
+        self.caster.set_threads(threads);
+    }
+
+    /// True while an `Auto` stage is still timing both backends.
+    pub fn auto_trial_running(&self) -> bool {
+        self.trial.is_some()
+    }
+
+    /// Test hook: the GPU caster (in use or in an `Auto` trial) fails at its next
+    /// cast as a lost device would. Returns false when there is none.
+    #[doc(hidden)]
+    pub fn simulate_gpu_loss(&mut self) -> bool {
+        if let Some(t) = &mut self.trial {
+            return t.gpu.simulate_device_loss();
+        }
+        self.caster.simulate_device_loss()
+    }
+
     /// Clears every His-flag (e.g. after a scene reset or a teleported tool).
     pub fn reset_history(&mut self) {
         self.flags.clear();
@@ -444,7 +567,8 @@ impl CollisionStage {
         self.caster.kind()
     }
 
-    /// Warnings from construction (e.g. the GPU fallback).
+    /// Warnings from construction and from frames so far (the GPU fallback, the
+    /// `Auto` choice), in order.
     pub fn warnings(&self) -> &[String] {
         &self.warnings
     }

@@ -322,8 +322,11 @@ pub enum CollisionBackend {
     /// Bounding-volume hierarchy on the CPU.
     #[default]
     Bvh,
-    /// wgpu compute.
+    /// Our BVH on the GPU (wgpu compute), answers decided in f64: the same as `Bvh`.
     Gpu,
+    /// Time `Bvh` and `Gpu` on the first frames and keep the faster (the summary
+    /// and the stage's warnings say which); `Bvh` when there is no GPU.
+    Auto,
 }
 
 /// Solver options.

@@ -232,6 +232,7 @@ impl Pipeline {
                     CollisionBackend::Reference => BackendKind::Reference,
                     CollisionBackend::Bvh => BackendKind::Bvh,
                     CollisionBackend::Gpu => BackendKind::Gpu,
+                    CollisionBackend::Auto => BackendKind::Auto,
                 },
                 culling: effects.contains(Effect::Culling),
             };

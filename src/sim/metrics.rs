@@ -181,6 +181,11 @@ pub struct Summary {
     pub final_state_hash: String,
     /// True when the run stopped early (error or interruption); the rows so far are valid.
     pub interrupted: bool,
+    /// The collision backend in use at the end (after an `auto` choice or a GPU
+    /// fallback); None without the collision stage.
+    pub collision_backend: Option<String>,
+    /// What the collision stage said: the `auto` choice, a GPU fallback and its cause.
+    pub collision_notes: Vec<String>,
 }
 
 /// Accumulates the summary as frames arrive.

@@ -174,7 +174,11 @@ pub fn replay(
         }
     }
     let interrupted = failure.is_some() || summary_frames(&summary) < total;
-    let result = summary.finish(pipeline.state_hash(&state), interrupted);
+    let mut result = summary.finish(pipeline.state_hash(&state), interrupted);
+    if let Some(c) = pipeline.collision() {
+        result.collision_backend = Some(format!("{:?}", c.backend()).to_lowercase());
+        result.collision_notes = c.warnings().to_vec();
+    }
     let written = write_summary(&options.out_dir.join("summary.json"), &result);
     match failure {
         Some(e) => Err(e),

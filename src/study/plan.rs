@@ -306,6 +306,7 @@ pub fn backend_name(b: CollisionBackend) -> &'static str {
         CollisionBackend::Reference => "reference",
         CollisionBackend::Bvh => "bvh",
         CollisionBackend::Gpu => "gpu",
+        CollisionBackend::Auto => "auto",
     }
 }
 

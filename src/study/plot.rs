@@ -42,6 +42,7 @@ fn backend_color(b: CollisionBackend) -> RGBColor {
         CollisionBackend::Reference => RGBColor(214, 39, 40),
         CollisionBackend::Bvh => RGBColor(31, 119, 180),
         CollisionBackend::Gpu => RGBColor(44, 160, 44),
+        CollisionBackend::Auto => RGBColor(148, 103, 189),
     }
 }
 

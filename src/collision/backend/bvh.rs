@@ -77,6 +77,15 @@ struct Pending {
     t1: f64,
 }
 
+/// The static layout of a [`BvhCaster`]'s tree (see [`BvhCaster::layout`]).
+pub(crate) struct TreeLayout {
+    pub topo: Vec<[u32; 4]>,
+    pub leaf_triangles: Vec<[u32; 4]>,
+    pub leaf_vertices: Vec<u32>,
+    pub levels: Vec<Vec<u32>>,
+    pub depth: usize,
+}
+
 /// Refit-per-frame BVH ray caster.
 #[derive(Clone)]
 pub struct BvhCaster {
@@ -237,6 +246,44 @@ impl BvhCaster {
         }
     }
 
+    /// The tree's static layout, for the GPU backend (which refits and walks the same
+    /// tree on the device): per node (first, count, vfirst, vcount), the leaf-order
+    /// triangles with their original index in the fourth entry, every leaf's distinct
+    /// vertices, the node indices grouped by height above the leaves (leaves first),
+    /// and the depth (edges from the root to the deepest leaf).
+    pub(crate) fn layout(&self) -> TreeLayout {
+        let n = self.nodes.len();
+        let mut height = vec![0u32; n];
+        for k in (0..n).rev() {
+            let node = &self.nodes[k];
+            if node.count == 0 {
+                let c = node.first as usize;
+                height[k] = 1 + height[c].max(height[c + 1]);
+            }
+        }
+        let mut depth = vec![0u32; n];
+        for k in 0..n {
+            let node = &self.nodes[k];
+            if node.count == 0 {
+                let c = node.first as usize;
+                depth[c] = depth[k] + 1;
+                depth[c + 1] = depth[k] + 1;
+            }
+        }
+        let top = height.iter().copied().max().unwrap_or(0) as usize;
+        let mut levels = vec![Vec::new(); if n == 0 { 0 } else { top + 1 }];
+        for (k, &h) in height.iter().enumerate() {
+            levels[h as usize].push(k as u32);
+        }
+        TreeLayout {
+            topo: self.nodes.iter().map(|x| [x.first, x.count, x.vfirst, x.vcount]).collect(),
+            leaf_triangles: self.leaf_triangles.iter().zip(&self.order).map(|(t, &o)| [t[0], t[1], t[2], o]).collect(),
+            leaf_vertices: self.leaf_vertices.clone(),
+            levels,
+            depth: depth.iter().copied().max().unwrap_or(0) as usize,
+        }
+    }
+
     /// Splits refit and casting over `threads` threads of rayon's pool (at least 1;
     /// 1 keeps everything on the calling thread). Answers do not depend on it.
     pub fn set_threads(&mut self, threads: usize) {
@@ -376,6 +423,10 @@ fn triangle_box(positions: &[Vec3], t: &[u32; 3]) -> ([f64; 3], [f64; 3]) {
 impl RayCaster for BvhCaster {
     fn kind(&self) -> BackendKind {
         BackendKind::Bvh
+    }
+
+    fn set_threads(&mut self, threads: usize) {
+        BvhCaster::set_threads(self, threads);
     }
 
     fn update_surface(&mut self, positions: &[Vec3]) -> Result<(), CollisionError> {

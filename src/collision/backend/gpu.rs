@@ -1,40 +1,87 @@
-//! GPU backend: one WGSL compute pass (`shaders/collision.wgsl`) tests every ray
-//! against every triangle in f32 (the paper's GPGPU method), all spatulas and faces
-//! in one dispatch; results come back through a staging buffer.
+//! GPU backend: the BVH of `bvh.rs`, refit and traversed on the device, with every
+//! answer decided in f64 on the CPU, so it returns the `reference` and `bvh` answers
+//! bit for bit.
 //!
-//! In: triangles (uploaded once), positions per frame, rays per frame. Out: nearest
-//! hits per ray (t, u, v widened to f64). Stays true:
-//! - Persistent buffers: positions, triangles, rays, results and staging are made
-//!   once (rays/results sized for the stage's node count); per frame only the
-//!   vertices whose f32 value changed are written, in runs (gaps of up to
-//!   `RUN_GAP` unchanged vertices are bridged); when more than half changed, the
-//!   whole buffer is written in one call. [`GpuCaster::last_upload`] says which.
-//! - Coordinates are made relative to the centre of the rest surface's bounding
-//!   box before the f32 conversion (absolute error about 6e-8 of the model size).
-//! - Agreement with the f64 backends: the same triangles are found except where
-//!   the f64 answer is a near-tie: a hit whose barycentrics (u, v, 1-u-v) lie within
-//!   `tolerance` of 0 (an edge or vertex, where f32 may pick the neighbour), or two
-//!   hits on one side within `tolerance` x model size in t. `tests/collision_backends.rs`
-//!   checks exactly this with tolerance 1e-5.
-//! - No adapter, no device, or a failed pipeline: `GpuCaster::new` returns an error
-//!   (the stage then falls back to `bvh` with a warning); nothing panics.
+//! One frame is ONE submission: the changed vertex positions and the lines go up,
+//! the tree's boxes are refit bottom-up (`shaders/collision_refit.wgsl`, one dispatch
+//! per tree level, leaves first), then one thread per pair line walks the tree
+//! near-first (`shaders/collision.wgsl`) and writes, for each of the line's four
+//! nearest-hit slots, up to two candidate triangle ids and a flag word: 36 bytes a
+//! line come back, never a t or a barycentric. The CPU then tests each line's
+//! candidates with the f64 watertight test of the other backends
+//! ([`LineQuery::intersect`]) and offers the hits to the same [`LineAccumulator`];
+//! a candidate that the f64 test misses brings in every triangle around its three
+//! vertices (the f64 test then hits the neighbour the f32 test could not tell apart).
+//! A flagged line is cast on the CPU by a [`BvhCaster`] refit only in frames that
+//! have one.
+//!
+//! Why that gives the f64 answer (the shader's header has the slot rules): every
+//! f32 hit that is not flagged as grazing has `|t32 - t64| <= w/8`, where the window
+//! `w` = [`WINDOW_ULPS`] f32 ulps of the largest coordinate; the shader keeps the
+//! best three hits of each slot with thresholds widened by `w`, returns the best two
+//! and flags the line when the f64 winner could be outside them (a cluster of three
+//! within `w`, a grazing hit inside the needed interval, a stack overflow). Pruning
+//! is conservative: leaf boxes are grown by `w/2`. `tests/collision_backends.rs`
+//! checks bit-for-bit equality with `reference` on spheres, fissures, contact
+//! configurations and the real brain surfaces.
+//!
+//! Latency: the frame's next stages need the hits, so the CPU waits for the map;
+//! nothing is pipelined across frames (that would change answers). Persistent
+//! buffers; per frame only vertices whose f32 value changed are written, in runs
+//! (gaps of up to `RUN_GAP` unchanged vertices are bridged); when more than half
+//! changed, the whole buffer is written at once ([`GpuCaster::last_upload`]).
+//! Timestamp queries, where the adapter has them, split the GPU time into refit and
+//! traversal ([`GpuCaster::last_timings`]).
+//!
+//! Failure: no adapter, a tree too deep for the shader's stack or buffers past the
+//! adapter's limits make [`GpuCaster::new`] an error; a lost device, a validation
+//! error or a failed map make `cast` an error (the stage then switches to `bvh` for
+//! the rest of the run, see `collision/mod.rs`). Nothing panics.
 
-use super::{CONTACT_TOLERANCE_RELATIVE, LineAccumulator, PairHits, PairLine, RayCaster, TriangleHit};
+use super::bvh::BvhCaster;
+use super::{LineAccumulator, PairHits, PairLine, RayCaster, TriangleHit};
 use crate::collision::{BackendKind, CollisionError};
+use crate::geometry::LineQuery;
 use crate::math::Vec3;
 use bytemuck::{Pod, Zeroable};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 /// Unchanged vertices bridged inside one upload run.
 const RUN_GAP: usize = 16;
 const NO_HIT: u32 = u32::MAX;
 const WORKGROUP: u32 = 64;
+/// u32 words a line returns: 8 candidate ids and a flag word.
+const OUT_STRIDE: usize = 9;
+/// The shader's traversal stack (entries).
+const SHADER_STACK: usize = 64;
+/// The window `w` in f32 ulps (2^-23) of the largest coordinate: 8192 ulps is
+/// 1e-3 of it (78 µm on a brain 16 cm across). Hits whose f32 error bound passes
+/// `w/8` are treated as grazing.
+const WINDOW_ULPS: f64 = 8192.0;
+/// An origin farther than this many times the surface's extent from its centre is
+/// cast on the CPU (the shader's error bounds assume comparable magnitudes).
+const FAR_ORIGIN: f64 = 64.0;
+/// Lines per parallel decision task.
+const LINES_PER_TASK: usize = 64;
 
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 struct GpuParams {
-    ray_count: u32,
-    triangle_count: u32,
-    _pad: [u32; 2],
+    line_count: u32,
+    _pad: [u32; 3],
+    window: f32,
+    coord_scale: f32,
+    _pad2: [f32; 2],
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct GpuLevel {
+    start: u32,
+    count: u32,
+    margin: f32,
+    _pad: u32,
 }
 
 #[repr(C)]
@@ -42,25 +89,6 @@ struct GpuParams {
 struct GpuRay {
     origin: [f32; 4],
     direction: [f32; 4],
-}
-
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
-struct GpuSlot {
-    triangle: u32,
-    t: f32,
-    u: f32,
-    v: f32,
-}
-
-/// a: face 0 behind, b: face 0 front, c: face 1 behind, d: face 1 front (line parameter t).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable, PartialEq)]
-struct GpuHits {
-    a: GpuSlot,
-    b: GpuSlot,
-    c: GpuSlot,
-    d: GpuSlot,
 }
 
 /// How the last frame's positions went up.
@@ -76,25 +104,82 @@ pub struct UploadStats {
     pub whole_buffer: bool,
 }
 
-/// The compute pass and its persistent resources.
+/// Where the last `cast` spent its time, seconds.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GpuTimings {
+    /// CPU: positions and lines written to the queue (staging copies).
+    pub upload: f64,
+    /// CPU: from the submission until the results were mapped (GPU work plus transfers).
+    pub wait: f64,
+    /// CPU: candidates decided in f64, flagged lines cast on the CPU.
+    pub decide: f64,
+    /// GPU timestamps of the refit pass (None: the adapter has no timestamp queries).
+    pub refit_gpu: Option<f64>,
+    /// GPU timestamps of the traversal pass.
+    pub traverse_gpu: Option<f64>,
+    /// Lines the shader flagged (cast on the CPU).
+    pub flagged_lines: usize,
+    /// Lines in the frame.
+    pub lines: usize,
+}
+
+/// Timestamp queries: 4 (refit begin/end, traversal begin/end).
+struct Timestamps {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    period_ns: f64,
+}
+
+/// The device passes and their persistent resources.
 pub struct GpuCaster {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    pipeline: wgpu::ComputePipeline,
-    bind_group: wgpu::BindGroup,
+    refit_pipeline: wgpu::ComputePipeline,
+    traverse_pipeline: wgpu::ComputePipeline,
+    refit_groups: Vec<wgpu::BindGroup>,
+    traverse_group: wgpu::BindGroup,
+    levels_buf: wgpu::Buffer,
+    /// (start, count) of each level in `level_nodes`.
+    levels: Vec<(u32, u32)>,
+    level_stride: u64,
     params: wgpu::Buffer,
     positions: wgpu::Buffer,
     rays: wgpu::Buffer,
     results: wgpu::Buffer,
     staging: wgpu::Buffer,
+    timestamps: Option<Timestamps>,
+    /// Uncaptured device errors and device loss, reported by wgpu's callbacks.
+    fault: Arc<Mutex<Option<String>>>,
     centre: Vec3,
-    triangle_count: u32,
+    /// Largest |coordinate| (relative to `centre`) the box margins were set for.
+    margin_scale: f64,
+    /// Largest |coordinate| of this frame's positions (relative to `centre`).
+    frame_scale: f64,
+    /// Largest |coordinate| of the rest surface (relative to `centre`).
+    rest_scale: f64,
     ray_capacity: usize,
     uploaded: Vec<[f32; 4]>,
     fresh: Vec<[f32; 4]>,
     gpu_rays: Vec<GpuRay>,
+    /// The surface in f64 for the CPU decisions.
+    triangles: Vec<[u32; 3]>,
+    positions64: Vec<Vec3>,
+    /// Triangles around each vertex (CSR): `fan[fan_start[v]..fan_start[v + 1]]`.
+    fan_start: Vec<u32>,
+    fan: Vec<u32>,
+    /// CPU tree for flagged lines, refit only in frames that have one.
+    exact: BvhCaster,
+    exact_stale: bool,
+    flagged: Vec<usize>,
+    flagged_lines: Vec<PairLine>,
+    flagged_hits: Vec<PairHits>,
+    words: Vec<u32>,
     adapter_name: String,
     last_upload: UploadStats,
+    last_timings: GpuTimings,
+    /// Test hook: the next cast fails as if the device were lost.
+    fail_next: bool,
 }
 
 fn to_f32(p: &Vec3, centre: &Vec3) -> [f32; 4] {
@@ -106,11 +191,28 @@ fn gpu_err(what: &str, e: impl std::fmt::Display) -> CollisionError {
     CollisionError::Gpu(format!("{what}: {e}"))
 }
 
+fn max_abs(p: &Vec3, centre: &Vec3) -> f64 {
+    (p - centre).amax()
+}
+
+fn storage(device: &wgpu::Device, label: &str, bytes: &[u8], extra: wgpu::BufferUsages) -> wgpu::Buffer {
+    use wgpu::util::DeviceExt;
+    // A zero-sized binding is invalid: keep at least 16 bytes.
+    let mut data = bytes.to_vec();
+    data.resize(data.len().max(16), 0);
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: &data, usage: wgpu::BufferUsages::STORAGE | extra })
+}
+
 impl GpuCaster {
-    /// Creates device, pipeline and buffers for `triangles` at `positions` and up to
-    /// `ray_capacity` rays a frame. Errors when no adapter or device is available.
+    /// Creates device, pipelines and buffers for `triangles` at `positions` and up to
+    /// `ray_capacity` lines a frame. Errors when no adapter or device is available,
+    /// or when the tree or a buffer does not fit the shader or the adapter.
     pub fn new(triangles: &[[u32; 3]], positions: &[Vec3], ray_capacity: usize) -> Result<Self, CollisionError> {
-        use wgpu::util::DeviceExt;
+        let exact = BvhCaster::new(triangles, positions);
+        let layout = exact.layout();
+        if layout.depth + 2 > SHADER_STACK {
+            return Err(CollisionError::Gpu(format!("the tree is {} levels deep; the shader's stack holds {}", layout.depth, SHADER_STACK - 2)));
+        }
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
@@ -118,13 +220,30 @@ impl GpuCaster {
         }))
         .map_err(|e| gpu_err("no adapter", e))?;
         let limits = adapter.limits();
+        let timestamp_query = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("collision device"),
             required_limits: limits.clone(),
+            required_features: if timestamp_query { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() },
             ..Default::default()
         }))
         .map_err(|e| gpu_err("no device", e))?;
         let adapter_name = adapter.get_info().name;
+        let fault = Arc::new(Mutex::new(None::<String>));
+        {
+            let sink = fault.clone();
+            device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+                if let Ok(mut f) = sink.lock() {
+                    f.get_or_insert_with(|| format!("device error: {e}"));
+                }
+            }));
+            let sink = fault.clone();
+            device.set_device_lost_callback(move |reason, message| {
+                if let Ok(mut f) = sink.lock() {
+                    f.get_or_insert_with(|| format!("device lost ({reason:?}): {message}"));
+                }
+            });
+        }
 
         let (mut lo, mut hi) = (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY));
         for p in positions {
@@ -132,39 +251,59 @@ impl GpuCaster {
             hi = hi.sup(p);
         }
         let centre = if positions.is_empty() { Vec3::zeros() } else { (lo + hi) * 0.5 };
+        let rest_scale = positions.iter().map(|p| max_abs(p, &centre)).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
         let uploaded: Vec<[f32; 4]> = positions.iter().map(|p| to_f32(p, &centre)).collect();
-        let tri4: Vec<[u32; 4]> = triangles.iter().map(|t| [t[0], t[1], t[2], 0]).collect();
         let ray_capacity = ray_capacity.max(1);
         let max_binding = limits.max_storage_buffer_binding_size as u64;
-        let need = (uploaded.len().max(tri4.len()) * 16).max(ray_capacity * std::mem::size_of::<GpuHits>()) as u64;
-        if need > max_binding {
-            return Err(CollisionError::Gpu(format!("a buffer of {need} bytes exceeds the adapter's binding limit {max_binding}")));
+        let biggest = [uploaded.len() * 16, layout.leaf_triangles.len() * 16, layout.topo.len() * 32, ray_capacity * OUT_STRIDE * 4, ray_capacity * 32]
+            .into_iter()
+            .max()
+            .unwrap_or(0) as u64;
+        if biggest > max_binding {
+            return Err(CollisionError::Gpu(format!("a buffer of {biggest} bytes exceeds the adapter's binding limit {max_binding}")));
         }
 
-        let shader = device.create_shader_module(wgpu::include_wgsl!("../../../shaders/collision.wgsl"));
+        let refit_shader = device.create_shader_module(wgpu::include_wgsl!("../../../shaders/collision_refit.wgsl"));
+        let traverse_shader = device.create_shader_module(wgpu::include_wgsl!("../../../shaders/collision.wgsl"));
+        let copy_dst = wgpu::BufferUsages::COPY_DST;
+        let positions_buf = storage(&device, "collision positions", bytemuck::cast_slice(&uploaded), copy_dst);
+        let topo = storage(&device, "collision tree", bytemuck::cast_slice(&layout.topo), wgpu::BufferUsages::empty());
+        let leaf_vertices = storage(&device, "collision leaf vertices", bytemuck::cast_slice(&layout.leaf_vertices), wgpu::BufferUsages::empty());
+        let leaf_tris = storage(&device, "collision leaf triangles", bytemuck::cast_slice(&layout.leaf_triangles), wgpu::BufferUsages::empty());
+        let level_nodes: Vec<u32> = layout.levels.iter().flatten().copied().collect();
+        let level_nodes = storage(&device, "collision level nodes", bytemuck::cast_slice(&level_nodes), wgpu::BufferUsages::empty());
+        let boxes = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("collision boxes"),
+            size: (layout.topo.len().max(1) * 32) as u64,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let mut levels = Vec::with_capacity(layout.levels.len());
+        let mut start = 0u32;
+        for l in &layout.levels {
+            levels.push((start, l.len() as u32));
+            start += l.len() as u32;
+        }
+        let level_stride = (limits.min_uniform_buffer_offset_alignment as u64).max(std::mem::size_of::<GpuLevel>() as u64);
+        let levels_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("collision levels"),
+            size: level_stride * levels.len().max(1) as u64,
+            usage: wgpu::BufferUsages::UNIFORM | copy_dst,
+            mapped_at_creation: false,
+        });
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("collision params"),
             size: std::mem::size_of::<GpuParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::UNIFORM | copy_dst,
             mapped_at_creation: false,
-        });
-        let positions_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("collision positions"),
-            contents: bytemuck::cast_slice(&uploaded),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        });
-        let triangles_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("collision triangles"),
-            contents: bytemuck::cast_slice(&tri4),
-            usage: wgpu::BufferUsages::STORAGE,
         });
         let rays = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("collision rays"),
             size: (ray_capacity * std::mem::size_of::<GpuRay>()) as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | copy_dst,
             mapped_at_creation: false,
         });
-        let results_size = (ray_capacity * std::mem::size_of::<GpuHits>()) as u64;
+        let results_size = (ray_capacity * OUT_STRIDE * 4) as u64;
         let results = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("collision results"),
             size: results_size,
@@ -174,47 +313,171 @@ impl GpuCaster {
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("collision staging"),
             size: results_size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::MAP_READ | copy_dst,
             mapped_at_creation: false,
         });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("collision pipeline"),
+        let refit_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("collision refit"),
             layout: None,
-            module: &shader,
+            module: &refit_shader,
+            entry_point: Some("refit"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let traverse_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("collision traversal"),
+            layout: None,
+            module: &traverse_shader,
             entry_point: Some("main"),
             compilation_options: Default::default(),
             cache: None,
         });
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("collision bind group"),
-            layout: &pipeline.get_bind_group_layout(0),
+        let refit_layout = refit_pipeline.get_bind_group_layout(0);
+        let refit_groups = (0..levels.len())
+            .map(|k| {
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("collision refit level"),
+                    layout: &refit_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                                buffer: &levels_buf,
+                                offset: k as u64 * level_stride,
+                                size: wgpu::BufferSize::new(std::mem::size_of::<GpuLevel>() as u64),
+                            }),
+                        },
+                        wgpu::BindGroupEntry { binding: 1, resource: positions_buf.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: 2, resource: topo.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: 3, resource: leaf_vertices.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: 4, resource: level_nodes.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: 5, resource: boxes.as_entire_binding() },
+                    ],
+                })
+            })
+            .collect();
+        let traverse_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("collision traversal"),
+            layout: &traverse_pipeline.get_bind_group_layout(0),
             entries: &[
                 wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: positions_buf.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: triangles_buf.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: rays.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: results.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: topo.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: boxes.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: leaf_tris.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: rays.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: results.as_entire_binding() },
             ],
         });
-        Ok(Self {
+        let timestamps = timestamp_query.then(|| Timestamps {
+            set: device.create_query_set(&wgpu::QuerySetDescriptor { label: Some("collision timestamps"), ty: wgpu::QueryType::Timestamp, count: 4 }),
+            resolve: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("collision timestamp resolve"),
+                size: 32,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            staging: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("collision timestamp staging"),
+                size: 32,
+                usage: wgpu::BufferUsages::MAP_READ | copy_dst,
+                mapped_at_creation: false,
+            }),
+            period_ns: queue.get_timestamp_period() as f64,
+        });
+
+        // Triangles around each vertex, for the f64 decision's neighbourhood.
+        let mut fan_start = vec![0u32; positions.len() + 1];
+        for t in triangles {
+            for &v in t {
+                fan_start[v as usize + 1] += 1;
+            }
+        }
+        for v in 0..positions.len() {
+            fan_start[v + 1] += fan_start[v];
+        }
+        let mut fill = fan_start.clone();
+        let mut fan = vec![0u32; fan_start[positions.len()] as usize];
+        for (k, t) in triangles.iter().enumerate() {
+            for &v in t {
+                fan[fill[v as usize] as usize] = k as u32;
+                fill[v as usize] += 1;
+            }
+        }
+
+        let mut caster = Self {
             device,
             queue,
-            pipeline,
-            bind_group,
+            refit_pipeline,
+            traverse_pipeline,
+            refit_groups,
+            traverse_group,
+            levels_buf,
+            levels,
+            level_stride,
             params,
             positions: positions_buf,
             rays,
             results,
             staging,
+            timestamps,
+            fault,
             centre,
-            triangle_count: triangles.len() as u32,
+            margin_scale: 0.0,
+            frame_scale: rest_scale,
+            rest_scale,
             ray_capacity,
             fresh: uploaded.clone(),
             uploaded,
             gpu_rays: Vec::with_capacity(ray_capacity),
+            triangles: triangles.to_vec(),
+            positions64: positions.to_vec(),
+            fan_start,
+            fan,
+            exact,
+            exact_stale: false,
+            flagged: Vec::new(),
+            flagged_lines: Vec::new(),
+            flagged_hits: Vec::new(),
+            words: Vec::with_capacity(ray_capacity * OUT_STRIDE),
             adapter_name,
             last_upload: UploadStats::default(),
-        })
+            last_timings: GpuTimings::default(),
+            fail_next: false,
+        };
+        caster.write_margins(rest_scale);
+        caster.check_fault()?;
+        Ok(caster)
+    }
+
+    /// The window `w` for coordinates up to `scale`, metres.
+    fn window(scale: f64) -> f64 {
+        WINDOW_ULPS * f32::EPSILON as f64 * scale
+    }
+
+    /// Writes the leaf-box margin (`w/2` for coordinates up to `scale`, with headroom
+    /// so that a slowly growing surface does not rewrite it every frame).
+    fn write_margins(&mut self, scale: f64) {
+        let scale = scale * 1.25;
+        let margin = (0.5 * Self::window(scale)) as f32;
+        let mut bytes = vec![0u8; self.level_stride as usize * self.levels.len()];
+        for (k, &(start, count)) in self.levels.iter().enumerate() {
+            let l = GpuLevel { start, count, margin, _pad: 0 };
+            let at = k * self.level_stride as usize;
+            bytes[at..at + std::mem::size_of::<GpuLevel>()].copy_from_slice(bytemuck::bytes_of(&l));
+        }
+        if !bytes.is_empty() {
+            self.queue.write_buffer(&self.levels_buf, 0, &bytes);
+        }
+        self.margin_scale = scale;
+    }
+
+    fn check_fault(&self) -> Result<(), CollisionError> {
+        match self.fault.lock().map(|f| f.clone()) {
+            Ok(Some(msg)) => Err(CollisionError::Gpu(msg)),
+            Ok(None) => Ok(()),
+            Err(_) => Err(CollisionError::Gpu("the device's error sink was poisoned".into())),
+        }
     }
 
     /// The adapter's name (e.g. "llvmpipe" for Mesa lavapipe).
@@ -225,6 +488,125 @@ impl GpuCaster {
     /// How the last [`RayCaster::update_surface`] uploaded positions.
     pub fn last_upload(&self) -> UploadStats {
         self.last_upload
+    }
+
+    /// Where the last cast spent its time.
+    pub fn last_timings(&self) -> GpuTimings {
+        self.last_timings
+    }
+
+    /// True when the adapter reports timestamp queries (the GPU breakdown).
+    pub fn has_timestamps(&self) -> bool {
+        self.timestamps.is_some()
+    }
+
+    /// The f64 answer of one unflagged line from its candidates.
+    fn decide(&self, line: &PairLine, words: &[u32], seen: &mut Vec<u32>) -> PairHits {
+        let mut acc = LineAccumulator::new(line.thickness);
+        let Some(q) = LineQuery::new(line.origin, line.direction) else {
+            return acc.finish();
+        };
+        seen.clear();
+        for &t in &words[..8] {
+            if t != NO_HIT && (t as usize) < self.triangles.len() && !seen.contains(&t) {
+                seen.push(t);
+            }
+        }
+        let candidates = seen.len();
+        let mut i = 0;
+        while i < seen.len() {
+            let t = seen[i];
+            let tri = self.triangles[t as usize];
+            let [a, b, c] = tri.map(|v| &self.positions64[v as usize]);
+            match q.intersect(a, b, c) {
+                Some(h) => acc.offer(TriangleHit { triangle: t, t: h.t, u: h.u, v: h.v }),
+                None if i < candidates => {
+                    // f32 hit, f64 miss: the line passes at an edge or a vertex, and the
+                    // f64 test hits one of the triangles around it.
+                    for v in tri {
+                        for &u in &self.fan[self.fan_start[v as usize] as usize..self.fan_start[v as usize + 1] as usize] {
+                            if !seen.contains(&u) {
+                                seen.push(u);
+                            }
+                        }
+                    }
+                }
+                None => {}
+            }
+            i += 1;
+        }
+        acc.finish()
+    }
+
+    /// Records, submits and waits for one frame's GPU work; fills `self.words`.
+    fn run_device(&mut self, lines: &[PairLine]) -> Result<(Option<f64>, Option<f64>), CollisionError> {
+        let scale = lines.iter().map(|l| max_abs(&l.origin, &self.centre)).fold(self.frame_scale, f64::max);
+        let params = GpuParams { line_count: lines.len() as u32, _pad: [0; 3], window: Self::window(scale) as f32, coord_scale: scale as f32, _pad2: [0.0; 2] };
+        self.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        self.queue.write_buffer(&self.rays, 0, bytemuck::cast_slice(&self.gpu_rays));
+        let bytes = (lines.len() * OUT_STRIDE * 4) as u64;
+        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("collision encoder") });
+        let writes = |begin: u32| {
+            self.timestamps.as_ref().map(|ts| wgpu::ComputePassTimestampWrites {
+                query_set: &ts.set,
+                beginning_of_pass_write_index: Some(begin),
+                end_of_pass_write_index: Some(begin + 1),
+            })
+        };
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("collision refit"), timestamp_writes: writes(0) });
+            pass.set_pipeline(&self.refit_pipeline);
+            for (group, &(_, count)) in self.refit_groups.iter().zip(&self.levels) {
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(count.div_ceil(WORKGROUP), 1, 1);
+            }
+        }
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("collision traversal"), timestamp_writes: writes(2) });
+            pass.set_pipeline(&self.traverse_pipeline);
+            pass.set_bind_group(0, &self.traverse_group, &[]);
+            pass.dispatch_workgroups((lines.len() as u32).div_ceil(WORKGROUP), 1, 1);
+        }
+        encoder.copy_buffer_to_buffer(&self.results, 0, &self.staging, 0, bytes);
+        if let Some(ts) = &self.timestamps {
+            encoder.resolve_query_set(&ts.set, 0..4, &ts.resolve, 0);
+            encoder.copy_buffer_to_buffer(&ts.resolve, 0, &ts.staging, 0, 32);
+        }
+        self.queue.submit(Some(encoder.finish()));
+        let (tx, rx) = std::sync::mpsc::channel();
+        let tx2 = tx.clone();
+        self.staging.map_async(wgpu::MapMode::Read, 0..bytes, move |r| {
+            let _ = tx.send(r);
+        });
+        if let Some(ts) = &self.timestamps {
+            ts.staging.map_async(wgpu::MapMode::Read, 0..32, move |r| {
+                let _ = tx2.send(r);
+            });
+        } else {
+            drop(tx2);
+        }
+        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| gpu_err("poll", e))?;
+        for _ in 0..1 + self.timestamps.is_some() as usize {
+            rx.recv().map_err(|e| gpu_err("readback", e))?.map_err(|e| gpu_err("map", e))?;
+        }
+        self.check_fault()?;
+        {
+            let view = self.staging.get_mapped_range(0..bytes).map_err(|e| gpu_err("mapped range", e))?;
+            self.words.clear();
+            self.words.extend_from_slice(bytemuck::cast_slice(&view));
+        }
+        self.staging.unmap();
+        let mut gpu_times = (None, None);
+        if let Some(ts) = &self.timestamps {
+            {
+                let view = ts.staging.get_mapped_range(0..32).map_err(|e| gpu_err("mapped range", e))?;
+                let q: &[u64] = bytemuck::cast_slice(&view);
+                let span = |a: u64, b: u64| (b >= a && a > 0).then(|| (b - a) as f64 * ts.period_ns * 1e-9);
+                gpu_times = (span(q[0], q[1]), span(q[2], q[3]));
+            }
+            ts.staging.unmap();
+        }
+        Ok(gpu_times)
     }
 }
 
@@ -237,9 +619,18 @@ impl RayCaster for GpuCaster {
         if positions.len() != self.uploaded.len() {
             return Err(CollisionError::VertexCount { expected: self.uploaded.len(), got: positions.len() });
         }
+        let t0 = Instant::now();
+        self.positions64.copy_from_slice(positions);
+        self.exact_stale = true;
         let mut changed = 0;
+        let mut scale = self.rest_scale;
         for (f, p) in self.fresh.iter_mut().zip(positions) {
             *f = to_f32(p, &self.centre);
+            scale = scale.max(max_abs(p, &self.centre));
+        }
+        self.frame_scale = scale;
+        if scale > self.margin_scale {
+            self.write_margins(scale);
         }
         for (f, u) in self.fresh.iter().zip(&self.uploaded) {
             changed += (f != u) as usize;
@@ -276,61 +667,99 @@ impl RayCaster for GpuCaster {
         }
         std::mem::swap(&mut self.uploaded, &mut self.fresh);
         self.last_upload = stats;
+        self.last_timings.upload = t0.elapsed().as_secs_f64();
         Ok(())
     }
 
-    fn cast(&mut self, rays: &[PairLine], out: &mut Vec<PairHits>) -> Result<(), CollisionError> {
+    fn gpu_timings(&self) -> Option<GpuTimings> {
+        Some(self.last_timings)
+    }
+
+    fn device_name(&self) -> Option<String> {
+        Some(self.adapter_name.clone())
+    }
+
+    /// The next `cast` fails as a lost device would, and the device is destroyed,
+    /// so every later call fails too.
+    fn simulate_device_loss(&mut self) -> bool {
+        self.fail_next = true;
+        self.device.destroy();
+        true
+    }
+
+    fn cast(&mut self, lines: &[PairLine], out: &mut Vec<PairHits>) -> Result<(), CollisionError> {
         out.clear();
-        if rays.is_empty() {
+        let upload = std::mem::take(&mut self.last_timings.upload);
+        self.last_timings = GpuTimings { upload, lines: lines.len(), ..Default::default() };
+        if lines.is_empty() {
             return Ok(());
         }
-        if rays.len() > self.ray_capacity {
-            return Err(CollisionError::Gpu(format!("{} rays exceed the capacity {}", rays.len(), self.ray_capacity)));
+        if self.fail_next {
+            self.fail_next = false;
+            return Err(CollisionError::Gpu("device lost (simulated)".into()));
         }
+        if lines.len() > self.ray_capacity {
+            return Err(CollisionError::Gpu(format!("{} lines exceed the capacity {}", lines.len(), self.ray_capacity)));
+        }
+        let t0 = Instant::now();
+        let far = FAR_ORIGIN * self.rest_scale;
         self.gpu_rays.clear();
-        self.gpu_rays.extend(rays.iter().map(|r| GpuRay {
+        self.gpu_rays.extend(lines.iter().map(|r| GpuRay {
             origin: {
                 let mut o = to_f32(&r.origin, &self.centre);
                 o[3] = r.thickness as f32;
                 o
             },
-            direction: [r.direction.x as f32, r.direction.y as f32, r.direction.z as f32, (CONTACT_TOLERANCE_RELATIVE * r.thickness) as f32],
+            direction: [r.direction.x as f32, r.direction.y as f32, r.direction.z as f32, (super::CONTACT_TOLERANCE_RELATIVE * r.thickness) as f32],
         }));
-        let params = GpuParams { ray_count: rays.len() as u32, triangle_count: self.triangle_count, _pad: [0; 2] };
-        self.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        self.queue.write_buffer(&self.rays, 0, bytemuck::cast_slice(&self.gpu_rays));
-        let bytes = (rays.len() * std::mem::size_of::<GpuHits>()) as u64;
-        let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("collision encoder") });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("collision pass"), timestamp_writes: None });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &self.bind_group, &[]);
-            pass.dispatch_workgroups((rays.len() as u32).div_ceil(WORKGROUP), 1, 1);
-        }
-        encoder.copy_buffer_to_buffer(&self.results, 0, &self.staging, 0, bytes);
-        self.queue.submit(Some(encoder.finish()));
-        let (tx, rx) = std::sync::mpsc::channel();
-        self.staging.map_async(wgpu::MapMode::Read, 0..bytes, move |r| {
-            let _ = tx.send(r);
-        });
-        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| gpu_err("poll", e))?;
-        rx.recv().map_err(|e| gpu_err("readback", e))?.map_err(|e| gpu_err("map", e))?;
-        {
-            let view = self.staging.get_mapped_range(0..bytes).map_err(|e| gpu_err("mapped range", e))?;
-            let hits: &[GpuHits] = bytemuck::cast_slice(&view);
-            out.extend(hits.iter().zip(rays).map(|(h, line)| {
-                // Re-offer the four f32 answers to the f64 accumulator: same thresholds,
-                // t of face 1 re-expressed exactly as on the CPU.
-                let mut acc = LineAccumulator::new(line.thickness);
-                for s in [h.a, h.b, h.c, h.d] {
-                    if s.triangle != NO_HIT && s.t.is_finite() && s.u.is_finite() && s.v.is_finite() {
-                        acc.offer(TriangleHit { triangle: s.triangle, t: s.t as f64, u: s.u as f64, v: s.v as f64 });
-                    }
+        let (refit_gpu, traverse_gpu) = self.run_device(lines)?;
+        let t1 = Instant::now();
+
+        // Decide every unflagged line in f64 from its candidates (lines are independent
+        // and land in fixed slots, so the split over threads changes no answer).
+        out.resize(lines.len(), PairHits::default());
+        let this = &*self;
+        let decide_chunk = |o: &mut [PairHits], l: &[PairLine], w: &[u32], seen: &mut Vec<u32>| {
+            for ((o, l), w) in o.iter_mut().zip(l).zip(w.chunks_exact(OUT_STRIDE)) {
+                if w[8] == 0 && max_abs(&l.origin, &this.centre) <= far {
+                    *o = this.decide(l, w, seen);
                 }
-                acc.finish()
-            }));
+            }
+        };
+        if lines.len() >= 2 * LINES_PER_TASK && rayon::current_num_threads() > 1 {
+            use rayon::prelude::*;
+            out.par_chunks_mut(LINES_PER_TASK)
+                .zip(lines.par_chunks(LINES_PER_TASK))
+                .zip(self.words.par_chunks(LINES_PER_TASK * OUT_STRIDE))
+                .for_each_init(|| Vec::with_capacity(32), |seen, ((o, l), w)| decide_chunk(o, l, w, seen));
+        } else {
+            let mut seen = Vec::with_capacity(32);
+            decide_chunk(out, lines, &self.words, &mut seen);
         }
-        self.staging.unmap();
+        // Flagged lines (and absurdly far origins): the CPU tree.
+        self.flagged.clear();
+        self.flagged_lines.clear();
+        for (k, (l, w)) in lines.iter().zip(self.words.chunks_exact(OUT_STRIDE)).enumerate() {
+            if w[8] != 0 || max_abs(&l.origin, &self.centre) > far {
+                self.flagged.push(k);
+                self.flagged_lines.push(*l);
+            }
+        }
+        if !self.flagged.is_empty() {
+            if self.exact_stale {
+                self.exact.update_surface(&self.positions64)?;
+                self.exact_stale = false;
+            }
+            self.exact.cast(&self.flagged_lines, &mut self.flagged_hits)?;
+            for (&k, h) in self.flagged.iter().zip(&self.flagged_hits) {
+                out[k] = *h;
+            }
+        }
+        self.last_timings.wait = (t1 - t0).as_secs_f64();
+        self.last_timings.decide = t1.elapsed().as_secs_f64();
+        self.last_timings.refit_gpu = refit_gpu;
+        self.last_timings.traverse_gpu = traverse_gpu;
+        self.last_timings.flagged_lines = self.flagged.len();
         Ok(())
     }
 }
@@ -341,8 +770,8 @@ mod tests {
 
     #[test]
     fn pod_twins_match_the_wgsl_layout() {
-        assert_eq!(std::mem::size_of::<GpuParams>(), 16, "Params is 4 x u32 in the shader");
+        assert_eq!(std::mem::size_of::<GpuParams>(), 32, "Params is 4 x u32 then 4 x f32 in the shader");
         assert_eq!(std::mem::size_of::<GpuRay>(), 32, "Ray is two vec4<f32> in the shader");
-        assert_eq!(std::mem::size_of::<GpuHits>(), 64, "Hits is four (u32, f32, f32, f32) slots in the shader");
+        assert_eq!(std::mem::size_of::<GpuLevel>(), 16, "Level is (u32, u32, f32, u32) in the refit shader");
     }
 }

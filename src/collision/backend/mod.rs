@@ -5,9 +5,9 @@
 //! positions ([`RayCaster::update_surface`]), then one [`PairLine`] per node pair.
 //! Out: one [`PairHits`] per line. Stays true: every backend applies the same rule
 //! ([`LineAccumulator::offer`]: nearest by |t|, an exact tie goes to the lower
-//! triangle index, a hit within the contact tolerance in front counts as behind), so `reference` and `bvh` (both f64,
-//! both [`crate::geometry::LineQuery`]) agree bit for bit, and `gpu` (f32) agrees
-//! except at near-ties (see `gpu.rs`).
+//! triangle index, a hit within the contact tolerance in front counts as behind) to
+//! the same f64 hits ([`crate::geometry::LineQuery`]), so `reference`, `bvh` and
+//! `gpu` (which only finds candidates in f32, see `gpu.rs`) agree bit for bit.
 
 pub mod bvh;
 pub mod gpu;
@@ -152,4 +152,20 @@ pub trait RayCaster: Send {
     fn update_surface(&mut self, positions: &[Vec3]) -> Result<(), CollisionError>;
     /// Fills `out` (resized to `lines.len()`) with the nearest hits of both nodes of every pair.
     fn cast(&mut self, lines: &[PairLine], out: &mut Vec<PairHits>) -> Result<(), CollisionError>;
+    /// Test hook: a device-backed caster fails its next cast as a lost device would
+    /// and returns true; the CPU casters return false.
+    #[doc(hidden)]
+    fn simulate_device_loss(&mut self) -> bool {
+        false
+    }
+    /// Where the last cast spent its time, for a device-backed caster.
+    fn gpu_timings(&self) -> Option<gpu::GpuTimings> {
+        None
+    }
+    /// Splits the work over `threads` threads where the caster can (answers never change).
+    fn set_threads(&mut self, _threads: usize) {}
+    /// The device's name, for a device-backed caster.
+    fn device_name(&self) -> Option<String> {
+        None
+    }
 }
