@@ -1,7 +1,7 @@
 // Collision traversal: one thread per node-pair line (origin at the face-0 node,
 // direction its normal; origin.w = blade thickness h, direction.w = contact
 // tolerance e). It walks the refit BVH near-first and returns, for each of the four
-// nearest-hit slots of the line, up to two CANDIDATE triangles (original indices).
+// nearest-hit slots of the line, up to three CANDIDATE triangles (original indices).
 // The CPU then decides every slot in f64 from the candidates (`backend/gpu.rs`), so
 // the answers are the f64 backends' answers bit for bit; this pass only has to make
 // sure the f64 winner is among the candidates, or flag the line for the CPU.
@@ -11,12 +11,13 @@
 //   1 b: face 0 front,  smallest t >  T0 (accepts t32 >  T0 - w)
 //   2 c: face 1 behind, smallest t >= T1 (accepts t32 >= T1 - w)
 //   3 d: face 1 front,  largest t  <  T1 (accepts t32 <  T1 + w)
-// Each slot keeps its best three by key (key = t for b and c, -t for a and d; an
+// Each slot keeps its best four by key (key = t for b and c, -t for a and d; an
 // exact tie goes to the lower triangle index). An entry is CLEAR when its t32 lies
 // more than w from the slot's threshold (its f64 side is then certain). The f64
-// winner has key <= (first clear entry's key) + w, so the slot returns its best two
-// and flags the line when its third is also that close (a cluster of three), or
-// when no clear entry exists among three. Hits whose f32 error bound exceeds w/8
+// winner has key <= (first clear entry's key) + w, so the slot returns its best
+// three and flags the line when its fourth is also that close (a cluster of four:
+// e.g. two triangles on the blade plane and two more within w), or when no clear
+// entry exists among four. Hits whose f32 error bound exceeds w/8
 // (a line grazing a triangle) are remembered with their t range; the line is
 // flagged when such a range meets the final needed interval.
 // The same watertight line test and edge rules as `src/geometry/ray.rs` (Woop et
@@ -44,8 +45,10 @@ const BIG: f32 = 1.0e30;
 const EPS: f32 = 1.1920929e-7;
 const STACK: u32 = 64u;
 const UNCERTAIN_MAX: u32 = 4u;
-// Per line out: 8 candidate ids (a1 a2 b1 b2 c1 c2 d1 d2) and a flag word.
-const OUT_STRIDE: u32 = 9u;
+// Per line out: 12 candidate ids (a1 a2 a3 b1 .. d3) and a flag word (0: the
+// candidates decide the line; bit 1: a cluster of four, 2: a grazing hit or too
+// many of them, 4: the stack was full).
+const OUT_STRIDE: u32 = 13u;
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
@@ -66,8 +69,8 @@ fn perturbed_sign(e: f32, dx: f32, dy: f32) -> i32 {
     return 0;
 }
 
-var<private> keys: array<f32, 12>;
-var<private> ids: array<u32, 8>;
+var<private> keys: array<f32, 16>;
+var<private> ids: array<u32, 12>;
 var<private> counts: array<u32, 4>;
 var<private> thresholds: vec2<f32>;
 var<private> win: f32;
@@ -95,7 +98,7 @@ fn accepts(s: u32, t: f32) -> bool {
 fn slot_bound(s: u32) -> f32 {
     let thr = threshold_of(s);
     for (var q = 0u; q < counts[s]; q = q + 1u) {
-        let k = keys[3u * s + q];
+        let k = keys[4u * s + q];
         if (abs(key_of(s, k) - thr) > win) {
             return k + win;
         }
@@ -104,33 +107,33 @@ fn slot_bound(s: u32) -> f32 {
 }
 
 fn insert(s: u32, k: f32, tri: u32) {
-    let base = 3u * s;
+    let base = 4u * s;
     let cnt = counts[s];
     var pos = cnt;
     for (var q = 0u; q < cnt; q = q + 1u) {
         let kq = keys[base + q];
-        if (k < kq || (k == kq && q < 2u && tri < ids[2u * s + q])) {
+        if (k < kq || (k == kq && q < 3u && tri < ids[3u * s + q])) {
             pos = q;
             break;
         }
     }
-    if (pos >= 3u) {
+    if (pos >= 4u) {
         return;
     }
-    var q = 2u;
+    var q = 3u;
     loop {
         if (q <= pos) { break; }
         keys[base + q] = keys[base + q - 1u];
-        if (q < 2u) {
-            ids[2u * s + q] = ids[2u * s + q - 1u];
+        if (q < 3u) {
+            ids[3u * s + q] = ids[3u * s + q - 1u];
         }
         q = q - 1u;
     }
     keys[base + pos] = k;
-    if (pos < 2u) {
-        ids[2u * s + pos] = tri;
+    if (pos < 3u) {
+        ids[3u * s + pos] = tri;
     }
-    counts[s] = min(cnt + 1u, 3u);
+    counts[s] = min(cnt + 1u, 4u);
 }
 
 // The needed interval of t: hits outside it cannot change any slot.
@@ -155,7 +158,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var i = 0u; i < 4u; i = i + 1u) {
         counts[i] = 0u;
     }
-    for (var i = 0u; i < 8u; i = i + 1u) {
+    for (var i = 0u; i < 12u; i = i + 1u) {
         ids[i] = NO_HIT;
     }
     var flag = 0u;
@@ -169,8 +172,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         kz = 1u;
     }
     if (d[kz] == 0.0) {
-        for (var i = 0u; i < 8u; i = i + 1u) { out[ob + i] = NO_HIT; }
-        out[ob + 8u] = 0u;
+        for (var i = 0u; i < 12u; i = i + 1u) { out[ob + i] = NO_HIT; }
+        out[ob + 12u] = 0u;
         return;
     }
     let kx = (kz + 1u) % 3u;
@@ -258,7 +261,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                         un_hi[un_count] = zhi + dc;
                         un_count = un_count + 1u;
                     } else {
-                        flag = 1u;
+                        flag = flag | 2u;
                     }
                     continue;
                 }
@@ -270,7 +273,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                         un_hi[un_count] = min(zhi, t + err_t) + dc;
                         un_count = un_count + 1u;
                     } else {
-                        flag = 1u;
+                        flag = flag | 2u;
                     }
                 }
                 for (var s = 0u; s < 4u; s = s + 1u) {
@@ -294,7 +297,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let keep_l = a0 <= a1 && a1 >= need.x && a0 <= need.y;
         let keep_r = b0 <= b1 && b1 >= need.x && b0 <= need.y;
         if (sp + 2u > STACK) {
-            flag = 1u;
+            flag = flag | 4u;
             break;
         }
         let gl = max(max(a0 - centre, centre - a1), 0.0);
@@ -316,21 +319,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             sp = sp + 1u;
         }
     }
-    // Clusters of three, or no clear entry among three: the CPU decides the line.
+    // Clusters of four, or no clear entry among four: the CPU decides the line.
     for (var s = 0u; s < 4u; s = s + 1u) {
-        if (counts[s] == 3u && keys[3u * s + 2u] <= slot_bound(s)) {
-            flag = 1u;
+        if (counts[s] == 4u && keys[4u * s + 3u] <= slot_bound(s)) {
+            flag = flag | 1u;
         }
     }
     // A grazing hit whose t range meets the needed interval: the CPU decides the line.
     let fin = needed();
     for (var i = 0u; i < un_count; i = i + 1u) {
         if (un_hi[i] >= fin.x - win && un_lo[i] <= fin.y + win) {
-            flag = 1u;
+            flag = flag | 2u;
         }
     }
-    for (var i = 0u; i < 8u; i = i + 1u) {
+    for (var i = 0u; i < 12u; i = i + 1u) {
         out[ob + i] = ids[i];
     }
-    out[ob + 8u] = flag;
+    out[ob + 12u] = flag;
 }

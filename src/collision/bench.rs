@@ -82,6 +82,8 @@ pub struct GpuBreakdown {
     pub traverse_gpu_ms: Option<f64>,
     /// Share of lines the shader flagged for the CPU.
     pub flagged: f64,
+    /// Share of lines flagged for a cluster of three, a grazing hit, a full stack.
+    pub reasons: [f64; 3],
 }
 
 fn layout(n: u32) -> NodeLayout {
@@ -185,6 +187,7 @@ fn run_case(surface: &BenchSurface, nodes: u32, backend: BenchBackend, frames: u
             refit_gpu_ms: med_opt(&|g| g.refit_gpu),
             traverse_gpu_ms: med_opt(&|g| g.traverse_gpu),
             flagged: gpu.iter().map(|g| g.flagged_lines as f64 / g.lines.max(1) as f64).sum::<f64>() / gpu.len() as f64,
+            reasons: [0, 1, 2].map(|k| gpu.iter().map(|g| g.flag_reasons[k] as f64 / g.lines.max(1) as f64).sum::<f64>() / gpu.len() as f64),
         }
     });
     Ok(BenchRow {
@@ -222,7 +225,7 @@ pub fn run(cases: &[(&BenchSurface, u32)], backends: &[BenchBackend], frames: us
 }
 
 /// The header of [`table_row`]'s Markdown table.
-pub const TABLE_HEADER: &str = "| surface | triangles | nodes a face | backend | p50 ms | p95 ms | gpu: upload / wait / f64 decide ms | gpu timestamps: refit / traversal ms | lines to CPU | answers |\n|---|---:|---:|---|---:|---:|---|---|---:|---|";
+pub const TABLE_HEADER: &str = "| surface | triangles | nodes a face | backend | p50 ms | p95 ms | gpu: upload / wait / f64 decide ms | gpu timestamps: refit / traversal ms | lines to CPU % (cluster / grazing / stack) | answers |\n|---|---:|---:|---|---:|---:|---|---|---:|---|";
 
 /// One Markdown table row.
 pub fn table_row(r: &BenchRow) -> String {
@@ -232,7 +235,7 @@ pub fn table_row(r: &BenchRow) -> String {
             (
                 format!("{:.3} / {:.3} / {:.3}", g.upload_ms, g.wait_ms, g.decide_ms),
                 format!("{} / {}", f(g.refit_gpu_ms), f(g.traverse_gpu_ms)),
-                format!("{:.2} %", 100.0 * g.flagged),
+                format!("{:.2} % ({:.2} / {:.2} / {:.2})", 100.0 * g.flagged, 100.0 * g.reasons[0], 100.0 * g.reasons[1], 100.0 * g.reasons[2]),
             )
         }
         None => ("".into(), "".into(), "".into()),

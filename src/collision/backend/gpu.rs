@@ -6,7 +6,7 @@
 //! the tree's boxes are refit bottom-up (`shaders/collision_refit.wgsl`, one dispatch
 //! per tree level, leaves first), then one thread per pair line walks the tree
 //! near-first (`shaders/collision.wgsl`) and writes, for each of the line's four
-//! nearest-hit slots, up to two candidate triangle ids and a flag word: 36 bytes a
+//! nearest-hit slots, up to three candidate triangle ids and a flag word: 52 bytes a
 //! line come back, never a t or a barycentric. The CPU then tests each line's
 //! candidates with the f64 watertight test of the other backends
 //! ([`LineQuery::intersect`]) and offers the hits to the same [`LineAccumulator`];
@@ -18,8 +18,8 @@
 //! Why that gives the f64 answer (the shader's header has the slot rules): every
 //! f32 hit that is not flagged as grazing has `|t32 - t64| <= w/8`, where the window
 //! `w` = [`WINDOW_ULPS`] f32 ulps of the largest coordinate; the shader keeps the
-//! best three hits of each slot with thresholds widened by `w`, returns the best two
-//! and flags the line when the f64 winner could be outside them (a cluster of three
+//! best four hits of each slot with thresholds widened by `w`, returns the best three
+//! and flags the line when the f64 winner could be outside them (a cluster of four
 //! within `w`, a grazing hit inside the needed interval, a stack overflow). Pruning
 //! is conservative: leaf boxes are grown by `w/2`. `tests/collision_backends.rs`
 //! checks bit-for-bit equality with `reference` on spheres, fissures, contact
@@ -51,8 +51,8 @@ use std::time::Instant;
 const RUN_GAP: usize = 16;
 const NO_HIT: u32 = u32::MAX;
 const WORKGROUP: u32 = 64;
-/// u32 words a line returns: 8 candidate ids and a flag word.
-const OUT_STRIDE: usize = 9;
+/// u32 words a line returns: 12 candidate ids and a flag word.
+const OUT_STRIDE: usize = 13;
 /// The shader's traversal stack (entries).
 const SHADER_STACK: usize = 64;
 /// The window `w` in f32 ulps (2^-23) of the largest coordinate: 8192 ulps is
@@ -119,6 +119,9 @@ pub struct GpuTimings {
     pub traverse_gpu: Option<f64>,
     /// Lines the shader flagged (cast on the CPU).
     pub flagged_lines: usize,
+    /// Flagged lines by reason: a cluster of four hits within the window, a grazing
+    /// hit inside the needed interval, a full traversal stack (a line may have several).
+    pub flag_reasons: [usize; 3],
     /// Lines in the frame.
     pub lines: usize,
 }
@@ -495,6 +498,12 @@ impl GpuCaster {
         self.last_timings
     }
 
+    /// The last cast's flag word of every line (0: decided from its candidates; bits
+    /// as in `GpuTimings::flag_reasons`).
+    pub fn last_flags(&self) -> impl Iterator<Item = u32> + '_ {
+        self.words.chunks_exact(OUT_STRIDE).map(|w| w[12])
+    }
+
     /// True when the adapter reports timestamp queries (the GPU breakdown).
     pub fn has_timestamps(&self) -> bool {
         self.timestamps.is_some()
@@ -507,7 +516,7 @@ impl GpuCaster {
             return acc.finish();
         };
         seen.clear();
-        for &t in &words[..8] {
+        for &t in &words[..12] {
             if t != NO_HIT && (t as usize) < self.triangles.len() && !seen.contains(&t) {
                 seen.push(t);
             }
@@ -721,7 +730,7 @@ impl RayCaster for GpuCaster {
         let this = &*self;
         let decide_chunk = |o: &mut [PairHits], l: &[PairLine], w: &[u32], seen: &mut Vec<u32>| {
             for ((o, l), w) in o.iter_mut().zip(l).zip(w.chunks_exact(OUT_STRIDE)) {
-                if w[8] == 0 && max_abs(&l.origin, &this.centre) <= far {
+                if w[12] == 0 && max_abs(&l.origin, &this.centre) <= far {
                     *o = this.decide(l, w, seen);
                 }
             }
@@ -740,7 +749,7 @@ impl RayCaster for GpuCaster {
         self.flagged.clear();
         self.flagged_lines.clear();
         for (k, (l, w)) in lines.iter().zip(self.words.chunks_exact(OUT_STRIDE)).enumerate() {
-            if w[8] != 0 || max_abs(&l.origin, &self.centre) > far {
+            if w[12] != 0 || max_abs(&l.origin, &self.centre) > far {
                 self.flagged.push(k);
                 self.flagged_lines.push(*l);
             }
@@ -760,6 +769,13 @@ impl RayCaster for GpuCaster {
         self.last_timings.refit_gpu = refit_gpu;
         self.last_timings.traverse_gpu = traverse_gpu;
         self.last_timings.flagged_lines = self.flagged.len();
+        let mut reasons = [0; 3];
+        for w in self.words.chunks_exact(OUT_STRIDE) {
+            for (bit, r) in reasons.iter_mut().enumerate() {
+                *r += (w[12] >> bit & 1) as usize;
+            }
+        }
+        self.last_timings.flag_reasons = reasons;
         Ok(())
     }
 }
