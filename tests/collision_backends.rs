@@ -62,27 +62,10 @@ fn bbox(p: &[Vec3]) -> (Vec3, Vec3) {
     p.iter().fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(a, b), q| (a.inf(q), b.sup(q)))
 }
 
-/// Runs a trajectory of random poses on reference and bvh stages (culling on) with a
-/// kinematic surface; every output must be identical bit for bit.
+/// Random poses on a reference stage against bvh (see [`stage_parity`]).
 fn cpu_parity(t: &[[u32; 3]], rest: &[Vec3], frames: usize, seed: u64) -> usize {
-    let (lo, hi) = bbox(rest);
-    let mut rng = Rng(seed);
-    let poses = random_poses(&mut rng, lo, hi, frames);
-    let mk = |b| CollisionStage::new(CollisionConfig { backend: b, culling: true }, t, rest, &specs()).expect("stage");
-    let (mut r, mut b) = (mk(BackendKind::Reference), mk(BackendKind::Bvh));
-    let mut cur = rest.to_vec();
-    let mut pairs = 0;
-    for (f, pose) in poses.iter().enumerate() {
-        let ro = r.step(&cur, pose).expect("reference").clone();
-        let bo = b.step(&cur, pose).expect("bvh");
-        assert_eq!(&ro, bo, "frame {f}: bvh output differs from reference");
-        pairs += ro.candidate_pairs.len();
-        cur = rest.to_vec();
-        for tg in &ro.targets {
-            cur[tg.vertex as usize] = rest[tg.vertex as usize] + tg.displacement;
-        }
-    }
-    pairs
+    let mut r = CollisionStage::new(CollisionConfig { backend: BackendKind::Reference, culling: true }, t, rest, &specs()).expect("stage");
+    stage_parity(&mut r, t, rest, &specs(), frames, seed)
 }
 
 #[test]
