@@ -8,20 +8,7 @@
 //! VK_DRIVER_FILES=/usr/share/vulkan/icd.d/lvp_icd.x86_64.json WGPU_BACKEND=vulkan).
 //! Frames: FISSURE_BENCH_FRAMES (default 40).
 
-use fissure::collision::bench::{self, BenchBackend, BenchSurface};
-use fissure::math::Vec3;
-
-fn brain(file: &str, name: &str) -> Option<BenchSurface> {
-    let path = format!("{}/../shared/data/brain/{file}", env!("CARGO_MANIFEST_DIR"));
-    let Ok(mut mesh) = fissure::mesh::io::load_tet_mesh(std::path::Path::new(&path)) else {
-        eprintln!("skip {name}: {path} not found");
-        return None;
-    };
-    mesh.scale(1e-3);
-    let s = mesh.boundary();
-    let positions: Vec<Vec3> = s.gather_positions(&mesh.positions);
-    Some(BenchSurface { name: name.into(), triangles: s.triangles.clone(), positions })
-}
+use fissure::collision::bench::{self, BenchSurface};
 
 fn main() {
     // `cargo test --all-targets` builds benches; `cargo bench` passes --bench.
@@ -29,19 +16,15 @@ fn main() {
         return;
     }
     let frames = std::env::var("FISSURE_BENCH_FRAMES").ok().and_then(|v| v.parse().ok()).unwrap_or(40);
-    let ph = fissure::mesh::phantom::generate(fissure::mesh::phantom::Preset::Paper12k).expect("paper-12k");
-    let s = ph.mesh.boundary();
-    let paper = BenchSurface { name: "paper-12k".into(), triangles: s.triangles.clone(), positions: s.gather_positions(&ph.mesh.positions) };
-    let coarse = brain("brain_pial_coarse.msh", "brain-coarse");
-    let q15 = brain("brain_pial_q15.msh", "brain-q15");
-    let mut cases = vec![(&paper, 150), (&paper, 500), (&paper, 2000)];
-    for s in [&coarse, &q15].into_iter().flatten() {
-        cases.extend([(s, 500), (s, 2000)]);
-    }
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/brain");
+    let surfaces = bench::standard_surfaces(&dir, None, &mut |n| eprintln!("{n}")).expect("bench surfaces");
+    let cases: Vec<(&BenchSurface, u32)> = surfaces.iter().flat_map(|(s, n)| n.iter().map(move |&k| (s, k))).collect();
     println!("{}", bench::TABLE_HEADER);
-    bench::run(&cases, &[BenchBackend::Bvh, BenchBackend::BvhAllCores, BenchBackend::Gpu, BenchBackend::Reference], frames, 5, &mut |r| match r {
+    let rows = bench::run(&cases, &bench::ALL_BACKENDS, frames, 5, &mut |r| match r {
         Ok(row) => println!("{}", bench::table_row(row)),
         Err(note) => eprintln!("{note}"),
     });
-    println!("GPU adapter: {}", bench::device_name(&paper).unwrap_or_else(|| "none".into()));
+    println!("GPU adapter: {}", bench::device(&rows));
+    let mismatch = bench::mismatches(&rows);
+    assert!(mismatch.is_empty(), "backends gave different answers on: {mismatch:?}");
 }

@@ -1,19 +1,18 @@
 //! Why the GPU collision shader flags lines for the CPU: plays the bench's motion on
-//! paper-12k and, for flagged lines, lists every f64 hit within 0.2 mm of another.
+//! paper-12k and prints how many lines each frame flags; for the first six flagged
+//! lines from frame 8 on (the blades in contact) it lists every f64 hit along them.
 //! `cargo run --release --example gpu_flags -- [nodes a face]` (needs a GPU adapter).
 
 use fissure::collision::backend::gpu::GpuCaster;
 use fissure::collision::backend::{PairLine, RayCaster};
-use fissure::collision::scenes::pose_from_axes;
 use fissure::collision::{BackendKind, CollisionConfig, CollisionStage, SpatulaSpec};
 use fissure::geometry::{LineQuery, NodeLayout, SpatulaShape};
 use fissure::math::Vec3;
 
 fn main() {
     let nodes: u32 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(500);
-    let ph = fissure::mesh::phantom::generate(fissure::mesh::phantom::Preset::Paper12k).expect("paper-12k");
-    let s = ph.mesh.boundary();
-    let (t, rest) = (s.triangles.clone(), s.gather_positions(&ph.mesh.positions));
+    let paper = fissure::collision::bench::BenchSurface::paper12k().expect("paper-12k");
+    let (t, rest) = (paper.triangles, paper.positions);
     let (lo, hi) = rest.iter().fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(a, b), q| (a.inf(q), b.sup(q)));
     let length = 0.35 * (hi.x - lo.x);
     let shape = SpatulaShape { length, width: 0.01, thickness: 0.001 };
@@ -21,18 +20,9 @@ fn main() {
     let mut stage = CollisionStage::new(CollisionConfig { backend: BackendKind::Bvh, culling: true }, &t, &rest, &[spec.clone(), spec]).unwrap();
     let mut gpu = GpuCaster::new(&t, &rest, 10_000).expect("gpu");
     let mut cur = rest.clone();
-    let c = (lo + hi) * 0.5;
-    let half = (hi - lo) * 0.5;
-    let depth = 0.15 * half.x.min(half.y).min(half.z);
     let mut shown = 0;
     for f in 0..25 {
-        let s = f as f64 / 25.0;
-        let advance = length * (0.3 + 0.5 * s);
-        let d0 = Vec3::new(1.0, 0.05, -0.3).normalize();
-        let d1 = Vec3::new(-1.0, 0.1, -0.3).normalize();
-        let tip0 = Vec3::new(lo.x - 0.5 * length, c.y + 0.002, hi.z - depth);
-        let tip1 = Vec3::new(hi.x + 0.5 * length, c.y - 0.002, hi.z - depth);
-        let poses = [pose_from_axes(tip0 + d0 * advance, d0, Vec3::new(0.3, 0.0, 1.0)), pose_from_axes(tip1 + d1 * advance, d1, Vec3::new(0.0, 1.0, 0.0))];
+        let poses = fissure::collision::bench::poses(lo, hi, length, f as f64 / 25.0);
         let out = stage.step(&cur, &poses).unwrap().clone();
         let lines: Vec<PairLine> = out.source_nodes.iter().filter(|n| n.face == 0).map(|n| PairLine { origin: n.position, direction: n.normal, thickness: 0.001 }).collect();
         gpu.update_surface(&cur).unwrap();

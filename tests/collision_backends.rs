@@ -144,7 +144,7 @@ fn hard_lines(p: &[Vec3], n: usize, seed: u64, scale: f64) -> Vec<PairLine> {
 #[test]
 fn gpu_agrees_with_reference_bit_for_bit_on_hard_lines() {
     let (t, p) = icosphere(Vec3::new(0.0, 0.0, 0.0), 30.0 * MM, 4);
-    let mut gpu = match GpuCaster::new(&t, &p, 2000) {
+    let mut gpu = match GpuCaster::new(&t, &p, 2020) {
         Ok(g) => g,
         Err(e) => {
             println!("skip: no GPU adapter ({e})");
@@ -153,7 +153,13 @@ fn gpu_agrees_with_reference_bit_for_bit_on_hard_lines() {
     };
     println!("gpu adapter: {}", gpu.adapter_name());
     let mut reference = ReferenceCaster::new(&t, &p);
-    let lines = hard_lines(&p, 2000, 3, 35.0 * MM);
+    let mut lines = hard_lines(&p, 2000, 3, 35.0 * MM);
+    // Origins metres away (past the f32 error bounds' range): cast on the CPU.
+    let mut rng = Rng(17);
+    lines.extend((0..20).map(|_| {
+        let dir = rng.unit();
+        PairLine { origin: rng.unit() * 5.0 * MM - dir * 5.0, direction: dir, thickness: 1.0 * MM }
+    }));
     // Deform a little so the partial upload path runs.
     let mut cur = p.clone();
     for v in cur.iter_mut().take(50) {
@@ -273,11 +279,8 @@ fn reference_and_bvh_agree_on_the_real_brain() {
 
 /// The boundary surface of a real brain tet mesh (millimetres) in metres.
 fn read_msh_surface(path: &str) -> Option<(Vec<[u32; 3]>, Vec<Vec3>)> {
-    let mut mesh = fissure::mesh::io::load_tet_mesh(std::path::Path::new(path)).ok()?;
-    mesh.scale(MM);
-    let s = mesh.boundary();
-    let p = s.gather_positions(&mesh.positions);
-    Some((s.triangles, p))
+    let s = fissure::collision::bench::BenchSurface::tet_mesh_mm(std::path::Path::new(path), "brain").ok()?;
+    Some((s.triangles, s.positions))
 }
 
 /// Two spatulas with 2000 nodes a face (100 x 20 grid).

@@ -92,6 +92,10 @@ pub struct SimExit {
     pub recording: Option<PathBuf>,
     /// Frames published with a strain field from the background stress worker.
     pub background_strain_frames: u64,
+    /// The collision backend in use at the end, and what the stage said (the `auto`
+    /// choice, a GPU fallback).
+    pub collision_backend: Option<String>,
+    pub collision_notes: Vec<String>,
 }
 
 /// Options of the thread.
@@ -471,5 +475,9 @@ fn run_loop(
     exit.time_s = b.state.time_s;
     exit.final_poses = b.state.poses.clone();
     exit.state_hash = b.pipeline.state_hash(&b.state);
+    if let Some(c) = b.pipeline.collision() {
+        exit.collision_backend = Some(format!("{:?}", c.backend()).to_lowercase());
+        exit.collision_notes = c.warnings().to_vec();
+    }
     exit
 }

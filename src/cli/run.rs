@@ -127,6 +127,12 @@ pub fn run(scenario: Option<&Path>, set: &[String], headless_only: bool, args: &
             if sim.background_strain_frames > 0 {
                 println!("  strain colour from the background stress worker: {} frames", sim.background_strain_frames);
             }
+            if let Some(b) = &sim.collision_backend {
+                println!("  collision backend: {b}");
+            }
+            for note in &sim.collision_notes {
+                println!("  collision: {note}");
+            }
             println!("  final state {}", sim.state_hash);
             Ok(())
         }

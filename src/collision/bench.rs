@@ -29,6 +29,50 @@ pub struct BenchSurface {
     pub positions: Vec<Vec3>,
 }
 
+impl BenchSurface {
+    /// The boundary of the `paper-12k` phantom.
+    pub fn paper12k() -> Result<Self, String> {
+        let ph = crate::mesh::phantom::generate(crate::mesh::phantom::Preset::Paper12k).map_err(|e| format!("generating paper-12k: {e}"))?;
+        let s = ph.mesh.boundary();
+        Ok(Self { name: "paper-12k".into(), positions: s.gather_positions(&ph.mesh.positions), triangles: s.triangles })
+    }
+
+    /// The boundary of a tet mesh file in millimetres (the real brains).
+    pub fn tet_mesh_mm(path: &std::path::Path, name: &str) -> Result<Self, String> {
+        let mut mesh = crate::mesh::io::load_tet_mesh(path).map_err(|e| e.to_string())?;
+        mesh.scale(MM);
+        let s = mesh.boundary();
+        Ok(Self { name: name.into(), positions: s.gather_positions(&mesh.positions), triangles: s.triangles })
+    }
+}
+
+/// The standard cases: paper-12k at 150 / 500 / 2000 nodes a face, and the real
+/// brains in `mesh_dir` (`brain_pial_coarse.msh`, `brain_pial_q15.msh`) at 500 /
+/// 2000; only surfaces whose name contains `only`, when given. A brain file that
+/// is missing is skipped with a note; one that does not load is an error.
+pub fn standard_surfaces(mesh_dir: &std::path::Path, only: Option<&str>, note: &mut dyn FnMut(String)) -> Result<Vec<(BenchSurface, Vec<u32>)>, String> {
+    let wanted = |name: &str| only.is_none_or(|o| name.contains(o));
+    let mut surfaces = Vec::new();
+    if wanted("paper-12k") {
+        surfaces.push((BenchSurface::paper12k()?, vec![150, 500, 2000]));
+    }
+    for (file, name) in [("brain_pial_coarse.msh", "brain-coarse"), ("brain_pial_q15.msh", "brain-q15")] {
+        let path = mesh_dir.join(file);
+        if !wanted(name) {
+            continue;
+        }
+        if !path.exists() {
+            note(format!("{} not found; the {name} cases are skipped", path.display()));
+            continue;
+        }
+        surfaces.push((BenchSurface::tet_mesh_mm(&path, name).map_err(|e| format!("{}: {e}", path.display()))?, vec![500, 2000]));
+    }
+    Ok(surfaces)
+}
+
+/// Every backend the benchmark times, in table order.
+pub const ALL_BACKENDS: [BenchBackend; 4] = [BenchBackend::Bvh, BenchBackend::BvhAllCores, BenchBackend::Gpu, BenchBackend::Reference];
+
 /// A backend as the benchmark runs it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BenchBackend {
@@ -70,6 +114,8 @@ pub struct BenchRow {
     pub candidates: usize,
     /// blake3 of every frame's output: equal across backends of one case.
     pub answer_hash: String,
+    /// The GPU adapter (gpu rows).
+    pub device: Option<String>,
 }
 
 /// Medians of a GPU frame's parts, milliseconds.
@@ -103,9 +149,9 @@ fn percentile(v: &mut [f64], q: f64) -> f64 {
     v[((q * v.len() as f64).ceil() as usize).clamp(1, v.len()) - 1]
 }
 
-/// The two blades' poses at `s` in [0, 1] of the motion: they enter the surface's
-/// box from opposite sides, tilted, and advance `reach` along their blades.
-fn poses(lo: Vec3, hi: Vec3, length: f64, s: f64) -> [Pose; 2] {
+/// The two blades' poses at `s` in [0, 1] of the motion: they enter the box `lo..hi`
+/// from opposite sides, tilted, and advance along their blades (of `length`).
+pub fn poses(lo: Vec3, hi: Vec3, length: f64, s: f64) -> [Pose; 2] {
     let c = (lo + hi) * 0.5;
     let half = (hi - lo) * 0.5;
     let depth = 0.15 * half.x.min(half.y).min(half.z);
@@ -200,6 +246,7 @@ fn run_case(surface: &BenchSurface, nodes: u32, backend: BenchBackend, frames: u
         gpu,
         candidates,
         answer_hash: hasher.finalize().to_hex()[..16].to_string(),
+        device: stage.gpu_name(),
     })
 }
 
@@ -246,9 +293,19 @@ pub fn table_row(r: &BenchRow) -> String {
     )
 }
 
-/// The GPU adapter's name, or None when there is none (builds a small GPU stage).
-pub fn device_name(surface: &BenchSurface) -> Option<String> {
-    let spec = SpatulaSpec { shape: SpatulaShape { length: 0.02, width: 0.005, thickness: 0.001 }, layout: layout(30) };
-    let stage = CollisionStage::new(CollisionConfig { backend: BackendKind::Gpu, culling: true }, &surface.triangles, &surface.positions, &[spec]).ok()?;
-    stage.gpu_name()
+/// The cases whose backends gave different answers (hashes), as "surface N/face".
+pub fn mismatches(rows: &[BenchRow]) -> Vec<String> {
+    let mut out = Vec::new();
+    for (k, r) in rows.iter().enumerate() {
+        let first = rows.iter().position(|q| q.surface == r.surface && q.nodes_a_face == r.nodes_a_face);
+        if first == Some(k) && rows.iter().any(|q| q.surface == r.surface && q.nodes_a_face == r.nodes_a_face && q.answer_hash != r.answer_hash) {
+            out.push(format!("{} {}/face", r.surface, r.nodes_a_face));
+        }
+    }
+    out
+}
+
+/// The GPU adapter the rows ran on, or "none".
+pub fn device(rows: &[BenchRow]) -> String {
+    rows.iter().find_map(|r| r.device.clone()).unwrap_or_else(|| "none".into())
 }

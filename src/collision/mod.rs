@@ -466,7 +466,7 @@ impl CollisionStage {
     fn cast_lines(&mut self, current: &[Vec3]) -> Result<(), CollisionError> {
         let t0 = std::time::Instant::now();
         let first = self.caster.update_surface(current).and_then(|()| self.caster.cast(&self.work.lines, &mut self.work.pair_hits));
-        let bvh_seconds = t0.elapsed().as_secs_f64();
+        let caster_seconds = t0.elapsed().as_secs_f64();
         match first {
             Ok(()) => {}
             Err(CollisionError::Gpu(cause)) => {
@@ -493,7 +493,7 @@ impl CollisionStage {
                 Some("auto collision backend: bvh (the GPU's answers differed from bvh's in the trial; please report this)".to_string())
             }
             Ok(()) => {
-                trial.bvh_seconds.push(bvh_seconds);
+                trial.bvh_seconds.push(caster_seconds);
                 trial.gpu_seconds.push(gpu_seconds);
                 None
             }

@@ -21,7 +21,7 @@
 //! best four hits of each slot with thresholds widened by `w`, returns the best three
 //! and flags the line when the f64 winner could be outside them (a cluster of four
 //! within `w`, a grazing hit inside the needed interval, a stack overflow). Pruning
-//! is conservative: leaf boxes are grown by `w/2`. `tests/collision_backends.rs`
+//! is conservative: leaf boxes are grown by `w/2` of the surface's own scale. `tests/collision_backends.rs`
 //! checks bit-for-bit equality with `reference` on spheres, fissures, contact
 //! configurations and the real brain surfaces.
 //!
@@ -66,6 +66,13 @@ const WINDOW_ULPS: f64 = 32768.0;
 const FAR_ORIGIN: f64 = 64.0;
 /// Lines per parallel decision task.
 const LINES_PER_TASK: usize = 64;
+/// Flag bit the CPU adds for a line whose origin is farther than [`FAR_ORIGIN`].
+const FAR_FLAG: u32 = 8;
+
+thread_local! {
+    /// Candidate set of one line's f64 decision, reused across lines and frames.
+    static SEEN: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
+}
 
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
@@ -501,7 +508,7 @@ impl GpuCaster {
     }
 
     /// The last cast's flag word of every line (0: decided from its candidates; bits
-    /// as in `GpuTimings::flag_reasons`).
+    /// 1, 2, 4 as in `GpuTimings::flag_reasons`, 8: an origin too far for f32).
     pub fn last_flags(&self) -> impl Iterator<Item = u32> + '_ {
         self.words.chunks_exact(OUT_STRIDE).map(|w| w[12])
     }
@@ -726,35 +733,44 @@ impl RayCaster for GpuCaster {
         let (refit_gpu, traverse_gpu) = self.run_device(lines)?;
         let t1 = Instant::now();
 
+        // One pass over the flag words: absurdly far origins join the flagged lines
+        // (FAR_FLAG), which the CPU tree casts below; the reasons are counted.
+        self.flagged.clear();
+        self.flagged_lines.clear();
+        let mut reasons = [0; 3];
+        for (k, (l, w)) in lines.iter().zip(self.words.chunks_exact_mut(OUT_STRIDE)).enumerate() {
+            if max_abs(&l.origin, &self.centre) > far {
+                w[12] |= FAR_FLAG;
+            }
+            for (bit, r) in reasons.iter_mut().enumerate() {
+                *r += (w[12] >> bit & 1) as usize;
+            }
+            if w[12] != 0 {
+                self.flagged.push(k);
+                self.flagged_lines.push(*l);
+            }
+        }
         // Decide every unflagged line in f64 from its candidates (lines are independent
         // and land in fixed slots, so the split over threads changes no answer).
         out.resize(lines.len(), PairHits::default());
         let this = &*self;
-        let decide_chunk = |o: &mut [PairHits], l: &[PairLine], w: &[u32], seen: &mut Vec<u32>| {
-            for ((o, l), w) in o.iter_mut().zip(l).zip(w.chunks_exact(OUT_STRIDE)) {
-                if w[12] == 0 && max_abs(&l.origin, &this.centre) <= far {
-                    *o = this.decide(l, w, seen);
+        let decide_chunk = |o: &mut [PairHits], l: &[PairLine], w: &[u32]| {
+            SEEN.with_borrow_mut(|seen| {
+                for ((o, l), w) in o.iter_mut().zip(l).zip(w.chunks_exact(OUT_STRIDE)) {
+                    if w[12] == 0 {
+                        *o = this.decide(l, w, seen);
+                    }
                 }
-            }
+            })
         };
         if lines.len() >= 2 * LINES_PER_TASK && rayon::current_num_threads() > 1 {
             use rayon::prelude::*;
             out.par_chunks_mut(LINES_PER_TASK)
                 .zip(lines.par_chunks(LINES_PER_TASK))
                 .zip(self.words.par_chunks(LINES_PER_TASK * OUT_STRIDE))
-                .for_each_init(|| Vec::with_capacity(32), |seen, ((o, l), w)| decide_chunk(o, l, w, seen));
+                .for_each(|((o, l), w)| decide_chunk(o, l, w));
         } else {
-            let mut seen = Vec::with_capacity(32);
-            decide_chunk(out, lines, &self.words, &mut seen);
-        }
-        // Flagged lines (and absurdly far origins): the CPU tree.
-        self.flagged.clear();
-        self.flagged_lines.clear();
-        for (k, (l, w)) in lines.iter().zip(self.words.chunks_exact(OUT_STRIDE)).enumerate() {
-            if w[12] != 0 || max_abs(&l.origin, &self.centre) > far {
-                self.flagged.push(k);
-                self.flagged_lines.push(*l);
-            }
+            decide_chunk(out, lines, &self.words);
         }
         if !self.flagged.is_empty() {
             if self.exact_stale {
@@ -771,12 +787,6 @@ impl RayCaster for GpuCaster {
         self.last_timings.refit_gpu = refit_gpu;
         self.last_timings.traverse_gpu = traverse_gpu;
         self.last_timings.flagged_lines = self.flagged.len();
-        let mut reasons = [0; 3];
-        for w in self.words.chunks_exact(OUT_STRIDE) {
-            for (bit, r) in reasons.iter_mut().enumerate() {
-                *r += (w[12] >> bit & 1) as usize;
-            }
-        }
         self.last_timings.flag_reasons = reasons;
         Ok(())
     }
