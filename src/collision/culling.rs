@@ -54,7 +54,7 @@ pub(crate) fn cull_swept(
 }
 
 /// One His-flag per ray slot.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct HisFlags(Vec<bool>);
 
 impl HisFlags {

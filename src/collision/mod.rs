@@ -198,6 +198,14 @@ struct Workspace {
     claims: Vec<displacement::Claim>,
 }
 
+/// The collision history between frames (His-flags and the last poses), saved
+/// and restored around a frame that may have to be undone.
+#[derive(Debug, Clone, Default)]
+pub struct CollisionHistory {
+    flags: HisFlags,
+    poses: Option<Vec<Pose>>,
+}
+
 /// The collision stage (see the module docs for its rules).
 pub struct CollisionStage {
     config: CollisionConfig,
@@ -554,6 +562,26 @@ impl CollisionStage {
     pub fn reset_history(&mut self) {
         self.flags.clear();
         self.previous_poses = None;
+    }
+
+    /// Copies the history a frame reads (His-flags, last poses) into `into`
+    /// (its buffers are reused): a frame whose solve fails can be undone with
+    /// [`Self::restore_history`], so the next frame sees the last feasible one.
+    pub fn save_history(&self, into: &mut CollisionHistory) {
+        into.flags.clone_from(&self.flags);
+        match (&mut into.poses, &self.previous_poses) {
+            (Some(a), Some(b)) => a.clone_from(b),
+            (a, b) => *a = b.clone(),
+        }
+    }
+
+    /// Puts back a history saved by [`Self::save_history`].
+    pub fn restore_history(&mut self, from: &CollisionHistory) {
+        self.flags.clone_from(&from.flags);
+        match (&mut self.previous_poses, &from.poses) {
+            (Some(a), Some(b)) => a.clone_from(b),
+            (a, b) => *a = b.clone(),
+        }
     }
 
     /// Turns our swept-side culling rule (3b in the module docs) on or off; on by

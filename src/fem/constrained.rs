@@ -227,6 +227,8 @@ pub struct ConstrainedSolver {
     model: FemModel,
     compliance: Compliance,
     frame: u64,
+    /// Replaces the active-set loop's iteration cap (tests of the capped path).
+    iteration_cap: Option<usize>,
     lazy: Vec<LazyColumn>,
     /// Background solves of lazy columns (see [`Self::prefetch`]).
     prefetcher: Prefetcher,
@@ -296,6 +298,7 @@ impl ConstrainedSolver {
             model,
             compliance,
             frame: 0,
+            iteration_cap: None,
             lazy: Vec::new(),
             prefetcher,
             order: Vec::new(),
@@ -442,6 +445,18 @@ impl ConstrainedSolver {
         mine as f64 / claims.len().max(1) as f64
     }
 
+    /// Caps the active-set loop at `cap` iterations (`None`: the default of
+    /// 100 + 2 x (candidates + claimed vertices); `Some(0)`: every frame fails
+    /// as if capped). For tests of what a frame does when the cap is hit.
+    pub fn set_iteration_cap(&mut self, cap: Option<usize>) {
+        self.iteration_cap = cap;
+    }
+
+    /// The cap set by [`Self::set_iteration_cap`].
+    pub fn iteration_cap(&self) -> Option<usize> {
+        self.iteration_cap
+    }
+
     /// Solves one frame. `out` is overwritten (its buffers are reused).
     pub fn step(&mut self, constraints: &[Constraint], out: &mut FrameSolution) -> Result<(), FemError> {
         self.frame += 1;
@@ -467,7 +482,10 @@ impl ConstrainedSolver {
         self.claimed_sorted = claimed;
         ensured?;
         self.arrange_engaged();
-        let max_iterations = 100 + 2 * (self.candidates.len() + self.claimed_sorted.len());
+        let max_iterations = self.iteration_cap.unwrap_or(100 + 2 * (self.candidates.len() + self.claimed_sorted.len()));
+        if max_iterations == 0 {
+            return Err(self.not_converged(0, 0.0));
+        }
         let mut iterations = 0;
         loop {
             iterations += 1;

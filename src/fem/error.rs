@@ -37,8 +37,8 @@ pub enum FemError {
     /// A constraint carries a non-finite or invalid value.
     #[error("constraint {index} (node {node}) is invalid: {reason}")]
     InvalidConstraint { index: usize, node: u32, reason: &'static str },
-    /// The unilateral (skull) active-set loop did not settle.
-    #[error("skull contact active set did not converge in {iterations} iterations (largest violation {max_violation:e} m, most adhesive force {min_force:e} N)")]
+    /// The unilateral active-set loop (blade contacts, barrier rows, skull spheres) did not settle.
+    #[error("contact active set (blade faces and skull spheres) did not converge in {iterations} iterations (largest violation {max_violation:e} m, most adhesive force {min_force:e} N)")]
     ActiveSetNotConverged { iterations: usize, max_violation: f64, min_force: f64 },
     /// A field of the per-frame input does not match the model.
     #[error("{what}: expected length {expected}, got {got}")]

@@ -149,6 +149,27 @@ impl Default for Pose {
     }
 }
 
+/// Shortest-arc spherical interpolation of two quaternions (normalised first);
+/// never panics (antipodal inputs take the sign-flipped short way, near-equal
+/// ones fall back to normalised lerp).
+pub fn slerp(a: &nalgebra::Quaternion<f64>, b: &nalgebra::Quaternion<f64>, alpha: f64) -> Quat {
+    let qa = a.normalize();
+    let mut qb = b.normalize();
+    let mut dot = qa.coords.dot(&qb.coords);
+    if dot < 0.0 {
+        qb = -qb;
+        dot = -dot;
+    }
+    let q = if dot > 0.9995 {
+        qa + (qb - qa) * alpha
+    } else {
+        let theta = dot.clamp(-1.0, 1.0).acos();
+        let sin = theta.sin();
+        qa * (((1.0 - alpha) * theta).sin() / sin) + qb * ((alpha * theta).sin() / sin)
+    };
+    Quat::new_normalize(q)
+}
+
 impl Pose {
     /// A pose from a position and a rotation given as any quaternion: `None` when
     /// anything is non-finite or the quaternion is not unit within 1e-6.
@@ -169,6 +190,13 @@ impl Pose {
         is_finite3(&self.position)
             && self.rotation.coords.iter().all(|c| c.is_finite())
             && (self.rotation.norm() - 1.0).abs() < 1e-6
+    }
+
+    /// The pose a fraction `alpha` (0..=1) of the way from `self` to `other`:
+    /// linear in position, shortest-arc slerp in rotation (as trajectories sample).
+    pub fn interpolate(&self, other: &Pose, alpha: f64) -> Pose {
+        let position = self.position + (other.position - self.position) * alpha;
+        Pose { position, rotation: slerp(self.rotation.quaternion(), other.rotation.quaternion(), alpha) }
     }
 
     /// A point of the spatula frame in world space.

@@ -104,7 +104,7 @@ fn over_footprint(shape: &SpatulaShape, q: &Vec3, margin: f64) -> bool {
 }
 
 /// Largest move (m) of a blade footprint corner from `before` to `after`.
-fn travel(shape: &SpatulaShape, before: &Pose, after: &Pose) -> f64 {
+pub fn travel(shape: &SpatulaShape, before: &Pose, after: &Pose) -> f64 {
     let mut m: f64 = 0.0;
     for x in [0.0, shape.length] {
         for y in [-0.5 * shape.width, 0.5 * shape.width] {
@@ -121,6 +121,17 @@ impl BarrierStage {
     /// A stage for a surface of `surface_vertices` vertices.
     pub fn new(surface_vertices: usize) -> Self {
         Self { claimed: vec![0; surface_vertices], barred: vec![0; surface_vertices], previous_claims: Vec::new() }
+    }
+
+    /// Last frame's claims, to save around a frame that may be undone.
+    pub fn previous_claims(&self) -> &[(u32, u8, u8)] {
+        &self.previous_claims
+    }
+
+    /// Puts back claims saved with [`Self::previous_claims`].
+    pub fn restore_previous_claims(&mut self, claims: &[(u32, u8, u8)]) {
+        self.previous_claims.clear();
+        self.previous_claims.extend_from_slice(claims);
     }
 
     /// Forgets last frame's claims (a scene reset or a teleported tool).

@@ -56,7 +56,7 @@ impl MetricsWriter {
             }
         }
         header.extend(
-            ["constrained_vertices", "skull_contacts", "max_displacement_mm", "inverted_elements", "inverted_scope", "crossed_vertices", "penetrating_vertices", "max_penetration_mm", "rejected_poses", "max_von_mises_pa"]
+            ["constrained_vertices", "skull_contacts", "max_displacement_mm", "inverted_elements", "inverted_scope", "crossed_vertices", "penetrating_vertices", "max_penetration_mm", "rejected_poses", "max_von_mises_pa", "substeps", "solver_capped"]
                 .map(String::from),
         );
         w.line = header.join(",");
@@ -112,7 +112,7 @@ impl MetricsWriter {
         }
         let _ = write!(
             l,
-            ",{},{},{},{},{},{},{},{},{},{}",
+            ",{},{},{},{},{},{},{},{},{},{},{},{}",
             r.constrained_vertices,
             r.skull_contacts,
             r.max_displacement_m * 1e3,
@@ -122,7 +122,9 @@ impl MetricsWriter {
             r.penetrating_vertices,
             r.max_penetration_m * 1e3,
             r.rejected_poses,
-            r.max_von_mises_pa.map(|v| v.to_string()).unwrap_or_default()
+            r.max_von_mises_pa.map(|v| v.to_string()).unwrap_or_default(),
+            r.substeps,
+            u8::from(r.solver_capped)
         );
         self.write_line()
     }
@@ -176,7 +178,13 @@ pub struct Summary {
     pub max_crossed_vertices: u32,
     pub max_penetrating_vertices: u32,
     pub max_inverted_elements: u32,
+    /// Deepest penetration of a surface vertex into a blade at the end of a frame, mm.
+    pub max_penetration_mm: f64,
     pub rejected_poses: u64,
+    /// Most sub-steps one frame was split into (fast tools).
+    pub max_substeps: u32,
+    /// Frames whose contact solve hit its iteration cap (each kept the last feasible state).
+    pub capped_frames: u64,
     /// blake3 of the final surface displacements (f64 bits) and His-flags: equal for bitwise-equal replays.
     pub final_state_hash: String,
     /// True when the run stopped early (error or interruption); the rows so far are valid.
@@ -235,7 +243,10 @@ impl SummaryBuilder {
         m.max_crossed_vertices = m.max_crossed_vertices.max(r.crossed_vertices);
         m.max_penetrating_vertices = m.max_penetrating_vertices.max(r.penetrating_vertices);
         m.max_inverted_elements = m.max_inverted_elements.max(r.inverted_elements);
+        m.max_penetration_mm = m.max_penetration_mm.max(r.max_penetration_m * 1e3);
         m.rejected_poses += r.rejected_poses as u64;
+        m.max_substeps = m.max_substeps.max(r.substeps);
+        m.capped_frames += u64::from(r.solver_capped);
         self.last_time = r.time_s;
     }
 

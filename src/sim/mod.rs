@@ -13,5 +13,5 @@ pub mod replay;
 pub mod report;
 
 pub use build::{BuildError, BuildOptions};
-pub use pipeline::{FrameInput, Pipeline, SimState, SkullStage, StepError};
+pub use pipeline::{FrameInput, MAX_SUBSTEPS, Pipeline, SUBSTEP_TRAVEL_FRACTION, SimState, SkullStage, StepError, substep_count};
 pub use report::{FrameReport, SpatulaReport, StageId, StageTimes};

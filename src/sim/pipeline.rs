@@ -12,7 +12,7 @@ use super::report::{FrameReport, SpatulaReport, StageId};
 use crate::collision::CollisionStage;
 use crate::fem::{ConstrainedSolver, Constraint, ConstraintKind, ContactPatch, ElementStress, FrameSolution};
 use crate::geometry::{Pose, SpatulaShape};
-use crate::math::Vec3;
+use crate::math::{Vec3, is_finite3};
 use crate::mesh::{BoundarySurface, TetMesh, signed_volume};
 use crate::scenario::{Effect, EffectSet, Scenario, Skull};
 use std::time::Instant;
@@ -26,6 +26,38 @@ pub enum StepError {
     Solve { frame: u64, source: crate::fem::FemError },
     #[error("frame {frame}: {count} poses given for {expected} spatulas")]
     PoseCount { frame: u64, count: usize, expected: usize },
+    /// A stage produced a NaN or an infinity (the rows before this frame stand).
+    #[error("frame {frame}: {}: {what} is not finite (NaN or infinite)", stage.name())]
+    NonFinite { frame: u64, stage: StageId, what: &'static str },
+}
+
+/// A frame whose blade footprint moves more than this fraction of the blade's
+/// thickness is split into sub-steps that move at most this much each.
+pub const SUBSTEP_TRAVEL_FRACTION: f64 = 0.125;
+/// At most this many sub-steps a frame: a longer jump (a tracker glitch of
+/// metres) takes longer sub-steps rather than stalling the frame.
+pub const MAX_SUBSTEPS: u32 = 256;
+
+/// Sub-steps for a frame from `before` to `after`: the largest footprint-corner
+/// travel over [`SUBSTEP_TRAVEL_FRACTION`] of that blade's thickness, rounded up,
+/// in 1..=[`MAX_SUBSTEPS`].
+pub fn substep_count(shapes: &[SpatulaShape], before: &[Pose], after: &[Pose]) -> u32 {
+    let mut ratio: f64 = 0.0;
+    for ((shape, b), a) in shapes.iter().zip(before).zip(after) {
+        let step = SUBSTEP_TRAVEL_FRACTION * shape.thickness;
+        let travel = super::barrier::travel(shape, b, a);
+        ratio = ratio.max(travel / step);
+    }
+    if ratio.is_finite() { (ratio.ceil() as u32).clamp(1, MAX_SUBSTEPS) } else { MAX_SUBSTEPS }
+}
+
+/// Ends a frame whose solve left a NaN or an infinity in the surface.
+fn check_finite_state(frame: u64, state: &SimState, max_displacement: f64) -> Result<(), StepError> {
+    if max_displacement.is_finite() && state.surface_displacement.iter().all(is_finite3) {
+        Ok(())
+    } else {
+        Err(StepError::NonFinite { frame, stage: StageId::Solve, what: "the surface displacement" })
+    }
 }
 
 /// What drives one frame: a pose per spatula (`None` keeps the last good one).
@@ -149,8 +181,18 @@ pub struct Pipeline {
     solution: FrameSolution,
     patches: Vec<ContactPatch>,
     vertex_owner: Vec<u32>,
+    /// Surface positions at the start of the current sub-step.
     previous_positions: Vec<Vec3>,
+    /// Poses at the start of the current sub-step.
     previous_poses: Vec<Pose>,
+    /// Poses at the start of the frame and the frame's target poses.
+    frame_start_poses: Vec<Pose>,
+    target_poses: Vec<Pose>,
+    /// The rows of the last sub-step that converged, and the collision history
+    /// before the current one: what an iteration cap puts back.
+    feasible_constraints: Vec<Constraint>,
+    saved_history: crate::collision::CollisionHistory,
+    saved_claims: Vec<(u32, u8, u8)>,
     report: FrameReport,
 }
 
@@ -198,6 +240,11 @@ impl Pipeline {
             names: scenario.spatulas.iter().map(|s| s.name.clone()).collect(),
             previous_positions: rest.clone(),
             previous_poses: scenario.spatulas.iter().map(|s| s.initial_pose).collect(),
+            frame_start_poses: Vec::new(),
+            target_poses: Vec::new(),
+            feasible_constraints: Vec::new(),
+            saved_history: Default::default(),
+            saved_claims: Vec::new(),
             mesh,
             surface,
             rest,
@@ -270,6 +317,11 @@ impl Pipeline {
     pub fn solver(&self) -> &ConstrainedSolver {
         &self.solver
     }
+    /// Caps the contact solve's active-set iterations (`None`: the default);
+    /// for tests and diagnosis of the capped-frame path.
+    pub fn set_solver_iteration_cap(&mut self, cap: Option<usize>) {
+        self.solver.set_iteration_cap(cap);
+    }
     /// The solver's last frame solution.
     pub fn last_solution(&self) -> &FrameSolution {
         &self.solution
@@ -314,7 +366,13 @@ impl Pipeline {
         }
     }
 
-    /// Runs one frame.
+    /// Runs one frame. A frame whose blades move more than
+    /// [`SUBSTEP_TRAVEL_FRACTION`] of their thickness is split into sub-steps
+    /// (poses interpolated, collision history carried through each), so the
+    /// result does not depend on how the motion was sampled. When the contact
+    /// solve hits its iteration cap, the frame keeps the last feasible state
+    /// (the last sub-step that converged) and its report says `solver_capped`.
+    /// On any other error the state is that of the last completed sub-step.
     pub fn step(&mut self, state: &mut SimState, input: &FrameInput) -> Result<&FrameReport, StepError> {
         let frame = state.frame;
         if input.poses.len() != state.poses.len() {
@@ -323,23 +381,118 @@ impl Pipeline {
         let r = &mut self.report;
         r.times = Default::default();
         r.rejected_poses = 0;
-        self.previous_poses.clear();
-        self.previous_poses.extend_from_slice(&state.poses);
-        for (slot, new) in state.poses.iter_mut().zip(&input.poses) {
+        r.solver_capped = false;
+        r.crossed_vertices = 0;
+        r.penetrating_vertices = 0;
+        r.max_penetration_m = 0.0;
+        self.frame_start_poses.clone_from(&state.poses);
+        self.target_poses.clone_from(&state.poses);
+        for (slot, new) in self.target_poses.iter_mut().zip(&input.poses) {
             match new {
                 Some(p) if p.is_valid() => *slot = *p,
                 Some(_) => r.rejected_poses += 1,
                 None => {}
             }
         }
-        self.constraints.clear();
         for s in r.spatulas.iter_mut() {
             *s = SpatulaReport::default();
         }
+        let substeps = substep_count(&self.shapes, &self.frame_start_poses, &self.target_poses);
+        r.substeps = substeps;
+        for k in 1..=substeps {
+            self.previous_poses.clone_from(&state.poses);
+            if k == substeps {
+                state.poses.clone_from(&self.target_poses);
+            } else {
+                let alpha = k as f64 / substeps as f64;
+                for ((p, a), b) in state.poses.iter_mut().zip(&self.frame_start_poses).zip(&self.target_poses) {
+                    *p = a.interpolate(b, alpha);
+                }
+            }
+            match self.advance(state, frame) {
+                Ok(()) => {}
+                Err(StepError::Solve { source: crate::fem::FemError::ActiveSetNotConverged { .. }, .. }) => {
+                    self.undo_substep(state, frame)?;
+                    self.report.solver_capped = true;
+                    break;
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        let r = &mut self.report;
+        check_finite_state(frame, state, r.max_displacement_m)?;
+
+        // Forces, contact areas and pressures.
+        if self.effects.contains(Effect::ForceOutput) || self.effects.contains(Effect::ContactPressure) {
+            let t = Instant::now();
+            for (owner, f) in &self.solution.owner_forces {
+                if let Some(s) = r.spatulas.get_mut(*owner as usize) {
+                    s.force = *f;
+                }
+            }
+            if self.effects.contains(Effect::ContactPressure) {
+                crate::fem::contact_patches(
+                    &self.surface,
+                    &state.surface_positions,
+                    &self.constraints,
+                    &self.solution.reactions,
+                    &mut self.vertex_owner,
+                    &mut self.patches,
+                );
+                for p in &self.patches {
+                    if let Some(s) = r.spatulas.get_mut(p.owner as usize) {
+                        s.contact_area_m2 = p.area;
+                        s.mean_pressure_pa = p.mean_pressure_pa;
+                    }
+                }
+            }
+            if r.spatulas.iter().any(|s| !(is_finite3(&s.force) && s.contact_area_m2.is_finite() && s.mean_pressure_pa.is_finite())) {
+                return Err(StepError::NonFinite { frame, stage: StageId::Forces, what: "a spatula's force or pressure" });
+            }
+            r.times.set(StageId::Forces, t.elapsed().as_secs_f64());
+        }
+
+        // Interior displacements and stress, only when the scene asks.
+        if self.effects.contains(Effect::StressField) {
+            let t = Instant::now();
+            self.solver.interior_displacements(&mut state.node_displacement).map_err(|source| StepError::Solve { frame, source })?;
+            crate::fem::element_stress(self.solver.model(), &state.node_displacement, &mut state.stress)
+                .map_err(|source| StepError::Solve { frame, source })?;
+            let peak = state.stress.iter().map(|s| s.von_mises).fold(0.0, f64::max);
+            if !peak.is_finite() || !state.node_displacement.iter().all(is_finite3) {
+                return Err(StepError::NonFinite { frame, stage: StageId::Stress, what: "interior displacement or stress" });
+            }
+            r.max_von_mises_pa = Some(peak);
+            r.inverted_elements = count_inverted_all(&self.mesh, &state.node_displacement);
+            r.inverted_scope_all = true;
+            r.times.set(StageId::Stress, t.elapsed().as_secs_f64());
+        } else {
+            r.inverted_elements = count_inverted_surface_tets(&self.mesh, &self.surface, &self.surface_tets, &state.surface_displacement);
+            r.inverted_scope_all = false;
+        }
+
+        state.frame += 1;
+        state.time_s = state.frame as f64 * self.time_step;
+        r.frame = frame;
+        r.time_s = state.time_s;
+        Ok(&self.report)
+    }
+
+    /// One sub-step at the poses in `state`: collision, skull rows, the exact
+    /// solve and surface update, the tunnelling monitor. Saves what
+    /// [`Self::undo_substep`] needs to put the last feasible state back.
+    fn advance(&mut self, state: &mut SimState, frame: u64) -> Result<(), StepError> {
+        self.constraints.clear();
+        let r = &mut self.report;
 
         // Collision: pairs, culling, enforced displacements.
         if let Some(collision) = &mut self.collision {
             let t = Instant::now();
+            collision.save_history(&mut self.saved_history);
+            if let Some(barrier) = &self.barrier {
+                self.saved_claims.clear();
+                self.saved_claims.extend_from_slice(barrier.previous_claims());
+            }
             let out = collision.step(&state.surface_positions, &state.poses).map_err(|source| StepError::Collision { frame, source })?;
             for target in &out.targets {
                 self.constraints.push(Constraint {
@@ -370,23 +523,22 @@ impl Pipeline {
                 };
                 barrier.push_rows(blades, collision, surface, &mut self.constraints);
             }
-            r.times.set(StageId::Collision, t.elapsed().as_secs_f64());
+            r.times.add(StageId::Collision, t.elapsed().as_secs_f64());
         }
 
         // Skull: unilateral candidate rows.
         if let Some(skull) = &self.skull {
             let t = Instant::now();
             skull.push_rows(&state.surface_positions, &mut self.constraints);
-            r.times.set(StageId::Skull, t.elapsed().as_secs_f64());
+            r.times.add(StageId::Skull, t.elapsed().as_secs_f64());
         }
 
         // Exact constrained solve and surface update.
         let t = Instant::now();
         self.solver.step(&self.constraints, &mut self.solution).map_err(|source| StepError::Solve { frame, source })?;
-        self.previous_positions.clear();
-        self.previous_positions.extend_from_slice(&state.surface_positions);
-        state.surface_displacement.clear();
-        state.surface_displacement.extend_from_slice(&self.solution.displacement_surface);
+        self.feasible_constraints.clone_from(&self.constraints);
+        self.previous_positions.clone_from(&state.surface_positions);
+        state.surface_displacement.clone_from(&self.solution.displacement_surface);
         for ((p, rest), u) in state.surface_positions.iter_mut().zip(&self.rest).zip(&state.surface_displacement) {
             *p = rest + u;
         }
@@ -400,65 +552,45 @@ impl Pipeline {
             state,
             (&mut self.prefetch_near, &mut self.prefetch_nodes),
         );
-        r.times.set(StageId::Solve, t.elapsed().as_secs_f64());
+        r.times.add(StageId::Solve, t.elapsed().as_secs_f64());
 
-        // Forces, contact areas and pressures.
-        if self.effects.contains(Effect::ForceOutput) || self.effects.contains(Effect::ContactPressure) {
-            let t = Instant::now();
-            for (owner, f) in &self.solution.owner_forces {
-                if let Some(s) = r.spatulas.get_mut(*owner as usize) {
-                    s.force = *f;
-                }
-            }
-            if self.effects.contains(Effect::ContactPressure) {
-                crate::fem::contact_patches(
-                    &self.surface,
-                    &state.surface_positions,
-                    &self.constraints,
-                    &self.solution.reactions,
-                    &mut self.vertex_owner,
-                    &mut self.patches,
-                );
-                for p in &self.patches {
-                    if let Some(s) = r.spatulas.get_mut(p.owner as usize) {
-                        s.contact_area_m2 = p.area;
-                        s.mean_pressure_pa = p.mean_pressure_pa;
-                    }
-                }
-            }
-            r.times.set(StageId::Forces, t.elapsed().as_secs_f64());
-        }
-
-        // Interior displacements and stress, only when the scene asks.
-        if self.effects.contains(Effect::StressField) {
-            let t = Instant::now();
-            self.solver.interior_displacements(&mut state.node_displacement).map_err(|source| StepError::Solve { frame, source })?;
-            crate::fem::element_stress(self.solver.model(), &state.node_displacement, &mut state.stress)
-                .map_err(|source| StepError::Solve { frame, source })?;
-            r.max_von_mises_pa = Some(state.stress.iter().map(|s| s.von_mises).fold(0.0, f64::max));
-            r.inverted_elements = count_inverted_all(&self.mesh, &state.node_displacement);
-            r.inverted_scope_all = true;
-            r.times.set(StageId::Stress, t.elapsed().as_secs_f64());
-        } else {
-            r.inverted_elements = count_inverted_surface_tets(&self.mesh, &self.surface, &self.surface_tets, &state.surface_displacement);
-            r.inverted_scope_all = false;
-        }
-
-        // Tunnelling / penetration monitor.
+        // Tunnelling / penetration monitor, over this sub-step's motion.
         if self.collision.is_some() {
             let t = Instant::now();
             let m = monitor::measure(&self.shapes, &self.previous_poses, &state.poses, &self.previous_positions, &state.surface_positions);
-            r.crossed_vertices = m.crossed;
+            r.crossed_vertices += m.crossed;
             r.penetrating_vertices = m.penetrating;
             r.max_penetration_m = m.max_depth_m;
-            r.times.set(StageId::Monitor, t.elapsed().as_secs_f64());
+            r.times.add(StageId::Monitor, t.elapsed().as_secs_f64());
         }
+        Ok(())
+    }
 
-        state.frame += 1;
-        state.time_s = state.frame as f64 * self.time_step;
-        r.frame = frame;
-        r.time_s = state.time_s;
-        Ok(&self.report)
+    /// Puts back the state before the sub-step that failed: the poses and the
+    /// collision history of the last feasible sub-step, and the solver's
+    /// solution of that sub-step's rows (solved again: it converged before).
+    /// The surface in `state` was not touched by the failed sub-step.
+    fn undo_substep(&mut self, state: &mut SimState, frame: u64) -> Result<(), StepError> {
+        state.poses.clone_from(&self.previous_poses);
+        if let Some(collision) = &mut self.collision {
+            collision.restore_history(&self.saved_history);
+        }
+        if let Some(barrier) = &mut self.barrier {
+            barrier.restore_previous_claims(&self.saved_claims);
+        }
+        std::mem::swap(&mut self.constraints, &mut self.feasible_constraints);
+        // These rows converged under the default cap before: solve them under it again.
+        let cap = self.solver.iteration_cap();
+        self.solver.set_iteration_cap(None);
+        let solved = self.solver.step(&self.constraints, &mut self.solution);
+        self.solver.set_iteration_cap(cap);
+        solved.map_err(|source| StepError::Solve { frame, source })?;
+        self.feasible_constraints.clone_from(&self.constraints);
+        let r = &mut self.report;
+        r.constrained_vertices = self.constraints.iter().filter(|c| c.kind.tool_displacement().is_some()).count() as u32;
+        r.max_displacement_m = self.solution.max_displacement;
+        r.skull_contacts = self.solution.active_sphere_contacts as u32;
+        Ok(())
     }
 
     /// Displacement of every node for the current state: the stress stage's

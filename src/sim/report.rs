@@ -61,6 +61,10 @@ impl StageTimes {
     pub fn set(&mut self, stage: StageId, seconds: f64) {
         self.seconds[stage as usize] = Some(seconds);
     }
+    /// Adds `seconds` to a stage (a frame split into sub-steps runs a stage several times).
+    pub fn add(&mut self, stage: StageId, seconds: f64) {
+        *self.seconds[stage as usize].get_or_insert(0.0) += seconds;
+    }
     /// Sum over the built stages.
     pub fn total(&self) -> f64 {
         self.seconds.iter().flatten().sum()
@@ -125,4 +129,10 @@ pub struct FrameReport {
     pub rejected_poses: u32,
     /// Largest von Mises stress, Pa (only with the stress stage).
     pub max_von_mises_pa: Option<f64>,
+    /// Sub-steps the frame was split into (1 unless a blade moved more than
+    /// [`crate::sim::SUBSTEP_TRAVEL_FRACTION`] of its thickness).
+    pub substeps: u32,
+    /// True when the contact solve hit its iteration cap: the frame kept the
+    /// last feasible state (tissue and poses of the last sub-step that converged).
+    pub solver_capped: bool,
 }
