@@ -196,6 +196,8 @@ pub struct SolverOptions {
     pub cache_dir: Option<PathBuf>,
     /// How a spatula holds the tissue it claims.
     pub spatula_contact: SpatulaContact,
+    /// Largest blade travel of one sub-step, in blade thicknesses; `None`: one step a frame.
+    pub substep_travel: Option<f64>,
 }
 
 /// Output options.
@@ -559,6 +561,12 @@ impl Scenario {
                 None => None,
             },
             spatula_contact: file.solver.spatula_contact,
+            substep_travel: match file.solver.substep_travel {
+                Some(t) if !(0.01..=10.0).contains(&t) => {
+                    return Err(c.invalid("solver.substep_travel", format!("must be in 0.01..=10 blade thicknesses (or None), got {t}")));
+                }
+                t => t,
+            },
         };
 
         let gravity = c.vec3("gravity_m_s2", file.gravity_m_s2)?;

@@ -31,20 +31,22 @@ pub enum StepError {
     NonFinite { frame: u64, stage: StageId, what: &'static str },
 }
 
-/// A frame whose blade footprint moves more than this fraction of the blade's
-/// thickness is split into sub-steps that move at most this much each.
+/// The default of `solver.substep_travel`: a frame whose blade footprint moves
+/// more than this fraction of the blade's thickness is split into sub-steps
+/// that move at most this much each.
 pub const SUBSTEP_TRAVEL_FRACTION: f64 = 0.125;
 /// At most this many sub-steps a frame: a longer jump (a tracker glitch of
 /// metres) takes longer sub-steps rather than stalling the frame.
 pub const MAX_SUBSTEPS: u32 = 256;
 
 /// Sub-steps for a frame from `before` to `after`: the largest footprint-corner
-/// travel over [`SUBSTEP_TRAVEL_FRACTION`] of that blade's thickness, rounded up,
-/// in 1..=[`MAX_SUBSTEPS`].
-pub fn substep_count(shapes: &[SpatulaShape], before: &[Pose], after: &[Pose]) -> u32 {
+/// travel over `fraction` of that blade's thickness, rounded up, in
+/// 1..=[`MAX_SUBSTEPS`]; 1 when `fraction` is `None`.
+pub fn substep_count(shapes: &[SpatulaShape], before: &[Pose], after: &[Pose], fraction: Option<f64>) -> u32 {
+    let Some(fraction) = fraction else { return 1 };
     let mut ratio: f64 = 0.0;
     for ((shape, b), a) in shapes.iter().zip(before).zip(after) {
-        let step = SUBSTEP_TRAVEL_FRACTION * shape.thickness;
+        let step = fraction * shape.thickness;
         let travel = super::barrier::travel(shape, b, a);
         ratio = ratio.max(travel / step);
     }
@@ -167,6 +169,8 @@ pub struct Pipeline {
     skull: Option<SkullStage>,
     /// Spatula targets become unilateral `Contact` rows (else bilateral `Enforced`).
     unilateral: bool,
+    /// Largest blade travel of a sub-step, in thicknesses (`None`: one step a frame).
+    substep_travel: Option<f64>,
     /// Blade barrier rows for unclaimed vertices near a blade (unilateral contact only).
     barrier: Option<super::barrier::BarrierStage>,
     /// Tets whose four nodes are on the surface (inverted check without an interior solve).
@@ -233,6 +237,7 @@ impl Pipeline {
             prefetch_nodes: Vec::new(),
             name: scenario.name.clone(),
             unilateral,
+            substep_travel: scenario.solver.substep_travel,
             barrier,
             effects: scenario.effects,
             time_step: scenario.time_step,
@@ -397,7 +402,7 @@ impl Pipeline {
         for s in r.spatulas.iter_mut() {
             *s = SpatulaReport::default();
         }
-        let substeps = substep_count(&self.shapes, &self.frame_start_poses, &self.target_poses);
+        let substeps = substep_count(&self.shapes, &self.frame_start_poses, &self.target_poses, self.substep_travel);
         r.substeps = substeps;
         for k in 1..=substeps {
             self.previous_poses.clone_from(&state.poses);

@@ -130,7 +130,7 @@ pub struct FrameReport {
     /// Largest von Mises stress, Pa (only with the stress stage).
     pub max_von_mises_pa: Option<f64>,
     /// Sub-steps the frame was split into (1 unless a blade moved more than
-    /// [`crate::sim::SUBSTEP_TRAVEL_FRACTION`] of its thickness).
+    /// `solver.substep_travel` of its thickness).
     pub substeps: u32,
     /// True when the contact solve hit its iteration cap: the frame kept the
     /// last feasible state (tissue and poses of the last sub-step that converged).
