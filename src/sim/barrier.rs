@@ -13,11 +13,12 @@
 //! Which vertices, per spatula (at most one row a vertex and spatula; the first
 //! rule that gives one wins):
 //! 1. Over the footprint: start position, in the new pose's blade frame, over the
-//!    blade's footprint (grown by [`FOOTPRINT_MARGIN_M`]) and within
+//!    blade's footprint (grown by [`FOOTPRINT_MARGIN_THICKNESS`] of the blade's
+//!    thickness) and within
 //!    `thickness / 2 + BARRIER_BAND_M + travel` of its mid-plane, `travel` the
 //!    largest move of a footprint corner this frame (a fast blade gets a wider
 //!    band). Face: the side of the mid-plane the vertex was on at the PREVIOUS
-//!    pose when it lay over the old footprint and outside the old blade (the
+//!    pose when it lay over the old (grown) footprint and outside the old blade (the
 //!    swept-side rule of the collision stage: tissue never changes side of a
 //!    blade); otherwise the side it is on now.
 //! 2. Along the rays: the vertices of a triangle a source node's ray hits in
@@ -50,8 +51,13 @@ use crate::math::Vec3;
 
 /// How far beyond a face (m) a vertex still gets a barrier row, besides the blade's travel.
 pub const BARRIER_BAND_M: f64 = 2.0e-3;
-/// Growth of the blade footprint (m) within which vertices get barrier rows.
-pub const FOOTPRINT_MARGIN_M: f64 = 0.0;
+/// Growth of the blade footprint within which vertices get rule-1 barrier rows,
+/// as a fraction of the blade's thickness: the blade's ends and edges count as
+/// rounded over half its thickness. Without it a vertex at the tip of a turning
+/// blade slipped from one face around the tip into the blade (u_shape scene,
+/// frame 222: 0.38 mm inside, one frame) because for one sub-step it lay 0.01 mm
+/// beyond the tip and had no row.
+pub const FOOTPRINT_MARGIN_THICKNESS: f64 = 0.5;
 /// A vertex within this distance (m) of a face counts as on that face's side.
 const SIDE_TOLERANCE_M: f64 = 1e-7;
 
@@ -178,11 +184,12 @@ impl BarrierStage {
                     continue;
                 }
                 let q1 = local(pa, p);
-                if q1.z.abs() > half + band || !over_footprint(shape, &q1, FOOTPRINT_MARGIN_M) {
+                let margin = FOOTPRINT_MARGIN_THICKNESS * shape.thickness;
+                if q1.z.abs() > half + band || !over_footprint(shape, &q1, margin) {
                     continue;
                 }
                 let q0 = local(pb, p);
-                let side = if over_footprint(shape, &q0, 0.0) && q0.z.abs() >= half - SIDE_TOLERANCE_M {
+                let side = if over_footprint(shape, &q0, margin) && q0.z.abs() >= half - SIDE_TOLERANCE_M {
                     q0.z.signum()
                 } else if q1.z < 0.0 {
                     -1.0

@@ -194,11 +194,47 @@ pub struct Summary {
     pub collision_backend: Option<String>,
     /// What the collision stage said: the `auto` choice, a GPU fallback and its cause.
     pub collision_notes: Vec<String>,
+    /// Whether the run kept the tissue whole: penetration, inverted elements and
+    /// tunnelling against the scene's limits (`replay --strict` fails on them).
+    pub integrity: Integrity,
+}
+
+/// Pass/fail limits on what a run may do to the tissue (scenario `integrity`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct IntegrityLimits {
+    /// Deepest a surface vertex may end a frame inside a blade, mm.
+    pub max_penetration_mm: f64,
+    /// Most inverted elements in a frame (in the frame's scope: all tets with the
+    /// stress stage, surface tets otherwise).
+    pub max_inverted_elements: u32,
+    /// Most surface vertices pulled through a blade in a frame.
+    pub max_crossed_vertices: u32,
+}
+
+impl Default for IntegrityLimits {
+    /// 0.05 mm of penetration (a tenth of the thinnest shipped blade's half
+    /// thickness: what a surgeon cannot see), no inverted element, no tunnelling.
+    fn default() -> Self {
+        Self { max_penetration_mm: 0.05, max_inverted_elements: 0, max_crossed_vertices: 0 }
+    }
+}
+
+/// The verdict on a run's integrity.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Integrity {
+    /// True when no limit was crossed.
+    pub passed: bool,
+    pub limits: IntegrityLimits,
+    /// One line per crossed limit: the worst value, the limit and the first frame that crossed it.
+    pub failures: Vec<String>,
 }
 
 /// Accumulates the summary as frames arrive.
 #[derive(Debug, Default)]
 pub struct SummaryBuilder {
+    limits: IntegrityLimits,
+    /// First frame (and time) that crossed each limit: penetration, inverted, crossed.
+    first_violation: [Option<(u64, f64)>; 3],
     stages: Vec<StageId>,
     stage_seconds: Vec<Vec<f64>>,
     frame_seconds: Vec<f64>,
@@ -220,8 +256,24 @@ impl SummaryBuilder {
         }
     }
 
+    /// Sets the integrity limits the summary judges the run by (default: [`IntegrityLimits::default`]).
+    pub fn with_limits(mut self, limits: IntegrityLimits) -> Self {
+        self.limits = limits;
+        self
+    }
+
     /// Adds a frame; `dt` is the frame's simulated duration.
     pub fn add(&mut self, r: &FrameReport, dt: f64) {
+        let crossed = [
+            r.max_penetration_m * 1e3 > self.limits.max_penetration_mm,
+            r.inverted_elements > self.limits.max_inverted_elements,
+            r.crossed_vertices > self.limits.max_crossed_vertices,
+        ];
+        for (first, now) in self.first_violation.iter_mut().zip(crossed) {
+            if now && first.is_none() {
+                *first = Some((r.frame, r.time_s));
+            }
+        }
         for (k, s) in self.stages.iter().enumerate() {
             if let Some(t) = r.times.get(*s) {
                 self.stage_seconds[k].push(t);
@@ -262,6 +314,18 @@ impl SummaryBuilder {
         self.summary.simulated_s = self.last_time;
         self.summary.final_state_hash = final_state_hash;
         self.summary.interrupted = interrupted;
+        let (m, l) = (&self.summary, self.limits);
+        let worst = [
+            format!("max penetration into a blade {:.3} mm > {} mm", m.max_penetration_mm, l.max_penetration_mm),
+            format!("inverted elements {} > {}", m.max_inverted_elements, l.max_inverted_elements),
+            format!("vertices pulled through a blade {} > {}", m.max_crossed_vertices, l.max_crossed_vertices),
+        ];
+        let failures = worst
+            .into_iter()
+            .zip(self.first_violation)
+            .filter_map(|(text, first)| first.map(|(frame, t)| format!("{text} (first at frame {frame}, t = {t:.2} s)")))
+            .collect::<Vec<_>>();
+        self.summary.integrity = Integrity { passed: failures.is_empty(), limits: l, failures };
         self.summary
     }
 }
@@ -295,5 +359,21 @@ mod tests {
         assert!((s.spatulas[0].time_above_20mmhg_s - 0.1).abs() < 1e-12);
         assert!((s.spatulas[0].pressure_time_above_20mmhg_mmhg_s - 1.0).abs() < 1e-9);
         assert!((s.spatulas[0].peak_pressure_mmhg - 30.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn integrity_fails_on_each_crossed_limit_and_names_the_first_frame() {
+        let mut b = SummaryBuilder::new("t", &[], &[]);
+        let mut r = FrameReport { frame: 0, time_s: 0.01, max_penetration_m: 0.04e-3, ..Default::default() };
+        b.add(&r, 0.01);
+        r = FrameReport { frame: 1, time_s: 0.02, max_penetration_m: 0.18e-3, inverted_elements: 1, ..Default::default() };
+        b.add(&r, 0.01);
+        let s = b.finish(String::new(), false);
+        assert!(!s.integrity.passed);
+        assert_eq!(s.integrity.failures.len(), 2, "{:?}", s.integrity.failures);
+        assert!(s.integrity.failures[0].contains("0.180 mm > 0.05 mm") && s.integrity.failures[0].contains("frame 1"), "{:?}", s.integrity.failures);
+        let mut b = SummaryBuilder::new("t", &[], &[]).with_limits(IntegrityLimits { max_penetration_mm: 0.2, max_inverted_elements: 1, max_crossed_vertices: 0 });
+        b.add(&r, 0.01);
+        assert!(b.finish(String::new(), false).integrity.passed, "within the scene's own limits");
     }
 }

@@ -1,0 +1,60 @@
+//! Replays a scenario and, at every frame where a surface vertex ends inside a
+//! blade, prints which vertex, how deep, where it sits in the blade's frame and
+//! which constraint rows it had: a diagnosis aid for integrity failures.
+//! Usage: cargo run --release --example penetration_probe -- SCENARIO [--set PATH=VALUE]...
+use fissure::fem::ConstraintKind;
+use fissure::math::Vec3;
+use fissure::scenario::Scenario;
+use fissure::sim::replay::PoseSource;
+use fissure::sim::{BuildOptions, FrameInput, Pipeline};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let path = args.first().ok_or("usage: penetration_probe SCENARIO [--set PATH=VALUE]...")?;
+    let sets: Vec<String> = args.iter().skip(1).filter(|a| *a != "--set").cloned().collect();
+    let scenario = Scenario::load(std::path::Path::new(path), &sets)?;
+    let source = PoseSource::for_scenario(&scenario, None)?;
+    let (mut p, mut state) = Pipeline::build(&scenario, BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None })?;
+    let mut input = FrameInput::default();
+    for k in 0..scenario.step_count() {
+        source.poses_at((k + 1) as f64 * scenario.time_step, &mut input);
+        let r = p.step(&mut state, &input)?.clone();
+        if r.penetrating_vertices == 0 && r.crossed_vertices == 0 {
+            continue;
+        }
+        println!("frame {} t {:.2}: penetrating {} (deepest {:.4} mm), crossed {}, substeps {}", r.frame, r.time_s, r.penetrating_vertices, r.max_penetration_m * 1e3, r.crossed_vertices, r.substeps);
+        for (s, (shape, pose)) in p.spatula_shapes().iter().zip(&state.poses).enumerate() {
+            for (v, x) in state.surface_positions.iter().enumerate() {
+                let q = pose.rotation.inverse_transform_vector(&(x - pose.position));
+                let inside = q.x >= 0.0 && q.x <= shape.length && q.y.abs() <= 0.5 * shape.width && q.z.abs() < 0.5 * shape.thickness - 1e-7;
+                if !inside {
+                    continue;
+                }
+                let node = p.surface().vertices[v];
+                let rows: Vec<String> = p
+                    .last_constraints()
+                    .iter()
+                    .filter(|c| c.node == node)
+                    .map(|c| match c.kind {
+                        ConstraintKind::Contact { displacement, normal } => format!("Contact(owner {}, target {:?} mm, n {:?})", c.owner, (p.rest_positions()[v] + displacement) * 1e3, normal),
+                        ConstraintKind::Barrier { displacement, normal } => format!("Barrier(owner {}, plane point {:?} mm, n {:?})", c.owner, (p.rest_positions()[v] + displacement) * 1e3, normal),
+                        ConstraintKind::Enforced { .. } => format!("Enforced(owner {})", c.owner),
+                        _ => "sphere".into(),
+                    })
+                    .collect();
+                let u: Vec3 = state.surface_displacement[v];
+                let fixed = p.solver().model().is_fixed(node);
+                println!(
+                    "  spatula {s} vertex {v} (node {node}{}): rest {:.3?} mm, blade frame {:.4?} mm, depth {:.4} mm, |u| {:.3} mm, rows {:?}",
+                    if fixed { ", FIXED" } else { "" },
+                    p.rest_positions()[v] * 1e3,
+                    q * 1e3,
+                    (0.5 * shape.thickness - q.z.abs()) * 1e3,
+                    u.norm() * 1e3,
+                    rows
+                );
+            }
+        }
+    }
+    Ok(())
+}
