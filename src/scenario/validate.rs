@@ -787,3 +787,157 @@ fn number(v: f64) -> String {
 fn quoted(names: &[&str]) -> String {
     names.iter().map(|n| format!("\"{n}\"")).collect::<Vec<_>>().join(", ")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::error::Origin;
+
+    /// A valid scene on the small phantom; `{E}`, `{NU}`, ... are replaced by the test.
+    const SCENE: &str = r#"(
+    name: "ranges",
+    mesh: Phantom(preset: "small"),
+    material: (young_modulus_pa: {E}, poisson_ratio: {NU}, regions: [(id: 2, young_modulus_pa: {RE}, poisson_ratio: {RNU})]),
+    fixed: [RegionId(3)],
+    spatulas: [(name: "a", shape: (length_mm: 20.0, width_mm: 5.0, thickness_mm: 1.0), layout: Grid(along: 2, across: 2),
+                pose: (position_mm: (0.0, 0.0, 80.0), rotation: Quaternion(1.0, 0.0, 0.0, 0.0)), input: Keyboard)],
+    effects: [Collision, Gravity],
+    gravity_m_s2: {G},
+    density_kg_m3: {RHO},
+    time_step_s: {DT},
+    duration_s: 1.0,
+)"#;
+
+    const GOOD: [(&str, &str); 8] = [
+        ("{E}", "3000.0"),
+        ("{NU}", "0.45"),
+        ("{RE}", "5000.0"),
+        ("{RNU}", "0.45"),
+        ("{G}", "(0.0, 0.0, -9.81)"),
+        ("{RHO}", "1040.0"),
+        ("{DT}", "0.01"),
+        ("", ""),
+    ];
+
+    /// The scene with `key` set to `value` (the rest good), its text, and the result.
+    fn load(key: &str, value: &str) -> (String, Result<Scenario, ScenarioError>) {
+        let mut text = SCENE.to_string();
+        for (k, v) in GOOD.iter().filter(|(k, _)| !k.is_empty()) {
+            text = text.replace(k, if *k == key { value } else { v });
+        }
+        let result = Scenario::from_str(&text, Path::new("ranges.ron"), &[]);
+        (text, result)
+    }
+
+    /// Line and column (1-based) where `value` first follows `after` in `text`.
+    fn position(text: &str, after: &str, value: &str) -> (usize, usize) {
+        let at = text.find(after).expect("anchor") + text[text.find(after).expect("anchor")..].find(value).expect("value");
+        let line = text[..at].matches('\n').count() + 1;
+        let column = at - text[..at].rfind('\n').map_or(0, |i| i + 1) + 1;
+        (line, column)
+    }
+
+    /// `key = value` is refused with an error at the value's position, naming `field` and saying `problem`.
+    fn refused(key: &str, value: &str, anchor: &str, field: &str, problem: &str) {
+        let (text, result) = load(key, value);
+        let err = result.expect_err(&format!("{field} = {value} must be refused"));
+        let message = err.to_string();
+        let location = err.location().unwrap_or_else(|| panic!("{message}: no location"));
+        assert_eq!(location.origin, Origin::File(PathBuf::from("ranges.ron")), "{message}");
+        let (line, column) = position(&text, anchor, value);
+        assert_eq!(location.line, line, "{field} = {value}: line in {message}");
+        assert!(
+            (column..column + value.len()).contains(&location.column),
+            "{field} = {value}: the column must point into the value (columns {column}..{}): {message}",
+            column + value.len()
+        );
+        assert_eq!(err.field(), Some(field), "{message}");
+        assert!(message.contains(problem), "{field} = {value}: `{message}` should say `{problem}`");
+    }
+
+    #[test]
+    fn the_good_scene_is_valid_without_warnings() {
+        let (_, result) = load("", "");
+        let s = result.expect("valid");
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    }
+
+    #[test]
+    fn young_modulus_must_lie_in_0_to_1e9_pa() {
+        let range = "young_modulus_pa must be in (0, 1e9] Pa";
+        for (value, got) in [("1e300", "got 1e300"), ("0.0", "got 0"), ("-5.0", "got -5"), ("1.5e9", "got 1.5e9")] {
+            refused("{E}", value, "material:", "material.young_modulus_pa", &format!("{range} (brain tissue: 1e2..1e4), {got}"));
+        }
+        refused("{RE}", "1e10", "regions:", "material.regions[0].young_modulus_pa", &format!("{range} (brain tissue: 1e2..1e4), got 1e10"));
+        refused("{E}", "inf", "material:", "material.young_modulus_pa", "must be a finite number, got inf");
+        let (_, ok) = load("{E}", "1e9");
+        assert!(ok.is_ok(), "1e9 Pa is the upper bound, included: {:?}", ok.err());
+    }
+
+    #[test]
+    fn poisson_ratio_must_lie_in_0_to_one_half() {
+        for value in ["0.5", "-0.1", "0.7"] {
+            refused("{NU}", value, "material:", "material.poisson_ratio", &format!("poisson_ratio must be in [0, 0.5), got {value}"));
+        }
+        refused("{RNU}", "0.5", "regions:", "material.regions[0].poisson_ratio", "poisson_ratio must be in [0, 0.5), got 0.5");
+        let (_, ok) = load("{NU}", "0.0");
+        assert!(ok.is_ok_and(|s| s.warnings.is_empty()), "nu = 0 is allowed, silently");
+    }
+
+    #[test]
+    fn poisson_ratio_above_0_49_warns_of_volumetric_locking() {
+        let (text, result) = load("{NU}", "0.495");
+        let s = result.expect("nu = 0.495 is valid");
+        assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+        let w = &s.warnings[0];
+        assert_eq!(w.field, "material.poisson_ratio");
+        assert_eq!((w.location.line, w.location.column), position(&text, "material:", "0.495"));
+        let shown = w.to_string();
+        assert!(shown.starts_with(&format!("ranges.ron:{}:", w.location.line)), "file:line:column first: {shown}");
+        assert!(shown.contains("poisson_ratio 0.495 is above 0.49") && shown.contains("lock volumetrically"), "{shown}");
+        // Per region too; 0.49 itself is quiet.
+        let (_, result) = load("{RNU}", "0.4999999");
+        let s = result.expect("valid");
+        assert_eq!(s.warnings.iter().map(|w| w.field.as_str()).collect::<Vec<_>>(), ["material.regions[0].poisson_ratio"]);
+        let (_, result) = load("{NU}", "0.49");
+        assert!(result.expect("valid").warnings.is_empty(), "0.49 is the threshold, not above it");
+    }
+
+    #[test]
+    fn density_must_lie_in_0_to_1e5() {
+        for (value, got) in [("-1.0", "got -1"), ("0.0", "got 0"), ("2e5", "got 200000")] {
+            refused("{RHO}", value, "density_kg_m3:", "density_kg_m3", &format!("density_kg_m3 must be in (0, 1e5] kg/m^3 (brain tissue: 1040), {got}"));
+        }
+        refused("{RHO}", "NaN", "density_kg_m3:", "density_kg_m3", "must be a finite number, got NaN");
+    }
+
+    #[test]
+    fn a_run_needs_at_least_ten_steps() {
+        let problem = "time_step_s must be at most duration_s / 10 = 0.1 s (a run of 1 s needs at least 10 steps)";
+        for (value, got) in [("1.0", "1"), ("0.5", "0.5"), ("0.11", "0.11")] {
+            refused("{DT}", value, "time_step_s:", "time_step_s", &format!("{problem}, got {got}"));
+        }
+        refused("{DT}", "0.0", "time_step_s:", "time_step_s", "must be > 0, got 0");
+        let (_, ok) = load("{DT}", "0.1");
+        assert!(ok.is_ok(), "exactly 10 steps is enough: {:?}", ok.err());
+    }
+
+    #[test]
+    fn gravity_must_be_finite() {
+        refused("{G}", "(0.0, NaN, -9.81)", "gravity_m_s2:", "gravity_m_s2[1]", "must be a finite number, got NaN");
+        refused("{G}", "(inf, 0.0, -9.81)", "gravity_m_s2:", "gravity_m_s2[0]", "must be a finite number, got inf");
+    }
+
+    #[test]
+    fn locations_name_the_fields_later_checks_use() {
+        let (text, result) = load("", "");
+        let s = result.expect("valid");
+        let fixed = s.locate("fixed[0]");
+        assert_eq!((fixed.line, fixed.column), position(&text, "fixed:", "RegionId(3)"));
+        // An unrecorded field falls back to its nearest recorded parent.
+        assert_eq!(s.locate("fixed[0].radius_mm"), fixed);
+        let err = s.invalid("time_step_s", "too coarse").to_string();
+        let (line, column) = position(&text, "time_step_s:", "0.01");
+        assert_eq!(err, format!("ranges.ron:{line}:{column}: time_step_s: too coarse"));
+    }
+}

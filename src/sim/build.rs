@@ -35,9 +35,10 @@ pub enum BuildError {
     /// nodes, skull at rest, ...): file, line, column and field named.
     #[error(transparent)]
     Scenario(#[from] ScenarioError),
-    /// The trajectory given in place of the scenario's cannot be read.
-    #[error("trajectory {0}")]
-    Trajectory(#[from] TrajectoryError),
+    /// The trajectory given in place of the scenario's cannot be read (the
+    /// message is shown here, so it is not repeated as a cause).
+    #[error("--trajectory: {0}")]
+    Trajectory(TrajectoryError),
     /// The trajectory given in place of the scenario's has a track for a spatula the scene lacks.
     #[error("--trajectory: {problem}")]
     TrackCount { path: PathBuf, problem: String },

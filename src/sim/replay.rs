@@ -58,7 +58,7 @@ impl PoseSource {
         let initial = scenario.spatulas.iter().map(|s| s.initial_pose).collect::<Vec<_>>();
         let trajectory = match (path, &scenario.trajectory) {
             (Some(p), _) => {
-                let t = Trajectory::load(p)?;
+                let t = Trajectory::load(p).map_err(BuildError::Trajectory)?;
                 if t.spatula_count() > initial.len() {
                     let problem = crate::scenario::validate::tracks_beyond_spatulas(p, &t, initial.len());
                     return Err(BuildError::TrackCount { path: p.to_path_buf(), problem });
