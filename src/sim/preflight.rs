@@ -331,3 +331,85 @@ pub fn blade_travel(scenario: &Scenario, poses: &PoseSource) -> Vec<BladeTravel>
     }
     best.into_iter().flatten().collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(dir: &Path, extra: &str) -> Scenario {
+        let text = format!(
+            r#"(
+    name: "preflight",
+    mesh: Phantom(preset: "small"),
+    material: (young_modulus_pa: 3000.0, poisson_ratio: 0.45),
+    fixed: [RegionId(3)],
+    spatulas: [(name: "a", shape: (length_mm: 20.0, width_mm: 6.0, thickness_mm: 1.0), layout: Grid(along: 2, across: 2),
+                pose: (position_mm: (0.0, 0.0, 70.0), rotation: Quaternion(1.0, 0.0, 0.0, 0.0)), input: Keyboard)],
+    time_step_s: 0.01,
+    duration_s: 1.0,
+    {extra}
+)"#
+        );
+        Scenario::from_str(&text, &dir.join("scene.ron"), &[]).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    fn refusal(s: &Scenario) -> String {
+        match preflight(s, None) {
+            Ok(_) => panic!("the scene must be refused"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn the_skull_at_rest_is_checked_only_when_simulated_and_reports_the_fit() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let sphere = |r: f64| format!("skull: Some((containing: Some((center_mm: (0.5, 0.1, -12.4), radius_mm: {r}))))");
+        let ok = preflight(&scene(dir.path(), &format!("{}, effects: [SkullSpheres]", sphere(100.8))), None).expect("the landmark fits");
+        let clearance = ok.mesh.facts.containing_clearance.expect("checked");
+        assert!(clearance > 0.0 && clearance < 0.01, "the landmark sphere clears the brain by a few mm: {clearance} m");
+        // 1 mm tighter than the brain's farthest surface vertex: refused, with that radius named.
+        let fit = 100.8 - clearance / MM;
+        let tight = scene(dir.path(), &format!("{}, effects: [SkullSpheres]", sphere(fit - 1.0)));
+        let message = refusal(&tight);
+        assert!(message.contains("skull.containing: ") && message.contains("lie outside the sphere"), "{message}");
+        assert!(message.contains("the deepest 1.000 mm outside"), "{message}");
+        assert!(message.contains(&format!("the smallest containing sphere with this centre has radius {fit:.2} mm")), "{message}");
+        // Without SkullSpheres the pipeline builds no skull stage, so there is nothing to refuse.
+        assert!(preflight(&scene(dir.path(), &format!("{}, effects: []", sphere(fit - 1.0))), None).is_ok());
+    }
+
+    #[test]
+    fn fixed_selectors_must_reach_a_node_and_leave_one_free() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let mut s = scene(dir.path(), "effects: []");
+        s.fixed = vec![FixedRegion::RegionId(7), FixedRegion::LowestPerComponent { height: 0.0001 }];
+        let ok = preflight(&s, None).expect("the lowest 0.1 mm holds a node");
+        assert!(ok.mesh.facts.fixed_nodes >= 1);
+        s.fixed = vec![FixedRegion::RegionId(7)];
+        let message = refusal(&s);
+        assert!(message.contains("scene.ron:5:12: fixed: the fixed selectors [RegionId(7)] select no node"), "{message}");
+        s.fixed = vec![FixedRegion::Sphere(Sphere { center: Vec3::zeros(), radius: 1.0 })];
+        assert!(refusal(&s).contains("nothing is left to move"));
+    }
+
+    #[test]
+    fn blade_travel_is_the_largest_corner_step_of_the_played_motion() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let csv = dir.path().join("t.csv");
+        // Still until 0.3 s, 3 mm along +y in the step to 0.31 s, then 10 mm along z over 0.69 s (0.145 mm a step).
+        std::fs::write(
+            &csv,
+            "time_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,0,70,1,0,0,0\n0.3,0,0,0,70,1,0,0,0\n0.31,0,0,3,70,1,0,0,0\n1.0,0,0,3,80,1,0,0,0\n",
+        )
+        .expect("write");
+        let s = scene(dir.path(), "effects: []");
+        let checked = preflight(&s, Some(&csv)).expect("valid");
+        let [t] = checked.travel[..] else { panic!("one moving spatula: {:?}", checked.travel) };
+        assert!((t.travel - 0.003).abs() < 1e-9 && (t.time_s - 0.31).abs() < 1e-9, "{t:?}");
+        let warning = checked.warnings.iter().map(ToString::to_string).find(|w| w.contains("time_step_s:")).expect("3 mm > 1 mm thick");
+        assert!(warning.contains("scene.ron:8:18: time_step_s: the trajectory") && warning.contains("3.000 mm in one step"), "{warning}");
+        assert!(warning.contains("time_step_s <= 3.33e-3 s"), "{warning}");
+        // Without a trajectory nothing moves and nothing is reported.
+        assert!(preflight(&s, None).expect("valid").travel.is_empty());
+    }
+}
