@@ -10,6 +10,7 @@
 //! costs nothing per frame.
 
 use super::pipeline::{Pipeline, SKULL_CANDIDATE_BAND_M, SimState, SkullStage};
+use super::preflight::{CheckedMesh, check_mesh, preflight};
 use super::report::StageId;
 use crate::collision::{BackendKind, CollisionConfig, CollisionStage, SpatulaSpec};
 use crate::fem::{self, BodyForce, Compliance, ConstrainedSolver, FemModel, FemOptions, RegionMaterials};
@@ -17,7 +18,6 @@ use crate::geometry::Pose;
 use crate::math::Vec3;
 use crate::mesh::TetMesh;
 use crate::mesh::quality::components;
-use super::preflight::{CheckedMesh, check_mesh, preflight};
 use crate::scenario::{
     CollisionBackend, ComplianceStorage as ScenarioStorage, Effect, FixedRegion, MeshSource, RegionOfInterest, Scenario,
     ScenarioError, TrajectoryError,

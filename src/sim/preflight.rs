@@ -21,8 +21,11 @@
 //! time step. Not done here: assembly, factorization and the compliance
 //! precompute (seconds to minutes; with a validated material and a loaded mesh
 //! they fail only on what these checks refuse, or on memory).
-//! Stays true: `Pipeline::build` and `Pipeline::build_with_mesh` run
-//! [`check_mesh`] first, and the replay runs [`preflight`] itself.
+//! Stays true: no pipeline is built without these checks: `Pipeline::build`
+//! runs [`preflight`] (the scenario's own trajectory), the replay runs it with
+//! its `--trajectory` before `Pipeline::build_checked`, and
+//! `Pipeline::build_with_mesh` (the study, which drives its own motion) runs
+//! [`check_mesh`].
 
 use std::path::Path;
 
