@@ -153,13 +153,13 @@ fn wrong_type_names_the_field() {
 
 #[test]
 fn poisson_ratio_at_one_half_is_rejected() {
-    assert_bad("poisson_ratio: 0.45", "poisson_ratio: 0.5", "material.poisson_ratio", "poisson_ratio must be in (-1, 0.5), got 0.5");
+    assert_bad("poisson_ratio: 0.45", "poisson_ratio: 0.5", "material.poisson_ratio", "poisson_ratio must be in [0, 0.5), got 0.5");
 }
 
 #[test]
 fn non_positive_young_modulus_is_rejected() {
-    assert_bad("young_modulus_pa: 3000.0", "young_modulus_pa: 0.0", "material.young_modulus_pa", "must be > 0, got 0");
-    assert_bad("young_modulus_pa: 3000.0", "young_modulus_pa: -5.0", "material.young_modulus_pa", "must be > 0, got -5");
+    assert_bad("young_modulus_pa: 3000.0", "young_modulus_pa: 0.0", "material.young_modulus_pa", "must be in (0, 1e9] Pa (brain tissue: 1e2..1e4), got 0");
+    assert_bad("young_modulus_pa: 3000.0", "young_modulus_pa: -5.0", "material.young_modulus_pa", "must be in (0, 1e9] Pa (brain tissue: 1e2..1e4), got -5");
 }
 
 #[test]
@@ -313,6 +313,42 @@ fn trajectory_input_needs_a_trajectory_with_that_track() {
     std::fs::write(dir.path().join("bad.csv"), "time_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,0,0,2,0,0,0\n").expect("write");
     let err = Scenario::load(&path, &["trajectory=\"bad.csv\"".to_string()]).expect_err("bad trajectory");
     assert!(err.to_string().contains("bad.csv:2:") && err.to_string().contains("unit"), "names the trajectory line: {err}");
+}
+
+#[test]
+fn a_trajectory_with_a_track_past_the_spatulas_is_refused() {
+    let dir = tempfile::tempdir().expect("tmp");
+    std::fs::write(dir.path().join("five.csv"), "time_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,0,0,1,0,0,0\n0,5,0,0,0,1,0,0,0\n").expect("write");
+    let path = dir.path().join("scene.ron");
+    std::fs::write(&path, sylvian_text()).expect("write");
+    let err = Scenario::load(&path, &["trajectory=\"five.csv\"".to_string()]).expect_err("spatula 5 in a two-spatula scene");
+    assert_eq!(err.field(), Some("trajectory"), "{err}");
+    assert!(err.to_string().contains("has rows for spatula 5, but the scene has 2 spatulas (indices 0..=1)"), "{err}");
+}
+
+#[test]
+fn physical_ranges_are_refused_at_their_field() {
+    let e = "must be in (0, 1e9] Pa (brain tissue: 1e2..1e4), got 1e300";
+    assert_bad("young_modulus_pa: 3000.0", "young_modulus_pa: 1e300", "material.young_modulus_pa", e);
+    assert_bad("poisson_ratio: 0.45", "poisson_ratio: -0.1", "material.poisson_ratio", "poisson_ratio must be in [0, 0.5), got -0.1");
+    assert_bad("time_step_s: 0.01", "time_step_s: 5.0", "time_step_s", "at most duration_s / 10 = 0.5 s (a run of 5 s needs at least 10 steps), got 5");
+    let text = sylvian_text().replacen("time_step_s: 0.01,", "time_step_s: 0.01, density_kg_m3: -1.0,", 1);
+    let (_dir, _path, result) = load_text(&text);
+    let err = result.expect_err("density -1");
+    assert_eq!(err.field(), Some("density_kg_m3"));
+    assert!(err.to_string().contains("density_kg_m3 must be in (0, 1e5] kg/m^3 (brain tissue: 1040), got -1"), "{err}");
+}
+
+#[test]
+fn poisson_ratio_near_one_half_is_valid_with_a_locking_warning() {
+    let (_dir, path, result) = load_text(&sylvian_text().replacen("poisson_ratio: 0.45", "poisson_ratio: 0.4999999", 1));
+    let s = result.expect("nu = 0.4999999 is in range");
+    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    let w = s.warnings[0].to_string();
+    assert!(w.starts_with(&format!("{}:16:", path.display())), "the warning names file and line: {w}");
+    assert!(w.contains("material.poisson_ratio: poisson_ratio 0.4999999 is above 0.49") && w.contains("lock volumetrically"), "{w}");
+    let shipped = Scenario::load(&config_dir().join("sylvian.ron"), &[]).expect("valid");
+    assert!(shipped.warnings.is_empty(), "the shipped scene warns of nothing: {:?}", shipped.warnings);
 }
 
 #[test]

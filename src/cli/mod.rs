@@ -80,13 +80,16 @@ pub enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Validate a scenario file and print a summary (exit 0 when valid).
+    /// Validate a scenario as replay would (mesh, fixed nodes, skull, trajectory; no frames) and print a summary (exit 0 when valid).
     Check {
         /// The scenario (.ron).
         scenario: PathBuf,
         /// Override one field: PATH=VALUE, e.g. material.poisson_ratio=0.49 (repeatable).
         #[arg(long = "set", value_name = "PATH=VALUE")]
         set: Vec<String>,
+        /// Trajectory (.csv) to check instead of the scenario's, as `replay --trajectory` plays it.
+        #[arg(long)]
+        trajectory: Option<PathBuf>,
     },
     /// Mesh tools: inspect, generate phantoms, tetrahedralize surfaces, convert.
     #[command(subcommand)]
@@ -180,7 +183,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
             };
             study::run(preset, scene, out)
         }
-        Some(Command::Check { scenario, set }) => check::run(&scenario, &set),
+        Some(Command::Check { scenario, set, trajectory }) => check::run(&scenario, &set, trajectory.as_deref()),
         Some(Command::Mesh(MeshCommand::Info { path, json })) => mesh::info(&path, json),
         Some(Command::Mesh(MeshCommand::Phantom { preset, output, json })) => mesh::phantom(&preset, &output, json),
         Some(Command::Mesh(MeshCommand::Tetrahedralize { surface, output, edge, surface_units })) => {

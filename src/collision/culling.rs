@@ -54,8 +54,18 @@ pub(crate) fn cull_swept(
 }
 
 /// One His-flag per ray slot.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+#[derive(Debug, Default, PartialEq, Eq)]
 pub struct HisFlags(Vec<bool>);
+
+impl Clone for HisFlags {
+    fn clone(&self) -> Self {
+        Self(self.0.clone())
+    }
+    /// Reuses the buffer (the pipeline saves the flags every sub-step).
+    fn clone_from(&mut self, source: &Self) {
+        self.0.clone_from(&source.0);
+    }
+}
 
 impl HisFlags {
     /// `n` flags, all off.

@@ -3,7 +3,8 @@
 //!
 //! In: positions from the RON outline and from `ron`'s own errors. Out: one
 //! [`ScenarioError`] whose `Display` reads
-//! `config/sylvian.ron:12:22: material.poisson_ratio: must be in (-1, 0.5), got 0.5`.
+//! `config/sylvian.ron:12:22: material.poisson_ratio: poisson_ratio must be in [0, 0.5), got 0.5`;
+//! a [`ScenarioWarning`] reads the same way.
 
 use std::fmt;
 use std::path::PathBuf;
@@ -76,6 +77,51 @@ pub enum ScenarioError {
         /// What is wrong (malformed, unknown path with the keys valid there, ...).
         problem: String,
     },
+}
+
+/// Something a scenario may say but probably should not (a value inside its
+/// range but near a limit of the method): reported, never refused. `Display`
+/// reads like an error: `config/x.ron:16:52: material.poisson_ratio: ...`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ScenarioWarning {
+    /// Where (the field's value).
+    pub location: Location,
+    /// Field path (`material.poisson_ratio`).
+    pub field: String,
+    /// What is doubtful and why, with the value found.
+    pub message: String,
+}
+
+impl fmt::Display for ScenarioWarning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}: {}", self.location, self.field, self.message)
+    }
+}
+
+/// Positions of the fields that checks after validation (those that need the
+/// mesh or the played trajectory, `sim::preflight`) name in their errors.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct FieldLocations {
+    entries: Vec<(String, Location)>,
+}
+
+impl FieldLocations {
+    /// Records where `field` is.
+    pub fn insert(&mut self, field: &str, location: Location) {
+        self.entries.push((field.to_string(), location));
+    }
+
+    /// Where `field` is: its own entry, else the nearest recorded enclosing
+    /// field (`skull.containing` for `skull.containing.radius_mm`), else `None`.
+    pub fn get(&self, field: &str) -> Option<&Location> {
+        let mut path = field;
+        loop {
+            if let Some((_, l)) = self.entries.iter().find(|(f, _)| f == path) {
+                return Some(l);
+            }
+            path = &path[..path.rfind(['.', '['])?];
+        }
+    }
 }
 
 fn field_prefix(field: &str) -> String {

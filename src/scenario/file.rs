@@ -18,12 +18,16 @@ pub struct ScenarioFile {
     pub mesh: MeshSourceFile,
     /// Linear elastic material of the brain.
     pub material: MaterialFile,
-    /// Nodes held fixed (at least one entry; their union is fixed).
+    /// Nodes held fixed (at least one entry; their union is fixed). Checked
+    /// against the mesh before a run (and by `fissure check`): the union selects
+    /// at least one node, and every connected component of the mesh has one.
     pub fixed: Vec<FixedFile>,
     /// Skull spheres (needed when `effects` has `SkullSpheres`). Default `None`.
+    /// With `SkullSpheres`, checked against the mesh at rest: every surface
+    /// vertex inside `containing` and outside `excluding`.
     #[serde(default)]
     pub skull: Option<SkullFile>,
-    /// The spatulas (one or more; names unique).
+    /// The spatulas (1 to 255; names unique).
     pub spatulas: Vec<SpatulaFile>,
     /// The stages the scene wants; the pipeline builds only these.
     pub effects: Vec<Effect>,
@@ -33,17 +37,22 @@ pub struct ScenarioFile {
     /// Solver options. Default `(compliance_storage: F64, region_of_interest: Auto, cache_dir: None)`.
     #[serde(default)]
     pub solver: SolverFile,
-    /// Gravity vector, m/s^2 (finite). Default `(0.0, 0.0, -9.81)`; used only with the `Gravity` effect.
+    /// Gravity vector, m/s^2 (every component finite). Default `(0.0, 0.0, -9.81)`; used only with the `Gravity` effect.
     #[serde(default = "default_gravity")]
     pub gravity_m_s2: [f64; 3],
-    /// Tissue density, kg/m^3 (> 0). Default 1040 (brain tissue); used only with `Gravity`.
+    /// Tissue density, kg/m^3, in (0, 1e5]. Default 1040 (brain tissue); used only with `Gravity`.
     #[serde(default = "default_density")]
     pub density_kg_m3: f64,
-    /// Fixed simulation step, s (> 0, <= duration_s).
+    /// Fixed simulation step, s: > 0 and at most `duration_s / 10` (a run has
+    /// at least 10 steps). A step in which the trajectory moves a blade more
+    /// than its thickness gets a warning (the blade could pass through tissue
+    /// thinner than its travel).
     pub time_step_s: f64,
     /// Length of a headless run, s (> 0).
     pub duration_s: f64,
-    /// A recorded pose track (CSV, see the README), relative to this file's folder. Default `None`.
+    /// A recorded pose track (CSV, see the README), relative to this file's
+    /// folder: it must exist, parse, and have no rows for a spatula index the
+    /// scene lacks. Default `None`.
     #[serde(default)]
     pub trajectory: Option<String>,
     /// Where results go. Default `(dir: "out", vtk: false, frames: false)`.
@@ -100,9 +109,10 @@ impl LengthUnit {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialFile {
-    /// Young's modulus E, Pa (finite, > 0).
+    /// Young's modulus E, Pa, in (0, 1e9] (brain tissue: 1e2..1e4).
     pub young_modulus_pa: f64,
-    /// Poisson's ratio nu, in (-1, 0.5).
+    /// Poisson's ratio nu, in [0, 0.5); above 0.49 a warning names volumetric
+    /// locking (linear tetrahedra: forces grow without bound as nu -> 0.5).
     pub poisson_ratio: f64,
     /// Per-region overrides (region ids unique). Default empty.
     #[serde(default)]
@@ -115,9 +125,9 @@ pub struct MaterialFile {
 pub struct RegionMaterialFile {
     /// Region id (the mesh's physical volume number).
     pub id: u32,
-    /// Young's modulus E, Pa (finite, > 0).
+    /// Young's modulus E, Pa, in (0, 1e9].
     pub young_modulus_pa: f64,
-    /// Poisson's ratio nu, in (-1, 0.5).
+    /// Poisson's ratio nu, in [0, 0.5) (a warning above 0.49, as for the default material).
     pub poisson_ratio: f64,
 }
 

@@ -3,17 +3,23 @@
 //!
 //! In: the parsed file and its [`Document`] (for positions). Out: a [`Scenario`]
 //! the pipeline reads directly, or the first [`ScenarioError::Invalid`] in file
-//! order of checks, naming file, line, column and field path. Stays true for a
-//! validated scenario: every number is finite; lengths, radii, moduli and steps
-//! are positive; nu in (-1, 0.5); poses are unit; input files exist; each
-//! effect's prerequisites are present.
+//! order of checks, naming file, line, column and field path; values that are
+//! legal but doubtful (nu near 0.5) become [`ScenarioWarning`]s in
+//! [`Scenario::warnings`]. Stays true for a validated scenario: every number is
+//! finite; lengths, radii and steps are positive; E in (0, 1e9] Pa, nu in
+//! [0, 0.5), density in (0, 1e5] kg/m^3, at least 10 steps a run; poses are
+//! unit; input files exist and the trajectory has no track for a spatula the
+//! scene lacks; each effect's prerequisites are present. What needs the mesh or
+//! the trajectory that will play (fixed nodes, skull against the brain, blade
+//! travel a step) is checked by `sim::preflight`, with the positions kept in
+//! [`Scenario::locations`].
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Rotation3, Unit};
 
-use super::error::ScenarioError;
+use super::error::{FieldLocations, Location, ScenarioError, ScenarioWarning};
 use super::file::{
     CollisionBackend, ComplianceStorage, Effect, FixedFile, InputFile, LayoutFile, LengthUnit, MeshSourceFile,
     RegionOfInterestFile, RotationFile, ScenarioFile, SphereFile, SpatulaContact,
@@ -26,6 +32,25 @@ use crate::mesh::phantom::Preset;
 
 /// Most source nodes a layout may put on one face.
 pub const MAX_NODES_PER_FACE: u64 = 1_000_000;
+
+/// Most spatulas a scene may have (the collision stage numbers them in a byte).
+pub const MAX_SPATULAS: usize = 255;
+
+/// Largest Young's modulus accepted, Pa. Brain tissue is 1e2..1e4 Pa; 1e9 Pa
+/// is already stiffer than cartilage, and beyond it the stiffness entries
+/// (E / h^2 on millimetre elements) leave the range where the solve is exact.
+pub const MAX_YOUNG_MODULUS_PA: f64 = 1e9;
+
+/// Poisson's ratio above which a warning names volumetric locking: linear
+/// tetrahedra lock as nu -> 0.5 (the bulk modulus grows without bound, so do
+/// the forces for a given displacement).
+pub const LOCKING_POISSON_RATIO: f64 = 0.49;
+
+/// Largest density accepted, kg/m^3 (osmium is 22,600).
+pub const MAX_DENSITY_KG_M3: f64 = 1e5;
+
+/// A run has at least this many steps: `time_step_s <= duration_s / MIN_STEPS`.
+pub const MIN_STEPS: f64 = 10.0;
 
 const MM: f64 = 1e-3;
 
@@ -50,9 +75,9 @@ pub enum MeshSource {
 /// Isotropic linear elastic material, SI.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Material {
-    /// Young's modulus, Pa (> 0).
+    /// Young's modulus, Pa, in (0, 1e9].
     pub young_modulus: f64,
-    /// Poisson's ratio, in (-1, 0.5).
+    /// Poisson's ratio, in [0, 0.5).
     pub poisson_ratio: f64,
 }
 
@@ -238,11 +263,11 @@ pub struct Scenario {
     pub swept_culling: bool,
     /// Solver options.
     pub solver: SolverOptions,
-    /// Gravity, m/s^2.
+    /// Gravity, m/s^2 (finite).
     pub gravity: Vec3,
-    /// Density, kg/m^3 (> 0).
+    /// Density, kg/m^3, in (0, 1e5].
     pub density: f64,
-    /// Fixed time step, s (> 0, <= duration).
+    /// Fixed time step, s (> 0, <= duration / 10).
     pub time_step: f64,
     /// Headless run length, s (> 0).
     pub duration: f64,
@@ -250,16 +275,32 @@ pub struct Scenario {
     pub trajectory: Option<PathBuf>,
     /// Outputs.
     pub outputs: Outputs,
+    /// Legal but doubtful values, in the order found (`fissure check` prints
+    /// them; the pipeline's build logs them).
+    pub warnings: Vec<ScenarioWarning>,
+    /// Where the fields that later checks name are (`mesh`, `fixed[i]`,
+    /// `skull.containing`, `skull.excluding`, `time_step_s`, `trajectory`, ...).
+    pub locations: FieldLocations,
 }
+
+/// Fields whose positions [`Scenario::locations`] keeps (plus `fixed[i]` and `spatulas[i]`).
+const LOCATED_FIELDS: [&str; 8] =
+    ["mesh", "mesh.path", "fixed", "skull.containing", "skull.excluding", "time_step_s", "trajectory", "spatulas"];
 
 struct Checker<'d> {
     doc: &'d Document,
     base: PathBuf,
+    warnings: std::cell::RefCell<Vec<ScenarioWarning>>,
 }
 
 impl Checker<'_> {
     fn invalid(&self, field: &str, problem: impl Into<String>) -> ScenarioError {
         ScenarioError::Invalid { location: self.doc.locate_path(field), field: field.to_string(), problem: problem.into() }
+    }
+
+    fn warn(&self, field: &str, message: impl Into<String>) {
+        let w = ScenarioWarning { location: self.doc.locate_path(field), field: field.to_string(), message: message.into() };
+        self.warnings.borrow_mut().push(w);
     }
 
     fn finite(&self, field: &str, v: f64) -> Result<f64, ScenarioError> {
@@ -285,13 +326,24 @@ impl Checker<'_> {
     fn material(&self, field: &str, young_modulus_pa: f64, poisson_ratio: f64) -> Result<Material, ScenarioError> {
         let e_field = format!("{field}.young_modulus_pa");
         let young_modulus = self.finite(&e_field, young_modulus_pa)?;
-        if young_modulus <= 0.0 {
-            return Err(self.invalid(&e_field, format!("young_modulus_pa must be > 0, got {young_modulus}")));
+        if !(young_modulus > 0.0 && young_modulus <= MAX_YOUNG_MODULUS_PA) {
+            return Err(self.invalid(&e_field, format!(
+                "young_modulus_pa must be in (0, {MAX_YOUNG_MODULUS_PA:e}] Pa (brain tissue: 1e2..1e4), got {}",
+                number(young_modulus)
+            )));
         }
         let nu_field = format!("{field}.poisson_ratio");
         let nu = self.finite(&nu_field, poisson_ratio)?;
-        if !(nu > -1.0 && nu < 0.5) {
-            return Err(self.invalid(&nu_field, format!("poisson_ratio must be in (-1, 0.5), got {nu}")));
+        if !(0.0..0.5).contains(&nu) {
+            return Err(self.invalid(&nu_field, format!("poisson_ratio must be in [0, 0.5), got {nu}")));
+        }
+        if nu > LOCKING_POISSON_RATIO {
+            self.warn(&nu_field, format!(
+                "poisson_ratio {nu} is above {LOCKING_POISSON_RATIO}: linear tetrahedra lock volumetrically as nu -> 0.5 \
+                 (the bulk modulus E / (3 (1 - 2 nu)) = {:.3e} Pa grows without bound, and so do the forces for a given \
+                 displacement); 0.45 is the usual value for brain tissue",
+                young_modulus / (3.0 * (1.0 - 2.0 * nu))
+            ));
         }
         Ok(Material { young_modulus, poisson_ratio: nu })
     }
@@ -361,7 +413,7 @@ impl Scenario {
     /// positions for errors and the scenario's folder for relative paths.
     pub fn validate(file: ScenarioFile, document: &Document) -> Result<Scenario, ScenarioError> {
         let base = document.path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let c = Checker { doc: document, base };
+        let c = Checker { doc: document, base, warnings: Default::default() };
 
         if file.name.trim().is_empty() {
             return Err(c.invalid("name", "must not be empty"));
@@ -437,6 +489,14 @@ impl Scenario {
 
         if file.spatulas.is_empty() {
             return Err(c.invalid("spatulas", "at least one spatula is needed"));
+        }
+        if file.spatulas.len() > MAX_SPATULAS {
+            return Err(c.invalid("spatulas", format!("at most {MAX_SPATULAS} spatulas, got {}", file.spatulas.len())));
+        }
+        if let Some((path, track)) = &trajectory
+            && track.spatula_count() > file.spatulas.len()
+        {
+            return Err(c.invalid("trajectory", tracks_beyond_spatulas(path, track, file.spatulas.len())));
         }
         let mut spatulas: Vec<SpatulaConfig> = Vec::with_capacity(file.spatulas.len());
         for (i, s) in file.spatulas.iter().enumerate() {
@@ -570,11 +630,21 @@ impl Scenario {
         };
 
         let gravity = c.vec3("gravity_m_s2", file.gravity_m_s2)?;
-        let density = c.positive("density_kg_m3", file.density_kg_m3)?;
+        let density = c.finite("density_kg_m3", file.density_kg_m3)?;
+        if !(density > 0.0 && density <= MAX_DENSITY_KG_M3) {
+            return Err(c.invalid("density_kg_m3", format!(
+                "density_kg_m3 must be in (0, {MAX_DENSITY_KG_M3:e}] kg/m^3 (brain tissue: 1040), got {}",
+                number(density)
+            )));
+        }
         let time_step = c.positive("time_step_s", file.time_step_s)?;
         let duration = c.positive("duration_s", file.duration_s)?;
-        if time_step > duration {
-            return Err(c.invalid("time_step_s", format!("must not exceed duration_s ({duration} s), got {time_step}")));
+        // A relative tolerance keeps 0.01 s in 0.1 s (0.1 / 10 rounds below 0.01).
+        if time_step > duration / MIN_STEPS * (1.0 + 1e-9) {
+            return Err(c.invalid("time_step_s", format!(
+                "time_step_s must be at most duration_s / {MIN_STEPS} = {} s (a run of {duration} s needs at least {MIN_STEPS} steps), got {time_step}",
+                duration / MIN_STEPS
+            )));
         }
         if duration / time_step > 1e9 {
             return Err(c.invalid("duration_s", format!("{} steps of {time_step} s are too many (at most 1e9)", duration / time_step)));
@@ -602,7 +672,30 @@ impl Scenario {
             duration,
             trajectory: trajectory.map(|(p, _)| p),
             outputs: Outputs { dir: PathBuf::from(&file.outputs.dir), vtk: file.outputs.vtk, frames: file.outputs.frames },
+            warnings: c.warnings.take(),
+            locations: field_locations(document, file.fixed.len(), file.spatulas.len()),
         })
+    }
+
+    /// Where `field` is written (its own position or the nearest enclosing
+    /// recorded one, see [`Scenario::locations`]); the file's start otherwise.
+    pub fn locate(&self, field: &str) -> Location {
+        self.locations.get(field).cloned().unwrap_or_else(|| Location {
+            origin: super::error::Origin::File(self.source_path.clone()),
+            line: 1,
+            column: 1,
+        })
+    }
+
+    /// A [`ScenarioError::Invalid`] about `field`, at its position: for the
+    /// checks that need the mesh or the played trajectory (`sim::preflight`).
+    pub fn invalid(&self, field: &str, problem: impl Into<String>) -> ScenarioError {
+        ScenarioError::Invalid { location: self.locate(field), field: field.to_string(), problem: problem.into() }
+    }
+
+    /// A [`ScenarioWarning`] about `field`, at its position.
+    pub fn warning(&self, field: &str, message: impl Into<String>) -> ScenarioWarning {
+        ScenarioWarning { location: self.locate(field), field: field.to_string(), message: message.into() }
     }
 
     /// Number of fixed steps in a headless run (`ceil(duration / time_step)`, at least 1).
@@ -674,6 +767,185 @@ impl Scenario {
     }
 }
 
+fn field_locations(document: &Document, fixed: usize, spatulas: usize) -> FieldLocations {
+    let mut locations = FieldLocations::default();
+    let indexed = (0..fixed).map(|i| format!("fixed[{i}]")).chain((0..spatulas).map(|i| format!("spatulas[{i}]")));
+    for field in LOCATED_FIELDS.iter().map(|f| f.to_string()).chain(indexed) {
+        locations.insert(&field, document.locate_path(&field));
+    }
+    locations
+}
+
+/// The problem of a trajectory with rows for a spatula index the scene lacks.
+pub fn tracks_beyond_spatulas(path: &Path, track: &Trajectory, spatulas: usize) -> String {
+    format!(
+        "the trajectory {} has rows for spatula {}, but the scene has {spatulas} spatula{} (indices 0..={})",
+        path.display(),
+        track.spatula_count() - 1,
+        if spatulas == 1 { "" } else { "s" },
+        spatulas.saturating_sub(1)
+    )
+}
+
+/// A number as a user wrote it: `1e300`, not three hundred digits.
+fn number(v: f64) -> String {
+    if v != 0.0 && !(1e-3..1e6).contains(&v.abs()) { format!("{v:e}") } else { format!("{v}") }
+}
+
 fn quoted(names: &[&str]) -> String {
     names.iter().map(|n| format!("\"{n}\"")).collect::<Vec<_>>().join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::error::Origin;
+
+    /// A valid scene on the small phantom; `{E}`, `{NU}`, ... are replaced by the test.
+    const SCENE: &str = r#"(
+    name: "ranges",
+    mesh: Phantom(preset: "small"),
+    material: (young_modulus_pa: {E}, poisson_ratio: {NU}, regions: [(id: 2, young_modulus_pa: {RE}, poisson_ratio: {RNU})]),
+    fixed: [RegionId(3)],
+    spatulas: [(name: "a", shape: (length_mm: 20.0, width_mm: 5.0, thickness_mm: 1.0), layout: Grid(along: 2, across: 2),
+                pose: (position_mm: (0.0, 0.0, 80.0), rotation: Quaternion(1.0, 0.0, 0.0, 0.0)), input: Keyboard)],
+    effects: [Collision, Gravity],
+    gravity_m_s2: {G},
+    density_kg_m3: {RHO},
+    time_step_s: {DT},
+    duration_s: 1.0,
+)"#;
+
+    const GOOD: [(&str, &str); 8] = [
+        ("{E}", "3000.0"),
+        ("{NU}", "0.45"),
+        ("{RE}", "5000.0"),
+        ("{RNU}", "0.45"),
+        ("{G}", "(0.0, 0.0, -9.81)"),
+        ("{RHO}", "1040.0"),
+        ("{DT}", "0.01"),
+        ("", ""),
+    ];
+
+    /// The scene with `key` set to `value` (the rest good), its text, and the result.
+    fn load(key: &str, value: &str) -> (String, Result<Scenario, ScenarioError>) {
+        let mut text = SCENE.to_string();
+        for (k, v) in GOOD.iter().filter(|(k, _)| !k.is_empty()) {
+            text = text.replace(k, if *k == key { value } else { v });
+        }
+        let result = Scenario::from_str(&text, Path::new("ranges.ron"), &[]);
+        (text, result)
+    }
+
+    /// Line and column (1-based) where `value` first follows `after` in `text`.
+    fn position(text: &str, after: &str, value: &str) -> (usize, usize) {
+        let at = text.find(after).expect("anchor") + text[text.find(after).expect("anchor")..].find(value).expect("value");
+        let line = text[..at].matches('\n').count() + 1;
+        let column = at - text[..at].rfind('\n').map_or(0, |i| i + 1) + 1;
+        (line, column)
+    }
+
+    /// `key = value` is refused with an error at the value's position, naming `field` and saying `problem`.
+    fn refused(key: &str, value: &str, anchor: &str, field: &str, problem: &str) {
+        let (text, result) = load(key, value);
+        let err = result.expect_err(&format!("{field} = {value} must be refused"));
+        let message = err.to_string();
+        let location = err.location().unwrap_or_else(|| panic!("{message}: no location"));
+        assert_eq!(location.origin, Origin::File(PathBuf::from("ranges.ron")), "{message}");
+        let (line, column) = position(&text, anchor, value);
+        assert_eq!(location.line, line, "{field} = {value}: line in {message}");
+        assert!(
+            (column..column + value.len()).contains(&location.column),
+            "{field} = {value}: the column must point into the value (columns {column}..{}): {message}",
+            column + value.len()
+        );
+        assert_eq!(err.field(), Some(field), "{message}");
+        assert!(message.contains(problem), "{field} = {value}: `{message}` should say `{problem}`");
+    }
+
+    #[test]
+    fn the_good_scene_is_valid_without_warnings() {
+        let (_, result) = load("", "");
+        let s = result.expect("valid");
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    }
+
+    #[test]
+    fn young_modulus_must_lie_in_0_to_1e9_pa() {
+        let range = "young_modulus_pa must be in (0, 1e9] Pa";
+        for (value, got) in [("1e300", "got 1e300"), ("0.0", "got 0"), ("-5.0", "got -5"), ("1.5e9", "got 1.5e9")] {
+            refused("{E}", value, "material:", "material.young_modulus_pa", &format!("{range} (brain tissue: 1e2..1e4), {got}"));
+        }
+        refused("{RE}", "1e10", "regions:", "material.regions[0].young_modulus_pa", &format!("{range} (brain tissue: 1e2..1e4), got 1e10"));
+        refused("{E}", "inf", "material:", "material.young_modulus_pa", "must be a finite number, got inf");
+        let (_, ok) = load("{E}", "1e9");
+        assert!(ok.is_ok(), "1e9 Pa is the upper bound, included: {:?}", ok.err());
+    }
+
+    #[test]
+    fn poisson_ratio_must_lie_in_0_to_one_half() {
+        for value in ["0.5", "-0.1", "0.7"] {
+            refused("{NU}", value, "material:", "material.poisson_ratio", &format!("poisson_ratio must be in [0, 0.5), got {value}"));
+        }
+        refused("{RNU}", "0.5", "regions:", "material.regions[0].poisson_ratio", "poisson_ratio must be in [0, 0.5), got 0.5");
+        let (_, ok) = load("{NU}", "0.0");
+        assert!(ok.is_ok_and(|s| s.warnings.is_empty()), "nu = 0 is allowed, silently");
+    }
+
+    #[test]
+    fn poisson_ratio_above_0_49_warns_of_volumetric_locking() {
+        let (text, result) = load("{NU}", "0.495");
+        let s = result.expect("nu = 0.495 is valid");
+        assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+        let w = &s.warnings[0];
+        assert_eq!(w.field, "material.poisson_ratio");
+        assert_eq!((w.location.line, w.location.column), position(&text, "material:", "0.495"));
+        let shown = w.to_string();
+        assert!(shown.starts_with(&format!("ranges.ron:{}:", w.location.line)), "file:line:column first: {shown}");
+        assert!(shown.contains("poisson_ratio 0.495 is above 0.49") && shown.contains("lock volumetrically"), "{shown}");
+        // Per region too; 0.49 itself is quiet.
+        let (_, result) = load("{RNU}", "0.4999999");
+        let s = result.expect("valid");
+        assert_eq!(s.warnings.iter().map(|w| w.field.as_str()).collect::<Vec<_>>(), ["material.regions[0].poisson_ratio"]);
+        let (_, result) = load("{NU}", "0.49");
+        assert!(result.expect("valid").warnings.is_empty(), "0.49 is the threshold, not above it");
+    }
+
+    #[test]
+    fn density_must_lie_in_0_to_1e5() {
+        for (value, got) in [("-1.0", "got -1"), ("0.0", "got 0"), ("2e5", "got 200000")] {
+            refused("{RHO}", value, "density_kg_m3:", "density_kg_m3", &format!("density_kg_m3 must be in (0, 1e5] kg/m^3 (brain tissue: 1040), {got}"));
+        }
+        refused("{RHO}", "NaN", "density_kg_m3:", "density_kg_m3", "must be a finite number, got NaN");
+    }
+
+    #[test]
+    fn a_run_needs_at_least_ten_steps() {
+        let problem = "time_step_s must be at most duration_s / 10 = 0.1 s (a run of 1 s needs at least 10 steps)";
+        for (value, got) in [("1.0", "1"), ("0.5", "0.5"), ("0.11", "0.11")] {
+            refused("{DT}", value, "time_step_s:", "time_step_s", &format!("{problem}, got {got}"));
+        }
+        refused("{DT}", "0.0", "time_step_s:", "time_step_s", "must be > 0, got 0");
+        let (_, ok) = load("{DT}", "0.1");
+        assert!(ok.is_ok(), "exactly 10 steps is enough: {:?}", ok.err());
+    }
+
+    #[test]
+    fn gravity_must_be_finite() {
+        refused("{G}", "(0.0, NaN, -9.81)", "gravity_m_s2:", "gravity_m_s2[1]", "must be a finite number, got NaN");
+        refused("{G}", "(inf, 0.0, -9.81)", "gravity_m_s2:", "gravity_m_s2[0]", "must be a finite number, got inf");
+    }
+
+    #[test]
+    fn locations_name_the_fields_later_checks_use() {
+        let (text, result) = load("", "");
+        let s = result.expect("valid");
+        let fixed = s.locate("fixed[0]");
+        assert_eq!((fixed.line, fixed.column), position(&text, "fixed:", "RegionId(3)"));
+        // An unrecorded field falls back to its nearest recorded parent.
+        assert_eq!(s.locate("fixed[0].radius_mm"), fixed);
+        let err = s.invalid("time_step_s", "too coarse").to_string();
+        let (line, column) = position(&text, "time_step_s:", "0.01");
+        assert_eq!(err, format!("ranges.ron:{line}:{column}: time_step_s: too coarse"));
+    }
 }

@@ -4,10 +4,13 @@
 //! In: a validated [`Scenario`] (and optionally the trajectory it will play, to
 //! widen the automatic region of interest). Out: a [`Pipeline`] with all
 //! one-time work done (assembly, factorization, compliance precompute or cache
-//! load) and the initial [`SimState`]. Stays true: a stage whose effect is not
-//! in the scene is `None` and costs nothing per frame.
+//! load) and the initial [`SimState`]. Stays true: every build runs the
+//! checks of [`super::preflight`] first (so `fissure check` refuses what a
+//! build refuses); a stage whose effect is not in the scene is `None` and
+//! costs nothing per frame.
 
 use super::pipeline::{Pipeline, SKULL_CANDIDATE_BAND_M, SimState, SkullStage};
+use super::preflight::{CheckedMesh, check_mesh, preflight};
 use super::report::StageId;
 use crate::collision::{BackendKind, CollisionConfig, CollisionStage, SpatulaSpec};
 use crate::fem::{self, BodyForce, Compliance, ConstrainedSolver, FemModel, FemOptions, RegionMaterials};
@@ -17,6 +20,7 @@ use crate::mesh::TetMesh;
 use crate::mesh::quality::components;
 use crate::scenario::{
     CollisionBackend, ComplianceStorage as ScenarioStorage, Effect, FixedRegion, MeshSource, RegionOfInterest, Scenario,
+    ScenarioError, TrajectoryError,
 };
 use std::path::PathBuf;
 
@@ -27,8 +31,17 @@ pub enum BuildError {
     MeshFile(#[from] crate::mesh::io::MeshFileError),
     #[error("generating phantom `{preset}`: {message}")]
     Phantom { preset: String, message: String },
-    #[error("scenario `{scenario}`: the fixed regions select no node")]
-    NothingFixed { scenario: PathBuf },
+    /// A scenario field that does not fit the mesh or the motion (fixed
+    /// nodes, skull at rest, ...): file, line, column and field named.
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// The trajectory given in place of the scenario's cannot be read (the
+    /// message is shown here, so it is not repeated as a cause).
+    #[error("--trajectory: {0}")]
+    Trajectory(TrajectoryError),
+    /// The trajectory given in place of the scenario's has a track for a spatula the scene lacks.
+    #[error("--trajectory: {problem}")]
+    TrackCount { path: PathBuf, problem: String },
     #[error("scenario `{scenario}`: {message}")]
     Scene { scenario: PathBuf, message: String },
     #[error("FEM: {0}")]
@@ -182,19 +195,25 @@ pub struct BuildOptions<'a> {
 }
 
 impl Pipeline {
-    /// Builds the pipeline the scenario asks for, and the initial state.
+    /// Builds the pipeline the scenario asks for, and the initial state, after
+    /// the whole [`preflight`] (with the scenario's own trajectory) whose
+    /// warnings it logs.
     pub fn build(scenario: &Scenario, options: BuildOptions<'_>) -> Result<(Pipeline, SimState), BuildError> {
-        let mesh = load_mesh(scenario)?;
-        Self::build_with_mesh(scenario, mesh, options)
+        let checked = preflight(scenario, None)?;
+        checked.log_warnings();
+        Self::build_checked(scenario, checked.mesh, options)
     }
 
-    /// As [`Pipeline::build`], with the mesh already loaded (in metres).
-    pub fn build_with_mesh(scenario: &Scenario, mesh: TetMesh, mut options: BuildOptions<'_>) -> Result<(Pipeline, SimState), BuildError> {
+    /// As [`Pipeline::build`], with the mesh already loaded (in metres) and
+    /// checked by [`check_mesh`] only (the caller drives the motion, e.g. the study).
+    pub fn build_with_mesh(scenario: &Scenario, mesh: TetMesh, options: BuildOptions<'_>) -> Result<(Pipeline, SimState), BuildError> {
+        Self::build_checked(scenario, check_mesh(scenario, mesh)?, options)
+    }
+
+    /// The build proper, on a mesh that passed [`check_mesh`] for this scenario.
+    pub fn build_checked(scenario: &Scenario, checked: CheckedMesh, mut options: BuildOptions<'_>) -> Result<(Pipeline, SimState), BuildError> {
         let effects = scenario.effects;
-        let fixed = fixed_nodes(&mesh, &scenario.fixed);
-        if !fixed.iter().any(|&f| f) {
-            return Err(BuildError::NothingFixed { scenario: scenario.source_path.clone() });
-        }
+        let CheckedMesh { mesh, fixed, .. } = checked;
         let to_fem = |m: crate::scenario::Material| fem::Material { young_modulus: m.young_modulus, poisson_ratio: m.poisson_ratio };
         let materials = RegionMaterials {
             default: to_fem(scenario.material),

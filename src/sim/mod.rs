@@ -9,9 +9,11 @@ pub mod build;
 pub mod metrics;
 pub mod monitor;
 pub mod pipeline;
+pub mod preflight;
 pub mod replay;
 pub mod report;
 
 pub use build::{BuildError, BuildOptions};
 pub use pipeline::{FrameInput, MAX_SUBSTEPS, Pipeline, SUBSTEP_TRAVEL_FRACTION, SimState, SkullStage, StepError, substep_count};
+pub use preflight::{Preflight, preflight};
 pub use report::{FrameReport, SpatulaReport, StageId, StageTimes};

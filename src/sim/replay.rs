@@ -10,12 +10,12 @@
 //! with every row written so far valid; the summary is still written, marked
 //! `interrupted`.
 
-use super::build::BuildOptions;
+use super::build::{BuildError, BuildOptions};
 use super::metrics::{MetricsWriter, OutputError, Summary, SummaryBuilder, write_summary};
 use super::pipeline::{FrameInput, Pipeline, SimState, StepError};
 use crate::geometry::Pose;
 use crate::mesh::io::{Field, FieldData, save_tet_mesh, write_pvd};
-use crate::scenario::{Scenario, Trajectory, TrajectoryError};
+use crate::scenario::{Scenario, Trajectory};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -23,11 +23,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
     #[error(transparent)]
-    Build(#[from] super::build::BuildError),
-    #[error(transparent)]
-    Trajectory(#[from] TrajectoryError),
-    #[error("trajectory {path}: it has {tracks} tracks but the scenario has {spatulas} spatulas")]
-    TrackCount { path: PathBuf, tracks: usize, spatulas: usize },
+    Build(#[from] BuildError),
     #[error(transparent)]
     Output(#[from] OutputError),
     #[error("writing VTK output: {0}")]
@@ -56,21 +52,35 @@ pub struct PoseSource {
 }
 
 impl PoseSource {
-    /// Loads `path` (or the scenario's trajectory) and checks its tracks.
-    pub fn for_scenario(scenario: &Scenario, path: Option<&Path>) -> Result<Self, ReplayError> {
-        let path = path.map(Path::to_path_buf).or_else(|| scenario.trajectory.clone());
+    /// Loads `path` (or the scenario's trajectory) and checks that it has no
+    /// track for a spatula the scene lacks (part of `sim::preflight`).
+    pub fn for_scenario(scenario: &Scenario, path: Option<&Path>) -> Result<Self, BuildError> {
         let initial = scenario.spatulas.iter().map(|s| s.initial_pose).collect::<Vec<_>>();
-        let trajectory = match path {
-            Some(p) => {
-                let t = Trajectory::load(&p)?;
+        let trajectory = match (path, &scenario.trajectory) {
+            (Some(p), _) => {
+                let t = Trajectory::load(p).map_err(BuildError::Trajectory)?;
                 if t.spatula_count() > initial.len() {
-                    return Err(ReplayError::TrackCount { path: p, tracks: t.spatula_count(), spatulas: initial.len() });
+                    let problem = crate::scenario::validate::tracks_beyond_spatulas(p, &t, initial.len());
+                    return Err(BuildError::TrackCount { path: p.to_path_buf(), problem });
                 }
                 Some(t)
             }
-            None => None,
+            // Validation read it already; it may have changed on disk since.
+            (None, Some(p)) => {
+                let t = Trajectory::load(p).map_err(|e| scenario.invalid("trajectory", e.to_string()))?;
+                if t.spatula_count() > initial.len() {
+                    return Err(scenario.invalid("trajectory", crate::scenario::validate::tracks_beyond_spatulas(p, &t, initial.len())).into());
+                }
+                Some(t)
+            }
+            (None, None) => None,
         };
         Ok(Self { trajectory, initial })
+    }
+
+    /// Time of the trajectory's last row, s; `None` without a trajectory.
+    pub fn trajectory_end(&self) -> Option<f64> {
+        self.trajectory.as_ref().map(Trajectory::duration)
     }
 
     /// Poses at `time_s` into `out` (a track missing for a spatula holds its initial pose).
@@ -122,9 +132,12 @@ pub fn replay(
     on_frame: &mut dyn FnMut(&Pipeline, &SimState, u64, u64) -> Result<(), String>,
     compliance_progress: Option<&mut dyn FnMut(usize, usize)>,
 ) -> Result<Summary, ReplayError> {
-    let source = PoseSource::for_scenario(scenario, options.trajectory.as_deref())?;
-    let (mut pipeline, mut state) = Pipeline::build(
+    let checked = super::preflight::preflight(scenario, options.trajectory.as_deref())?;
+    checked.log_warnings();
+    let source = checked.poses;
+    let (mut pipeline, mut state) = Pipeline::build_checked(
         scenario,
+        checked.mesh,
         BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: compliance_progress },
     )?;
     std::fs::create_dir_all(&options.out_dir).map_err(|e| OutputError::new(&options.out_dir, e))?;

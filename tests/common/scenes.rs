@@ -90,6 +90,8 @@ pub struct Scene {
     pub backend: &'static str,
     /// `solver.spatula_contact`: `Unilateral` (the default) or `Bilateral` (the paper's).
     pub contact: &'static str,
+    /// `solver.substep_travel`: `Some(0.125)` (the default) or `None` (one step a frame).
+    pub substep_travel: &'static str,
 }
 
 impl Scene {
@@ -108,6 +110,7 @@ impl Scene {
             roi: "All".into(),
             backend: "Bvh",
             contact: "Unilateral",
+            substep_travel: "Some(0.125)",
         }
     }
 
@@ -136,7 +139,7 @@ impl Scene {
     spatulas: [{}],
     effects: [{}],
     collision: (backend: {}),
-    solver: (compliance_storage: F64, region_of_interest: {}, cache_dir: None, spatula_contact: {}),
+    solver: (compliance_storage: F64, region_of_interest: {}, cache_dir: None, spatula_contact: {}, substep_travel: {}),
     time_step_s: 0.01,
     duration_s: 1.0,
 )"#,
@@ -151,6 +154,7 @@ impl Scene {
             self.backend,
             self.roi,
             self.contact,
+            self.substep_travel,
         );
         Scenario::from_str(&text, &dir.join("scene.ron"), &[]).unwrap_or_else(|e| panic!("test scenario is invalid: {e}\n{text}"))
     }
