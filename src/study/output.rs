@@ -203,6 +203,9 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         cores,
         if cfg!(debug_assertions) { "debug" } else { "release" }
     );
+    if results.interrupted {
+        let _ = writeln!(t, "**Interrupted (Ctrl-C): the runs not done say so; their sweeps are incomplete.**\n");
+    }
     let m = &results.motion;
     let _ = write!(
         t,
