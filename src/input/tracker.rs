@@ -21,12 +21,20 @@
 //! The speed uses the sender's timestamps (the moments the tracker sampled), so
 //! two poses that arrive together after a network stall are not taken for a
 //! jump; when the sender does not stamp (0) or its clock goes back, the arrival
-//! times are used. The reference is the last *accepted* pose: after a genuine
+//! times are used. Neither clock is exact (many senders stamp when they send,
+//! not when the tracker sampled, and send back to back), so an interval counts
+//! as at least [`MIN_INTERVAL_S`] (one sample of a 100 Hz tracker): a move of
+//! up to 30 mm at the default limit is never judged by its speed, a jump
+//! beyond that is. The reference is the last *accepted* pose: after a genuine
 //! relocation (a re-registered tool) poses are refused only until the time
 //! since that pose makes the distance plausible (at 3 m/s, 0.1 s for 0.3 m).
 
 use crate::geometry::Pose;
 use std::time::Instant;
+
+/// The shortest interval the speed check assumes between two poses, s: one
+/// sample of a 100 Hz tracker (see the module doc).
+pub const MIN_INTERVAL_S: f64 = 0.01;
 
 /// Bounds on a tracker's poses (one device).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -123,7 +131,7 @@ impl TrackerGuard {
         }
         let stamped = last.timestamp_s > 0.0 && timestamp_s > last.timestamp_s;
         let interval_s = if stamped { timestamp_s - last.timestamp_s } else { arrived.saturating_duration_since(last.arrived).as_secs_f64() };
-        if distance_m <= self.limits.max_speed_m_s * interval_s {
+        if distance_m <= self.limits.max_speed_m_s * interval_s.max(MIN_INTERVAL_S) {
             return Ok(());
         }
         Err(Refused::TooFast {
@@ -208,12 +216,24 @@ mod tests {
         let t0 = Instant::now();
         let mut g = TrackerGuard::new(TrackerLimits::default());
         g.check(&at(0.0), 100.0, t0).unwrap();
-        // Arrives together with the first (a stall), but sampled 20 ms later: 1 m/s.
-        assert_eq!(g.check(&at(20.0), 100.02, t0), Ok(()), "stamped 20 ms apart: 1 m/s");
-        // Stamped 1 ms apart: 20 m/s.
-        assert!(g.check(&at(40.0), 100.021, t0 + Duration::from_secs(1)).is_err());
-        // A clock going back falls back to arrival time (2 s later: slow).
-        assert_eq!(g.check(&at(40.0), 50.0, t0 + Duration::from_secs(2)), Ok(()));
+        // Arrives together with the first (a stall), but sampled 40 ms later: 1 m/s.
+        assert_eq!(g.check(&at(40.0), 100.04, t0), Ok(()), "stamped 40 ms apart: 1 m/s");
+        // Stamped 20 ms apart though it arrives a second later: 50 mm is 2.5 m/s, 100 mm is 5 m/s.
+        assert!(g.check(&at(140.0), 100.06, t0 + Duration::from_secs(1)).is_err());
+        assert_eq!(g.check(&at(90.0), 100.06, t0 + Duration::from_secs(1)), Ok(()));
+        // A clock going back falls back to arrival time (1 s later: slow).
+        assert_eq!(g.check(&at(190.0), 50.0, t0 + Duration::from_secs(2)), Ok(()));
+    }
+
+    #[test]
+    fn moves_within_one_short_interval_are_not_judged_by_speed() {
+        // Senders that stamp at send time and send back to back: 5 mm "in 0 s" is not a jump.
+        let t0 = Instant::now();
+        let mut g = TrackerGuard::new(TrackerLimits::default());
+        g.check(&at(0.0), 7.0, t0).unwrap();
+        assert_eq!(g.check(&at(5.0), 7.0, t0), Ok(()), "5 mm, same stamp and arrival");
+        assert_eq!(g.check(&at(34.0), 7.0, t0), Ok(()), "29 mm: under 3 m/s over the 10 ms floor");
+        assert!(g.check(&at(66.0), 7.0, t0).is_err(), "32 mm at once is a jump");
     }
 
     #[test]
