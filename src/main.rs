@@ -1,7 +1,8 @@
 //! The `fissure` command line: scenario checks and mesh tools (the simulator's
 //! `run`, `replay`, `study` and `screenshot` join the same subcommand enum).
 //!
-//! In: arguments; `RUST_LOG` (tracing's env-filter syntax, default `warn`).
+//! In: arguments; `RUST_LOG` (tracing's env-filter syntax; default: fissure's
+//! warnings and other crates' errors, `RUST_LOG=warn` shows theirs too).
 //! Out: the command's output on stdout; log lines on stderr (no colours unless
 //! stderr is a terminal); on error the whole cause chain on stderr. Exit codes:
 //! 0 done, 1 error, 2 usage error (from clap), 130 interrupted by Ctrl-C after
@@ -18,17 +19,21 @@ use clap::Parser;
 /// Exit code of a run stopped by Ctrl-C (128 + SIGINT, as a shell reports it).
 const EXIT_INTERRUPTED: u8 = 130;
 
-/// Log to stderr through `tracing`: `RUST_LOG` when set and valid, else warnings and errors.
+/// What is logged without `RUST_LOG`: fissure's warnings, other crates' errors
+/// (winit and egui warn about display quirks, e.g. under Xvfb, that need no action).
+const DEFAULT_LOG: &str = "error,fissure=warn";
+
+/// Log to stderr through `tracing`: `RUST_LOG` when set and valid, else [`DEFAULT_LOG`].
 fn install_logging() {
     let filter = match std::env::var("RUST_LOG") {
         Ok(spec) if !spec.trim().is_empty() => match tracing_subscriber::EnvFilter::try_new(&spec) {
             Ok(f) => f,
             Err(e) => {
-                eprintln!("fissure: RUST_LOG={spec:?} is not a valid filter ({e}); logging warnings");
-                tracing_subscriber::EnvFilter::new("warn")
+                eprintln!("fissure: RUST_LOG={spec:?} is not a valid filter ({e}); using {DEFAULT_LOG:?}");
+                tracing_subscriber::EnvFilter::new(DEFAULT_LOG)
             }
         },
-        _ => tracing_subscriber::EnvFilter::new("warn"),
+        _ => tracing_subscriber::EnvFilter::new(DEFAULT_LOG),
     };
     let _ = tracing_subscriber::fmt()
         .with_env_filter(filter)

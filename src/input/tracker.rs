@@ -73,7 +73,8 @@ impl std::fmt::Display for Refused {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Refused::OutsideWorkspace { position_mm: [x, y, z], workspace_mm } => {
-                write!(f, "position ({x:.4e}, {y:.4e}, {z:.4e}) mm is outside the workspace (±{workspace_mm} mm on each axis around the scene origin)")
+                let (x, y, z) = (mm(*x), mm(*y), mm(*z));
+                write!(f, "position ({x}, {y}, {z}) mm is outside the workspace (±{workspace_mm} mm on each axis around the scene origin)")
             }
             Refused::TooFast { speed_m_s, max_speed_m_s, distance_mm, interval_s } => write!(
                 f,
@@ -82,6 +83,11 @@ impl std::fmt::Display for Refused {
             ),
         }
     }
+}
+
+/// A coordinate in mm for a message: `1500.0`, or `1.000e30` when huge.
+fn mm(v: f64) -> String {
+    if v.abs() < 1e7 { format!("{v:.1}") } else { format!("{v:.3e}") }
 }
 
 /// The last accepted pose of one device and its times.
