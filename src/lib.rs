@@ -4,11 +4,13 @@
 //! enforced displacements -> skull constraints -> FEM (exact constrained solve)
 //! -> deformed surface, reaction forces -> renderer / replay metrics.
 //! See `DESIGN.md` for the map. The simulation core (`mesh`, `geometry`,
-//! `collision`, `fem`, `sim`, `scenario`) never imports `render`, `ui` or `input`.
+//! `collision`, `fem`, `sim`, `scenario`) never imports `render`, `ui` or `input`;
+//! files a user names are read, and final outputs written, through [`fsio`].
 
 pub mod app;
 pub mod collision;
 pub mod fem;
+pub mod fsio;
 pub mod geometry;
 pub mod input;
 pub mod math;

@@ -1,21 +1,57 @@
 //! The `fissure` command line: scenario checks and mesh tools (the simulator's
 //! `run`, `replay`, `study` and `screenshot` join the same subcommand enum).
 //!
-//! In: arguments. Out: the command's output on stdout, and on error the whole
-//! cause chain on stderr with exit code 1 (2 for usage errors, from clap).
+//! In: arguments; `RUST_LOG` (tracing's env-filter syntax; default: fissure's
+//! warnings and other crates' errors, `RUST_LOG=warn` shows theirs too).
+//! Out: the command's output on stdout; log lines on stderr (no colours unless
+//! stderr is a terminal); on error the whole cause chain on stderr. Exit codes:
+//! 0 done, 1 error, 2 usage error (from clap), 130 interrupted by Ctrl-C after
+//! writing what was done so far ([`cli::Interrupted`]).
 //! `anyhow` lives only here; the library returns typed errors.
 
 mod cli;
 
+use std::io::IsTerminal;
 use std::process::ExitCode;
 
 use clap::Parser;
 
+/// Exit code of a run stopped by Ctrl-C (128 + SIGINT, as a shell reports it).
+const EXIT_INTERRUPTED: u8 = 130;
+
+/// What is logged without `RUST_LOG`: fissure's warnings, other crates' errors
+/// (winit and egui warn about display quirks, e.g. under Xvfb, that need no action).
+const DEFAULT_LOG: &str = "error,fissure=warn";
+
+/// Log to stderr through `tracing`: `RUST_LOG` when set and valid, else [`DEFAULT_LOG`].
+fn install_logging() {
+    let filter = match std::env::var("RUST_LOG") {
+        Ok(spec) if !spec.trim().is_empty() => match tracing_subscriber::EnvFilter::try_new(&spec) {
+            Ok(f) => f,
+            Err(e) => {
+                eprintln!("fissure: RUST_LOG={spec:?} is not a valid filter ({e}); using {DEFAULT_LOG:?}");
+                tracing_subscriber::EnvFilter::new(DEFAULT_LOG)
+            }
+        },
+        _ => tracing_subscriber::EnvFilter::new(DEFAULT_LOG),
+    };
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::stderr().is_terminal())
+        .try_init();
+}
+
 fn main() -> ExitCode {
     let args = cli::Cli::parse();
+    install_logging();
     match cli::dispatch(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
+            if let Some(interrupted) = error.downcast_ref::<cli::Interrupted>() {
+                eprintln!("fissure: {interrupted}");
+                return ExitCode::from(EXIT_INTERRUPTED);
+            }
             eprintln!("error: {error}");
             for cause in error.chain().skip(1) {
                 eprintln!("  caused by: {cause}");

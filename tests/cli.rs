@@ -177,3 +177,44 @@ fn mesh_info_on_the_real_brains() {
     assert_eq!((j["nodes"].as_u64(), j["tets"].as_u64()), (Some(25_757), Some(94_876)), "counts of the README: {j}");
     assert_eq!(j["components"], 2, "two hemispheres");
 }
+
+#[test]
+fn mesh_info_on_a_fifo_or_a_device_fails_at_once_naming_it() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let fifo = dir.path().join("pipe.msh");
+    let made = Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success());
+    let zero = dir.path().join("zero.msh");
+    std::os::unix::fs::symlink("/dev/zero", &zero).expect("symlink");
+    let mut cases = vec![(zero, "a character device")];
+    if made {
+        cases.push((fifo, "a FIFO"));
+    } else {
+        println!("SKIP the FIFO case: mkfifo is not available");
+    }
+    for (path, what) in cases {
+        // Before: a FIFO blocked in open() forever, /dev/zero was read for seconds.
+        let start = std::time::Instant::now();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_fissure"))
+            .args(["mesh", "info"])
+            .arg(&path)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("start fissure");
+        let status = loop {
+            if let Some(s) = child.try_wait().expect("wait") {
+                break s;
+            }
+            if start.elapsed() > std::time::Duration::from_secs(10) {
+                let _ = child.kill();
+                panic!("`fissure mesh info {}` still runs after 10 s", path.display());
+            }
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        };
+        let mut err = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().expect("stderr"), &mut err).expect("stderr");
+        println!("{} ({:.0} ms, {status}): {err}", path.display(), start.elapsed().as_secs_f64() * 1e3);
+        assert_eq!(status.code(), Some(1), "refused with exit code 1: {err}");
+        assert!(err.contains(&path.display().to_string()) && err.contains(what) && err.contains("not a regular file"), "{err}");
+    }
+}

@@ -1,7 +1,10 @@
 //! Hardened entrances: bad poses from every input are refused and the last good
 //! pose holds; a missing or corrupt compliance cache is rebuilt, never trusted;
+//! a FIFO, a device, a directory or an oversize file where a scenario, mesh,
+//! surface or trajectory should be is refused at once, naming the file;
 //! a full disk (or a file-size limit) while writing replay output ends with a
-//! clear error and the rows already written intact; a dropped OpenIGTLink client
+//! clear error, the rows already written intact and summary.json complete or
+//! absent (never empty or cut); a dropped OpenIGTLink client
 //! or gamepad leaves the last good state; a recording cut off at any row (the
 //! window closed) is replayable. The parsers' never-panic properties live in
 //! `mesh_parsers_fuzz.rs`, `scenario_parsers_never_panic.rs` and the igtl codec's
@@ -10,6 +13,7 @@
 mod common;
 
 use fissure::fem::{Compliance, ComplianceStorage, FemModel, FemOptions, Material, RegionMaterials};
+use fissure::fsio::{Cap, read_regular};
 use fissure::geometry::Pose;
 use fissure::input::igtl::{IgtlConfig, IgtlServer};
 use fissure::input::igtl_codec::{decode_body, decode_header, encode_transform, HEADER_SIZE};
@@ -232,6 +236,107 @@ fn a_recording_cut_off_at_any_row_is_replayable() {
     assert_eq!(t.samples(0).len() + t.samples(1).len(), 49);
 }
 
+// ---------------------------------------------------------------- files a user names
+
+/// Things that are not regular files, each at a path with the extension `ext`
+/// (so the reader chosen by extension is the one that meets it).
+fn not_regular_files(dir: &Path, ext: &str) -> Vec<(&'static str, PathBuf)> {
+    let mut v = Vec::new();
+    let fifo = dir.join(format!("fifo.{ext}"));
+    match std::process::Command::new("mkfifo").arg(&fifo).status() {
+        Ok(s) if s.success() => v.push(("FIFO", fifo)),
+        _ => println!("SKIP the FIFO case: mkfifo is not available"),
+    }
+    if Path::new("/dev/zero").exists() {
+        let zero = dir.join(format!("zero.{ext}"));
+        std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+        v.push(("character device", zero));
+    }
+    let folder = dir.join(format!("folder.{ext}"));
+    std::fs::create_dir(&folder).unwrap();
+    v.push(("directory", folder));
+    v
+}
+
+/// Runs `load` on another thread: a reader that blocks on a FIFO or reads
+/// /dev/zero without end fails the test instead of hanging it.
+fn refused_in_time<T: Send + 'static>(path: &Path, load: fn(&Path) -> Result<T, String>) -> String {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let p = path.to_path_buf();
+    std::thread::spawn(move || {
+        let _ = tx.send(load(&p).err());
+    });
+    match rx.recv_timeout(Duration::from_secs(10)) {
+        Ok(Some(e)) => e,
+        Ok(None) => panic!("{} was read as if it were a file", path.display()),
+        Err(_) => panic!("reading {} hangs (a FIFO or a device read without end)", path.display()),
+    }
+}
+
+type Loader = fn(&Path) -> Result<(), String>;
+
+fn loaders() -> [(&'static str, Loader); 5] {
+    [
+        ("ron", |p| Scenario::load(p, &[]).map(drop).map_err(|e| e.to_string())),
+        ("msh", |p| fissure::mesh::io::load_tet_mesh(p).map(drop).map_err(|e| e.to_string())),
+        ("vtu", |p| fissure::mesh::io::load_vtu_with_fields(p).map(drop).map_err(|e| e.to_string())),
+        ("stl", |p| fissure::mesh::io::load_surface(p).map(drop).map_err(|e| e.to_string())),
+        ("csv", |p| Trajectory::load(p).map(drop).map_err(|e| e.to_string())),
+    ]
+}
+
+#[test]
+fn fifo_device_and_directory_inputs_are_refused_at_once_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    for (ext, load) in loaders() {
+        for (what, path) in not_regular_files(dir.path(), ext) {
+            let start = Instant::now();
+            let e = refused_in_time(&path, load);
+            println!("{what} as .{ext} ({:.1} ms): {e}", start.elapsed().as_secs_f64() * 1e3);
+            assert!(e.contains(&path.display().to_string()), "{what} as .{ext}: the error must name the file: {e}");
+            assert!(e.contains(what) && e.contains("not a regular file"), "{what} as .{ext}: the error must say what it is: {e}");
+        }
+    }
+}
+
+#[test]
+fn oversize_inputs_are_refused_unread_with_their_size_and_the_cap() {
+    let dir = tempfile::tempdir().unwrap();
+    // Sparse files: as large as claimed, nothing on disk, and nothing read.
+    for (ext, load) in loaders() {
+        let cap = match ext {
+            "ron" => Cap::SCENARIO,
+            "msh" | "vtu" => Cap::MESH,
+            "stl" => Cap::SURFACE,
+            _ => Cap::TRAJECTORY,
+        };
+        let path = dir.path().join(format!("big.{ext}"));
+        std::fs::File::create(&path).unwrap().set_len(cap.bytes + 1).unwrap();
+        let e = refused_in_time(&path, load);
+        println!("oversize .{ext}: {e}");
+        assert!(e.contains(&path.display().to_string()), "the error must name the file: {e}");
+        assert!(e.contains(&format!("({} bytes)", cap.bytes + 1)) && e.contains(&format!("({} bytes) limit for {}", cap.bytes, cap.what)), "size and cap: {e}");
+    }
+    // The cap is inclusive and the reader takes any cap (a small one here).
+    let path = dir.path().join("ten.csv");
+    std::fs::write(&path, b"0123456789").unwrap();
+    assert!(read_regular(&path, Cap { bytes: 10, what: "a test file" }).is_ok());
+    let e = read_regular(&path, Cap { bytes: 9, what: "a test file" }).expect_err("over by one").to_string();
+    assert!(e.contains("ten.csv") && e.contains("10 bytes is over the 9 bytes limit for a test file"), "{e}");
+}
+
+#[test]
+fn the_fine_real_brain_is_within_the_mesh_cap() {
+    let Some(path) = common::real_brain("brain_pial_q15.msh") else {
+        println!("SKIP: the real brain meshes are not here");
+        return;
+    };
+    let size = std::fs::metadata(&path).unwrap().len();
+    assert!(size < Cap::MESH.bytes / 100, "{} is {size} bytes: the mesh cap must leave room for much finer meshes", path.display());
+    let mesh = fissure::mesh::io::load_tet_mesh(&path).expect("the fine brain loads");
+    assert!(mesh.tets.len() > 100_000, "{} tets", mesh.tets.len());
+}
+
 // ---------------------------------------------------------------- compliance cache
 
 fn small_model() -> FemModel {
@@ -386,27 +491,45 @@ fn child_replay_under_a_file_size_limit() {
     }
 }
 
-#[test]
-fn replay_cut_by_a_file_size_limit_keeps_every_row_written_so_far() {
-    // The writes fail part way (EFBIG once metrics.csv reaches 4 KiB): the same path as a disk
-    // filling up mid-run. The child ignores SIGXFSZ so the write returns an error instead.
+/// Replays [`replay_scene`] in a child process whose files cannot grow past
+/// `kib` KiB (EFBIG: the same path as a disk filling up mid-run; the child
+/// ignores SIGXFSZ so the write returns an error instead). Returns the folder
+/// and the child's `REPLAY_` line; `None` without bash.
+fn replay_under_a_file_size_limit(kib: u32) -> Option<(tempfile::TempDir, String)> {
     let dir = tempfile::tempdir().unwrap();
     write_replay_inputs(dir.path());
     let exe = std::env::current_exe().unwrap();
     let out = std::process::Command::new("bash")
         .arg("-c")
-        .arg("trap '' XFSZ; ulimit -f 4 && exec \"$0\" --exact child_replay_under_a_file_size_limit --ignored --nocapture --test-threads=1")
+        .arg(format!("trap '' XFSZ; ulimit -f {kib} && exec \"$0\" --exact child_replay_under_a_file_size_limit --ignored --nocapture --test-threads=1"))
         .arg(&exe)
         .env("FISSURE_HARD_FSIZE_DIR", dir.path())
         .output();
     let Ok(out) = out else {
         println!("SKIP: bash is not available");
-        return;
+        return None;
     };
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "child failed: {:?}\n{stdout}\n{}", out.status, String::from_utf8_lossy(&out.stderr));
-    let line = stdout.lines().find_map(|l| l.find("REPLAY_").map(|k| &l[k..])).unwrap_or_else(|| panic!("no REPLAY_ line in {stdout}"));
-    println!("child: {line}");
+    let line = stdout.lines().find_map(|l| l.find("REPLAY_").map(|k| l[k..].to_string())).unwrap_or_else(|| panic!("no REPLAY_ line in {stdout}"));
+    println!("child under {kib} KiB: {line}");
+    Some((dir, line))
+}
+
+/// summary.json is complete or absent, and no temporary file is left beside it.
+fn summary_whole_or_absent(out: &Path) -> Option<serde_json::Value> {
+    let leftovers: Vec<_> = std::fs::read_dir(out).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).filter(|n| n.contains(".tmp-")).collect();
+    assert!(leftovers.is_empty(), "temporary files left in {}: {leftovers:?}", out.display());
+    let path = out.join("summary.json");
+    let text = std::fs::read_to_string(&path).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("summary.json exists but is cut or empty ({} bytes, {e}): {text:?}", text.len()));
+    Some(v)
+}
+
+#[test]
+fn replay_cut_by_a_file_size_limit_keeps_every_row_written_so_far() {
+    // EFBIG once metrics.csv reaches 4 KiB; the summary is smaller and is written.
+    let Some((dir, line)) = replay_under_a_file_size_limit(4) else { return };
     assert!(line.starts_with("REPLAY_ERROR"), "the replay must fail when the file cannot grow: {line}");
     assert!(line.contains("metrics.csv") && line.contains("too large"), "the error must name the file and the cause: {line}");
     let csv = std::fs::read_to_string(dir.path().join("out/metrics.csv")).expect("metrics.csv exists");
@@ -423,6 +546,27 @@ fn replay_cut_by_a_file_size_limit_keeps_every_row_written_so_far() {
     }
     println!("file-size limit: {} complete rows kept, {torn} bytes of a torn last row", complete.len() - 1);
     assert_eq!(torn, 0, "the row being written when the disk filled must not be left torn ({torn} bytes)");
-    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/summary.json")).expect("summary.json")).unwrap();
+    let summary = summary_whole_or_absent(&dir.path().join("out")).expect("a summary under 4 KiB is written");
     assert_eq!(summary["interrupted"], true, "the summary says the run was cut");
+    assert_eq!(summary["frames"].as_u64(), Some(complete.len() as u64 - 1), "the summary counts the rows kept");
+}
+
+#[test]
+fn a_summary_that_cannot_be_written_whole_is_not_written_at_all() {
+    // 1 KiB: metrics.csv stops after its header and a few rows, and the summary (over 1 KiB:
+    // stage percentiles, a 64-digit hash) cannot be written whole either. Before
+    // summary.json went through a temporary file, this left a summary cut at 1 KiB.
+    let Some((dir, line)) = replay_under_a_file_size_limit(1) else { return };
+    assert!(line.starts_with("REPLAY_ERROR") && line.contains("metrics.csv"), "{line}");
+    let out = dir.path().join("out");
+    match summary_whole_or_absent(&out) {
+        None => println!("summary.json absent, as it could not be written whole"),
+        Some(v) => {
+            let bytes = std::fs::metadata(out.join("summary.json")).unwrap().len();
+            assert!(bytes <= 1024, "a summary over the limit cannot be whole: {bytes} bytes");
+            assert_eq!(v["interrupted"], true);
+        }
+    }
+    let csv = std::fs::read_to_string(out.join("metrics.csv")).expect("metrics.csv");
+    assert!(csv.ends_with('\n'), "metrics.csv ends at a whole row");
 }

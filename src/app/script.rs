@@ -71,7 +71,10 @@ fn key_named(name: &str) -> Option<Key> {
 impl Script {
     /// Reads a script file.
     pub fn load(path: &Path) -> Result<Self, ScriptError> {
-        let text = std::fs::read_to_string(path).map_err(|io| ScriptError::Read { path: path.to_path_buf(), io })?;
+        let text = crate::fsio::read_regular_text(path, crate::fsio::Cap::SCRIPT).map_err(|e| match e {
+            crate::fsio::ReadError::Refused { refusal, .. } => ScriptError::Read { path: path.to_path_buf(), io: std::io::Error::other(refusal) },
+            crate::fsio::ReadError::Io { source, .. } => ScriptError::Read { path: path.to_path_buf(), io: source },
+        })?;
         Self::parse(&text, path)
     }
 

@@ -96,6 +96,12 @@ pub struct SimExit {
     /// choice, a GPU fallback).
     pub collision_backend: Option<String>,
     pub collision_notes: Vec<String>,
+    /// Poses the pose guard refused (non-finite, non-unit quaternion; the last good one held).
+    pub rejected_poses: u64,
+    /// OpenIGTLink poses refused for lying outside the workspace / moving too fast
+    /// (the server's counts over the session; 0 without a server).
+    pub tracker_outside_workspace: u64,
+    pub tracker_too_fast: u64,
 }
 
 /// Options of the thread.
@@ -292,6 +298,9 @@ fn run_loop(
     let mut next = Instant::now();
     let mut quit = false;
     let mut strain = BackgroundStrain::default();
+    // Guards replaced by a rebuild leave their counts here.
+    let mut rejected_before_rebuild = 0u64;
+    let mut tracker_refused_shown = 0u64;
     'outer: loop {
         // Commands from the window.
         loop {
@@ -352,6 +361,7 @@ fn run_loop(
                         // another model: the worker's factor and mesh are stale
                         strain.worker = None;
                         strain.stress.clear();
+                        rejected_before_rebuild += guards.iter().map(PoseGuard::rejected).sum::<u64>();
                         guards = b.state.poses.iter().map(|p| PoseGuard::new(*p, "window")).collect();
                         history.rows.clear();
                         recorder = None;
@@ -402,7 +412,7 @@ fn run_loop(
             let candidate = match &spatula.input {
                 InputBinding::Keyboard if keyboard.spatula.index() == k => integrate(&current, &keyboard.velocity, dt),
                 InputBinding::Gamepad if live.pad.spatula.index() == k => integrate(&current, &live.pad.velocity, dt),
-                InputBinding::OpenIgtLink { device } => igtl
+                InputBinding::OpenIgtLink { device, .. } => igtl
                     .as_ref()
                     .and_then(|s| lock(s).latest(device))
                     .map(|t| t.pose)
@@ -422,6 +432,16 @@ fn run_loop(
                 None => candidate,
             };
             input.poses.push(Some(pose));
+        }
+        // Tracker poses the server refused (workspace, speed): say so in the panel when the count grows.
+        if let Some(server) = &igtl {
+            let refused = lock(server).stats().poses_refused();
+            if refused > tracker_refused_shown {
+                tracker_refused_shown = refused;
+                *lock(&shared.status) = format!(
+                    "OpenIGTLink: {refused} poses refused (outside the workspace or too fast); the last good pose holds"
+                );
+            }
         }
         let started = Instant::now();
         match b.pipeline.step(&mut b.state, &input) {
@@ -475,6 +495,12 @@ fn run_loop(
     exit.time_s = b.state.time_s;
     exit.final_poses = b.state.poses.clone();
     exit.state_hash = b.pipeline.state_hash(&b.state);
+    exit.rejected_poses = rejected_before_rebuild + guards.iter().map(PoseGuard::rejected).sum::<u64>();
+    if let Some(server) = &igtl {
+        let stats = lock(server).stats();
+        exit.tracker_outside_workspace = stats.poses_outside_workspace;
+        exit.tracker_too_fast = stats.poses_too_fast;
+    }
     if let Some(c) = b.pipeline.collision() {
         exit.collision_backend = Some(format!("{:?}", c.backend()).to_lowercase());
         exit.collision_notes = c.warnings().to_vec();

@@ -19,6 +19,7 @@ use super::script::ScriptAction;
 use super::sim_thread::{SimCommand, SimExit, SimOptions, SimThread};
 use crate::input::gamepad::{GamepadInput, GamepadMapping};
 use crate::input::igtl::{IgtlConfig, IgtlServer};
+use crate::input::tracker::TrackerLimits;
 use crate::input::keyboard::{KeyEvent, KeyboardController, KeyboardMapping, key_from_winit, map_mouse};
 use crate::render::window::{FrameOutcome, WindowRenderer};
 use crate::render::{FieldKind, OrbitCamera};
@@ -157,7 +158,16 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
     // OpenIGTLink server when any spatula is bound to it.
     let needs_igtl = scenario.spatulas.iter().any(|s| matches!(s.input, InputBinding::OpenIgtLink { .. }));
     let igtl = if needs_igtl {
-        match IgtlServer::start(&IgtlConfig::default()) {
+        // Each bound device gets its binding's workspace and speed limit (the first binding of a name wins).
+        let mut config = IgtlConfig::default();
+        for s in &scenario.spatulas {
+            if let InputBinding::OpenIgtLink { device, workspace_m, max_speed_m_s } = &s.input
+                && !config.device_limits.iter().any(|(d, _)| d == device)
+            {
+                config.device_limits.push((device.clone(), TrackerLimits { workspace_m: *workspace_m, max_speed_m_s: *max_speed_m_s }));
+            }
+        }
+        match IgtlServer::start(&config) {
             Ok(s) => {
                 tracing::info!(addr = %s.local_addr(), "OpenIGTLink server listening");
                 Some(Arc::new(Mutex::new(s)))
@@ -176,7 +186,7 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
             .spatulas
             .iter()
             .map(|s| match &s.input {
-                InputBinding::OpenIgtLink { device } => Some(device.clone()),
+                InputBinding::OpenIgtLink { device, .. } => Some(device.clone()),
                 _ => None,
             })
             .collect();

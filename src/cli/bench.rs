@@ -45,7 +45,7 @@ pub fn collision(args: &CollisionArgs) -> anyhow::Result<()> {
     println!("{footer}");
     table.extend([String::new(), footer]);
     if let Some(path) = &args.out {
-        std::fs::write(path, table.join("\n") + "\n").map_err(|e| anyhow::anyhow!("writing {}: {e}", path.display()))?;
+        fissure::fsio::write_atomic(path, (table.join("\n") + "\n").as_bytes()).map_err(|e| anyhow::anyhow!("writing {e}"))?;
     }
     let mismatch = bench::mismatches(&rows);
     anyhow::ensure!(mismatch.is_empty(), "backends gave different answers on: {}", mismatch.join(", "));

@@ -1,8 +1,9 @@
 //! Binary-only CLI: clap definitions and one function per subcommand.
 //!
 //! In: parsed arguments. Out: text on stdout (or JSON where asked) and an
-//! `anyhow::Result` whose chain `main` prints. Library errors are typed; this
-//! layer only adds context (which file, which command).
+//! `anyhow::Result` whose chain `main` prints ([`Interrupted`] for Ctrl-C,
+//! exit 130). Library errors are typed; this layer only adds context (which
+//! file, which command).
 
 mod bench;
 mod check;
@@ -17,6 +18,17 @@ mod units;
 use std::path::PathBuf;
 
 use clap::{Parser, Subcommand};
+
+/// A command stopped by Ctrl-C after it wrote everything it had done; `main`
+/// prints the message and exits 130, so a script can tell an interrupted run
+/// from a finished one.
+#[derive(Debug, thiserror::Error)]
+#[error("interrupted by Ctrl-C {what}")]
+pub struct Interrupted {
+    /// How far it got and where the partial results are, e.g. "after 12 of 300
+    /// frames; partial results in out/ (summary.json says \"interrupted\": true)".
+    pub what: String,
+}
 
 /// The default scene, run by a bare `fissure`.
 pub const DEFAULT_SCENARIO: &str = "config/sylvian.ron";

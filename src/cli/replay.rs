@@ -1,6 +1,7 @@
 //! `fissure replay`: a scenario played headless from a trajectory, with metrics,
 //! a summary and optional VTK/PNG output; a progress bar on a terminal; Ctrl-C
-//! stops after the current frame with every row so far valid.
+//! stops after the current frame with every row so far valid and the summary
+//! written, then the command returns [`super::Interrupted`] (exit 130).
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -35,13 +36,22 @@ fn bar(len: u64, message: &str) -> ProgressBar {
     b
 }
 
-/// Sets a flag on Ctrl-C (once per process; later calls reuse the flag).
+/// Sets a flag on Ctrl-C (once per process; later calls reuse the flag): the
+/// command finishes its current frame (or run), writes its outputs and returns
+/// [`super::Interrupted`]. A second Ctrl-C quits at once with exit code 130
+/// (for a long precompute that cannot stop in the middle; the rows written so
+/// far stay valid, the final files are whole or absent).
 pub fn interrupt_flag() -> Arc<AtomicBool> {
     static FLAG: std::sync::OnceLock<Arc<AtomicBool>> = std::sync::OnceLock::new();
     FLAG.get_or_init(|| {
         let flag = Arc::new(AtomicBool::new(false));
         let f = flag.clone();
-        if let Err(e) = ctrlc::set_handler(move || f.store(true, Ordering::Relaxed)) {
+        if let Err(e) = ctrlc::set_handler(move || {
+            if f.swap(true, Ordering::Relaxed) {
+                eprintln!("fissure: interrupted twice; quitting now");
+                std::process::exit(130);
+            }
+        }) {
             tracing::warn!("Ctrl-C handler not installed: {e}");
         }
         flag
@@ -50,17 +60,25 @@ pub fn interrupt_flag() -> Arc<AtomicBool> {
 }
 
 /// Runs the replay and prints where the outputs are.
+/// An interrupted replay (Ctrl-C) writes everything, prints its summary and
+/// returns [`super::Interrupted`].
 pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
+    // First, so a Ctrl-C during the load or the precompute is a graceful stop too.
+    let interrupt = interrupt_flag();
     let scenario = Scenario::load(args.scenario, args.set).with_context(|| format!("loading {}", args.scenario.display()))?;
     let out_dir = args.out.clone().unwrap_or_else(|| scenario.outputs.dir.clone());
     let vtk = args.vtk || scenario.outputs.vtk;
     let frames = args.frames || scenario.outputs.frames;
     let options = ReplayOptions { out_dir: out_dir.clone(), trajectory: args.trajectory.clone(), vtk };
-    let interrupt = interrupt_flag();
     let precompute = bar(0, "compliance");
+    let mut told = false;
     let mut on_precompute = |done: usize, total: usize| {
         precompute.set_length(total as u64);
         precompute.set_position(done as u64);
+        if !told && interrupt.load(Ordering::Relaxed) {
+            told = true;
+            precompute.suspend(|| eprintln!("fissure: Ctrl-C: stopping when the compliance precompute ends (Ctrl-C again quits now)"));
+        }
     };
     let progress = bar(scenario.step_count(), "frames");
     let mut frame_writer = if frames { Some(super::frames::FrameWriter::new(&out_dir)?) } else { None };
@@ -95,5 +113,16 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
     }
     println!("  final state {}", summary.final_state_hash);
     println!("  wrote {}/metrics.csv, {}/summary.json{}", out_dir.display(), out_dir.display(), if vtk { ", series.pvd" } else { "" });
+    if summary.interrupted {
+        return Err(super::Interrupted {
+            what: format!(
+                "after {} of {} frames; partial results in {} (summary.json says \"interrupted\": true)",
+                summary.frames,
+                scenario.step_count(),
+                out_dir.display()
+            ),
+        }
+        .into());
+    }
     Ok(summary)
 }

@@ -7,7 +7,7 @@
 //! (see `fissure::app::script`), `--frames N` stops after N simulation frames,
 //! `--exit-after SECONDS` closes the window after that wall time; the run then
 //! prints a summary (frames, frame rate, force-loop rate, final poses, peak
-//! forces, final state hash) and exits 0.
+//! forces, poses refused when any, final state hash) and exits 0.
 
 use std::path::{Path, PathBuf};
 
@@ -126,6 +126,13 @@ pub fn run(scenario: Option<&Path>, set: &[String], headless_only: bool, args: &
             }
             if sim.background_strain_frames > 0 {
                 println!("  strain colour from the background stress worker: {} frames", sim.background_strain_frames);
+            }
+            let tracker_refused = sim.tracker_outside_workspace + sim.tracker_too_fast;
+            if sim.rejected_poses > 0 || tracker_refused > 0 {
+                println!(
+                    "  poses refused: {} non-finite or non-unit, {} OpenIGTLink outside the workspace, {} OpenIGTLink too fast (the last good pose held)",
+                    sim.rejected_poses, sim.tracker_outside_workspace, sim.tracker_too_fast
+                );
             }
             if let Some(b) = &sim.collision_backend {
                 println!("  collision backend: {b}");

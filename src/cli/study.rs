@@ -1,11 +1,13 @@
 //! `fissure study`: sweeps over the knobs that trade accuracy for time; writes
-//! results.csv, report.md and the plots; a progress bar on a terminal.
+//! results.csv, report.md and the plots; a progress bar on a terminal. Ctrl-C
+//! finishes the run under way, writes every output with the runs left marked
+//! "not run" and returns [`super::Interrupted`] (exit 130).
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
 use anyhow::Context;
-use fissure::study::{StudyOptions, StudyPreset, StudyProgress, run_study};
+use fissure::study::{NOT_RUN_INTERRUPTED, StudyOptions, StudyPreset, StudyProgress, run_study_until};
 use indicatif::{ProgressBar, ProgressStyle};
 
 pub fn run(preset: StudyPreset, scene: Option<PathBuf>, out: PathBuf) -> anyhow::Result<()> {
@@ -25,11 +27,19 @@ pub fn run(preset: StudyPreset, scene: Option<PathBuf>, out: PathBuf) -> anyhow:
         bar.set_message(p.label);
     };
     let options = StudyOptions { preset, scene, out_dir: out.clone() };
-    let results = run_study(&options, &mut progress).with_context(|| format!("running the study into {}", out.display()))?;
+    let interrupt = super::replay::interrupt_flag();
+    let results = run_study_until(&options, &mut progress, &interrupt).with_context(|| format!("running the study into {}", out.display()))?;
     bar.finish_and_clear();
-    println!("study `{}` on {}: {} runs in {:.0} s", results.plan_name, results.scene_name, results.rows.len(), results.elapsed_s);
+    let done = results.rows.iter().filter(|r| r.outcome.as_ref().err().is_none_or(|e| e != NOT_RUN_INTERRUPTED)).count();
+    println!("study `{}` on {}: {} runs in {:.0} s", results.plan_name, results.scene_name, done, results.elapsed_s);
     for f in &results.files {
         println!("  wrote {}", f.display());
+    }
+    if results.interrupted {
+        return Err(super::Interrupted {
+            what: format!("after {done} of {} runs; partial results in {} (report.md says so)", results.rows.len(), out.display()),
+        }
+        .into());
     }
     Ok(())
 }

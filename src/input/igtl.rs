@@ -9,11 +9,15 @@
 //! documented in [`super::igtl_codec`]. Stays true: a malformed message (bad CRC,
 //! wrong size, NaN, non-orthonormal rotation) is dropped and logged (a warning
 //! the first time per client and kind, counted always) and the last good pose
-//! holds; a dropped client is logged and its thread ends; nothing here panics
-//! on what a client sends. Each client has its own thread; the accept loop runs
+//! holds; a well-formed pose outside the device's workspace or faster than its
+//! speed limit ([`TrackerLimits`], see [`super::tracker`]) is refused the same
+//! way, counted per reason and logged the first time and then at most once a
+//! second per device with the count; a dropped client is logged and its thread
+//! ends; nothing here panics on what a client sends. Each client has its own thread; the accept loop runs
 //! on another; all stop when the server is dropped.
 
 use super::igtl_codec::{self, HEADER_SIZE, IgtlError, Message};
+use super::tracker::{RateLimitedWarning, Refused, TrackerGuard, TrackerLimits};
 use super::{PoseSource, TimedPose};
 use crate::geometry::Pose;
 use crate::math::Quat;
@@ -22,7 +26,7 @@ use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Default OpenIGTLink port.
 pub const DEFAULT_PORT: u16 = 18944;
@@ -36,6 +40,11 @@ pub struct IgtlConfig {
     /// How long a blocked write of a force message may take before the client
     /// is dropped, ms (1..=1000; default 5).
     pub write_timeout_ms: u64,
+    /// Workspace and speed limit of a device `device_limits` does not name
+    /// (default: [`TrackerLimits::default`], ±1 m and 3 m/s).
+    pub limits: TrackerLimits,
+    /// Limits per device name (the scenario's `OpenIgtLink` bindings).
+    pub device_limits: Vec<(String, TrackerLimits)>,
 }
 
 impl Default for IgtlConfig {
@@ -43,7 +52,16 @@ impl Default for IgtlConfig {
         Self {
             bind: SocketAddr::from(([127, 0, 0, 1], DEFAULT_PORT)),
             write_timeout_ms: 5,
+            limits: TrackerLimits::default(),
+            device_limits: Vec::new(),
         }
+    }
+}
+
+impl IgtlConfig {
+    /// The limits in force for `device`.
+    pub fn limits_of(&self, device: &str) -> TrackerLimits {
+        self.device_limits.iter().find(|(d, _)| d == device).map_or(self.limits, |(_, l)| *l)
     }
 }
 
@@ -75,6 +93,10 @@ pub struct IgtlStats {
     pub transforms_accepted: AtomicU64,
     /// Messages refused (CRC, size, NaN, non-orthonormal, bad header).
     pub messages_rejected: AtomicU64,
+    /// Well-formed TRANSFORMs refused: the pose lies outside the device's workspace.
+    pub poses_outside_workspace: AtomicU64,
+    /// Well-formed TRANSFORMs refused: the pose moved faster than the device's limit.
+    pub poses_too_fast: AtomicU64,
     /// Messages of other types, skipped.
     pub messages_ignored: AtomicU64,
     /// Force messages written.
@@ -88,17 +110,67 @@ pub struct IgtlStatsSnapshot {
     pub clients_dropped: u64,
     pub transforms_accepted: u64,
     pub messages_rejected: u64,
+    pub poses_outside_workspace: u64,
+    pub poses_too_fast: u64,
     pub messages_ignored: u64,
     pub forces_sent: u64,
 }
 
-/// Latest pose per device, kept sorted by name (fixed order, no hashing).
+impl IgtlStatsSnapshot {
+    /// Poses refused by the workspace and speed checks (malformed messages are
+    /// in `messages_rejected`).
+    pub fn poses_refused(&self) -> u64 {
+        self.poses_outside_workspace + self.poses_too_fast
+    }
+}
+
+/// The plausibility check of one device and its log throttle.
+#[derive(Debug)]
+struct DeviceCheck {
+    guard: TrackerGuard,
+    warning: RateLimitedWarning,
+}
+
+/// Latest pose per device, kept sorted by name (fixed order, no hashing), and
+/// each device's plausibility check.
 #[derive(Debug, Default)]
 struct PoseSlots {
     slots: Vec<(String, TimedPose)>,
+    checks: Vec<(String, DeviceCheck)>,
 }
 
 impl PoseSlots {
+    /// Publishes `pose` if the device's check accepts it; otherwise returns why,
+    /// with `Some(n)` when a log line is due for the `n` refusals since the last.
+    fn offer(
+        &mut self,
+        device: &str,
+        pose: Pose,
+        timestamp_s: f64,
+        arrived: Instant,
+        config: &IgtlConfig,
+    ) -> Result<(), (Refused, Option<u64>)> {
+        let i = match self.checks.binary_search_by(|(name, _)| name.as_str().cmp(device)) {
+            Ok(i) => i,
+            Err(i) => {
+                let check = DeviceCheck {
+                    guard: TrackerGuard::new(config.limits_of(device)),
+                    warning: RateLimitedWarning::new(Duration::from_secs(1)),
+                };
+                self.checks.insert(i, (device.to_string(), check));
+                i
+            }
+        };
+        let check = &mut self.checks[i].1;
+        match check.guard.check(&pose, timestamp_s, arrived) {
+            Ok(()) => {
+                self.publish(device, pose, timestamp_s);
+                Ok(())
+            }
+            Err(why) => Err((why, check.warning.occur(arrived))),
+        }
+    }
+
     fn publish(&mut self, device: &str, pose: Pose, timestamp_s: f64) {
         match self
             .slots
@@ -135,6 +207,7 @@ impl PoseSlots {
 }
 
 struct Shared {
+    config: IgtlConfig,
     poses: Mutex<PoseSlots>,
     writers: Mutex<Vec<(u64, TcpStream)>>,
     stop: AtomicBool,
@@ -175,6 +248,7 @@ impl IgtlServer {
                 source,
             })?;
         let shared = Arc::new(Shared {
+            config: config.clone(),
             poses: Mutex::new(PoseSlots::default()),
             writers: Mutex::new(Vec::new()),
             stop: AtomicBool::new(false),
@@ -222,6 +296,8 @@ impl IgtlServer {
             clients_dropped: s.clients_dropped.load(Ordering::Relaxed),
             transforms_accepted: s.transforms_accepted.load(Ordering::Relaxed),
             messages_rejected: s.messages_rejected.load(Ordering::Relaxed),
+            poses_outside_workspace: s.poses_outside_workspace.load(Ordering::Relaxed),
+            poses_too_fast: s.poses_too_fast.load(Ordering::Relaxed),
             messages_ignored: s.messages_ignored.load(Ordering::Relaxed),
             forces_sent: s.forces_sent.load(Ordering::Relaxed),
         }
@@ -424,11 +500,27 @@ fn client_loop(id: u64, mut stream: TcpStream, shared: Arc<Shared>) {
         match igtl_codec::decode_body(&header, &body) {
             Ok(Message::Transform(t)) => match transform_to_pose(&t) {
                 Some(pose) => {
-                    lock(&shared.poses).publish(&t.device, pose, t.timestamp_s);
-                    shared
-                        .stats
-                        .transforms_accepted
-                        .fetch_add(1, Ordering::Relaxed);
+                    let offered = lock(&shared.poses).offer(&t.device, pose, t.timestamp_s, Instant::now(), &shared.config);
+                    match offered {
+                        Ok(()) => {
+                            shared
+                                .stats
+                                .transforms_accepted
+                                .fetch_add(1, Ordering::Relaxed);
+                        }
+                        Err((why, log_line)) => {
+                            let counter = match why {
+                                Refused::OutsideWorkspace { .. } => &shared.stats.poses_outside_workspace,
+                                Refused::TooFast { .. } => &shared.stats.poses_too_fast,
+                            };
+                            counter.fetch_add(1, Ordering::Relaxed);
+                            match log_line {
+                                Some(1) => tracing::warn!(client = id, device = %t.device, "OpenIGTLink pose refused: {why}; the last good pose holds"),
+                                Some(n) => tracing::warn!(client = id, device = %t.device, "OpenIGTLink: {n} poses refused in the last second or more (latest: {why}); the last good pose holds"),
+                                None => tracing::debug!(client = id, device = %t.device, "OpenIGTLink pose refused: {why}"),
+                            }
+                        }
+                    }
                 }
                 None => rejects.report(
                     id,

@@ -6,7 +6,9 @@
 //! caller integrates with [`integrate`], or an absolute [`Pose`] per device name
 //! from a [`PoseSource`]. Stays true: every pose that leaves this module through
 //! a [`PoseGuard`] is finite with a unit quaternion; a rejected pose leaves the
-//! last good one in place and logs a warning once per guard.
+//! last good one in place and logs a warning once per guard. A tracker's poses
+//! are also held to a workspace and a speed limit ([`tracker`]) before the
+//! OpenIGTLink server publishes them.
 //!
 //! The mappings from device state to motion are pure functions so tests drive
 //! them with synthetic events; only the thin adapters touch gilrs, winit and
@@ -16,6 +18,7 @@ pub mod gamepad;
 pub mod igtl;
 pub mod igtl_codec;
 pub mod keyboard;
+pub mod tracker;
 
 use crate::geometry::Pose;
 use crate::math::{Quat, Vec3, is_finite3};

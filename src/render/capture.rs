@@ -99,14 +99,18 @@ pub fn render_png(view: &SceneView, size: (u32, u32), path: &Path) -> Result<(),
     save_png(&image, path)
 }
 
-/// Writes an image as PNG, naming the path in the error.
+/// Writes an image as PNG, whole or not at all (encoded in memory, then
+/// [`crate::fsio::write_atomic`]), naming the path in the error.
 pub fn save_png(image: &image::RgbaImage, path: &Path) -> Result<(), RenderError> {
+    let png_error = |message: String| RenderError::Png {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut png = std::io::Cursor::new(Vec::new());
     image
-        .save_with_format(path, image::ImageFormat::Png)
-        .map_err(|e| RenderError::Png {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })
+        .write_to(&mut png, image::ImageFormat::Png)
+        .map_err(|e| png_error(e.to_string()))?;
+    crate::fsio::write_atomic(path, png.get_ref()).map_err(|e| png_error(e.source.to_string()))
 }
 
 #[cfg(test)]

@@ -49,6 +49,14 @@ pub enum ScenarioError {
         /// The I/O error (shown in the message, so not repeated as a cause).
         io: std::io::Error,
     },
+    /// The scenario path is not a regular file, or is over [`crate::fsio::Cap::SCENARIO`]; nothing was read.
+    #[error("cannot read scenario file {}: {refusal}", path.display())]
+    Refused {
+        /// The path as given.
+        path: PathBuf,
+        /// Why.
+        refusal: crate::fsio::Refusal,
+    },
     /// RON syntax, a wrong type, an unknown or missing field (from the typed parse).
     #[error("{location}: {}{message}", field_prefix(field))]
     Parse {

@@ -272,10 +272,20 @@ pub enum InputFile {
     Keyboard,
     /// A gamepad (gilrs).
     Gamepad,
-    /// An OpenIGTLink TRANSFORM stream from the named device.
+    /// An OpenIGTLink TRANSFORM stream from the named device. A pose outside
+    /// the workspace or faster than the speed limit is refused (counted, logged;
+    /// the last good pose holds).
     OpenIgtLink {
         /// Device name in the OpenIGTLink messages (non-empty), e.g. "Spatula1".
         device: String,
+        /// Half-width of the workspace box around the scene origin on each axis,
+        /// mm (finite, > 0; default 1000).
+        #[serde(default = "default_igtl_workspace_mm")]
+        workspace_mm: f64,
+        /// Fastest credible move between two accepted poses, mm/s (finite, > 0;
+        /// default 3000).
+        #[serde(default = "default_igtl_max_speed_mm_s")]
+        max_speed_mm_s: f64,
     },
     /// The scenario's recorded `trajectory` (which must then be given).
     Trajectory,
@@ -312,6 +322,14 @@ pub struct CollisionFile {
     /// previous frame. Default `true`; `false` leaves exactly the paper's method.
     #[serde(default = "default_true")]
     pub swept_culling: bool,
+}
+
+fn default_igtl_workspace_mm() -> f64 {
+    1000.0
+}
+
+fn default_igtl_max_speed_mm_s() -> f64 {
+    3000.0
 }
 
 fn default_true() -> bool {

@@ -30,9 +30,14 @@ pub use validate::{
 };
 
 impl Scenario {
-    /// Reads, overrides (`PATH=VALUE` each) and validates a scenario file.
+    /// Reads, overrides (`PATH=VALUE` each) and validates a scenario file (a
+    /// regular file of at most [`crate::fsio::Cap::SCENARIO`]; anything else is
+    /// refused before it is opened).
     pub fn load(path: &Path, overrides: &[String]) -> Result<Scenario, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|io| ScenarioError::Read { path: path.to_path_buf(), io })?;
+        let text = crate::fsio::read_regular_text(path, crate::fsio::Cap::SCENARIO).map_err(|e| match e {
+            crate::fsio::ReadError::Refused { refusal, .. } => ScenarioError::Refused { path: path.to_path_buf(), refusal },
+            crate::fsio::ReadError::Io { source, .. } => ScenarioError::Read { path: path.to_path_buf(), io: source },
+        })?;
         Self::from_str(&text, path, overrides)
     }
 

@@ -47,6 +47,14 @@ pub enum TrajectoryError {
         /// The I/O error (shown in the message, so not repeated as a cause).
         io: std::io::Error,
     },
+    /// Not a regular file, or over [`crate::fsio::Cap::TRAJECTORY`]; nothing was read.
+    #[error("{}: {refusal}", path.display())]
+    Refused {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        refusal: crate::fsio::Refusal,
+    },
     /// A malformed or invalid row (line is 1-based).
     #[error("{}:{line}: {problem}", path.display())]
     Line {
@@ -137,9 +145,13 @@ impl Trajectory {
         Ok(())
     }
 
-    /// Reads a trajectory file.
+    /// Reads a trajectory file (a regular file of at most
+    /// [`crate::fsio::Cap::TRAJECTORY`]; anything else is refused unread).
     pub fn load(path: &Path) -> Result<Self, TrajectoryError> {
-        let text = std::fs::read_to_string(path).map_err(|io| TrajectoryError::Io { path: path.to_path_buf(), io })?;
+        let text = crate::fsio::read_regular_text(path, crate::fsio::Cap::TRAJECTORY).map_err(|e| match e {
+            crate::fsio::ReadError::Refused { refusal, .. } => TrajectoryError::Refused { path: path.to_path_buf(), refusal },
+            crate::fsio::ReadError::Io { source, .. } => TrajectoryError::Io { path: path.to_path_buf(), io: source },
+        })?;
         Self::parse(&text, path)
     }
 
@@ -233,9 +245,9 @@ impl Trajectory {
         s
     }
 
-    /// Writes the trajectory to a file (see [`Trajectory::to_csv`]).
+    /// Writes the trajectory to a file (see [`Trajectory::to_csv`]), whole or not at all.
     pub fn save(&self, path: &Path) -> Result<(), TrajectoryError> {
-        std::fs::write(path, self.to_csv()).map_err(|io| TrajectoryError::Io { path: path.to_path_buf(), io })
+        crate::fsio::write_atomic(path, self.to_csv().as_bytes()).map_err(|e| TrajectoryError::Io { path: path.to_path_buf(), io: e.source })
     }
 
     /// Number of track slots (highest spatula index with rows + 1).

@@ -122,14 +122,16 @@ pub struct Skull {
 }
 
 /// What drives a spatula.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum InputBinding {
     /// Keyboard and mouse.
     Keyboard,
     /// A gamepad.
     Gamepad,
-    /// OpenIGTLink TRANSFORM messages from this device name (non-empty).
-    OpenIgtLink { device: String },
+    /// OpenIGTLink TRANSFORM messages from this device name (non-empty); poses
+    /// outside the workspace box (half-width `workspace_m` on each axis around
+    /// the scene origin, m, > 0) or faster than `max_speed_m_s` (m/s, > 0) are refused.
+    OpenIgtLink { device: String, workspace_m: f64, max_speed_m_s: f64 },
     /// The scenario's trajectory, track = this spatula's index.
     Trajectory,
 }
@@ -561,11 +563,13 @@ impl Scenario {
             let input = match &s.input {
                 InputFile::Keyboard => InputBinding::Keyboard,
                 InputFile::Gamepad => InputBinding::Gamepad,
-                InputFile::OpenIgtLink { device } => {
+                InputFile::OpenIgtLink { device, workspace_mm, max_speed_mm_s } => {
                     if device.trim().is_empty() {
                         return Err(c.invalid(&format!("{field}.input.device"), "the OpenIGTLink device name must not be empty"));
                     }
-                    InputBinding::OpenIgtLink { device: device.clone() }
+                    let workspace_mm = c.positive(&format!("{field}.input.workspace_mm"), *workspace_mm)?;
+                    let max_speed_mm_s = c.positive(&format!("{field}.input.max_speed_mm_s"), *max_speed_mm_s)?;
+                    InputBinding::OpenIgtLink { device: device.clone(), workspace_m: workspace_mm * 1e-3, max_speed_m_s: max_speed_mm_s * 1e-3 }
                 }
                 InputFile::Trajectory => {
                     let Some((path, track)) = &trajectory else {

@@ -330,10 +330,11 @@ impl SummaryBuilder {
     }
 }
 
-/// Writes `summary` as pretty JSON.
+/// Writes `summary` as pretty JSON, whole or not at all (a temporary file
+/// renamed over `path`: a full disk leaves no empty or truncated summary).
 pub fn write_summary(path: &Path, summary: &Summary) -> Result<(), OutputError> {
     let text = serde_json::to_string_pretty(summary).map_err(|e| OutputError::new(path, io::Error::other(e)))?;
-    std::fs::write(path, text + "\n").map_err(|e| OutputError::new(path, e))
+    crate::fsio::write_atomic(path, (text + "\n").as_bytes()).map_err(|e| OutputError::new(path, e.source))
 }
 
 #[cfg(test)]

@@ -23,6 +23,7 @@ pub mod plot;
 pub mod runner;
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 pub use accuracy::{Accuracy, Comparison};
@@ -154,13 +155,29 @@ pub struct StudyResults {
     pub files: Vec<PathBuf>,
     /// Wall time of the whole study, s.
     pub elapsed_s: f64,
+    /// True when an interruption stopped the study: the runs not done are rows
+    /// that say so, and every output is still written.
+    pub interrupted: bool,
 }
 
-/// Runs a preset study (the CLI's entry point).
+/// The outcome of a run skipped because the study was interrupted.
+pub const NOT_RUN_INTERRUPTED: &str = "not run: the study was interrupted (Ctrl-C)";
+
+/// Runs a preset study.
 pub fn run_study(options: &StudyOptions, progress: &mut dyn FnMut(StudyProgress)) -> Result<StudyResults, StudyError> {
+    run_study_until(options, progress, &AtomicBool::new(false))
+}
+
+/// [`run_study`] that stops starting runs once `interrupt` is set (the CLI's
+/// entry point; Ctrl-C sets it): see [`run_plan_until`].
+pub fn run_study_until(
+    options: &StudyOptions,
+    progress: &mut dyn FnMut(StudyProgress),
+    interrupt: &AtomicBool,
+) -> Result<StudyResults, StudyError> {
     let plan = plan::preset_plan(options.preset == StudyPreset::Full);
     let scene = load_scene(options.scene.as_deref())?;
-    run_plan(&plan, &scene, &options.out_dir, progress)
+    run_plan_until(&plan, &scene, &options.out_dir, progress, interrupt)
 }
 
 /// The study scene: `path`, or the built-in one.
@@ -211,6 +228,22 @@ pub fn run_plan(
     out_dir: &Path,
     progress: &mut dyn FnMut(StudyProgress),
 ) -> Result<StudyResults, StudyError> {
+    run_plan_until(plan, scene, out_dir, progress, &AtomicBool::new(false))
+}
+
+/// [`run_plan`] that starts no further run once `interrupt` is set: the run
+/// under way finishes, the runs left become rows saying
+/// [`NOT_RUN_INTERRUPTED`], every output is written and the results say
+/// `interrupted`.
+pub fn run_plan_until(
+    plan: &StudyPlan,
+    scene: &Scenario,
+    out_dir: &Path,
+    progress: &mut dyn FnMut(StudyProgress),
+    interrupt: &AtomicBool,
+) -> Result<StudyResults, StudyError> {
+    let stopped = || interrupt.load(Ordering::Relaxed);
+    let mut interrupted = false;
     let start = Instant::now();
     let total = plan.run_count();
     if total == 0 {
@@ -224,7 +257,12 @@ pub fn run_plan(
     for sweep in &plan.sweeps {
         let reference_spec = &sweep.runs[sweep.reference];
         progress(StudyProgress { done, total, label: format!("{}: {} (reference)", sweep.knob.name(), reference_spec.label) });
-        let reference = runner::execute(scene, &reference_spec.settings, &plan.motion, &mut meshes, Some(&cache), true);
+        interrupted |= stopped();
+        let reference = if interrupted {
+            Err(RunError::Interrupted)
+        } else {
+            runner::execute(scene, &reference_spec.settings, &plan.motion, &mut meshes, Some(&cache), true)
+        };
         done += 1;
         let mut sweep_rows: Vec<(usize, RunRow)> = Vec::with_capacity(sweep.runs.len());
         let reference_row = RunRow {
@@ -248,7 +286,12 @@ pub fn run_plan(
                 continue;
             }
             progress(StudyProgress { done, total, label: format!("{}: {}", sweep.knob.name(), spec.label) });
-            let outcome = runner::execute(scene, &spec.settings, &plan.motion, &mut meshes, Some(&cache), true).map_err(|e| e.to_string());
+            interrupted |= stopped();
+            let outcome = if interrupted {
+                Err(NOT_RUN_INTERRUPTED.to_string())
+            } else {
+                runner::execute(scene, &spec.settings, &plan.motion, &mut meshes, Some(&cache), true).map_err(|e| e.to_string())
+            };
             done += 1;
             let outcome = outcome.map(|trace| {
                 let mut m = measure(&trace);
@@ -280,6 +323,7 @@ pub fn run_plan(
         rows,
         files: Vec::new(),
         elapsed_s: 0.0,
+        interrupted,
     };
     results.elapsed_s = start.elapsed().as_secs_f64();
     results.files.push(output::write_csv(&results, &out_dir.join("results.csv"))?);

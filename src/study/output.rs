@@ -132,7 +132,7 @@ pub fn write_csv(results: &StudyResults, path: &Path) -> Result<PathBuf, StudyEr
         text.push_str(&csv_line(r));
         text.push('\n');
     }
-    std::fs::write(path, text).map_err(io(path))?;
+    crate::fsio::write_atomic(path, text.as_bytes()).map_err(|e| io(path)(e.source))?;
     Ok(path.to_path_buf())
 }
 
@@ -203,6 +203,9 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         cores,
         if cfg!(debug_assertions) { "debug" } else { "release" }
     );
+    if results.interrupted {
+        let _ = writeln!(t, "**Interrupted (Ctrl-C): the runs not done say so; their sweeps are incomplete.**\n");
+    }
     let m = &results.motion;
     let _ = write!(
         t,
@@ -358,7 +361,7 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         t.push('\n');
     }
     t.push_str("Files: `results.csv` (every number above, one row a run), `pareto.{png,svg}`, `fig13_collision_vs_nodes.{png,svg}`, `speed_vs_error.{png,svg}`.\n");
-    std::fs::write(path, t).map_err(io(path))?;
+    crate::fsio::write_atomic(path, t.as_bytes()).map_err(|e| io(path)(e.source))?;
     Ok(path.to_path_buf())
 }
 

@@ -288,10 +288,21 @@ fn draw<DB: DrawingBackend>(plot: Plot, root: &DrawingArea<DB, Shift>, results: 
 fn both(out_dir: &Path, stem: &str, results: &StudyResults, plot: Plot) -> Result<Vec<PathBuf>, StudyError> {
     let png = out_dir.join(format!("{stem}.png"));
     let svg = out_dir.join(format!("{stem}.svg"));
-    let drawn = draw(plot, &BitMapBackend::new(&png, SIZE).into_drawing_area(), results);
+    // Drawn in memory, then each file written whole (never a partial plot on a full disk).
+    let mut rgb = vec![0u8; SIZE.0 as usize * SIZE.1 as usize * 3];
+    let drawn = draw(plot, &BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area(), results);
     drawn.map_err(|message| StudyError::Plot { path: png.clone(), message })?;
-    let drawn = draw(plot, &SVGBackend::new(&svg, SIZE).into_drawing_area(), results);
+    let image = image::RgbImage::from_raw(SIZE.0, SIZE.1, rgb)
+        .ok_or_else(|| StudyError::Plot { path: png.clone(), message: "the bitmap has the wrong size".into() })?;
+    let mut encoded = std::io::Cursor::new(Vec::new());
+    image
+        .write_to(&mut encoded, image::ImageFormat::Png)
+        .map_err(|e| StudyError::Plot { path: png.clone(), message: e.to_string() })?;
+    crate::fsio::write_atomic(&png, encoded.get_ref()).map_err(|e| StudyError::Output { path: e.path, source: e.source })?;
+    let mut text = String::new();
+    let drawn = draw(plot, &SVGBackend::with_string(&mut text, SIZE).into_drawing_area(), results);
     drawn.map_err(|message| StudyError::Plot { path: svg.clone(), message })?;
+    crate::fsio::write_atomic(&svg, text.as_bytes()).map_err(|e| StudyError::Output { path: e.path, source: e.source })?;
     Ok(vec![png, svg])
 }
 

@@ -29,6 +29,9 @@ pub enum RunError {
     Build(#[from] BuildError),
     #[error("{0}")]
     Step(#[from] StepError),
+    /// Not started: the study was interrupted before it (same words as [`super::NOT_RUN_INTERRUPTED`]).
+    #[error("not run: the study was interrupted (Ctrl-C)")]
+    Interrupted,
 }
 
 /// What one frame left behind.

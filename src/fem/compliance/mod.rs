@@ -617,7 +617,7 @@ impl Compliance {
     }
 
     fn load(&self, path: &Path, storage: ComplianceStorage, model: &FemModel) -> Result<Values, String> {
-        let mut file = std::fs::File::open(path).map_err(|e| e.to_string())?;
+        let (mut file, _) = crate::fsio::open_regular(path, crate::fsio::Cap::COMPLIANCE_CACHE).map_err(|e| e.to_string())?;
         let len = self.entry_count();
         let n_lo = self.layout.lo_blocks() * 9;
         let width = match storage { ComplianceStorage::F32 => 4, _ => 8 };

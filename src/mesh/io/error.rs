@@ -28,6 +28,9 @@ pub struct MeshFileError {
 pub enum MeshFileErrorKind {
     #[error("cannot access the file")]
     Io(#[source] std::io::Error),
+    /// Not read at all: not a regular file, or over its size cap.
+    #[error("{0}")]
+    Refused(crate::fsio::Refusal),
     #[error("unknown mesh file extension \"{extension}\" (expected {expected})")]
     UnknownExtension { extension: String, expected: &'static str },
     #[error("unexpected end of file (expected {expected})")]

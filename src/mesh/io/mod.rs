@@ -9,6 +9,9 @@
 //! ASCII), `.vtk` (legacy ASCII), surfaces to `.obj` / `.stl`, and `.pvd` time
 //! collections. Stays true: no parser panics on any input; every error names
 //! the file and, where there is one, the line (or byte offset in binary data);
+//! only regular files within [`Cap::MESH`] / [`Cap::SURFACE`] are read (a FIFO,
+//! a device or a directory is refused before it is opened); every file is
+//! written whole or not at all ([`fsio::write_atomic`]);
 //! writers print f64 in shortest round-trip form, so text files read back to
 //! the same bits.
 
@@ -27,6 +30,7 @@ use std::path::Path;
 
 pub use error::{MeshFileError, MeshFileErrorKind};
 
+use crate::fsio::{self, Cap};
 use crate::math::Vec3;
 use crate::mesh::{TetMesh, TriSurface};
 
@@ -131,12 +135,21 @@ fn extension(path: &Path) -> String {
     path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
 }
 
-fn read(path: &Path) -> Result<Vec<u8>, MeshFileError> {
-    std::fs::read(path).map_err(|e| MeshFileError::io(path, e))
+/// Reads a mesh or surface file: a regular file within `cap`, else an error naming it.
+fn read_capped(path: &Path, cap: Cap) -> Result<Vec<u8>, MeshFileError> {
+    fsio::read_regular(path, cap).map_err(|e| match e {
+        fsio::ReadError::Refused { refusal, .. } => MeshFileError::new(path, MeshFileErrorKind::Refused(refusal)),
+        fsio::ReadError::Io { source, .. } => MeshFileError::io(path, source),
+    })
 }
 
+fn read(path: &Path) -> Result<Vec<u8>, MeshFileError> {
+    read_capped(path, Cap::MESH)
+}
+
+/// Writes a whole output file (temporary name, then rename: never a partial file).
 fn write(path: &Path, bytes: &[u8]) -> Result<(), MeshFileError> {
-    std::fs::write(path, bytes).map_err(|e| MeshFileError::io(path, e))
+    fsio::write_atomic(path, bytes).map_err(|e| MeshFileError::io(path, e.source))
 }
 
 /// Loads a tetrahedral mesh, choosing the reader by extension (see the module doc).
@@ -176,8 +189,8 @@ pub fn parse_tet_mesh(path: &Path, format: TetFormat, bytes: &[u8]) -> Result<Te
 /// Loads a triangle surface from `.obj` or `.stl` (ASCII or binary).
 pub fn load_surface(path: &Path) -> Result<TriSurface, MeshFileError> {
     match extension(path).as_str() {
-        "obj" => obj::parse(path, &read(path)?),
-        "stl" => stl::parse(path, &read(path)?),
+        "obj" => obj::parse(path, &read_capped(path, Cap::SURFACE)?),
+        "stl" => stl::parse(path, &read_capped(path, Cap::SURFACE)?),
         other => Err(MeshFileError::new(
             path,
             MeshFileErrorKind::UnknownExtension { extension: other.into(), expected: ".obj or .stl" },
