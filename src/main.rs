@@ -5,8 +5,10 @@
 //! warnings and other crates' errors, `RUST_LOG=warn` shows theirs too).
 //! Out: the command's output on stdout; log lines on stderr (no colours unless
 //! stderr is a terminal); on error the whole cause chain on stderr. Exit codes:
-//! 0 done, 1 error, 2 usage error (from clap), 130 interrupted by Ctrl-C after
-//! writing what was done so far ([`cli::Interrupted`]).
+//! 0 done, 1 error, 2 usage error (from clap), 3 `replay --strict` on a run
+//! that failed its integrity limits ([`cli::IntegrityFailed`]; every output
+//! written), 130 interrupted by Ctrl-C after writing what was done so far
+//! ([`cli::Interrupted`]).
 //! `anyhow` lives only here; the library returns typed errors.
 
 mod cli;
@@ -18,6 +20,8 @@ use clap::Parser;
 
 /// Exit code of a run stopped by Ctrl-C (128 + SIGINT, as a shell reports it).
 const EXIT_INTERRUPTED: u8 = 130;
+/// Exit code of `replay --strict` when the run failed its integrity limits.
+const EXIT_INTEGRITY: u8 = 3;
 
 /// What is logged without `RUST_LOG`: fissure's warnings, other crates' errors
 /// (winit and egui warn about display quirks, e.g. under Xvfb, that need no action).
@@ -51,6 +55,10 @@ fn main() -> ExitCode {
             if let Some(interrupted) = error.downcast_ref::<cli::Interrupted>() {
                 eprintln!("fissure: {interrupted}");
                 return ExitCode::from(EXIT_INTERRUPTED);
+            }
+            if let Some(failed) = error.downcast_ref::<cli::IntegrityFailed>() {
+                eprintln!("fissure: {failed}");
+                return ExitCode::from(EXIT_INTEGRITY);
             }
             eprintln!("error: {error}");
             for cause in error.chain().skip(1) {

@@ -44,8 +44,15 @@ pub fn run(path: &Path, overrides: &[String], trajectory: Option<&Path>) -> anyh
     }
     for t in &checked.travel {
         let sp = &scenario.spatulas[t.spatula];
+        let split = match scenario.solver.substep_travel {
+            Some(f) => {
+                let n = ((t.travel / (f * sp.shape.thickness)).ceil() as u32).clamp(1, fissure::sim::MAX_SUBSTEPS);
+                if n > 1 { format!("; such a frame runs as {n} sub-steps") } else { String::new() }
+            }
+            None => String::new(),
+        };
         println!(
-            "  motion:    spatula {} \"{}\" moves at most {:.3} mm a step (step ending at {:.3} s; blade thickness {:.3} mm)",
+            "  motion:    spatula {} \"{}\" moves at most {:.3} mm a step (step ending at {:.3} s; blade thickness {:.3} mm{split})",
             t.spatula,
             sp.name,
             t.travel / MM,

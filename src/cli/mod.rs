@@ -30,6 +30,15 @@ pub struct Interrupted {
     pub what: String,
 }
 
+/// `replay --strict` on a run whose integrity verdict failed (penetration,
+/// inverted elements or tunnelling beyond the scene's limits); every output
+/// is written; `main` exits 3.
+#[derive(Debug, thiserror::Error)]
+#[error("integrity check failed: {what}")]
+pub struct IntegrityFailed {
+    pub what: String,
+}
+
 /// The default scene, run by a bare `fissure`.
 pub const DEFAULT_SCENARIO: &str = "config/sylvian.ron";
 
@@ -79,6 +88,10 @@ pub enum Command {
         /// Also write a PNG a frame (DIR/frames/), rendered offscreen.
         #[arg(long)]
         frames: bool,
+        /// Exit 3 when the run fails its integrity limits (scenario `integrity`:
+        /// penetration into a blade, inverted elements, tissue pulled through).
+        #[arg(long)]
+        strict: bool,
     },
     /// Measure what accuracy costs in time: sweeps, results.csv, report.md and plots.
     Study {
@@ -185,8 +198,8 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         None => run::run(None, &[], false, &run::WindowArgs::default()),
         Some(Command::Run { scenario, set, headless, window }) => run::run(scenario.as_deref(), &set, headless, &window),
         Some(Command::Screenshot(args)) => screenshot::run(&args),
-        Some(Command::Replay { scenario, set, trajectory, out, vtk, frames }) => {
-            replay::run(replay::ReplayArgs { scenario: &scenario, set: &set, trajectory, out, vtk, frames }).map(|_| ())
+        Some(Command::Replay { scenario, set, trajectory, out, vtk, frames, strict }) => {
+            replay::run(replay::ReplayArgs { scenario: &scenario, set: &set, trajectory, out, vtk, frames, strict }).map(|_| ())
         }
         Some(Command::Study { preset, scene, out }) => {
             let preset = match preset {

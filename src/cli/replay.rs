@@ -22,6 +22,8 @@ pub struct ReplayArgs<'a> {
     pub out: Option<PathBuf>,
     pub vtk: bool,
     pub frames: bool,
+    /// Fail (exit 3) when the summary's integrity verdict fails.
+    pub strict: bool,
 }
 
 fn bar(len: u64, message: &str) -> ProgressBar {
@@ -111,6 +113,25 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
     for note in &summary.collision_notes {
         println!("  collision: {note}");
     }
+    if summary.max_substeps > 1 || summary.capped_frames > 0 {
+        println!("  fast blades: up to {} sub-steps a frame; {} frames hit the contact solve's cap (each kept the last feasible state)", summary.max_substeps, summary.capped_frames);
+    }
+    match summary.integrity.failures.as_slice() {
+        [] => println!(
+            "  integrity: pass (penetration {:.3} mm <= {} mm, inverted elements {} <= {}, pulled through {} <= {})",
+            summary.max_penetration_mm,
+            summary.integrity.limits.max_penetration_mm,
+            summary.max_inverted_elements,
+            summary.integrity.limits.max_inverted_elements,
+            summary.max_crossed_vertices,
+            summary.integrity.limits.max_crossed_vertices
+        ),
+        failures => {
+            for f in failures {
+                println!("  integrity: FAIL: {f}");
+            }
+        }
+    }
     println!("  final state {}", summary.final_state_hash);
     println!("  wrote {}/metrics.csv, {}/summary.json{}", out_dir.display(), out_dir.display(), if vtk { ", series.pvd" } else { "" });
     if summary.interrupted {
@@ -123,6 +144,9 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
             ),
         }
         .into());
+    }
+    if args.strict && !summary.integrity.passed {
+        return Err(super::IntegrityFailed { what: format!("{}: {}", args.scenario.display(), summary.integrity.failures.join("; ")) }.into());
     }
     Ok(summary)
 }

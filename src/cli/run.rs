@@ -62,7 +62,7 @@ pub fn default_scenario() -> PathBuf {
 }
 
 fn headless(path: &Path, set: &[String]) -> anyhow::Result<()> {
-    super::replay::run(super::replay::ReplayArgs { scenario: path, set, trajectory: None, out: None, vtk: false, frames: false })?;
+    super::replay::run(super::replay::ReplayArgs { scenario: path, set, trajectory: None, out: None, vtk: false, frames: false, strict: false })?;
     Ok(())
 }
 

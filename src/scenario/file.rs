@@ -58,6 +58,36 @@ pub struct ScenarioFile {
     /// Where results go. Default `(dir: "out", vtk: false, frames: false)`.
     #[serde(default)]
     pub outputs: OutputsFile,
+    /// What a run may do to the tissue before its summary says it failed
+    /// (`replay --strict` then exits 3). Default
+    /// `(max_penetration_mm: 0.05, max_inverted_elements: 0, max_crossed_vertices: 0)`.
+    #[serde(default)]
+    pub integrity: IntegrityFile,
+}
+
+/// Integrity limits: `(max_penetration_mm: 0.05, max_inverted_elements: 0, max_crossed_vertices: 0)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IntegrityFile {
+    /// Deepest a surface vertex may end a frame inside a blade, mm (finite, >= 0). Default 0.05.
+    #[serde(default = "default_max_penetration_mm")]
+    pub max_penetration_mm: f64,
+    /// Most inverted elements in a frame. Default 0.
+    #[serde(default)]
+    pub max_inverted_elements: u32,
+    /// Most surface vertices pulled through a blade in a frame. Default 0.
+    #[serde(default)]
+    pub max_crossed_vertices: u32,
+}
+
+fn default_max_penetration_mm() -> f64 {
+    0.05
+}
+
+impl Default for IntegrityFile {
+    fn default() -> Self {
+        Self { max_penetration_mm: default_max_penetration_mm(), max_inverted_elements: 0, max_crossed_vertices: 0 }
+    }
 }
 
 fn default_gravity() -> [f64; 3] {

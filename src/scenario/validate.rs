@@ -238,6 +238,26 @@ pub struct Outputs {
     pub frames: bool,
 }
 
+/// Pass/fail limits on what a run may do to the tissue (scenario `integrity`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct IntegrityLimits {
+    /// Deepest a surface vertex may end a frame inside a blade, mm.
+    pub max_penetration_mm: f64,
+    /// Most inverted elements in a frame (in the frame's scope: all tets with the
+    /// stress stage, surface tets otherwise).
+    pub max_inverted_elements: u32,
+    /// Most surface vertices pulled through a blade in a frame.
+    pub max_crossed_vertices: u32,
+}
+
+impl Default for IntegrityLimits {
+    /// 0.05 mm of penetration (a tenth of the thinnest shipped blade's half
+    /// thickness: what a surgeon cannot see), no inverted element, no tunnelling.
+    fn default() -> Self {
+        Self { max_penetration_mm: 0.05, max_inverted_elements: 0, max_crossed_vertices: 0 }
+    }
+}
+
 /// A validated scenario in SI units: what the pipeline reads.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scenario {
@@ -277,6 +297,8 @@ pub struct Scenario {
     pub trajectory: Option<PathBuf>,
     /// Outputs.
     pub outputs: Outputs,
+    /// Pass/fail limits of the run's integrity verdict.
+    pub integrity: IntegrityLimits,
     /// Legal but doubtful values, in the order found (`fissure check` prints
     /// them; the pipeline's build logs them).
     pub warnings: Vec<ScenarioWarning>,
@@ -676,6 +698,14 @@ impl Scenario {
             duration,
             trajectory: trajectory.map(|(p, _)| p),
             outputs: Outputs { dir: PathBuf::from(&file.outputs.dir), vtk: file.outputs.vtk, frames: file.outputs.frames },
+            integrity: IntegrityLimits {
+                max_penetration_mm: match file.integrity.max_penetration_mm {
+                    d if d.is_finite() && d >= 0.0 => d,
+                    d => return Err(c.invalid("integrity.max_penetration_mm", format!("must be a finite number >= 0 mm, got {d}"))),
+                },
+                max_inverted_elements: file.integrity.max_inverted_elements,
+                max_crossed_vertices: file.integrity.max_crossed_vertices,
+            },
             warnings: c.warnings.take(),
             locations: field_locations(document, file.fixed.len(), file.spatulas.len()),
         })

@@ -199,25 +199,7 @@ pub struct Summary {
     pub integrity: Integrity,
 }
 
-/// Pass/fail limits on what a run may do to the tissue (scenario `integrity`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct IntegrityLimits {
-    /// Deepest a surface vertex may end a frame inside a blade, mm.
-    pub max_penetration_mm: f64,
-    /// Most inverted elements in a frame (in the frame's scope: all tets with the
-    /// stress stage, surface tets otherwise).
-    pub max_inverted_elements: u32,
-    /// Most surface vertices pulled through a blade in a frame.
-    pub max_crossed_vertices: u32,
-}
-
-impl Default for IntegrityLimits {
-    /// 0.05 mm of penetration (a tenth of the thinnest shipped blade's half
-    /// thickness: what a surgeon cannot see), no inverted element, no tunnelling.
-    fn default() -> Self {
-        Self { max_penetration_mm: 0.05, max_inverted_elements: 0, max_crossed_vertices: 0 }
-    }
-}
+pub use crate::scenario::IntegrityLimits;
 
 /// The verdict on a run's integrity.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]

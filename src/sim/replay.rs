@@ -144,7 +144,7 @@ pub fn replay(
     let stages = pipeline.built_stages();
     let names = pipeline.spatula_names().to_vec();
     let mut writer = MetricsWriter::create(&options.out_dir.join("metrics.csv"), &stages, &names)?;
-    let mut summary = SummaryBuilder::new(&scenario.name, &stages, &names);
+    let mut summary = SummaryBuilder::new(&scenario.name, &stages, &names).with_limits(scenario.integrity);
     let total = scenario.step_count();
     let dt = scenario.time_step;
     let mut input = FrameInput::default();
