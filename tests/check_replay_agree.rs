@@ -42,6 +42,8 @@ struct Scene {
     density: String,
     time_step: String,
     trajectory: String,
+    /// `solver.substep_travel`.
+    substep_travel: String,
 }
 
 impl Default for Scene {
@@ -56,6 +58,7 @@ impl Default for Scene {
             density: "1040.0".into(),
             time_step: "0.01".into(),
             trajectory: "None".into(),
+            substep_travel: "Some(0.125)".into(),
         }
     }
 }
@@ -71,7 +74,7 @@ impl Scene {
         format!(
             "(\n    name: \"corpus\",\n    mesh: {},\n    material: {},\n    fixed: [{}],\n    skull: {},\n    spatulas: [\n    {},\n    {},\n    ],\n    \
              effects: [{}],\n    gravity_m_s2: {},\n    density_kg_m3: {},\n    time_step_s: {},\n    duration_s: 1.0,\n    trajectory: {},\n    \
-             solver: (region_of_interest: Auto, cache_dir: None),\n)\n",
+             solver: (region_of_interest: Auto, cache_dir: None, substep_travel: {}),\n)\n",
             self.mesh,
             self.material,
             self.fixed,
@@ -82,7 +85,8 @@ impl Scene {
             self.gravity,
             self.density,
             self.time_step,
-            self.trajectory
+            self.trajectory,
+            self.substep_travel
         )
     }
 }
@@ -207,7 +211,16 @@ fn corpus(dir: &Path) -> Vec<Case> {
     let mut locking = case("nu = 0.495", |s| s.material = "(young_modulus_pa: 3000.0, poisson_ratio: 0.495)".into(), None);
     locking.warning = vec!["material.poisson_ratio: poisson_ratio 0.495 is above 0.49", "lock volumetrically"];
     cases.push(locking);
-    let mut coarse = case("a blade moves 6 mm in one step", |s| s.trajectory = r#"Some("jump.csv")"#.into(), None);
+    // With sub-steps (the default) the jump is split and needs no warning; without them it does.
+    cases.push(case("a blade moves 6 mm in one step, split into sub-steps", |s| s.trajectory = r#"Some("jump.csv")"#.into(), None));
+    let mut coarse = case(
+        "a blade moves 6 mm in one step without sub-steps",
+        |s| {
+            s.trajectory = r#"Some("jump.csv")"#.into();
+            s.substep_travel = "None".into();
+        },
+        None,
+    );
     coarse.warning = vec!["time_step_s: the trajectory", "moves spatula 0 (\"left\") 6.000 mm in one step (the step ending at 0.060 s), more than its blade's thickness 1.000 mm"];
     cases.push(coarse);
     cases

@@ -50,7 +50,7 @@ const DIAGONAL: [[(f64, f64, f64); 2]; 2] = [
 const DIAGONAL_MM: f64 = 24.2;
 
 /// Replays the default scene with the diagonal sampled at `speed` thicknesses
-/// (1 mm) a frame, plus 3 held frames.
+/// (1 mm) a frame, plus 10 held frames (a run has at least 10 steps).
 fn sylvian_at(speed: f64, cache: &std::path::Path) -> fissure::sim::metrics::Summary {
     let dir = tempfile::tempdir().unwrap();
     let frames = (DIAGONAL_MM / speed).ceil() as usize;
@@ -63,7 +63,7 @@ fn sylvian_at(speed: f64, cache: &std::path::Path) -> fissure::sim::metrics::Sum
     }
     let trajectory = dir.path().join("diagonal.csv");
     std::fs::write(&trajectory, csv).unwrap();
-    let duration = format!("duration_s={:?}", (frames + 3) as f64 * 0.01);
+    let duration = format!("duration_s={:?}", (frames + 10) as f64 * 0.01);
     let cache_dir = format!("solver.cache_dir=Some({:?})", cache.display().to_string());
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let scenario = fissure::scenario::Scenario::load(&root.join("config/sylvian.ron"), &[duration, cache_dir]).expect("default scene");

@@ -413,6 +413,10 @@ mod tests {
         let checked = preflight(&s, Some(&csv)).expect("valid");
         let [t] = checked.travel[..] else { panic!("one moving spatula: {:?}", checked.travel) };
         assert!((t.travel - 0.003).abs() < 1e-9 && (t.time_s - 0.31).abs() < 1e-9, "{t:?}");
+        assert!(!checked.warnings.iter().any(|w| w.to_string().contains("time_step_s:")), "sub-steps split the jump: no warning");
+        let mut one_step = s.clone();
+        one_step.solver.substep_travel = None;
+        let checked = preflight(&one_step, Some(&csv)).expect("valid");
         let warning = checked.warnings.iter().map(ToString::to_string).find(|w| w.contains("time_step_s:")).expect("3 mm > 1 mm thick");
         assert!(warning.contains("scene.ron:8:18: time_step_s: the trajectory") && warning.contains("3.000 mm in one step"), "{warning}");
         assert!(warning.contains("time_step_s <= 3.33e-3 s"), "{warning}");
