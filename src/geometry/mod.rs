@@ -8,4 +8,4 @@ pub mod ray;
 pub mod spatula;
 
 pub use ray::{LineHit, LineQuery, moller_trumbore};
-pub use spatula::{LayoutError, NodeLayout, Pose, SpatulaShape, face_normal_local};
+pub use spatula::{LayoutError, NodeLayout, Pose, SpatulaShape, face_normal_local, slerp};

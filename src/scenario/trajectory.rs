@@ -313,25 +313,9 @@ fn to_pose(s: &Sample) -> Pose {
     Pose { position: Vec3::from(s.position_mm) * 1e-3, rotation: Quat::new_normalize(nalgebra::Quaternion::new(w, x, y, z)) }
 }
 
-/// Shortest-arc spherical interpolation of two unit quaternions (w, x, y, z);
-/// never panics (antipodal inputs take the sign-flipped short way, near-equal
-/// ones fall back to normalised lerp).
+/// Shortest-arc slerp of two quaternions given as (w, x, y, z) (see [`crate::geometry::slerp`]).
 fn slerp(a: [f64; 4], b: [f64; 4], alpha: f64) -> Quat {
-    let qa = nalgebra::Quaternion::new(a[0], a[1], a[2], a[3]).normalize();
-    let mut qb = nalgebra::Quaternion::new(b[0], b[1], b[2], b[3]).normalize();
-    let mut dot = qa.coords.dot(&qb.coords);
-    if dot < 0.0 {
-        qb = -qb;
-        dot = -dot;
-    }
-    let q = if dot > 0.9995 {
-        qa + (qb - qa) * alpha
-    } else {
-        let theta = dot.clamp(-1.0, 1.0).acos();
-        let sin = theta.sin();
-        qa * (((1.0 - alpha) * theta).sin() / sin) + qb * ((alpha * theta).sin() / sin)
-    };
-    Quat::new_normalize(q)
+    crate::geometry::slerp(&nalgebra::Quaternion::new(a[0], a[1], a[2], a[3]), &nalgebra::Quaternion::new(b[0], b[1], b[2], b[3]), alpha)
 }
 
 /// Appends poses to a trajectory file as they happen; every row is written
