@@ -18,9 +18,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut input = FrameInput::default();
     for k in 0..scenario.step_count() {
         source.poses_at((k + 1) as f64 * scenario.time_step, &mut input);
+        let (before, poses_before) = (state.surface_positions.clone(), state.poses.clone());
         let r = p.step(&mut state, &input)?.clone();
         if r.penetrating_vertices == 0 && r.crossed_vertices == 0 {
             continue;
+        }
+        if r.crossed_vertices > 0 {
+            for (s, ((shape, pb), pa)) in p.spatula_shapes().iter().zip(&poses_before).zip(&state.poses).enumerate() {
+                for (v, (x0, x1)) in before.iter().zip(&state.surface_positions).enumerate() {
+                    let q0 = pb.rotation.inverse_transform_vector(&(x0 - pb.position));
+                    let q1 = pa.rotation.inverse_transform_vector(&(x1 - pa.position));
+                    let over = |q: &Vec3| q.x >= 0.0 && q.x <= shape.length && q.y.abs() <= 0.5 * shape.width;
+                    if over(&q1) && q0.z.signum() != q1.z.signum() && (over(&q0) || q0.z.abs() < shape.thickness) {
+                        println!("  spatula {s} vertex {v}: frame start {:.4?} mm -> end {:.4?} mm (blade frames), rest {:.3?} mm", q0 * 1e3, q1 * 1e3, p.rest_positions()[v] * 1e3);
+                    }
+                }
+            }
         }
         println!("frame {} t {:.2}: penetrating {} (deepest {:.4} mm), crossed {}, substeps {}", r.frame, r.time_s, r.penetrating_vertices, r.max_penetration_m * 1e3, r.crossed_vertices, r.substeps);
         for (s, (shape, pose)) in p.spatula_shapes().iter().zip(&state.poses).enumerate() {
@@ -43,6 +56,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     })
                     .collect();
                 let u: Vec3 = state.surface_displacement[v];
+                if let Some(c) = p.collision() {
+                    let t: Vec<_> = c.output().targets.iter().filter(|t| t.vertex as usize == v).map(|t| (t.spatula, t.face, t.depth * 1e3)).collect();
+                    println!("    targets (spatula, face, depth mm): {t:?}");
+                }
                 let fixed = p.solver().model().is_fixed(node);
                 println!(
                     "  spatula {s} vertex {v} (node {node}{}): rest {:.3?} mm, blade frame {:.4?} mm, depth {:.4} mm, |u| {:.3} mm, rows {:?}",

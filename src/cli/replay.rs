@@ -100,11 +100,16 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
     for (stage, p) in &summary.stages {
         println!("    {:<10} p50 {:>9.3} ms  p95 {:>9.3} ms", stage.name(), p.p50_ms, p.p95_ms);
     }
+    let pressure = scenario.effects.contains(fissure::scenario::Effect::ContactPressure);
     for s in &summary.spatulas {
-        println!(
-            "  {}: peak force {:.3} N, peak mean pressure {:.1} mmHg, {:.2} s above 20 mmHg",
-            s.name, s.peak_force_n, s.peak_pressure_mmhg, s.time_above_20mmhg_s
-        );
+        if pressure {
+            println!(
+                "  {}: peak force {:.3} N, peak mean pressure {:.1} mmHg, {:.2} s above 20 mmHg",
+                s.name, s.peak_force_n, s.peak_pressure_mmhg, s.time_above_20mmhg_s
+            );
+        } else {
+            println!("  {}: peak force {:.3} N (contact pressure not simulated: add ContactPressure to effects)", s.name, s.peak_force_n);
+        }
     }
     println!("  max displacement {:.2} mm, tissue pulled through a blade: {} vertices (max in a frame)", summary.max_displacement_mm, summary.max_crossed_vertices);
     if let Some(b) = &summary.collision_backend {

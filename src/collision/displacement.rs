@@ -92,12 +92,16 @@ pub(crate) fn resolve_targets(
 }
 
 /// The rule that keeps a face from claiming tissue lying on the blade's OTHER
-/// face: a vertex at least a blade thickness (less the contact tolerance) behind
-/// the claiming face, which at the previous pose lay over the blade's footprint
-/// (grown by one thickness) at or beyond the other face, belongs to the other face; projecting it onto
-/// this face would pull it through the blade (at a V valley's apex the line
-/// pushed onto one face was otherwise claimed by the other face next frame, and
-/// the two alternated every frame). Without a previous pose the rule is off.
+/// face: a vertex past the blade's mid-plane as seen from the claiming face
+/// (more than half a thickness behind it), which at the previous pose lay over
+/// the blade's footprint (grown by one thickness) at or beyond the other face,
+/// belongs to the other face; projecting it onto this face would pull it
+/// through the blade. At a V valley's apex the line pushed onto one face was
+/// otherwise claimed by the other face next frame, and the two alternated
+/// every frame; in the u_shape scene a turning blade moved 0.02 mm into a
+/// vertex held on its +z face, and the -z face's ray, hitting the vertex's
+/// triangle around the tip, pulled it through (frame 163). Without a previous
+/// pose the rule is off.
 pub(crate) struct OtherSide<'a> {
     /// Spatula shapes (thickness, footprint).
     pub shapes: &'a [crate::geometry::SpatulaShape],
@@ -112,7 +116,7 @@ impl OtherSide<'_> {
             return false;
         };
         let Some(pose) = previous.get(s) else { return false };
-        if depth < shape.thickness - tol {
+        if depth <= 0.5 * shape.thickness {
             return false;
         }
         let q = pose.rotation.inverse_transform_vector(&(v - pose.position));
@@ -157,6 +161,26 @@ mod tests {
         let mut again = Vec::new();
         resolve_targets(&triangles, &current, &rest, &rays, &reversed, &[0, 1, 2], &[0.0, 0.0], &NO_PREVIOUS, &mut claims, &mut again);
         assert_eq!(again, targets, "targets must not depend on the order of the feasible pairs");
+    }
+
+    #[test]
+    fn a_vertex_the_blade_moved_into_stays_with_the_face_it_lay_on() {
+        use crate::geometry::{Pose, SpatulaShape};
+        // A 1 mm blade at the origin (faces z = +-0.5 mm); the vertex lay on its +z
+        // face and the blade moved 0.02 mm into it. The -z face's ray (origin on
+        // z = -0.5 mm, direction -z) sees it 0.98 mm behind: past the mid-plane.
+        let shapes = [SpatulaShape { length: 0.04, width: 0.01, thickness: 0.001 }];
+        let previous = [Pose { position: Vec3::new(0.0, 0.0, -0.00002), ..Pose::default() }];
+        let other = OtherSide { shapes: &shapes, previous: Some(&previous), tolerances: &[1e-6] };
+        let current = vec![Vec3::new(0.02, 0.0, 0.00048), Vec3::new(0.02, 0.001, 0.00048), Vec3::new(0.021, 0.0, 0.00048)];
+        let rays = vec![SourceRay { origin: Vec3::new(0.02, 0.0, -0.0005), direction: -Vec3::z() }];
+        let feasible = vec![Pair { spatula: 0, face: 1, node: 0, triangle: 0, t: -0.00098 }];
+        let (mut claims, mut targets) = (Vec::new(), Vec::new());
+        resolve_targets(&[[0, 1, 2]], &current, &current, &rays, &feasible, &[0, 1], &[1e-6], &other, &mut claims, &mut targets);
+        assert!(targets.is_empty(), "the -z face must not pull the +z face's tissue through the blade: {targets:?}");
+        // Without the previous pose the rule is off and the claim goes through.
+        resolve_targets(&[[0, 1, 2]], &current, &current, &rays, &feasible, &[0, 1], &[1e-6], &NO_PREVIOUS, &mut claims, &mut targets);
+        assert_eq!(targets.len(), 3);
     }
 
     #[test]

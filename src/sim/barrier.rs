@@ -35,13 +35,22 @@
 //!    and not behind the face plane. Without it a blade wedged in
 //!    a V valley alternated every frame between holding one wall and the other:
 //!    pushing one wall drags the apex, and the free wall bulged under the blade.
+//! 4. Around the tip and side edges: a vertex off the footprint, in the band
+//!    ahead of the tip (`x > length`) or beside a side edge, nearer that end
+//!    face's plane than a broad face's, and covered by no rule above, gets a
+//!    row on the end face. A vertex a turning blade carried on its face to
+//!    just past the tip would otherwise spring back towards its rest position,
+//!    which the blade now covers (u_shape scene, frame 222: 0.38 mm inside).
+//!    Last: a vertex rule 3 keeps on its face stays there (a tip row instead
+//!    made the apex of a V valley alternate between the two every frame).
+//!    Nothing behind the base (the shaft continues there).
 //!
 //! A vertex a blade's rays claimed is that blade's contact (held, sliding or
 //! released on its own face) and gets no barrier from it.
 //!
 //! Stays true: the rows are a function of the inputs only (fixed order:
-//! spatula, rule 1 by surface vertex, rule 2 by ray); no allocation once the
-//! mark buffers have grown.
+//! spatula, rule 1 by surface vertex, rule 2 by ray, then rules 3 and 4 in
+//! that order); no allocation once the mark buffers have grown.
 
 use crate::collision::backend::NearestHits;
 use crate::collision::{CollisionStage, Pair, SourceNode, VertexTarget};
@@ -71,6 +80,8 @@ pub struct BarrierStage {
     barred: Vec<u32>,
     /// Last frame's claims (surface vertex, spatula, face), in target order.
     previous_claims: Vec<(u32, u8, u8)>,
+    /// This frame's rule-4 candidates (surface vertex, spatula), in rule-1 order.
+    end_candidates: Vec<(u32, u8)>,
 }
 
 /// The blades of one frame: shapes and poses before and after the move.
@@ -110,6 +121,32 @@ fn over_footprint(shape: &SpatulaShape, q: &Vec3, margin: f64) -> bool {
     q.x >= -margin && q.x <= shape.length + margin && q.y.abs() <= 0.5 * shape.width + margin
 }
 
+/// The blade's end face (tip at `x = length`, or a side edge at `y = ±width/2`)
+/// that separates a point off the footprint (`q`, blade frame of `pose`) from
+/// the blade, when the point lies within `band` of it and nearer that face's
+/// plane than a broad face's (`|z| - thickness/2` smaller than its distance
+/// beyond the end): outward normal and a point of the plane, world. `None` for
+/// points behind the blade's base (the shaft continues there), farther than
+/// `band`, or diagonally off a corner of the broad faces.
+fn end_face(shape: &SpatulaShape, pose: &Pose, q: &Vec3, band: f64) -> Option<(Vec3, Vec3)> {
+    if q.x < 0.0 {
+        return None;
+    }
+    let beyond_tip = q.x - shape.length;
+    let beyond_side = q.y.abs() - 0.5 * shape.width;
+    let beyond = beyond_tip.max(beyond_side);
+    if beyond <= 0.0 || beyond > band || q.z.abs() - 0.5 * shape.thickness > beyond {
+        return None;
+    }
+    let (n_local, p_local) = if beyond_tip >= beyond_side {
+        (Vec3::x(), Vec3::new(shape.length, 0.0, 0.0))
+    } else {
+        let sign = q.y.signum();
+        (Vec3::y() * sign, Vec3::new(0.0, sign * 0.5 * shape.width, 0.0))
+    };
+    Some((pose.rotation * n_local, pose.position + pose.rotation * p_local))
+}
+
 /// Largest move (m) of a blade footprint corner from `before` to `after`.
 pub fn travel(shape: &SpatulaShape, before: &Pose, after: &Pose) -> f64 {
     let mut m: f64 = 0.0;
@@ -127,7 +164,7 @@ pub fn travel(shape: &SpatulaShape, before: &Pose, after: &Pose) -> f64 {
 impl BarrierStage {
     /// A stage for a surface of `surface_vertices` vertices.
     pub fn new(surface_vertices: usize) -> Self {
-        Self { claimed: vec![0; surface_vertices], barred: vec![0; surface_vertices], previous_claims: Vec::new() }
+        Self { claimed: vec![0; surface_vertices], barred: vec![0; surface_vertices], previous_claims: Vec::new(), end_candidates: Vec::new() }
     }
 
     /// Last frame's claims, to save around a frame that may be undone.
@@ -173,6 +210,7 @@ impl BarrierStage {
                 *m |= 1u32 << (t.spatula as u32).min(31);
             }
         }
+        self.end_candidates.clear();
         let before = out.len();
         for (s, ((shape, pb), pa)) in blades.shapes.iter().zip(blades.before).zip(blades.after).enumerate() {
             let half = 0.5 * shape.thickness;
@@ -186,7 +224,14 @@ impl BarrierStage {
                 }
                 let q1 = local(pa, p);
                 let margin = FOOTPRINT_MARGIN_THICKNESS * shape.thickness;
-                if q1.z.abs() > half + band || !over_footprint(shape, &q1, margin) {
+                if q1.z.abs() > half + band {
+                    continue;
+                }
+                if !over_footprint(shape, &q1, margin) {
+                    // Rule 4 (after rules 2 and 3): beyond the tip or a side edge.
+                    if end_face(shape, pa, &q1, band).is_some() {
+                        self.end_candidates.push((v as u32, s as u8));
+                    }
                     continue;
                 }
                 let q0 = local(pb, p);
@@ -239,6 +284,19 @@ impl BarrierStage {
                 continue;
             }
             self.push(v, s, n, face_point, surface, out);
+        }
+        // Rule 4: around the tip and side edges, for vertices no rule above covers.
+        for i in 0..self.end_candidates.len() {
+            let (v, s) = self.end_candidates[i];
+            let (v, s) = (v as usize, s as usize);
+            if (self.claimed[v] | self.barred[v]) & (1u32 << (s as u32).min(31)) != 0 {
+                continue;
+            }
+            let (shape, pb, pa) = (&blades.shapes[s], &blades.before[s], &blades.after[s]);
+            let band = BARRIER_BAND_M + travel(shape, pb, pa);
+            if let Some((n, face_point)) = end_face(shape, pa, &local(pa, &surface.start[v]), band) {
+                self.push(v, s, n, face_point, surface, out);
+            }
         }
         self.previous_claims.clear();
         self.previous_claims.extend(targets.iter().map(|t| (t.vertex, t.spatula, t.face)));
@@ -325,6 +383,45 @@ mod tests {
         assert_eq!(out[0].node, 10);
         let ConstraintKind::Barrier { normal, .. } = out[0].kind else { panic!() };
         assert!((normal + Vec3::z()).norm() < 1e-15);
+    }
+
+    #[test]
+    fn vertices_past_the_tip_or_beside_an_edge_get_a_row_on_that_end_face() {
+        let start = [
+            Vec3::new(0.04001, 0.001, -0.0001), // 0.01 mm past the tip, inside the slab: the tip
+            Vec3::new(0.02, -0.0052, 0.0002),   // 0.2 mm beside the -y edge: that edge
+            Vec3::new(0.0403, 0.0, 0.0015),     // past the tip but 1 mm above the +z face: diagonal, none
+            Vec3::new(-0.001, 0.0, 0.0),        // behind the base (the shaft): none
+            Vec3::new(0.045, 0.0, 0.0),         // 5 mm past the tip: outside the band
+        ];
+        let out = rows(at(0.0), at(0.0), &start, &[]);
+        assert_eq!(out.len(), 2, "{out:?}");
+        let ConstraintKind::Barrier { displacement, normal } = out[0].kind else { panic!() };
+        assert_eq!(out[0].node, 10);
+        assert!((normal - Vec3::x()).norm() < 1e-15, "the tip's plane, got {normal:?}");
+        assert!((normal.dot(&displacement) + 1e-5).abs() < 1e-12, "0.01 mm in front of the tip plane x = 40 mm: the row asks u.x >= -0.01 mm");
+        let ConstraintKind::Barrier { normal, .. } = out[1].kind else { panic!() };
+        assert_eq!(out[1].node, 11);
+        assert!((normal + Vec3::y()).norm() < 1e-15, "the -y edge's plane, got {normal:?}");
+    }
+
+    #[test]
+    fn a_vertex_held_on_a_face_last_frame_keeps_that_face_not_the_tip() {
+        let mut stage = BarrierStage::new(1);
+        let shapes = [blade()];
+        let (before, after) = (at(0.0), at(0.0));
+        let blades = Blades { shapes: &shapes, before: &[before], after: &[after] };
+        // Claimed by the +z face last frame; now 0.1 mm past the tip, on the face plane.
+        let start = [Vec3::new(0.0401, 0.0, 0.0005)];
+        let claim = VertexTarget { vertex: 0, displacement: Vec3::zeros(), spatula: 0, face: 0, normal: Vec3::z(), depth: 0.0, node: 0 };
+        let surface = SurfaceState { triangles: &[], start: &start, rest: &start, nodes: &[7] };
+        let mut out = Vec::new();
+        stage.push_rows_from(blades, &[claim], None, surface, &mut out);
+        out.clear();
+        stage.push_rows_from(blades, &[], None, surface, &mut out);
+        assert_eq!(out.len(), 1);
+        let ConstraintKind::Barrier { normal, .. } = out[0].kind else { panic!() };
+        assert!((normal - Vec3::z()).norm() < 1e-15, "rule 3 (its old face) before rule 4 (the tip): {normal:?}");
     }
 
     #[test]

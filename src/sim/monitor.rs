@@ -17,7 +17,8 @@ pub struct MonitorCounts {
     pub crossed: u32,
     /// Vertices strictly inside a blade (beyond a tolerance).
     pub penetrating: u32,
-    /// Deepest penetration, m.
+    /// Deepest penetration, m: the shortest way out of the blade (through a
+    /// broad face, the tip or a side edge).
     pub max_depth_m: f64,
 }
 
@@ -53,7 +54,9 @@ pub fn measure(
             if !in_footprint(shape, &q1) {
                 continue;
             }
-            let depth = half - q1.z.abs();
+            // How far it would have to move to leave the blade: through a broad
+            // face, the tip or a side edge (not the base: the shaft continues).
+            let depth = (half - q1.z.abs()).min(shape.length - q1.x).min(0.5 * shape.width - q1.y.abs());
             if depth > PENETRATION_TOLERANCE_M {
                 counts.penetrating += 1;
                 counts.max_depth_m = counts.max_depth_m.max(depth);
@@ -95,6 +98,20 @@ mod tests {
         assert_eq!(c.penetrating, 1);
         assert!((c.max_depth_m - 0.0003).abs() < 1e-12, "depth is half-thickness minus |z|: {}", c.max_depth_m);
         assert_eq!(c.crossed, 0);
+    }
+
+    #[test]
+    fn depth_near_the_tip_or_an_edge_is_the_way_out_through_it() {
+        let pose = Pose::default();
+        // 0.04 mm short of the tip, 0.1 mm from the -z face: 0.04 mm deep.
+        let near_tip = [Vec3::new(0.04996, 0.0, -0.0004)];
+        let c = measure(&[blade()], &[pose], &[pose], &near_tip, &near_tip);
+        assert_eq!(c.penetrating, 1);
+        assert!((c.max_depth_m - 0.00004).abs() < 1e-12, "{}", c.max_depth_m);
+        // 0.02 mm inside a side edge, on the mid-plane.
+        let near_side = [Vec3::new(0.02, -0.00498, 0.0)];
+        let c = measure(&[blade()], &[pose], &[pose], &near_side, &near_side);
+        assert!((c.max_depth_m - 0.00002).abs() < 1e-12, "{}", c.max_depth_m);
     }
 
     #[test]
