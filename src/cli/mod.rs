@@ -95,7 +95,7 @@ pub enum Command {
     },
     /// Measure what accuracy costs in time: sweeps, results.csv, report.md and plots.
     Study {
-        /// quick (minutes, paper-9k) or full (the README's numbers).
+        /// quick (minutes, paper-9k: the README's table), full (paper-12k, the real brain when present) or ci (a short plan the tests re-run against docs/study/ci.md).
         #[arg(long, value_enum, default_value = "quick")]
         preset: StudyPresetArg,
         /// The study scene (default: config/study_fissure.ron).
@@ -181,6 +181,7 @@ pub enum MeshCommand {
 pub enum StudyPresetArg {
     Quick,
     Full,
+    Ci,
 }
 
 /// Length unit of a surface file.
@@ -205,6 +206,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
             let preset = match preset {
                 StudyPresetArg::Quick => fissure::study::StudyPreset::Quick,
                 StudyPresetArg::Full => fissure::study::StudyPreset::Full,
+                StudyPresetArg::Ci => fissure::study::StudyPreset::Ci,
             };
             study::run(preset, scene, out)
         }

@@ -1,8 +1,9 @@
-//! Accuracy of a run against its sweep's reference run.
+//! Accuracy of a run against the study's reference run.
 //!
 //! In: two [`RunTrace`]s with displacements. Out: an [`Accuracy`]: RMS and max
 //! surface-displacement error (m), reaction-force error (% of the reference's
-//! peak force), missed-contact frames, frames compared. Stays true: frames are
+//! peak force), mean contact pressure error (mmHg), missed-contact frames,
+//! frames compared. Stays true: frames are
 //! compared only where both runs stand at the same point of the path (same
 //! [`FrameKey`]); on the same mesh vertex by vertex; across meshes at probe
 //! points (the reference's surface vertices), where the run's displacement is
@@ -40,6 +41,8 @@ pub struct Accuracy {
     pub max_error_m: f64,
     /// Largest |F - F_ref| over compared frames, % of the reference's peak |F| over its whole run.
     pub force_error_pct: f64,
+    /// Largest |p - p_ref| of the highest mean contact pressure over compared frames, mmHg.
+    pub pressure_error_mmhg: f64,
     /// Compared frames where the reference had contact and this run none.
     pub missed_contact_frames: usize,
     /// Compared frames where the reference had contact.
@@ -169,6 +172,7 @@ pub fn compare(reference: &RunTrace, run: &RunTrace, same_mesh: bool) -> Accurac
     }
     let peak_force = reference.frames.iter().map(|f| f.force.norm()).fold(0.0, f64::max);
     let force_error = pairs.iter().map(|&(r, k)| (reference.frames[r].force - run.frames[k].force).norm()).fold(0.0, f64::max);
+    let pressure_error = pairs.iter().map(|&(r, k)| (reference.frames[r].pressure_mmhg - run.frames[k].pressure_mmhg).abs()).fold(0.0, f64::max);
     let reference_contact_frames = pairs.iter().filter(|&&(r, _)| reference.frames[r].constrained > 0).count();
     let missed = pairs.iter().filter(|&&(r, k)| reference.frames[r].constrained > 0 && run.frames[k].constrained == 0).count();
     Accuracy {
@@ -180,6 +184,7 @@ pub fn compare(reference: &RunTrace, run: &RunTrace, same_mesh: bool) -> Accurac
         rms_error_m: if count > 0 { (sum2 / count as f64).sqrt() } else { 0.0 },
         max_error_m: max,
         force_error_pct: if peak_force > 0.0 { 100.0 * force_error / peak_force } else { 0.0 },
+        pressure_error_mmhg: pressure_error,
         missed_contact_frames: missed,
         reference_contact_frames,
     }
@@ -205,6 +210,8 @@ mod tests {
                     crossed: 0,
                     penetrating: 0,
                     max_penetration_m: 0.0,
+                    pressure_mmhg: 10.0 * x,
+                    inverted: 0,
                 })
                 .collect(),
             displacements: u.iter().map(|&x| vec![Vec3::new(x, 0.0, 0.0); 3]).collect(),

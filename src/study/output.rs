@@ -8,7 +8,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::plan::backend_name;
+use super::plan::{backend_name, contact_name, substep_label};
 use super::{Comparison, Knob, RunMeasure, RunRow, StudyError, StudyResults};
 use crate::sim::StageId;
 
@@ -20,13 +20,15 @@ pub const PAPER_COLLISION_CPU_MS: f64 = 2000.0;
 pub const PAPER_TRIANGLES: usize = 15_865;
 /// The paper's whole simulation loop, about, ms.
 pub const PAPER_LOOP_MS: f64 = 700.0;
+/// Frame budgets of the budget table and chart, ms.
+pub const BUDGETS_MS: [f64; 3] = [1.0, 4.0, 16.0];
 
 /// Column names of `results.csv`.
 pub const CSV_HEADER: &str = "knob,label,value,reference,mesh,mesh_nodes,surface_triangles,layout,nodes_per_face,backend,culling,\
-speed_thickness_per_frame,storage,roi,status,frames,build_s,compliance_mb,compliance_cached,\
+speed_thickness_per_frame,storage,roi,contact,substep_travel,status,frames,build_s,compliance_mb,compliance_cached,\
 collision_p50_ms,collision_p95_ms,solve_p50_ms,solve_p95_ms,forces_p50_ms,forces_p95_ms,monitor_p50_ms,monitor_p95_ms,\
 frame_p50_ms,frame_p95_ms,comparison,frames_compared,rms_error_mm,max_error_mm,force_error_pct,missed_contact_frames,\
-reference_contact_frames,crossed_vertices,penetrating_max,penetration_max_mm";
+reference_contact_frames,pressure_error_mmhg,peak_pressure_mmhg,crossed_vertices,penetrating_max,penetration_max_mm,inverted_max";
 
 fn quote(s: &str) -> String {
     format!("\"{}\"", s.replace('"', "\"\""))
@@ -62,7 +64,7 @@ pub fn csv_line(r: &RunRow) -> String {
     let s = &r.settings;
     let mut line = format!(
         "{},{},{},{},{},",
-        r.knob.name(),
+        r.knob.map_or("reference", |k| k.name()),
         quote(&r.label),
         r.value,
         r.is_reference,
@@ -71,7 +73,7 @@ pub fn csv_line(r: &RunRow) -> String {
     let m = r.outcome.as_ref().ok();
     let _ = write!(
         line,
-        "{},{},{},{},{},{},{},{:?},{},",
+        "{},{},{},{},{},{},{},{:?},{},{},{},",
         m.map(|m| m.mesh_nodes.to_string()).unwrap_or_default(),
         m.map(|m| m.surface_triangles.to_string()).unwrap_or_default(),
         quote(&s.layout_label()),
@@ -80,7 +82,9 @@ pub fn csv_line(r: &RunRow) -> String {
         s.culling,
         s.speed,
         s.storage,
-        quote(&s.roi.label())
+        quote(&s.roi.label()),
+        contact_name(s.contact),
+        s.substep_travel.map(|t| t.to_string()).unwrap_or_else(|| "none".into())
     );
     let status = match &r.outcome {
         Ok(m) => m.no_accuracy.clone().unwrap_or_else(|| "ok".into()),
@@ -104,19 +108,20 @@ pub fn csv_line(r: &RunRow) -> String {
         Some(a) => {
             let _ = write!(
                 line,
-                "{},{},{:.6},{:.6},{:.4},{},{},",
+                "{},{},{:.6},{:.6},{:.4},{},{},{:.4},",
                 quote(&comparison_label(a.comparison)),
                 a.frames_compared,
                 a.rms_error_m * 1e3,
                 a.max_error_m * 1e3,
                 a.force_error_pct,
                 a.missed_contact_frames,
-                a.reference_contact_frames
+                a.reference_contact_frames,
+                a.pressure_error_mmhg
             );
         }
-        None => line.push_str(",,,,,,,"),
+        None => line.push_str(",,,,,,,,"),
     }
-    let _ = write!(line, "{},{},{:.6}", m.crossed_total, m.penetrating_max, m.penetration_max_m * 1e3);
+    let _ = write!(line, "{:.4},{},{},{:.6},{}", m.peak_pressure_mmhg, m.crossed_total, m.penetrating_max, m.penetration_max_m * 1e3, m.inverted_max);
     line
 }
 
@@ -141,9 +146,28 @@ fn f_ms(x: f64) -> String {
     if v >= 100.0 { format!("{v:.0}") } else if v >= 1.0 { format!("{v:.2}") } else { format!("{v:.3}") }
 }
 
+/// A length error in mm: "exact" when it is 0.
 fn f_mm(x: f64) -> String {
     let v = x * 1e3;
-    if v == 0.0 { "0".into() } else if v >= 0.1 { format!("{v:.3}") } else { format!("{v:.1e}") }
+    if v == 0.0 { "exact".into() } else if v >= 0.1 { format!("{v:.3}") } else { format!("{v:.1e}") }
+}
+
+/// An error in its unit with `digits` decimals: "exact" when it is 0.
+fn f_err(v: f64, digits: usize) -> String {
+    if v == 0.0 { "exact".into() } else { format!("{v:.digits$}") }
+}
+
+/// The most accurate run (RMS error, then max error, then faster) whose frame
+/// p95 fits in `budget_ms`; the reference competes like any run.
+pub fn best_within(rows: &[RunRow], budget_ms: f64) -> Option<&RunRow> {
+    rows.iter()
+        .filter_map(|r| {
+            let m = r.outcome.as_ref().ok()?;
+            let a = m.accuracy.as_ref()?;
+            (m.frame.p95 * 1e3 <= budget_ms).then_some((r, a.rms_error_m, a.max_error_m, m.frame.p95))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.2.total_cmp(&b.2)).then(a.3.total_cmp(&b.3)))
+        .map(|x| x.0)
 }
 
 /// Runs with accuracy on the error-vs-time Pareto front (frame p95 ascending,
@@ -172,7 +196,7 @@ pub fn pareto_front(rows: &[RunRow]) -> Vec<&RunRow> {
 fn settings_summary(r: &RunRow) -> String {
     let s = &r.settings;
     format!(
-        "{}, {} nodes/face ({}), {}, culling {}, {} h/frame, {:?}, ROI {}",
+        "{}, {} nodes/face ({}), {}, culling {}, {} h/frame, {:?}, ROI {}, {}, sub-steps {}",
         s.mesh.label(),
         s.nodes_per_face(),
         s.layout_label(),
@@ -180,7 +204,9 @@ fn settings_summary(r: &RunRow) -> String {
         if s.culling { "on" } else { "off" },
         s.speed,
         s.storage,
-        s.roi.label()
+        s.roi.label(),
+        contact_name(s.contact),
+        substep_label(s.substep_travel)
     )
 }
 
@@ -188,20 +214,164 @@ fn measure_of(r: &RunRow) -> Option<&RunMeasure> {
     r.outcome.as_ref().ok()
 }
 
-/// Writes `report.md`.
-pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, StudyError> {
-    let mut t = String::new();
+/// Marks the start of the report's summary (the README copies it verbatim).
+pub const SUMMARY_BEGIN: &str = "<!-- study summary: begin -->";
+/// Marks its end.
+pub const SUMMARY_END: &str = "<!-- study summary: end -->";
+
+/// The text between [`SUMMARY_BEGIN`] and [`SUMMARY_END`] (markers excluded), if both are there.
+pub fn summary_section(text: &str) -> Option<&str> {
+    let a = text.find(SUMMARY_BEGIN)? + SUMMARY_BEGIN.len();
+    let b = a + text[a..].find(SUMMARY_END)?;
+    Some(&text[a..b])
+}
+
+/// The header of every run table; the first [`ACCURACY_COLUMNS`] cells after the
+/// value are deterministic (the CI test compares them with a committed report).
+const RUN_TABLE_HEADER: &str = "| value | RMS err (mm) | max err (mm) | force err (%) | pressure err (mmHg) | missed | crossed | pen. (mm) | inverted | frame p50/p95 (ms) | collision p50/p95 (ms) | solve p50/p95 (ms) | build (s) | compliance (MB) | note |\n\
+|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
+/// Deterministic cells of a run-table row after the value.
+pub const ACCURACY_COLUMNS: usize = 8;
+
+/// Every run-table row of a report as (section, value, its accuracy cells):
+/// what the CI test compares between a fresh run and a committed report.
+pub fn accuracy_cells(report: &str) -> Vec<(String, String, Vec<String>)> {
+    let mut out = Vec::new();
+    let mut section = String::new();
+    let mut in_table = false;
+    for line in report.lines() {
+        if let Some(h) = line.strip_prefix("## ") {
+            section = h.trim().to_string();
+            in_table = false;
+        } else if line.starts_with("| value | RMS err") {
+            in_table = true;
+        } else if in_table && line.starts_with("| ") {
+            let cells: Vec<String> = line.trim_matches('|').split(" | ").map(|c| c.trim().to_string()).collect();
+            if cells.len() > ACCURACY_COLUMNS {
+                out.push((section.clone(), cells[0].clone(), cells[1..=ACCURACY_COLUMNS].to_vec()));
+            }
+        } else if !line.starts_with('|') {
+            in_table = false;
+        }
+    }
+    out
+}
+
+fn run_table_row(t: &mut String, r: &RunRow) {
+    let label = if r.is_reference { format!("**{}**", r.label) } else { r.label.clone() };
+    match &r.outcome {
+        Err(e) => {
+            let _ = writeln!(t, "| {label} | | | | | | | | | | | | | | not run: {} |", e.replace('|', "/"));
+        }
+        Ok(m) => {
+            let pp = |id| m.stage(id).map(|p: super::Percentiles| format!("{} / {}", f_ms(p.p50), f_ms(p.p95))).unwrap_or_else(|| "—".into());
+            let (rms, max, force, pressure, missed) = match &m.accuracy {
+                Some(a) if a.comparison == Comparison::Reference => ("—".into(), "—".into(), "—".into(), "—".into(), "—".into()),
+                Some(a) => (
+                    f_mm(a.rms_error_m),
+                    f_mm(a.max_error_m),
+                    f_err(a.force_error_pct, 2),
+                    f_err(a.pressure_error_mmhg, 2),
+                    format!("{}/{}", a.missed_contact_frames, a.reference_contact_frames),
+                ),
+                None => ("—".into(), "—".into(), "—".into(), "—".into(), "—".into()),
+            };
+            let mut note = m.no_accuracy.clone().unwrap_or_default();
+            if let Some(Comparison::Probes(n)) = m.accuracy.map(|a| a.comparison) {
+                note = format!("another mesh: {n} probes");
+            }
+            if m.compliance_cached {
+                note = format!("{note} compliance from cache").trim().to_string();
+            }
+            let _ = writeln!(
+                t,
+                "| {label} | {rms} | {max} | {force} | {pressure} | {missed} | {} | {} ({}) | {} | {} / {} | {} | {} | {:.2} | {:.1} | {note} |",
+                m.crossed_total,
+                m.penetrating_max,
+                if m.penetration_max_m == 0.0 { "0".into() } else { f_mm(m.penetration_max_m) },
+                m.inverted_max,
+                f_ms(m.frame.p50),
+                f_ms(m.frame.p95),
+                pp(StageId::Collision),
+                pp(StageId::Solve),
+                m.build_s,
+                m.compliance_bytes as f64 / 1e6,
+            );
+        }
+    }
+}
+
+/// The summary the README copies: the budget table and one line a knob.
+fn write_summary(t: &mut String, results: &StudyResults) {
+    let _ = writeln!(t, "{SUMMARY_BEGIN}");
     let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
-    let _ = writeln!(t, "# What accuracy costs in time — `fissure study --preset {}`\n", results.plan_name);
     let _ = writeln!(
         t,
-        "Scene: {}. {} runs in {:.0} s on {} logical cores ({} build). Times are wall-clock per frame stage \
-         (median p50 and 95th percentile p95 over the run's frames); the frame is the sum of the stages.\n",
-        results.scene_name,
+        "Every run against one reference (the finest setting of every knob at once: {}); errors of exactly 0 read \"exact\". \
+         `fissure study --preset {}`, {} runs, {:.0} s on {} logical cores ({} build).\n",
+        results.rows.iter().find(|r| r.is_reference).map(settings_summary).unwrap_or_else(|| "not run".into()),
+        results.plan_name,
         results.rows.len(),
         results.elapsed_s,
         cores,
         if cfg!(debug_assertions) { "debug" } else { "release" }
+    );
+    t.push_str("| frame budget (p95) | most accurate setting that fits | frame p50 / p95 (ms) | RMS / max err (mm) | force err (%) | pressure err (mmHg) |\n|---|---|---:|---:|---:|---:|\n");
+    for budget in BUDGETS_MS {
+        match best_within(&results.rows, budget) {
+            None => {
+                let _ = writeln!(t, "| {budget} ms | nothing fits | | | | |");
+            }
+            Some(r) => {
+                let (Some(m), Some(a)) = (measure_of(r), measure_of(r).and_then(|m| m.accuracy.as_ref())) else { continue };
+                let exact = a.comparison == Comparison::Reference;
+                let _ = writeln!(
+                    t,
+                    "| {budget} ms | {}: {} | {} / {} | {} | {} | {} |",
+                    r.knob.map_or("reference", |k| k.name()),
+                    r.label,
+                    f_ms(m.frame.p50),
+                    f_ms(m.frame.p95),
+                    if exact { "exact".into() } else { format!("{} / {}", f_mm(a.rms_error_m), f_mm(a.max_error_m)) },
+                    if exact { "exact".into() } else { f_err(a.force_error_pct, 1) },
+                    if exact { "exact".into() } else { f_err(a.pressure_error_mmhg, 2) },
+                );
+            }
+        }
+    }
+    t.push_str("\n| knob | setting: frame p95 (ms), RMS error (mm), vertices pulled through |\n|---|---|\n");
+    for knob in Knob::ALL {
+        let cells: Vec<String> = results
+            .rows
+            .iter()
+            .filter(|r| r.knob == Some(knob))
+            .map(|r| match &r.outcome {
+                Ok(m) => format!(
+                    "{}: {}, {}, {}",
+                    r.label,
+                    f_ms(m.frame.p95),
+                    m.accuracy.map(|a| f_mm(a.rms_error_m)).unwrap_or_else(|| "—".into()),
+                    m.crossed_total
+                ),
+                Err(_) => format!("{}: not run", r.label),
+            })
+            .collect();
+        if !cells.is_empty() {
+            let _ = writeln!(t, "| {} | {} |", knob.name(), cells.join("; "));
+        }
+    }
+    let _ = writeln!(t, "\n{SUMMARY_END}");
+}
+
+/// Writes `report.md`.
+pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, StudyError> {
+    let mut t = String::new();
+    let _ = writeln!(t, "# What accuracy costs in time — `fissure study --preset {}`\n", results.plan_name);
+    let _ = writeln!(
+        t,
+        "Scene: {}. Times are wall-clock per frame stage (median p50 and 95th percentile p95 over the run's frames); \
+         the frame is the sum of the stages; they vary from run to run, the errors do not (the simulation is deterministic).\n",
+        results.scene_name,
     );
     if results.interrupted {
         let _ = writeln!(t, "**Interrupted (Ctrl-C): the runs not done say so; their sweeps are incomplete.**\n");
@@ -216,34 +386,46 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         m.open_m * 1e3
     );
     t.push_str(
-        "Every sweep changes one knob from the base (150 grid nodes a face, BVH, \
-         culling on, 0.5 blade thicknesses a frame, f64 compliance, automatic region of interest) and compares each run \
-         with the sweep's *reference* (its most accurate value: densest nodes, smallest step, finest mesh, f64, \
-         reference backend, whole-surface compliance):\n\n\
+        "Every sweep changes one knob from the base (150 grid nodes a face, BVH, culling on, 0.5 blade thicknesses a frame, \
+         f64 compliance, automatic region of interest, unilateral contact, sub-steps of 1/8 blade thickness) and every run is compared with \
+         one *reference* run, the finest setting of every knob at once, which no swept run equals:\n\n\
          - **RMS / max error**: surface displacement vs the reference, mm, at the frames where both runs are at the same \
          point of the path; RMS over the vertices the reference moves (more than 1% of its peak), max over all. Same mesh: \
          vertex by vertex; across meshes: at the reference's moving surface vertices, where the other mesh's displacement is \
-         interpolated at the closest point of its rest surface (this includes the meshes' different fissure geometry).\n\
-         - **force err**: largest |F − F_ref| over those frames, % of the reference's peak force.\n\
+         interpolated barycentrically at the closest point of its rest surface (this includes the meshes' different fissure geometry).\n\
+         - **force err**: largest |F − F_ref| over those frames, % of the reference's peak force. **pressure err**: largest \
+         difference of the mean contact pressure (the highest over the spatulas), mmHg.\n\
          - **missed**: frames where the reference had contact and this run had none (tunnelling), of the reference's contact frames.\n\
-         - **crossed**: surface vertices pulled through a blade (summed over frames); **pen.**: most vertices inside a blade in one frame (deepest, mm).\n\n",
+         - **crossed**: surface vertices pulled through a blade (summed over frames); **pen.**: most vertices inside a blade in one \
+         frame (deepest, mm); **inverted**: most inverted elements after a frame.\n\
+         - An error of exactly 0 reads **exact**.\n\n",
     );
 
+    t.push_str("## Summary\n\n");
+    write_summary(&mut t, results);
+    t.push_str("\n![For a frame budget, the most accurate setting](budget.png)\n\n![One panel a knob](knobs.png)\n\n");
+
+    t.push_str("## Reference\n\n");
+    t.push_str(RUN_TABLE_HEADER);
+    for r in results.rows.iter().filter(|r| r.is_reference) {
+        run_table_row(&mut t, r);
+    }
+    t.push('\n');
+
     t.push_str("## For this much accuracy, this much time\n\n");
-    t.push_str("The error-vs-time Pareto front over all runs (each run's error against its own sweep's reference): ");
-    t.push_str("no run is both faster and more accurate than a row here.\n\n");
+    t.push_str("The error-vs-time Pareto front over all runs: no run is both faster and more accurate than a row here.\n\n");
     t.push_str("| frame p95 (ms) | frame p50 (ms) | RMS err (mm) | max err (mm) | force err (%) | setting |\n|---:|---:|---:|---:|---:|---|\n");
     for r in pareto_front(&results.rows) {
         let (Some(m), Some(a)) = (measure_of(r), measure_of(r).and_then(|m| m.accuracy.as_ref())) else { continue };
         let _ = writeln!(
             t,
-            "| {} | {} | {} | {} | {:.2} | {} = {} ({}) |",
+            "| {} | {} | {} | {} | {} | {} = {} ({}) |",
             f_ms(m.frame.p95),
             f_ms(m.frame.p50),
             f_mm(a.rms_error_m),
             f_mm(a.max_error_m),
-            a.force_error_pct,
-            r.knob.name(),
+            f_err(a.force_error_pct, 2),
+            r.knob.map_or("reference", |k| k.name()),
             r.label,
             settings_summary(r)
         );
@@ -252,8 +434,8 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
 
     t.push_str("## Beside the paper\n\n");
     t.push_str("| quantity | paper (Fukuhara et al. 2014) | ours |\n|---|---|---|\n");
-    // Our backend rows nearest to the paper's 500 nodes a face (culling on).
-    let backend_rows: Vec<&RunRow> = results.rows.iter().filter(|r| r.knob == Knob::Backend && r.settings.culling).collect();
+    // Our backend rows nearest to the paper's 500 nodes a face.
+    let backend_rows: Vec<&RunRow> = results.rows.iter().filter(|r| r.knob == Some(Knob::Backend)).collect();
     let nearest = backend_rows.iter().map(|r| r.settings.nodes_per_face()).min_by_key(|&n| (n as i64 - 500).abs());
     let ours_for = |backends: &[crate::scenario::CollisionBackend]| -> String {
         let mut parts = Vec::new();
@@ -288,79 +470,42 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         "| collision, 500 nodes a face, {PAPER_TRIANGLES} triangles, GPU (Fig. 13) | {PAPER_COLLISION_GPU_MS:.0} ms (GPU) | {} |",
         ours_for(&[B::Gpu])
     );
-    if let Some(base) = results.rows.iter().find(|r| r.knob == Knob::Storage && r.is_reference).or_else(|| results.rows.first())
+    // The base setting: the 150-node run of the node sweep (else any run).
+    let base = results.rows.iter().find(|r| r.knob == Some(Knob::SourceNodes) && r.settings.nodes_per_face() == 150).or_else(|| results.rows.first());
+    if let Some(base) = base
         && let Some(m) = measure_of(base)
     {
-        {
-            let _ = writeln!(
-                t,
-                "| one simulation loop | about {PAPER_LOOP_MS:.0} ms | {} ms p50, {} ms p95 ({}; {} nodes, {} triangles) |",
-                f_ms(m.frame.p50),
-                f_ms(m.frame.p95),
-                settings_summary(base),
-                m.mesh_nodes,
-                m.surface_triangles
-            );
-        }
+        let _ = writeln!(
+            t,
+            "| one simulation loop | about {PAPER_LOOP_MS:.0} ms | {} ms p50, {} ms p95 ({}; {} nodes, {} triangles) |",
+            f_ms(m.frame.p50),
+            f_ms(m.frame.p95),
+            settings_summary(base),
+            m.mesh_nodes,
+            m.surface_triangles
+        );
     }
     t.push_str("\n![Collision time vs source nodes per backend](fig13_collision_vs_nodes.png)\n\n");
 
-    for knob in [Knob::SourceNodes, Knob::Mesh, Knob::Speed, Knob::Backend, Knob::Storage, Knob::RegionOfInterest] {
-        let rows: Vec<&RunRow> = results.rows.iter().filter(|r| r.knob == knob).collect();
+    for knob in Knob::ALL {
+        let rows: Vec<&RunRow> = results.rows.iter().filter(|r| r.knob == Some(knob)).collect();
         if rows.is_empty() {
             continue;
         }
         let _ = writeln!(t, "## Sweep: {}\n", knob.name());
-        t.push_str(
-            "| value | collision p50/p95 (ms) | solve p50/p95 (ms) | frame p50/p95 (ms) | build (s) | compliance (MB) | RMS err (mm) | max err (mm) | force err (%) | missed | crossed | pen. (mm) | note |\n\
-             |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
-        );
+        t.push_str(RUN_TABLE_HEADER);
         for r in rows {
-            let label = if r.is_reference { format!("**{}** (ref)", r.label) } else { r.label.clone() };
-            match &r.outcome {
-                Err(e) => {
-                    let _ = writeln!(t, "| {label} | | | | | | | | | | | | not run: {} |", e.replace('|', "/"));
-                }
-                Ok(m) => {
-                    let pp = |id| m.stage(id).map(|p: super::Percentiles| format!("{} / {}", f_ms(p.p50), f_ms(p.p95))).unwrap_or_else(|| "—".into());
-                    let (rms, max, force, missed) = match &m.accuracy {
-                        Some(a) => (
-                            f_mm(a.rms_error_m),
-                            f_mm(a.max_error_m),
-                            format!("{:.2}", a.force_error_pct),
-                            format!("{}/{}", a.missed_contact_frames, a.reference_contact_frames),
-                        ),
-                        None => ("—".into(), "—".into(), "—".into(), "—".into()),
-                    };
-                    let mut note = m.no_accuracy.clone().unwrap_or_default();
-                    if let Some(Comparison::Probes(n)) = m.accuracy.map(|a| a.comparison) {
-                        note = format!("{n} probes");
-                    }
-                    if m.compliance_cached {
-                        note = format!("{note} compliance from cache").trim().to_string();
-                    }
-                    let _ = writeln!(
-                        t,
-                        "| {label} | {} | {} | {} / {} | {:.2} | {:.1} | {rms} | {max} | {force} | {missed} | {} | {} ({}) | {note} |",
-                        pp(StageId::Collision),
-                        pp(StageId::Solve),
-                        f_ms(m.frame.p50),
-                        f_ms(m.frame.p95),
-                        m.build_s,
-                        m.compliance_bytes as f64 / 1e6,
-                        m.crossed_total,
-                        m.penetrating_max,
-                        f_mm(m.penetration_max_m),
-                    );
-                }
-            }
+            run_table_row(&mut t, r);
         }
-        if knob == Knob::Speed {
-            t.push_str("\n![Error and tunnelling vs speed](speed_vs_error.png)\n");
+        if knob == Knob::Contact {
+            t.push_str("\n![Culling under both contact models](speed_vs_error.png)\n");
         }
         t.push('\n');
     }
-    t.push_str("Files: `results.csv` (every number above, one row a run), `pareto.{png,svg}`, `fig13_collision_vs_nodes.{png,svg}`, `speed_vs_error.{png,svg}`.\n");
+    t.push_str(
+        "Files: `results.csv` (every number above, one row a run), `pareto`, `knobs`, `budget`, `fig13_collision_vs_nodes`, \
+         `speed_vs_error` (each `.png` and `.svg`).\n",
+    );
     crate::fsio::write_atomic(path, t.as_bytes()).map_err(|e| io(path)(e.source))?;
     Ok(path.to_path_buf())
 }
@@ -373,7 +518,7 @@ mod tests {
     #[test]
     fn a_failed_row_has_as_many_fields_as_the_header() {
         let r = RunRow {
-            knob: Knob::Backend,
+            knob: Some(Knob::Backend),
             label: "gpu 150, culling on".into(),
             value: 150.0,
             settings: base_settings(MeshChoice::Scene),
@@ -384,5 +529,16 @@ mod tests {
         assert_eq!(separators(&line), separators(CSV_HEADER), "{line}");
         assert!(line.starts_with("backend,\"gpu 150, culling on\",150,false,"), "{line}");
         assert!(line.contains("failed: no adapter"));
+    }
+
+    #[test]
+    fn the_summary_and_the_accuracy_cells_are_found_again() {
+        let report = format!("# r\n\n## Summary\n\n{SUMMARY_BEGIN}\nbudget table\n{SUMMARY_END}\n\n## Sweep: speed\n\n{RUN_TABLE_HEADER}| 0.5 h/frame | 0.012 | 0.300 | 1.50 | exact | 0/10 | 0 | 0 (0) | 0 | 0.2 / 0.3 | 0.1 / 0.2 | 0.1 / 0.1 | 0.10 | 12.0 | |\n\ntext\n");
+        assert_eq!(summary_section(&report), Some("\nbudget table\n"));
+        let cells = accuracy_cells(&report);
+        assert_eq!(cells.len(), 1, "{cells:?}");
+        assert_eq!(cells[0].0, "Sweep: speed");
+        assert_eq!(cells[0].1, "0.5 h/frame");
+        assert_eq!(cells[0].2, ["0.012", "0.300", "1.50", "exact", "0/10", "0", "0 (0)", "0"]);
     }
 }

@@ -1,39 +1,85 @@
 //! The study's plots, each as PNG and SVG (plotters; fonts from fontconfig).
 //!
 //! In: [`StudyResults`]. Out: `pareto` (RMS error vs frame p95 time, every run,
-//! the Pareto front joined), `fig13_collision_vs_nodes` (collision time vs
-//! source nodes a face per backend, the paper's Fig. 13 points beside), and
-//! `speed_vs_error` (vertices pulled through the blade and RMS error vs speed
-//! in thicknesses a frame, culling on and off). Stays true: axes carry units;
-//! log axes where values span decades; an error of exactly 0 is drawn at the
-//! axis floor and the axis says so.
+//! the Pareto front joined), `knobs` (one small panel a knob, each point
+//! labelled with its setting), `budget` (for frame budgets of 1, 4 and 16 ms,
+//! the most accurate run that fits), `fig13_collision_vs_nodes` (collision
+//! time vs source nodes a face per backend, the paper's Fig. 13 points beside)
+//! and `speed_vs_error` (vertices pulled through a blade and RMS error vs speed
+//! in thicknesses a frame, culling on and off under both contact models).
+//! Stays true: axes carry units; log axes where values span decades; an error
+//! of exactly 0 is drawn on a separate band labelled "exact" below the axis'
+//! smallest measured error, never at an invented number.
 
 use std::path::{Path, PathBuf};
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::output::{PAPER_COLLISION_CPU_MS, PAPER_COLLISION_GPU_MS, pareto_front};
-use super::plan::backend_name;
+use super::output::{BUDGETS_MS, PAPER_COLLISION_CPU_MS, PAPER_COLLISION_GPU_MS, best_within, pareto_front};
+use super::plan::{backend_name, contact_name};
 use super::{Knob, RunRow, StudyError, StudyResults};
 use crate::scenario::CollisionBackend;
 use crate::sim::StageId;
 
 /// Pixel size of every plot.
 pub const SIZE: (u32, u32) = (1100, 720);
-/// Errors of exactly 0 mm are drawn at this floor on log axes, mm.
-pub const ERROR_FLOOR_MM: f64 = 1e-6;
+/// Pixel size of the panel-per-knob figure.
+pub const KNOBS_SIZE: (u32, u32) = (1400, 1500);
 
 const FONT: &str = "sans-serif";
 
-fn knob_color(k: Knob) -> RGBColor {
+fn knob_color(k: Option<Knob>) -> RGBColor {
     match k {
-        Knob::SourceNodes => RGBColor(31, 119, 180),
-        Knob::Mesh => RGBColor(255, 127, 14),
-        Knob::Speed => RGBColor(44, 160, 44),
-        Knob::Backend => RGBColor(214, 39, 40),
-        Knob::Storage => RGBColor(148, 103, 189),
-        Knob::RegionOfInterest => RGBColor(140, 86, 75),
+        None => BLACK,
+        Some(Knob::SourceNodes) => RGBColor(31, 119, 180),
+        Some(Knob::Mesh) => RGBColor(255, 127, 14),
+        Some(Knob::Speed) => RGBColor(44, 160, 44),
+        Some(Knob::Contact) => RGBColor(227, 119, 194),
+        Some(Knob::Substeps) => RGBColor(23, 190, 207),
+        Some(Knob::Backend) => RGBColor(214, 39, 40),
+        Some(Knob::Storage) => RGBColor(148, 103, 189),
+        Some(Knob::RegionOfInterest) => RGBColor(140, 86, 75),
+    }
+}
+
+/// A log error axis with an "exact" band: measured errors span `lo..hi` (mm);
+/// an error of 0 is drawn at `exact`, a decade-spaced step below `lo`.
+#[derive(Debug, Clone, Copy)]
+struct ErrorAxis {
+    exact: f64,
+    lo: f64,
+    hi: f64,
+    /// Some error is exactly 0: the band is drawn.
+    has_exact: bool,
+}
+
+impl ErrorAxis {
+    fn of(errors: impl Iterator<Item = f64>) -> Self {
+        let errors: Vec<f64> = errors.collect();
+        let (lo, hi) = log_range(errors.iter().copied(), (1e-3, 10.0));
+        Self { exact: lo / 10.0, lo, hi, has_exact: errors.contains(&0.0) }
+    }
+    fn range(&self) -> std::ops::Range<f64> {
+        if self.has_exact { self.exact / 2.0..self.hi } else { self.lo..self.hi }
+    }
+    /// Where an error (mm) is drawn.
+    fn y(&self, e: f64) -> f64 {
+        if e > 0.0 { e.max(self.lo) } else { self.exact }
+    }
+    /// Tick text: "exact" on the band, the log ticks above it, nothing between.
+    fn tick(&self, v: &f64) -> String {
+        if (v / self.exact - 1.0).abs() < 1e-9 {
+            "exact".into()
+        } else if *v < self.lo {
+            String::new()
+        } else {
+            log_tick(v)
+        }
+    }
+    /// Height of the dashed line between the band and the measured errors.
+    fn separator(&self) -> f64 {
+        (self.exact * self.lo).sqrt()
     }
 }
 
@@ -70,43 +116,64 @@ fn err<E: std::fmt::Display>(e: E) -> String {
     e.to_string()
 }
 
-/// (frame p95 ms, RMS error mm floored) of a run with accuracy.
-fn pareto_point(r: &RunRow) -> Option<(f64, f64)> {
+/// (frame p95 ms, RMS error mm) of a run with accuracy.
+fn error_point(r: &RunRow) -> Option<(f64, f64)> {
     let m = r.outcome.as_ref().ok()?;
     let a = m.accuracy.as_ref()?;
-    Some((m.frame.p95 * 1e3, (a.rms_error_m * 1e3).max(ERROR_FLOOR_MM)))
+    Some((m.frame.p95 * 1e3, a.rms_error_m * 1e3))
+}
+
+/// The dashed line over the "exact" band and its label, when the axis has the band.
+fn exact_band<DB: DrawingBackend>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<LogCoord<f64>, LogCoord<f64>>>,
+    axis: &ErrorAxis,
+    x0: f64,
+    x1: f64,
+) -> Res {
+    if !axis.has_exact {
+        return Ok(());
+    }
+    let y = axis.separator();
+    chart.draw_series(DashedLineSeries::new(vec![(x0, y), (x1, y)], 6, 4, RGBColor(150, 150, 150).into())).map_err(err)?;
+    chart.draw_series(std::iter::once(Text::new("exact (0)", (x0 * 1.05, y), (FONT, 13).into_font().color(&RGBColor(100, 100, 100))))).map_err(err)?;
+    Ok(())
+}
+
+fn knob_label(k: Option<Knob>) -> String {
+    k.map_or_else(|| "the reference (finest of every knob)".into(), |k| format!("sweep: {}", k.name()))
 }
 
 fn draw_pareto<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &StudyResults) -> Res {
     root.fill(&WHITE).map_err(err)?;
-    let points: Vec<(Knob, (f64, f64))> = results.rows.iter().filter_map(|r| pareto_point(r).map(|p| (r.knob, p))).collect();
+    let points: Vec<(Option<Knob>, (f64, f64))> = results.rows.iter().filter_map(|r| error_point(r).map(|p| (r.knob, p))).collect();
     let (x0, x1) = log_range(points.iter().map(|p| p.1.0), (0.1, 100.0));
-    let (_, y1) = log_range(points.iter().map(|p| p.1.1), (ERROR_FLOOR_MM, 10.0));
+    let axis = ErrorAxis::of(points.iter().map(|p| p.1.1));
     let mut chart = ChartBuilder::on(root)
-        .caption("Accuracy vs time: every run, Pareto front joined", (FONT, 26))
+        .caption("Accuracy vs time: every run against the one reference, Pareto front joined", (FONT, 24))
         .margin(20)
         .x_label_area_size(60)
         .y_label_area_size(90)
-        .build_cartesian_2d((x0..x1).log_scale(), (ERROR_FLOOR_MM / 2.0..y1.max(ERROR_FLOOR_MM * 10.0)).log_scale())
+        .build_cartesian_2d((x0..x1).log_scale(), axis.range().log_scale())
         .map_err(err)?;
     chart
         .configure_mesh()
         .x_label_formatter(&log_tick)
-        .y_label_formatter(&log_tick)
+        .y_label_formatter(&|v| axis.tick(v))
         .x_desc("frame time, 95th percentile (ms)")
-        .y_desc(format!("RMS surface displacement error (mm; 0 drawn at {ERROR_FLOOR_MM:.0e})"))
+        .y_desc("RMS surface displacement error (mm)")
         .axis_desc_style((FONT, 18))
         .label_style((FONT, 15))
         .draw()
         .map_err(err)?;
-    let front: Vec<(f64, f64)> = pareto_front(&results.rows).into_iter().filter_map(pareto_point).collect();
+    exact_band(&mut chart, &axis, x0, x1)?;
+    let front: Vec<(f64, f64)> = pareto_front(&results.rows).into_iter().filter_map(error_point).map(|(x, e)| (x, axis.y(e))).collect();
     chart
         .draw_series(LineSeries::new(front, BLACK.stroke_width(2)))
         .map_err(err)?
         .label("Pareto front")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
-    for knob in [Knob::SourceNodes, Knob::Mesh, Knob::Speed, Knob::Backend, Knob::Storage, Knob::RegionOfInterest] {
-        let pts: Vec<(f64, f64)> = points.iter().filter(|p| p.0 == knob).map(|p| p.1).collect();
+    for knob in std::iter::once(None).chain(Knob::ALL.into_iter().map(Some)) {
+        let pts: Vec<(f64, f64)> = points.iter().filter(|p| p.0 == knob).map(|p| (p.1.0, axis.y(p.1.1))).collect();
         if pts.is_empty() {
             continue;
         }
@@ -114,17 +181,105 @@ fn draw_pareto<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Stud
         chart
             .draw_series(pts.into_iter().map(|p| Circle::new(p, 6, c.filled())))
             .map_err(err)?
-            .label(format!("sweep: {}", knob.name()))
+            .label(knob_label(knob))
             .legend(move |(x, y)| Circle::new((x + 10, y), 6, c.filled()));
     }
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::MiddleLeft)
-        .label_font((FONT, 16))
+        .position(SeriesLabelPosition::UpperRight)
+        .label_font((FONT, 15))
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .draw()
         .map_err(err)?;
+    root.present().map_err(err)
+}
+
+/// One small panel a knob: RMS error vs frame p95, each point labelled.
+fn draw_knobs<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &StudyResults) -> Res {
+    root.fill(&WHITE).map_err(err)?;
+    let knobs: Vec<Knob> = Knob::ALL.into_iter().filter(|k| results.rows.iter().any(|r| r.knob == Some(*k) && error_point(r).is_some())).collect();
+    let root = root.titled("What each knob buys: error against the reference vs frame time (one panel a knob)", (FONT, 26)).map_err(err)?;
+    let columns = 2;
+    let rows = knobs.len().div_ceil(columns).max(1);
+    let panels = root.split_evenly((rows, columns));
+    for (knob, area) in knobs.iter().zip(&panels) {
+        let points: Vec<(String, f64, f64)> =
+            results.rows.iter().filter(|r| r.knob == Some(*knob)).filter_map(|r| error_point(r).map(|(x, e)| (r.label.clone(), x, e))).collect();
+        let (x0, x1) = log_range(points.iter().map(|p| p.1), (0.1, 100.0));
+        let axis = ErrorAxis::of(points.iter().map(|p| p.2));
+        let mut chart = ChartBuilder::on(area)
+            .caption(format!("{} ({} runs)", knob.name(), points.len()), (FONT, 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(65)
+            .build_cartesian_2d((x0..x1 * 3.0).log_scale(), axis.range().log_scale())
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_label_formatter(&log_tick)
+            .y_label_formatter(&|v| axis.tick(v))
+            .x_desc("frame p95 (ms)")
+            .y_desc("RMS error (mm)")
+            .axis_desc_style((FONT, 14))
+            .label_style((FONT, 12))
+            .draw()
+            .map_err(err)?;
+        exact_band(&mut chart, &axis, x0, x1 * 3.0)?;
+        let c = knob_color(Some(*knob));
+        for (label, x, e) in &points {
+            let p = (*x, axis.y(*e));
+            chart.draw_series(std::iter::once(Circle::new(p, 5, c.filled()))).map_err(err)?;
+            chart
+                .draw_series(std::iter::once(Text::new(label.clone(), p, (FONT, 12).into_font().color(&BLACK))))
+                .map_err(err)?;
+        }
+    }
+    root.present().map_err(err)
+}
+
+/// For each frame budget, the most accurate run within it: one bar a budget.
+fn draw_budget<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &StudyResults) -> Res {
+    root.fill(&WHITE).map_err(err)?;
+    let best: Vec<(f64, Option<&RunRow>)> = BUDGETS_MS.iter().map(|&b| (b, best_within(&results.rows, b))).collect();
+    let axis = ErrorAxis::of(best.iter().filter_map(|(_, r)| r.and_then(|r| error_point(r)).map(|p| p.1)));
+    let mut chart = ChartBuilder::on(root)
+        .caption("For a frame budget, the most accurate setting that fits (frame p95 within the budget)", (FONT, 22))
+        .margin(20)
+        .x_label_area_size(60)
+        .y_label_area_size(110)
+        .build_cartesian_2d(axis.range().log_scale(), (0..BUDGETS_MS.len() as i32).into_segmented())
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .disable_y_mesh()
+        .x_label_formatter(&|v| axis.tick(v))
+        .y_label_formatter(&|s: &SegmentValue<i32>| match s {
+            SegmentValue::CenterOf(k) => BUDGETS_MS.get(*k as usize).map(|b| format!("{b} ms")).unwrap_or_default(),
+            _ => String::new(),
+        })
+        .x_desc("RMS surface displacement error against the reference (mm; shorter is better)")
+        .y_desc("frame budget")
+        .axis_desc_style((FONT, 18))
+        .label_style((FONT, 16))
+        .draw()
+        .map_err(err)?;
+    for (k, (budget, row)) in best.iter().enumerate() {
+        let k = k as i32;
+        let Some(r) = row else {
+            chart
+                .draw_series(std::iter::once(Text::new(format!("nothing fits in {budget} ms"), (axis.lo, SegmentValue::CenterOf(k)), (FONT, 16))))
+                .map_err(err)?;
+            continue;
+        };
+        let Some((p95, e)) = error_point(r) else { continue };
+        let c = knob_color(r.knob);
+        chart
+            .draw_series(std::iter::once(Rectangle::new([(axis.exact / 2.0, SegmentValue::Exact(k)), (axis.y(e), SegmentValue::Exact(k + 1))], c.mix(0.6).filled())))
+            .map_err(err)?;
+        let text = format!("{}: {} (p95 {:.2} ms)", r.knob.map_or("reference", |k| k.name()), r.label, p95);
+        chart.draw_series(std::iter::once(Text::new(text, (axis.exact / 1.8, SegmentValue::CenterOf(k)), (FONT, 16)))).map_err(err)?;
+    }
     root.present().map_err(err)
 }
 
@@ -133,7 +288,7 @@ fn draw_fig13<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
     let rows: Vec<(CollisionBackend, f64, f64)> = results
         .rows
         .iter()
-        .filter(|r| r.knob == Knob::Backend && r.settings.culling)
+        .filter(|r| r.knob == Some(Knob::Backend))
         .filter_map(|r| {
             let p = r.outcome.as_ref().ok()?.stage(StageId::Collision)?;
             Some((r.settings.backend, r.settings.nodes_per_face() as f64, p.p50 * 1e3))
@@ -141,7 +296,7 @@ fn draw_fig13<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
         .collect();
     let (x0, x1) = log_range(rows.iter().map(|r| r.1).chain([500.0]), (5.0, 5000.0));
     let (y0, y1) = log_range(rows.iter().map(|r| r.2).chain([PAPER_COLLISION_GPU_MS, PAPER_COLLISION_CPU_MS]), (0.01, 5000.0));
-    let triangles = results.rows.iter().filter(|r| r.knob == Knob::Backend).find_map(|r| r.outcome.as_ref().ok().map(|m| m.surface_triangles));
+    let triangles = results.rows.iter().filter(|r| r.knob == Some(Knob::Backend)).find_map(|r| r.outcome.as_ref().ok().map(|m| m.surface_triangles));
     let mut chart = ChartBuilder::on(root)
         .caption(
             format!("Collision time vs source nodes (our Fig. 13; {} surface triangles)", triangles.map(|t| t.to_string()).unwrap_or("?".into())),
@@ -194,26 +349,35 @@ fn draw_fig13<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
     root.present().map_err(err)
 }
 
+/// The contact sweep: tunnelling and error vs speed, culling on/off under both contact models.
 fn draw_speed<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &StudyResults) -> Res {
+    use crate::scenario::SpatulaContact as C;
     root.fill(&WHITE).map_err(err)?;
-    let rows: Vec<(bool, f64, f64, f64)> = results
+    // (contact, culling, speed, crossed, RMS mm)
+    let rows: Vec<(C, bool, f64, f64, f64)> = results
         .rows
         .iter()
-        .filter(|r| r.knob == Knob::Speed)
+        .filter(|r| r.knob == Some(Knob::Contact))
         .filter_map(|r| {
             let m = r.outcome.as_ref().ok()?;
             let e = m.accuracy.as_ref().map(|a| a.rms_error_m * 1e3).unwrap_or(0.0);
-            Some((r.settings.culling, r.value, m.crossed_total as f64, e.max(ERROR_FLOOR_MM)))
+            Some((r.settings.contact, r.settings.culling, r.value, m.crossed_total as f64, e))
         })
         .collect();
-    let (x0, x1) = log_range(rows.iter().map(|r| r.1), (0.1, 10.0));
-    let crossed_max = rows.iter().map(|r| r.2).fold(0.0, f64::max).max(1.0);
-    let (_, e1) = log_range(rows.iter().map(|r| r.3), (ERROR_FLOOR_MM, 10.0));
+    let (x0, x1) = log_range(rows.iter().map(|r| r.2), (0.1, 10.0));
+    let crossed_max = rows.iter().map(|r| r.3).fold(0.0, f64::max).max(1.0);
+    let axis = ErrorAxis::of(rows.iter().map(|r| r.4));
     let (top, bottom) = root.split_vertically(SIZE.1 / 2);
-    let series = [(true, "culling on", RGBColor(31, 119, 180)), (false, "culling off", RGBColor(214, 39, 40))];
+    let series = [
+        (C::Bilateral, true, RGBColor(31, 119, 180), 0),
+        (C::Bilateral, false, RGBColor(214, 39, 40), 0),
+        (C::Unilateral, true, RGBColor(44, 160, 44), 1),
+        (C::Unilateral, false, RGBColor(255, 127, 14), 1),
+    ];
+    let name = |c: C, culling: bool| format!("{}, culling {}", contact_name(c), if culling { "on" } else { "off" });
     {
         let mut chart = ChartBuilder::on(&top)
-            .caption("Tunnelling and error vs spatula speed", (FONT, 26))
+            .caption("Culling under both contact models: tunnelling and error vs spatula speed", (FONT, 24))
             .margin(15)
             .x_label_area_size(45)
             .y_label_area_size(90)
@@ -228,14 +392,18 @@ fn draw_speed<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
             .label_style((FONT, 14))
             .draw()
             .map_err(err)?;
-        for (culling, name, c) in series {
-            let pts: Vec<(f64, f64)> = rows.iter().filter(|r| r.0 == culling).map(|r| (r.1, r.2)).collect();
+        for (contact, culling, c, dash) in series {
+            let pts: Vec<(f64, f64)> = rows.iter().filter(|r| r.0 == contact && r.1 == culling).map(|r| (r.2, r.3)).collect();
+            if pts.is_empty() {
+                continue;
+            }
             chart.draw_series(pts.iter().map(|&p| Circle::new(p, 5, c.filled()))).map_err(err)?;
+            let style = c.stroke_width(2 + dash);
             chart
-                .draw_series(LineSeries::new(pts, c.stroke_width(2)))
+                .draw_series(LineSeries::new(pts, style))
                 .map_err(err)?
-                .label(name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+                .label(name(contact, culling))
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
         }
         chart
             .configure_series_labels()
@@ -250,22 +418,22 @@ fn draw_speed<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
         .margin(15)
         .x_label_area_size(55)
         .y_label_area_size(90)
-        .build_cartesian_2d((x0..x1).log_scale(), (ERROR_FLOOR_MM / 2.0..e1.max(ERROR_FLOOR_MM * 10.0)).log_scale())
+        .build_cartesian_2d((x0..x1).log_scale(), axis.range().log_scale())
         .map_err(err)?;
     chart
         .configure_mesh()
         .x_label_formatter(&log_tick)
-        .y_label_formatter(&log_tick)
+        .y_label_formatter(&|v| axis.tick(v))
         .x_desc("speed (blade thicknesses a frame)")
-        .y_desc(format!("RMS displacement error (mm; 0 drawn at {ERROR_FLOOR_MM:.0e})"))
+        .y_desc("RMS displacement error (mm)")
         .axis_desc_style((FONT, 17))
         .label_style((FONT, 14))
         .draw()
         .map_err(err)?;
-    for (culling, _, c) in series {
-        let pts: Vec<(f64, f64)> = rows.iter().filter(|r| r.0 == culling).map(|r| (r.1, r.3)).collect();
+    for (contact, culling, c, dash) in series {
+        let pts: Vec<(f64, f64)> = rows.iter().filter(|r| r.0 == contact && r.1 == culling).map(|r| (r.2, axis.y(r.4))).collect();
         chart.draw_series(pts.iter().map(|&p| Circle::new(p, 5, c.filled()))).map_err(err)?;
-        chart.draw_series(LineSeries::new(pts, c.stroke_width(2))).map_err(err)?;
+        chart.draw_series(LineSeries::new(pts, c.stroke_width(2 + dash))).map_err(err)?;
     }
     root.present().map_err(err)
 }
@@ -273,13 +441,26 @@ fn draw_speed<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
 #[derive(Debug, Clone, Copy)]
 enum Plot {
     Pareto,
+    Knobs,
+    Budget,
     Fig13,
     Speed,
+}
+
+impl Plot {
+    fn size(self) -> (u32, u32) {
+        match self {
+            Plot::Knobs => KNOBS_SIZE,
+            _ => SIZE,
+        }
+    }
 }
 
 fn draw<DB: DrawingBackend>(plot: Plot, root: &DrawingArea<DB, Shift>, results: &StudyResults) -> Res {
     match plot {
         Plot::Pareto => draw_pareto(root, results),
+        Plot::Knobs => draw_knobs(root, results),
+        Plot::Budget => draw_budget(root, results),
         Plot::Fig13 => draw_fig13(root, results),
         Plot::Speed => draw_speed(root, results),
     }
@@ -288,11 +469,12 @@ fn draw<DB: DrawingBackend>(plot: Plot, root: &DrawingArea<DB, Shift>, results: 
 fn both(out_dir: &Path, stem: &str, results: &StudyResults, plot: Plot) -> Result<Vec<PathBuf>, StudyError> {
     let png = out_dir.join(format!("{stem}.png"));
     let svg = out_dir.join(format!("{stem}.svg"));
+    let size = plot.size();
     // Drawn in memory, then each file written whole (never a partial plot on a full disk).
-    let mut rgb = vec![0u8; SIZE.0 as usize * SIZE.1 as usize * 3];
-    let drawn = draw(plot, &BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area(), results);
+    let mut rgb = vec![0u8; size.0 as usize * size.1 as usize * 3];
+    let drawn = draw(plot, &BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area(), results);
     drawn.map_err(|message| StudyError::Plot { path: png.clone(), message })?;
-    let image = image::RgbImage::from_raw(SIZE.0, SIZE.1, rgb)
+    let image = image::RgbImage::from_raw(size.0, size.1, rgb)
         .ok_or_else(|| StudyError::Plot { path: png.clone(), message: "the bitmap has the wrong size".into() })?;
     let mut encoded = std::io::Cursor::new(Vec::new());
     image
@@ -300,7 +482,7 @@ fn both(out_dir: &Path, stem: &str, results: &StudyResults, plot: Plot) -> Resul
         .map_err(|e| StudyError::Plot { path: png.clone(), message: e.to_string() })?;
     crate::fsio::write_atomic(&png, encoded.get_ref()).map_err(|e| StudyError::Output { path: e.path, source: e.source })?;
     let mut text = String::new();
-    let drawn = draw(plot, &SVGBackend::with_string(&mut text, SIZE).into_drawing_area(), results);
+    let drawn = draw(plot, &SVGBackend::with_string(&mut text, size).into_drawing_area(), results);
     drawn.map_err(|message| StudyError::Plot { path: svg.clone(), message })?;
     crate::fsio::write_atomic(&svg, text.as_bytes()).map_err(|e| StudyError::Output { path: e.path, source: e.source })?;
     Ok(vec![png, svg])
@@ -308,8 +490,9 @@ fn both(out_dir: &Path, stem: &str, results: &StudyResults, plot: Plot) -> Resul
 
 /// Draws every plot into `out_dir`; returns the files.
 pub fn draw_all(results: &StudyResults, out_dir: &Path) -> Result<Vec<PathBuf>, StudyError> {
-    let mut files = both(out_dir, "pareto", results, Plot::Pareto)?;
-    files.extend(both(out_dir, "fig13_collision_vs_nodes", results, Plot::Fig13)?);
-    files.extend(both(out_dir, "speed_vs_error", results, Plot::Speed)?);
+    let mut files = Vec::new();
+    for (stem, plot) in [("pareto", Plot::Pareto), ("knobs", Plot::Knobs), ("budget", Plot::Budget), ("fig13_collision_vs_nodes", Plot::Fig13), ("speed_vs_error", Plot::Speed)] {
+        files.extend(both(out_dir, stem, results, plot)?);
+    }
     Ok(files)
 }

@@ -46,6 +46,10 @@ pub struct FrameRecord {
     pub crossed: u32,
     pub penetrating: u32,
     pub max_penetration_m: f64,
+    /// Highest mean contact pressure over the spatulas, mmHg.
+    pub pressure_mmhg: f64,
+    /// Inverted elements after the frame.
+    pub inverted: u32,
 }
 
 /// A finished run.
@@ -171,6 +175,7 @@ pub fn configure(base: &Scenario, settings: &Settings, motion: &Motion, mesh: &T
     }
     effects.insert(Effect::Collision);
     effects.insert(Effect::ForceOutput);
+    effects.insert(Effect::ContactPressure);
     if settings.culling {
         effects.insert(Effect::Culling);
     }
@@ -185,11 +190,8 @@ pub fn configure(base: &Scenario, settings: &Settings, motion: &Motion, mesh: &T
         }
     };
     s.solver.cache_dir = cache_dir.map(PathBuf::from);
-    // The study's speed and culling sweeps measure the paper's one step a
-    // frame: with sub-steps (the scenario default since issue 19) a fast blade
-    // is split and those sweeps compare identical runs. Sub-steps as a knob of
-    // their own belong to the study's rework (issue 18).
-    s.solver.substep_travel = None;
+    s.solver.spatula_contact = settings.contact;
+    s.solver.substep_travel = settings.substep_travel;
     s
 }
 
@@ -236,6 +238,8 @@ pub fn execute(
             crossed: r.crossed_vertices,
             penetrating: r.penetrating_vertices,
             max_penetration_m: r.max_penetration_m,
+            pressure_mmhg: r.spatulas.iter().map(|s| s.mean_pressure_pa / crate::fem::PA_PER_MMHG).fold(0.0, f64::max),
+            inverted: r.inverted_elements,
         });
         if keep_displacements {
             trace.displacements.push(state.surface_displacement.clone());

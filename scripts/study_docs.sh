@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Regenerates the committed study reports and the README's study section:
+#   docs/study/quick/  `fissure study --preset quick` (report.md and its plots; the README copies its summary)
+#   docs/study/ci/     `fissure study --preset ci` (the test suite re-runs it and compares its accuracy columns)
+# Release build; takes several minutes on 2 cores. Run it when a change moves the study's numbers
+# (tests/study_quick.rs says so) and commit the result.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+cargo build --release --quiet
+for preset in quick ci; do
+    out="$(mktemp -d)"
+    target/release/fissure study --preset "$preset" --out "$out"
+    mkdir -p "docs/study/$preset"
+    cp "$out/report.md" "$out"/*.png "docs/study/$preset/"
+    rm -rf "$out"
+done
+# The README's section between the summary markers becomes the quick report's.
+begin='<!-- study summary: begin -->'
+end='<!-- study summary: end -->'
+awk -v b="$begin" -v e="$end" -v src="docs/study/quick/report.md" '
+    BEGIN { while ((getline line < src) > 0) { if (line == b) on = 1; else if (line == e) on = 0; else if (on) summary = summary line "\n" } }
+    $0 == b { print; printf "%s", summary; skip = 1; next }
+    $0 == e { skip = 0 }
+    !skip { print }
+' README.md > README.md.tmp
+mv README.md.tmp README.md
+echo "docs/study/quick, docs/study/ci and README.md's study section regenerated"
