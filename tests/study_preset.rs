@@ -19,7 +19,7 @@ fn preset_study_runs_and_every_phantom_row_succeeds() {
     println!("{} runs in {:.1} s; outputs in {}", results.rows.len(), results.elapsed_s, out_dir.display());
     for r in &results.rows {
         if let Err(e) = &r.outcome {
-            println!("not run: {} {}: {e}", r.knob.name(), r.label);
+            println!("not run: {} {}: {e}", r.knob.map_or("reference", |k| k.name()), r.label);
             assert!(matches!(r.settings.backend, fissure::scenario::CollisionBackend::Gpu), "only GPU rows may fail (no adapter): {e}");
         }
     }
