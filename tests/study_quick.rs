@@ -59,12 +59,12 @@ fn reduced_study_writes_its_outputs_and_accuracy_behaves() {
     }
 
     // Accuracy: one reference, exact against itself, and no other run equals it.
-    let references: Vec<&RunRow> = results.rows.iter().filter(|r| r.is_reference).collect();
+    let references: Vec<&RunRow> = results.rows.iter().filter(|r| r.is_reference()).collect();
     assert_eq!(references.len(), 1, "one reference for the whole study");
     let a = references[0].outcome.as_ref().ok().and_then(|m| m.accuracy).expect("reference has accuracy");
     assert_eq!((a.rms_error_m, a.max_error_m, a.force_error_pct, a.pressure_error_mmhg), (0.0, 0.0, 0.0, 0.0));
     assert!(a.frames_compared > 0);
-    for r in results.rows.iter().filter(|r| !r.is_reference) {
+    for r in results.rows.iter().filter(|r| !r.is_reference()) {
         let a = r.outcome.as_ref().ok().and_then(|m| m.accuracy).expect("every run is compared");
         assert!(a.rms_error_m > 0.0, "{} {} is not the reference but has error 0", r.knob.map_or("", |k| k.name()), r.label);
     }

@@ -13,8 +13,7 @@
 //! Which vertices, per spatula (at most one row a vertex and spatula; the first
 //! rule that gives one wins):
 //! 1. Over the footprint: start position, in the new pose's blade frame, over the
-//!    blade's footprint (grown by [`FOOTPRINT_MARGIN_THICKNESS`] of the blade's
-//!    thickness) and within
+//!    blade's footprint and within
 //!    `thickness / 2 + BARRIER_BAND_M + travel` of its mid-plane, `travel` the
 //!    largest move of a footprint corner this frame (a fast blade gets a wider
 //!    band). Face: the side of the mid-plane the vertex was on at the PREVIOUS
@@ -60,14 +59,6 @@ use crate::math::Vec3;
 
 /// How far beyond a face (m) a vertex still gets a barrier row, besides the blade's travel.
 pub const BARRIER_BAND_M: f64 = 2.0e-3;
-/// Growth of the blade footprint within which vertices get rule-1 barrier rows,
-/// as a fraction of the blade's thickness. 0: a vertex at the tip of a turning
-/// blade can slip from one face around the tip into the blade (u_shape scene,
-/// frame 222: 0.38 mm inside for one frame; the integrity verdict flags it).
-/// 0.5 fixes that case but lets barrier rows take over the rays' contacts on
-/// the study scene (no ray-claimed contact frame, 8 source nodes = 150):
-/// not kept until that is understood (docs/hard_cases.md, issue 19).
-pub const FOOTPRINT_MARGIN_THICKNESS: f64 = 0.0;
 /// A vertex within this distance (m) of a face counts as on that face's side.
 const SIDE_TOLERANCE_M: f64 = 1e-7;
 
@@ -80,8 +71,9 @@ pub struct BarrierStage {
     barred: Vec<u32>,
     /// Last frame's claims (surface vertex, spatula, face), in target order.
     previous_claims: Vec<(u32, u8, u8)>,
-    /// This frame's rule-4 candidates (surface vertex, spatula), in rule-1 order.
-    end_candidates: Vec<(u32, u8)>,
+    /// This frame's rule-4 candidates (surface vertex, spatula, end-face normal
+    /// and a point of its plane), in rule-1 order.
+    end_candidates: Vec<(u32, u8, Vec3, Vec3)>,
 }
 
 /// The blades of one frame: shapes and poses before and after the move.
@@ -223,19 +215,18 @@ impl BarrierStage {
                     continue;
                 }
                 let q1 = local(pa, p);
-                let margin = FOOTPRINT_MARGIN_THICKNESS * shape.thickness;
                 if q1.z.abs() > half + band {
                     continue;
                 }
-                if !over_footprint(shape, &q1, margin) {
+                if !over_footprint(shape, &q1, 0.0) {
                     // Rule 4 (after rules 2 and 3): beyond the tip or a side edge.
-                    if end_face(shape, pa, &q1, band).is_some() {
-                        self.end_candidates.push((v as u32, s as u8));
+                    if let Some((n, face_point)) = end_face(shape, pa, &q1, band) {
+                        self.end_candidates.push((v as u32, s as u8, n, face_point));
                     }
                     continue;
                 }
                 let q0 = local(pb, p);
-                let side = if over_footprint(shape, &q0, margin) && q0.z.abs() >= half - SIDE_TOLERANCE_M {
+                let side = if over_footprint(shape, &q0, 0.0) && q0.z.abs() >= half - SIDE_TOLERANCE_M {
                     q0.z.signum()
                 } else if q1.z < 0.0 {
                     -1.0
@@ -287,14 +278,9 @@ impl BarrierStage {
         }
         // Rule 4: around the tip and side edges, for vertices no rule above covers.
         for i in 0..self.end_candidates.len() {
-            let (v, s) = self.end_candidates[i];
+            let (v, s, n, face_point) = self.end_candidates[i];
             let (v, s) = (v as usize, s as usize);
-            if (self.claimed[v] | self.barred[v]) & (1u32 << (s as u32).min(31)) != 0 {
-                continue;
-            }
-            let (shape, pb, pa) = (&blades.shapes[s], &blades.before[s], &blades.after[s]);
-            let band = BARRIER_BAND_M + travel(shape, pb, pa);
-            if let Some((n, face_point)) = end_face(shape, pa, &local(pa, &surface.start[v]), band) {
+            if (self.claimed[v] | self.barred[v]) & (1u32 << (s as u32).min(31)) == 0 {
                 self.push(v, s, n, face_point, surface, out);
             }
         }

@@ -147,9 +147,15 @@ pub struct RunRow {
     pub label: String,
     pub value: f64,
     pub settings: Settings,
-    pub is_reference: bool,
     /// The measurement, or why the run could not be done.
     pub outcome: Result<RunMeasure, String>,
+}
+
+impl RunRow {
+    /// The study's reference run (the one row of no sweep).
+    pub fn is_reference(&self) -> bool {
+        self.knob.is_none()
+    }
 }
 
 /// Everything a study produced.
@@ -277,7 +283,6 @@ pub fn run_plan_until(
         label: spec.label.clone(),
         value: spec.value,
         settings: spec.settings.clone(),
-        is_reference: true,
         outcome: match &reference {
             Ok(t) => {
                 let mut m = measure(t);
@@ -308,7 +313,7 @@ pub fn run_plan_until(
                 }
                 m
             });
-            rows.push(RunRow { knob: Some(sweep.knob), label: spec.label.clone(), value: spec.value, settings: spec.settings.clone(), is_reference: false, outcome });
+            rows.push(RunRow { knob: Some(sweep.knob), label: spec.label.clone(), value: spec.value, settings: spec.settings.clone(), outcome });
         }
     }
     progress(StudyProgress { done: total, total, label: "writing the report".into() });

@@ -67,7 +67,7 @@ pub fn csv_line(r: &RunRow) -> String {
         r.knob.map_or("reference", |k| k.name()),
         quote(&r.label),
         r.value,
-        r.is_reference,
+        r.is_reference(),
         quote(&s.mesh.label())
     );
     let m = r.outcome.as_ref().ok();
@@ -258,7 +258,7 @@ pub fn accuracy_cells(report: &str) -> Vec<(String, String, Vec<String>)> {
 }
 
 fn run_table_row(t: &mut String, r: &RunRow) {
-    let label = if r.is_reference { format!("**{}**", r.label) } else { r.label.clone() };
+    let label = if r.is_reference() { format!("**{}**", r.label) } else { r.label.clone() };
     match &r.outcome {
         Err(e) => {
             let _ = writeln!(t, "| {label} | | | | | | | | | | | | | | not run: {} |", e.replace('|', "/"));
@@ -309,7 +309,7 @@ fn write_summary(t: &mut String, results: &StudyResults) {
         t,
         "Every run against one reference (the finest setting of every knob at once: {}); errors of exactly 0 read \"exact\". \
          `fissure study --preset {}`, {} runs, {:.0} s on {} logical cores ({} build).\n",
-        results.rows.iter().find(|r| r.is_reference).map(settings_summary).unwrap_or_else(|| "not run".into()),
+        results.rows.iter().find(|r| r.is_reference()).map(settings_summary).unwrap_or_else(|| "not run".into()),
         results.plan_name,
         results.rows.len(),
         results.elapsed_s,
@@ -407,7 +407,7 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
 
     t.push_str("## Reference\n\n");
     t.push_str(RUN_TABLE_HEADER);
-    for r in results.rows.iter().filter(|r| r.is_reference) {
+    for r in results.rows.iter().filter(|r| r.is_reference()) {
         run_table_row(&mut t, r);
     }
     t.push('\n');
@@ -522,7 +522,6 @@ mod tests {
             label: "gpu 150, culling on".into(),
             value: 150.0,
             settings: base_settings(MeshChoice::Scene),
-            is_reference: false,
             outcome: Err("no adapter, \"lavapipe\" absent".into()),
         };
         let line = csv_line(&r);

@@ -238,7 +238,7 @@ pub fn execute(
             crossed: r.crossed_vertices,
             penetrating: r.penetrating_vertices,
             max_penetration_m: r.max_penetration_m,
-            pressure_mmhg: r.spatulas.iter().map(|s| s.mean_pressure_pa / crate::fem::PA_PER_MMHG).fold(0.0, f64::max),
+            pressure_mmhg: r.spatulas.iter().map(|s| s.mean_pressure_mmhg()).fold(0.0, f64::max),
             inverted: r.inverted_elements,
         });
         if keep_displacements {
