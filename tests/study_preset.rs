@@ -14,7 +14,7 @@ fn preset_study_runs_and_every_phantom_row_succeeds() {
     let out_dir = std::env::var_os("FISSURE_STUDY_OUT")
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/target")).join(format!("study-{name}")));
-    let options = StudyOptions { preset: if full { StudyPreset::Full } else { StudyPreset::Quick }, scene: None, out_dir: out_dir.clone() };
+    let options = StudyOptions::new(if full { StudyPreset::Full } else { StudyPreset::Quick }, out_dir.clone());
     let results = run_study(&options, &mut |p| eprintln!("[{}/{}] {}", p.done, p.total, p.label)).expect("study");
     println!("{} runs in {:.1} s; outputs in {}", results.rows.len(), results.elapsed_s, out_dir.display());
     for r in &results.rows {

@@ -21,7 +21,7 @@ fn find<'a>(rows: &'a [RunRow], knob: Knob, label: &str) -> &'a RunRow {
 #[test]
 fn reduced_study_writes_its_outputs_and_accuracy_behaves() {
     let dir = tempfile::tempdir().expect("temp dir");
-    let plan = preset_plan(StudyPreset::Ci);
+    let plan = preset_plan(StudyPreset::Ci, &[]);
     let scene = load_scene(None).expect("built-in study scene");
     let mut calls = Vec::new();
     let results = run_plan(&plan, &scene, dir.path(), &mut |p| calls.push(p)).expect("study runs");

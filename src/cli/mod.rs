@@ -95,7 +95,7 @@ pub enum Command {
     },
     /// Measure what accuracy costs in time: sweeps, results.csv, report.md and plots.
     Study {
-        /// quick (minutes, paper-9k: the README's table), full (paper-12k, the real brain when present) or ci (a short plan the tests re-run against docs/study/ci.md).
+        /// quick (minutes, paper-9k: the README's table), full (paper-12k, three phantom resolutions), ci (a short plan the tests re-run against docs/study/ci/report.md) or brain (the real brains, coarse against q15: ../shared/data/brain/ or --mesh).
         #[arg(long, value_enum, default_value = "quick")]
         preset: StudyPresetArg,
         /// The study scene (default: config/study_fissure.ron).
@@ -104,6 +104,15 @@ pub enum Command {
         /// Output folder.
         #[arg(long)]
         out: PathBuf,
+        /// Run only this knob's sweep (repeatable; the reference always runs): source_nodes, mesh, speed, contact, substeps, backend, storage, region_of_interest, skull.
+        #[arg(long = "knob", value_name = "KNOB")]
+        knobs: Vec<String>,
+        /// A tet mesh in millimetres for the mesh sweep (repeatable, coarsest first; the last is the reference's); two bodies: the spatula enters the gap between them.
+        #[arg(long = "mesh", value_name = "MESH")]
+        meshes: Vec<PathBuf>,
+        /// Folder of the compliance cache and the reference run's trace, kept between studies (default: OUT/compliance_cache).
+        #[arg(long)]
+        cache_dir: Option<PathBuf>,
     },
     /// Validate a scenario as replay would (mesh, fixed nodes, skull, trajectory; no frames) and print a summary (exit 0 when valid).
     Check {
@@ -182,6 +191,7 @@ pub enum StudyPresetArg {
     Quick,
     Full,
     Ci,
+    Brain,
 }
 
 /// Length unit of a surface file.
@@ -202,13 +212,14 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Replay { scenario, set, trajectory, out, vtk, frames, strict }) => {
             replay::run(replay::ReplayArgs { scenario: &scenario, set: &set, trajectory, out, vtk, frames, strict }).map(|_| ())
         }
-        Some(Command::Study { preset, scene, out }) => {
+        Some(Command::Study { preset, scene, out, knobs, meshes, cache_dir }) => {
             let preset = match preset {
                 StudyPresetArg::Quick => fissure::study::StudyPreset::Quick,
                 StudyPresetArg::Full => fissure::study::StudyPreset::Full,
                 StudyPresetArg::Ci => fissure::study::StudyPreset::Ci,
+                StudyPresetArg::Brain => fissure::study::StudyPreset::Brain,
             };
-            study::run(preset, scene, out)
+            study::run(fissure::study::StudyOptions { preset, scene, out_dir: out, knobs: study::knobs(&knobs)?, meshes, cache_dir })
         }
         Some(Command::Check { scenario, set, trajectory }) => check::run(&scenario, &set, trajectory.as_deref()),
         Some(Command::Mesh(MeshCommand::Info { path, json })) => mesh::info(&path, json),

@@ -4,13 +4,26 @@
 //! "not run" and returns [`super::Interrupted`] (exit 130).
 
 use std::io::IsTerminal;
-use std::path::PathBuf;
 
 use anyhow::Context;
-use fissure::study::{NOT_RUN_INTERRUPTED, StudyOptions, StudyPreset, StudyProgress, run_study_until};
+use fissure::study::{Knob, NOT_RUN_INTERRUPTED, StudyOptions, StudyProgress, run_study_until};
 use indicatif::{ProgressBar, ProgressStyle};
 
-pub fn run(preset: StudyPreset, scene: Option<PathBuf>, out: PathBuf) -> anyhow::Result<()> {
+/// The knobs named on the command line; an unknown name is an error that lists the known ones.
+pub fn knobs(names: &[String]) -> anyhow::Result<Vec<Knob>> {
+    names
+        .iter()
+        .map(|n| {
+            Knob::from_name(n).ok_or_else(|| {
+                let known: Vec<&str> = Knob::ALL.iter().map(|k| k.name()).collect();
+                anyhow::anyhow!("--knob {n}: unknown knob; the knobs are {}", known.join(", "))
+            })
+        })
+        .collect()
+}
+
+pub fn run(options: StudyOptions) -> anyhow::Result<()> {
+    let out = options.out_dir.clone();
     // The GPU rows use wgpu; give it a private runtime dir when none is set.
     if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
         let dir = std::env::temp_dir().join(format!("fissure-xdg-{}", std::process::id()));
@@ -26,7 +39,6 @@ pub fn run(preset: StudyPreset, scene: Option<PathBuf>, out: PathBuf) -> anyhow:
         bar.set_position(p.done as u64);
         bar.set_message(p.label);
     };
-    let options = StudyOptions { preset, scene, out_dir: out.clone() };
     let interrupt = super::replay::interrupt_flag();
     let results = run_study_until(&options, &mut progress, &interrupt).with_context(|| format!("running the study into {}", out.display()))?;
     bar.finish_and_clear();

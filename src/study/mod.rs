@@ -18,6 +18,7 @@
 //! silent gap; the simulation is deterministic, only the times vary.
 
 pub mod accuracy;
+pub mod cache;
 pub mod motion;
 pub mod output;
 pub mod plan;
@@ -46,8 +47,11 @@ pub enum StudyPreset {
     Quick,
     /// The paper-12k phantom, more values, all meshes.
     Full,
-    /// A reduced plan on a short motion (the test suite re-runs it against `docs/study/ci.md`).
+    /// A reduced plan on a short motion (the test suite re-runs it against `docs/study/ci/report.md`).
     Ci,
+    /// A mesh family from files (the real brains by default): coarsest as the
+    /// base, finest as the reference.
+    Brain,
 }
 
 /// What `fissure study` was asked.
@@ -58,6 +62,21 @@ pub struct StudyOptions {
     pub scene: Option<PathBuf>,
     /// Output folder (created).
     pub out_dir: PathBuf,
+    /// Only these knobs' sweeps (all when empty); the reference always runs.
+    pub knobs: Vec<Knob>,
+    /// Mesh files (millimetres, coarsest to finest) for the mesh sweep; empty:
+    /// the preset's own (the `brain` preset: the real brains beside the checkout).
+    pub meshes: Vec<PathBuf>,
+    /// Folder of the compliance cache and the reference run's trace
+    /// (`None`: `compliance_cache` in the output folder).
+    pub cache_dir: Option<PathBuf>,
+}
+
+impl StudyOptions {
+    /// A preset into `out_dir`, every knob, the preset's meshes, the default cache.
+    pub fn new(preset: StudyPreset, out_dir: PathBuf) -> Self {
+        StudyOptions { preset, scene: None, out_dir, knobs: Vec::new(), meshes: Vec::new(), cache_dir: None }
+    }
 }
 
 /// Progress: `done` of `total` runs finished; `label` names the run starting (or "done").
@@ -81,6 +100,13 @@ pub enum StudyError {
     Plot { path: PathBuf, message: String },
     #[error("the plan has no runs")]
     EmptyPlan,
+    #[error("mesh {}: {message}", path.display())]
+    Mesh { path: PathBuf, message: String },
+    #[error(
+        "the brain preset needs a mesh family: put brain_pial_coarse.msh and brain_pial_q15.msh in {}, or pass --mesh COARSE.msh --mesh FINE.msh (millimetres)",
+        dir.display()
+    )]
+    NoBrainMeshes { dir: PathBuf },
 }
 
 /// Median and 95th percentile (nearest rank), seconds.
@@ -118,8 +144,8 @@ pub struct RunMeasure {
     pub frame: Percentiles,
     /// Against the study's reference; `None` when there is none to compare with.
     pub accuracy: Option<Accuracy>,
-    /// Why `accuracy` is `None`.
-    pub no_accuracy: Option<String>,
+    /// A note for the row: why `accuracy` is `None`, or that the reference came from the cache.
+    pub note: Option<String>,
     /// Vertices pulled through a blade, summed over frames (tunnelling).
     pub crossed_total: u64,
     /// Most vertices inside a blade in one frame.
@@ -162,6 +188,8 @@ impl RunRow {
 #[derive(Debug, Clone, PartialEq)]
 pub struct StudyResults {
     pub plan_name: String,
+    /// What the report says about the plan's reference (see [`StudyPlan::notes`]).
+    pub notes: Vec<String>,
     /// The motion every run replayed.
     pub motion: Motion,
     pub scene_name: String,
@@ -190,9 +218,24 @@ pub fn run_study_until(
     progress: &mut dyn FnMut(StudyProgress),
     interrupt: &AtomicBool,
 ) -> Result<StudyResults, StudyError> {
-    let plan = plan::preset_plan(options.preset);
+    let mesh_files = match (options.meshes.is_empty(), options.preset) {
+        (false, _) => options.meshes.clone(),
+        (true, StudyPreset::Brain) => plan::real_brain_family().ok_or_else(|| StudyError::NoBrainMeshes {
+            dir: Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/brain")).to_path_buf(),
+        })?,
+        (true, _) => Vec::new(),
+    };
+    let mut plan = plan::preset_plan(options.preset, &mesh_files);
+    plan.retain_knobs(&options.knobs);
     let scene = load_scene(options.scene.as_deref())?;
-    run_plan_until(&plan, &scene, &options.out_dir, progress, interrupt)
+    // Every mesh file loads before any run starts: a bad one stops the study here.
+    let mut meshes = runner::MeshStore::default();
+    for path in &mesh_files {
+        let choice = MeshChoice::File { path: path.clone(), fix_height_m: plan::FILE_FIX_HEIGHT_M };
+        meshes.get(&choice, &scene).map_err(|e| StudyError::Mesh { path: path.clone(), message: e.to_string() })?;
+    }
+    let cache = options.cache_dir.clone().unwrap_or_else(|| options.out_dir.join("compliance_cache"));
+    run_plan_inner(&plan, &scene, &options.out_dir, &cache, meshes, progress, interrupt)
 }
 
 /// The study scene: `path`, or the built-in one.
@@ -229,7 +272,7 @@ fn measure(trace: &RunTrace) -> RunMeasure {
         stages,
         frame: Percentiles::of(&mut total),
         accuracy: None,
-        no_accuracy: None,
+        note: None,
         crossed_total: trace.frames.iter().map(|f| f.crossed as u64).sum(),
         penetrating_max: trace.frames.iter().map(|f| f.penetrating).max().unwrap_or(0),
         penetration_max_m: trace.frames.iter().map(|f| f.max_penetration_m).fold(0.0, f64::max),
@@ -259,6 +302,42 @@ pub fn run_plan_until(
     progress: &mut dyn FnMut(StudyProgress),
     interrupt: &AtomicBool,
 ) -> Result<StudyResults, StudyError> {
+    run_plan_inner(plan, scene, out_dir, &out_dir.join("compliance_cache"), runner::MeshStore::default(), progress, interrupt)
+}
+
+/// The reference's trace: from the cache when a usable one is there, else run
+/// (and saved). The second value says where it came from, for the report.
+fn reference_trace(
+    scene: &Scenario,
+    spec: &RunSpec,
+    plan: &StudyPlan,
+    meshes: &mut runner::MeshStore,
+    cache: &Path,
+) -> Result<(RunTrace, Option<String>), RunError> {
+    let study_mesh = meshes.get(&spec.settings.mesh, scene)?;
+    let configured = runner::configure(scene, &spec.settings, &plan.motion, study_mesh, None);
+    let key = cache::key(&configured, &spec.settings, &plan.motion, &study_mesh.mesh);
+    match cache::load(cache, &key) {
+        Ok(Some(trace)) => return Ok((trace, Some("reference from the cache (its times are those of the run that made it)".into()))),
+        Ok(None) => {}
+        Err(why) => tracing::warn!("reference cache not used, running the reference again: {why}"),
+    }
+    let trace = runner::execute(scene, &spec.settings, &plan.motion, meshes, Some(cache), true)?;
+    if let Err(e) = cache::save(cache, &key, &trace) {
+        tracing::warn!("could not save the reference run's trace into {}: {e}", cache.display());
+    }
+    Ok((trace, None))
+}
+
+fn run_plan_inner(
+    plan: &StudyPlan,
+    scene: &Scenario,
+    out_dir: &Path,
+    cache: &Path,
+    mut meshes: runner::MeshStore,
+    progress: &mut dyn FnMut(StudyProgress),
+    interrupt: &AtomicBool,
+) -> Result<StudyResults, StudyError> {
     let stopped = || interrupt.load(Ordering::Relaxed);
     let mut interrupted = false;
     let start = Instant::now();
@@ -267,26 +346,21 @@ pub fn run_plan_until(
         return Err(StudyError::EmptyPlan);
     }
     std::fs::create_dir_all(out_dir).map_err(|source| StudyError::Output { path: out_dir.to_path_buf(), source })?;
-    let cache = out_dir.join("compliance_cache");
-    let mut meshes = runner::MeshStore::default();
     let mut rows = Vec::with_capacity(total);
     let spec = &plan.reference;
     progress(StudyProgress { done: 0, total, label: format!("reference: {}", spec.label) });
     interrupted |= stopped();
-    let reference = if interrupted {
-        Err(RunError::Interrupted)
-    } else {
-        runner::execute(scene, &spec.settings, &plan.motion, &mut meshes, Some(&cache), true)
-    };
+    let reference = if interrupted { Err(RunError::Interrupted) } else { reference_trace(scene, spec, plan, &mut meshes, cache) };
     rows.push(RunRow {
         knob: None,
         label: spec.label.clone(),
         value: spec.value,
         settings: spec.settings.clone(),
         outcome: match &reference {
-            Ok(t) => {
+            Ok((t, note)) => {
                 let mut m = measure(t);
                 m.accuracy = Some(Accuracy { comparison: Comparison::Reference, ..accuracy::compare(t, t, true) });
+                m.note = note.clone();
                 Ok(m)
             }
             Err(e) => Err(e.to_string()),
@@ -300,16 +374,14 @@ pub fn run_plan_until(
             let outcome = if interrupted {
                 Err(NOT_RUN_INTERRUPTED.to_string())
             } else {
-                runner::execute(scene, &spec.settings, &plan.motion, &mut meshes, Some(&cache), true).map_err(|e| e.to_string())
+                runner::execute(scene, &spec.settings, &plan.motion, &mut meshes, Some(cache), true).map_err(|e| e.to_string())
             };
             done += 1;
             let outcome = outcome.map(|trace| {
                 let mut m = measure(&trace);
-                let other_anatomy = matches!(spec.settings.mesh, MeshChoice::File { .. }) != matches!(plan.reference.settings.mesh, MeshChoice::File { .. });
                 match &reference {
-                    Ok(r) if !other_anatomy => m.accuracy = Some(accuracy::compare(r, &trace, spec.settings.mesh == plan.reference.settings.mesh)),
-                    Ok(_) => m.no_accuracy = Some("other anatomy: timed only".into()),
-                    Err(_) => m.no_accuracy = Some("the reference run failed".into()),
+                    Ok((r, _)) => m.accuracy = Some(accuracy::compare(r, &trace, spec.settings.mesh == plan.reference.settings.mesh)),
+                    Err(_) => m.note = Some("the reference run failed".into()),
                 }
                 m
             });
@@ -319,6 +391,7 @@ pub fn run_plan_until(
     progress(StudyProgress { done: total, total, label: "writing the report".into() });
     let mut results = StudyResults {
         plan_name: plan.name.clone(),
+        notes: plan.notes.clone(),
         motion: plan.motion,
         scene_name: scene.name.clone(),
         rows,

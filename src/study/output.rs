@@ -8,7 +8,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::plan::{backend_name, contact_name, substep_label};
+use super::plan::{backend_name, contact_name, skull_label, substep_label};
 use super::{Comparison, Knob, RunMeasure, RunRow, StudyError, StudyResults};
 use crate::sim::StageId;
 
@@ -25,7 +25,7 @@ pub const BUDGETS_MS: [f64; 3] = [1.0, 4.0, 16.0];
 
 /// Column names of `results.csv`.
 pub const CSV_HEADER: &str = "knob,label,value,reference,mesh,mesh_nodes,surface_triangles,layout,nodes_per_face,backend,culling,\
-speed_thickness_per_frame,storage,roi,contact,substep_travel,status,frames,build_s,compliance_mb,compliance_cached,\
+speed_thickness_per_frame,storage,roi,contact,substep_travel,skull,status,frames,build_s,compliance_mb,compliance_cached,\
 collision_p50_ms,collision_p95_ms,solve_p50_ms,solve_p95_ms,forces_p50_ms,forces_p95_ms,monitor_p50_ms,monitor_p95_ms,\
 frame_p50_ms,frame_p95_ms,comparison,frames_compared,rms_error_mm,max_error_mm,force_error_pct,missed_contact_frames,\
 reference_contact_frames,pressure_error_mmhg,peak_pressure_mmhg,crossed_vertices,penetrating_max,penetration_max_mm,inverted_max";
@@ -73,7 +73,7 @@ pub fn csv_line(r: &RunRow) -> String {
     let m = r.outcome.as_ref().ok();
     let _ = write!(
         line,
-        "{},{},{},{},{},{},{},{:?},{},{},{},",
+        "{},{},{},{},{},{},{},{:?},{},{},{},{},",
         m.map(|m| m.mesh_nodes.to_string()).unwrap_or_default(),
         m.map(|m| m.surface_triangles.to_string()).unwrap_or_default(),
         quote(&s.layout_label()),
@@ -84,10 +84,11 @@ pub fn csv_line(r: &RunRow) -> String {
         s.storage,
         quote(&s.roi.label()),
         contact_name(s.contact),
-        s.substep_travel.map(|t| t.to_string()).unwrap_or_else(|| "none".into())
+        s.substep_travel.map(|t| t.to_string()).unwrap_or_else(|| "none".into()),
+        skull_label(s.skull)
     );
     let status = match &r.outcome {
-        Ok(m) => m.no_accuracy.clone().unwrap_or_else(|| "ok".into()),
+        Ok(m) => m.note.clone().unwrap_or_else(|| "ok".into()),
         Err(e) => format!("failed: {e}"),
     };
     let _ = write!(line, "{},", quote(&status));
@@ -196,7 +197,7 @@ pub fn pareto_front(rows: &[RunRow]) -> Vec<&RunRow> {
 fn settings_summary(r: &RunRow) -> String {
     let s = &r.settings;
     format!(
-        "{}, {} nodes/face ({}), {}, culling {}, {} h/frame, {:?}, ROI {}, {}, sub-steps {}",
+        "{}, {} nodes/face ({}), {}, culling {}, {} h/frame, {:?}, ROI {}, {}, sub-steps {}, skull {}",
         s.mesh.label(),
         s.nodes_per_face(),
         s.layout_label(),
@@ -206,7 +207,8 @@ fn settings_summary(r: &RunRow) -> String {
         s.storage,
         s.roi.label(),
         contact_name(s.contact),
-        substep_label(s.substep_travel)
+        substep_label(s.substep_travel),
+        skull_label(s.skull)
     )
 }
 
@@ -276,7 +278,7 @@ fn run_table_row(t: &mut String, r: &RunRow) {
                 ),
                 None => ("—".into(), "—".into(), "—".into(), "—".into(), "—".into()),
             };
-            let mut note = m.no_accuracy.clone().unwrap_or_default();
+            let mut note = m.note.clone().unwrap_or_default();
             if let Some(Comparison::Probes(n)) = m.accuracy.map(|a| a.comparison) {
                 note = format!("another mesh: {n} probes");
             }
@@ -387,8 +389,9 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
     );
     t.push_str(
         "Every sweep changes one knob from the base (150 grid nodes a face, BVH, culling on, 0.5 blade thicknesses a frame, \
-         f64 compliance, automatic region of interest, unilateral contact, sub-steps of 1/8 blade thickness) and every run is compared with \
-         one *reference* run, the finest setting of every knob at once, which no swept run equals:\n\n\
+         f64 compliance, automatic region of interest, unilateral contact, sub-steps of 1/8 blade thickness, no skull) and every run is compared with \
+         one *reference* run, the finest setting of every knob at once (the skull simulated), which no swept run equals. The reference is \
+         run once and kept in the cache folder; a later study with the same scene, mesh, motion and settings reads it back.\n\n\
          - **RMS / max error**: surface displacement vs the reference, mm, at the frames where both runs are at the same \
          point of the path; RMS over the vertices the reference moves (more than 1% of its peak), max over all. Same mesh: \
          vertex by vertex; across meshes: at the reference's moving surface vertices, where the other mesh's displacement is \
@@ -401,6 +404,9 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
          - An error of exactly 0 reads **exact**.\n\n",
     );
 
+    for n in &results.notes {
+        let _ = writeln!(t, "{n}\n");
+    }
     t.push_str("## Summary\n\n");
     write_summary(&mut t, results);
     t.push_str("\n![For a frame budget, the most accurate setting](budget.png)\n\n![One panel a knob](knobs.png)\n\n");

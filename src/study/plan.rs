@@ -36,6 +36,9 @@ pub enum Knob {
     Storage,
     /// Region of interest of the precomputed compliance.
     RegionOfInterest,
+    /// The skull's spheres (the mesh's own skull landmarks, or a sphere
+    /// containing the mesh) off and on.
+    Skull,
 }
 
 impl Knob {
@@ -50,12 +53,27 @@ impl Knob {
             Knob::Backend => "backend",
             Knob::Storage => "storage",
             Knob::RegionOfInterest => "region_of_interest",
+            Knob::Skull => "skull",
         }
     }
 
+    /// The knob of a [`Knob::name`].
+    pub fn from_name(name: &str) -> Option<Knob> {
+        Knob::ALL.into_iter().find(|k| k.name() == name)
+    }
+
     /// Every knob, in report order.
-    pub const ALL: [Knob; 8] =
-        [Knob::SourceNodes, Knob::Mesh, Knob::Speed, Knob::Contact, Knob::Substeps, Knob::Backend, Knob::Storage, Knob::RegionOfInterest];
+    pub const ALL: [Knob; 9] = [
+        Knob::SourceNodes,
+        Knob::Mesh,
+        Knob::Speed,
+        Knob::Contact,
+        Knob::Substeps,
+        Knob::Backend,
+        Knob::Storage,
+        Knob::RegionOfInterest,
+        Knob::Skull,
+    ];
 }
 
 /// Which mesh a run uses.
@@ -120,6 +138,8 @@ pub struct Settings {
     pub contact: SpatulaContact,
     /// Largest blade travel of one sub-step, thicknesses; `None`: one step a frame.
     pub substep_travel: Option<f64>,
+    /// The skull's spheres are simulated (see [`Knob::Skull`]).
+    pub skull: bool,
 }
 
 impl Settings {
@@ -167,6 +187,9 @@ pub struct StudyPlan {
     /// The run every other run is compared with.
     pub reference: RunSpec,
     pub sweeps: Vec<Sweep>,
+    /// What the report should say about this plan's reference (where it
+    /// departs from "the finest of every knob", and why).
+    pub notes: Vec<String>,
 }
 
 /// A uniform grid with about `n` nodes a face, 2:1 along:across where it divides.
@@ -194,8 +217,6 @@ pub struct PlanValues {
     pub tip_nodes: Vec<u32>,
     /// Meshes from coarsest to finest (the last is the reference); empty: no mesh sweep.
     pub meshes: Vec<MeshChoice>,
-    /// Extra meshes timed without an accuracy reference (other anatomy: the real brain).
-    pub extra_meshes: Vec<MeshChoice>,
     /// Speeds, thicknesses a frame (the reference runs at half the smallest).
     pub speeds: Vec<f64>,
     /// Speeds of the contact sweep (culling on/off x bilateral/unilateral).
@@ -212,6 +233,15 @@ pub struct PlanValues {
     pub storage: bool,
     /// ROI sphere radii, m (All is the reference; Auto is added).
     pub roi_radii_m: Vec<f64>,
+    /// Skull sweep (off, on) on.
+    pub skull: bool,
+    /// The reference's backend: `Reference` (brute force), or `Bvh` where the
+    /// brute force would take hours (the tests prove them equal bit for bit).
+    pub reference_backend: CollisionBackend,
+    /// The reference's region of interest: `All`, or `Auto` where the whole
+    /// surface's compliance does not fit in memory (the ROI decides which
+    /// columns are precomputed, not the answer).
+    pub reference_roi: RoiChoice,
 }
 
 impl StudyPlan {
@@ -232,11 +262,10 @@ impl StudyPlan {
             }));
             sweeps.push(Sweep { knob: Knob::SourceNodes, runs });
         }
-        if !v.meshes.is_empty() || !v.extra_meshes.is_empty() {
+        if v.meshes.len() > 1 {
             let runs: Vec<RunSpec> = v
                 .meshes
                 .iter()
-                .chain(&v.extra_meshes)
                 .enumerate()
                 .map(|(k, m)| RunSpec { label: m.label(), value: k as f64, settings: Settings { mesh: m.clone(), ..base.clone() } })
                 .collect();
@@ -313,7 +342,36 @@ impl StudyPlan {
             runs.push(RunSpec { label: "all".into(), value: f64::INFINITY, settings: Settings { roi: RoiChoice::All, ..base.clone() } });
             sweeps.push(Sweep { knob: Knob::RegionOfInterest, runs });
         }
-        StudyPlan { name: name.to_string(), motion, reference: reference_run(v), sweeps }
+        if v.skull {
+            let runs = [false, true]
+                .into_iter()
+                .map(|on| RunSpec { label: skull_label(on).into(), value: on as u8 as f64, settings: Settings { skull: on, ..base.clone() } })
+                .collect();
+            sweeps.push(Sweep { knob: Knob::Skull, runs });
+        }
+        let mut notes = Vec::new();
+        if v.reference_backend != CollisionBackend::Reference {
+            notes.push(format!(
+                "The reference collides with `{}` instead of the brute-force `reference` backend, which would take hours here; \
+                 the two give the same triangles bit for bit (tests/collision_backends.rs, the real brains at 2000 nodes a face included).",
+                backend_name(v.reference_backend)
+            ));
+        }
+        if v.reference_roi != RoiChoice::All {
+            notes.push(format!(
+                "The reference's region of interest is `{}`, not the whole surface, whose compliance would not fit in memory; \
+                 the region decides which compliance columns are precomputed and which are solved when first touched, not the answer.",
+                v.reference_roi.label()
+            ));
+        }
+        StudyPlan { name: name.to_string(), motion, reference: reference_run(v), sweeps, notes }
+    }
+
+    /// Keeps only the sweeps of `knobs` (all when empty); the reference stays.
+    pub fn retain_knobs(&mut self, knobs: &[Knob]) {
+        if !knobs.is_empty() {
+            self.sweeps.retain(|s| knobs.contains(&s.knob));
+        }
     }
 
     /// Runs in the plan, the reference included.
@@ -323,9 +381,10 @@ impl StudyPlan {
 }
 
 /// The finest setting of every knob at once: the finest mesh of the family,
-/// the most source nodes, the brute-force reference backend, culling on, half
-/// the smallest swept speed, the finest sub-step, f64, the whole surface, our
-/// unilateral contact.
+/// the most source nodes, the plan's reference backend (brute force unless it
+/// would take hours), culling on, half the smallest swept speed, the finest
+/// sub-step, f64, the plan's reference region (the whole surface where it
+/// fits), our unilateral contact, the skull simulated.
 pub fn reference_run(v: &PlanValues) -> RunSpec {
     let b = &v.base;
     let nodes = v.nodes.iter().chain(&v.backend_nodes).copied().max().map_or_else(|| b.layout.clone(), grid);
@@ -334,15 +393,22 @@ pub fn reference_run(v: &PlanValues) -> RunSpec {
     let settings = Settings {
         mesh: v.meshes.last().cloned().unwrap_or_else(|| b.mesh.clone()),
         layout: nodes,
-        backend: CollisionBackend::Reference,
+        backend: v.reference_backend,
         culling: true,
         speed,
         storage: ComplianceStorage::F64,
-        roi: RoiChoice::All,
+        roi: v.reference_roi,
         contact: SpatulaContact::Unilateral,
         substep_travel,
+        skull: true,
     };
-    let label = format!("{}, {} nodes/face, reference backend, {speed} h/frame, all", settings.mesh.label(), settings.nodes_per_face());
+    let label = format!(
+        "{}, {} nodes/face, {} backend, {speed} h/frame, ROI {}, skull",
+        settings.mesh.label(),
+        settings.nodes_per_face(),
+        backend_name(settings.backend),
+        settings.roi.label()
+    );
     RunSpec { label, value: f64::NAN, settings }
 }
 
@@ -352,6 +418,11 @@ pub fn contact_name(c: SpatulaContact) -> &'static str {
         SpatulaContact::Unilateral => "unilateral",
         SpatulaContact::Bilateral => "bilateral",
     }
+}
+
+/// `off` / `on`.
+pub fn skull_label(on: bool) -> &'static str {
+    if on { "on" } else { "off" }
 }
 
 /// `none` / `0.125 h`.
@@ -379,6 +450,7 @@ pub fn base_settings(mesh: MeshChoice) -> Settings {
         roi: RoiChoice::Auto,
         contact: SpatulaContact::Unilateral,
         substep_travel: Some(0.125),
+        skull: false,
     }
 }
 
@@ -392,22 +464,33 @@ pub fn backend_name(b: CollisionBackend) -> &'static str {
     }
 }
 
-/// The real brain mesh beside the checkout, when present.
-pub fn real_brain_path() -> Option<PathBuf> {
-    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/brain/brain_pial_coarse.msh"));
-    p.exists().then_some(p)
+/// The real brains beside the checkout (`../shared/data/brain/`), coarsest
+/// first, when both are present.
+pub fn real_brain_family() -> Option<Vec<PathBuf>> {
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/brain"));
+    let family: Vec<PathBuf> = ["brain_pial_coarse.msh", "brain_pial_q15.msh"].iter().map(|f| dir.join(f)).collect();
+    family.iter().all(|p| p.exists()).then_some(family)
 }
+
+/// Lowest height of each connected component fixed on a mesh file (the real
+/// brain has no brain stem: each hemisphere rests on its lowest 10 mm).
+pub const FILE_FIX_HEIGHT_M: f64 = 0.010;
 
 /// `quick`: the paper-9k phantom, every knob, a few values each (minutes in
 /// release on 2 cores). `full`: the paper-12k phantom, more values, the three
-/// phantom resolutions and the real brain when present. `ci`: a few values of
-/// the knobs that need no extra compliance precompute, a short motion (the
-/// test suite re-runs it and compares its accuracy columns with the committed
-/// `docs/study/ci.md`).
-pub fn preset_plan(preset: super::StudyPreset) -> StudyPlan {
+/// phantom resolutions. `ci`: a few values of the knobs that need no extra
+/// compliance precompute, a short motion (the test suite re-runs it and
+/// compares its accuracy columns with the committed `docs/study/ci/report.md`).
+/// `brain`: a mesh family from files (millimetres, coarsest to finest; the
+/// real brains when `mesh_files` is empty and the caller found them), the
+/// coarsest as the base and the finest as the reference, with the knobs that
+/// matter there. Non-empty `mesh_files` replace any preset's mesh family.
+pub fn preset_plan(preset: super::StudyPreset, mesh_files: &[PathBuf]) -> StudyPlan {
     use super::StudyPreset as P;
     let all = vec![CollisionBackend::Reference, CollisionBackend::Bvh, CollisionBackend::Gpu];
-    let (name, motion, values) = match preset {
+    let files: Vec<MeshChoice> = mesh_files.iter().map(|path| MeshChoice::File { path: path.clone(), fix_height_m: FILE_FIX_HEIGHT_M }).collect();
+    let phantoms = |names: &[&str]| names.iter().map(|s| MeshChoice::Phantom(s.to_string())).collect::<Vec<_>>();
+    let (name, motion, mut values) = match preset {
         P::Full => (
             "full",
             Motion::default(),
@@ -415,8 +498,7 @@ pub fn preset_plan(preset: super::StudyPreset) -> StudyPlan {
                 base: base_settings(MeshChoice::Phantom("paper-12k".into())),
                 nodes: vec![8, 30, 150, 500, 2000],
                 tip_nodes: vec![30, 150],
-                meshes: ["small", "paper-9k", "paper-12k"].iter().map(|s| MeshChoice::Phantom(s.to_string())).collect(),
-                extra_meshes: real_brain_path().map(|path| MeshChoice::File { path, fix_height_m: 0.010 }).into_iter().collect(),
+                meshes: phantoms(&["small", "paper-9k", "paper-12k"]),
                 speeds: vec![0.25, 0.5, 1.0, 2.0, 5.0],
                 contact_speeds: vec![0.5, 5.0],
                 substeps: vec![None, Some(2.0), Some(1.0), Some(0.5), Some(0.125)],
@@ -425,6 +507,9 @@ pub fn preset_plan(preset: super::StudyPreset) -> StudyPlan {
                 backend_nodes: vec![30, 150, 500, 2000],
                 storage: true,
                 roi_radii_m: vec![0.015, 0.030, 0.060],
+                skull: true,
+                reference_backend: CollisionBackend::Reference,
+                reference_roi: RoiChoice::All,
             },
         ),
         P::Quick => (
@@ -434,8 +519,7 @@ pub fn preset_plan(preset: super::StudyPreset) -> StudyPlan {
                 base: base_settings(MeshChoice::Phantom("paper-9k".into())),
                 nodes: vec![8, 30, 150, 500, 2000],
                 tip_nodes: vec![30],
-                meshes: ["small", "paper-9k"].iter().map(|s| MeshChoice::Phantom(s.to_string())).collect(),
-                extra_meshes: Vec::new(),
+                meshes: phantoms(&["small", "paper-9k"]),
                 speeds: vec![0.25, 0.5, 1.0, 2.0, 5.0],
                 contact_speeds: vec![0.5, 5.0],
                 substeps: vec![None, Some(2.0), Some(0.5), Some(0.125)],
@@ -444,6 +528,9 @@ pub fn preset_plan(preset: super::StudyPreset) -> StudyPlan {
                 backend_nodes: vec![30, 150, 500],
                 storage: true,
                 roi_radii_m: vec![0.015, 0.030],
+                skull: true,
+                reference_backend: CollisionBackend::Reference,
+                reference_roi: RoiChoice::All,
             },
         ),
         P::Ci => (
@@ -455,7 +542,6 @@ pub fn preset_plan(preset: super::StudyPreset) -> StudyPlan {
                 nodes: vec![8, 150],
                 tip_nodes: Vec::new(),
                 meshes: Vec::new(),
-                extra_meshes: Vec::new(),
                 speeds: vec![0.5, 5.0],
                 contact_speeds: vec![5.0],
                 substeps: vec![None, Some(0.5)],
@@ -465,9 +551,41 @@ pub fn preset_plan(preset: super::StudyPreset) -> StudyPlan {
                 // Storage and ROI sweeps need extra compliance precomputes: presets only.
                 storage: false,
                 roi_radii_m: Vec::new(),
+                // The reference simulates the skull; its sweep is the presets'.
+                skull: false,
+                reference_backend: CollisionBackend::Reference,
+                reference_roi: RoiChoice::All,
+            },
+        ),
+        P::Brain => (
+            "brain",
+            Motion::default(),
+            PlanValues {
+                base: base_settings(files.first().cloned().unwrap_or(MeshChoice::Scene)),
+                nodes: vec![30, 150, 500, 2000],
+                tip_nodes: Vec::new(),
+                meshes: files.clone(),
+                speeds: vec![0.5, 2.0],
+                contact_speeds: vec![0.5],
+                substeps: vec![None, Some(0.5)],
+                substep_speed: 5.0,
+                // The GPU's figures on the real brains: `fissure bench collision`.
+                backends: Vec::new(),
+                backend_nodes: Vec::new(),
+                storage: false,
+                roi_radii_m: Vec::new(),
+                skull: true,
+                // Brute force at 2000 nodes a face on 67.7k triangles: seconds a frame.
+                reference_backend: CollisionBackend::Bvh,
+                // The whole surface of a real brain: tens of GB of compliance.
+                reference_roi: RoiChoice::Auto,
             },
         ),
     };
+    if !files.is_empty() && preset != P::Brain {
+        values.base.mesh = files[0].clone();
+        values.meshes = files;
+    }
     StudyPlan::from_values(name, motion, &values)
 }
 
@@ -487,10 +605,26 @@ mod tests {
     #[test]
     fn the_reference_is_finer_than_every_swept_run_in_every_knob() {
         use crate::study::StudyPreset;
-        for preset in [StudyPreset::Quick, StudyPreset::Full, StudyPreset::Ci] {
-            let plan = preset_plan(preset);
+        let files = [PathBuf::from("coarse.msh"), PathBuf::from("fine.msh")];
+        for (preset, meshes) in
+            [(StudyPreset::Quick, &[][..]), (StudyPreset::Full, &[]), (StudyPreset::Ci, &[]), (StudyPreset::Brain, &files), (StudyPreset::Quick, &files)]
+        {
+            let plan = preset_plan(preset, meshes);
             let r = &plan.reference.settings;
-            assert_eq!((r.backend, r.storage, r.roi, r.culling), (CollisionBackend::Reference, ComplianceStorage::F64, RoiChoice::All, true));
+            assert_eq!((r.storage, r.culling, r.skull, r.contact), (ComplianceStorage::F64, true, true, SpatulaContact::Unilateral));
+            if preset == StudyPreset::Brain {
+                // The documented departures, each with its note.
+                assert_eq!((r.backend, r.roi), (CollisionBackend::Bvh, RoiChoice::Auto));
+                assert_eq!(plan.notes.len(), 2, "{:?}", plan.notes);
+            } else {
+                assert_eq!((r.backend, r.roi), (CollisionBackend::Reference, RoiChoice::All));
+                assert!(plan.notes.is_empty());
+            }
+            if !meshes.is_empty() {
+                assert_eq!(r.mesh, MeshChoice::File { path: files[1].clone(), fix_height_m: FILE_FIX_HEIGHT_M }, "the finest file");
+                let sweep = plan.sweeps.iter().find(|s| s.knob == Knob::Mesh).expect("a mesh sweep");
+                assert_eq!(sweep.runs.len(), 2);
+            }
             for s in plan.sweeps.iter().flat_map(|s| &s.runs) {
                 let s = &s.settings;
                 assert!(s.nodes_per_face() <= r.nodes_per_face(), "densest nodes");
@@ -498,6 +632,22 @@ mod tests {
                 assert_ne!(s, r, "no swept run equals the reference");
             }
         }
+    }
+
+    #[test]
+    fn knobs_are_found_by_name_and_a_plan_keeps_only_the_asked_sweeps() {
+        for k in Knob::ALL {
+            assert_eq!(Knob::from_name(k.name()), Some(k));
+        }
+        assert_eq!(Knob::from_name("skul"), None);
+        let mut plan = preset_plan(crate::study::StudyPreset::Quick, &[]);
+        let reference = plan.reference.clone();
+        plan.retain_knobs(&[Knob::Skull, Knob::Speed]);
+        let kept: Vec<Knob> = plan.sweeps.iter().map(|s| s.knob).collect();
+        assert_eq!(kept, [Knob::Speed, Knob::Skull]);
+        assert_eq!((&plan.reference.label, &plan.reference.settings), (&reference.label, &reference.settings), "the reference stays");
+        let skull = &plan.sweeps[1].runs;
+        assert_eq!(skull.iter().map(|r| r.settings.skull).collect::<Vec<_>>(), [false, true]);
     }
 
     #[test]

@@ -40,6 +40,7 @@ fn knob_color(k: Option<Knob>) -> RGBColor {
         Some(Knob::Backend) => RGBColor(214, 39, 40),
         Some(Knob::Storage) => RGBColor(148, 103, 189),
         Some(Knob::RegionOfInterest) => RGBColor(140, 86, 75),
+        Some(Knob::Skull) => RGBColor(188, 189, 34),
     }
 }
 

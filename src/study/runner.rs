@@ -17,7 +17,7 @@ use super::plan::{MeshChoice, RoiChoice, Settings};
 use crate::geometry::Pose;
 use crate::math::Vec3;
 use crate::mesh::TetMesh;
-use crate::scenario::{Effect, EffectSet, FixedRegion, LengthUnit, MeshSource, RegionOfInterest, Scenario, Sphere};
+use crate::scenario::{Effect, EffectSet, FixedRegion, LengthUnit, MeshSource, RegionOfInterest, Scenario, Skull, Sphere};
 use crate::sim::{BuildError, BuildOptions, FrameInput, Pipeline, StageTimes, StepError};
 
 /// Why one run could not be done (the study goes on and its row says so).
@@ -72,31 +72,63 @@ pub struct RunTrace {
     pub compliance_cached: bool,
 }
 
+/// A mesh of the study, in metres, with the skull its skull knob turns on.
+pub struct StudyMesh {
+    pub mesh: TetMesh,
+    /// The skull's spheres: the scene's own, a brain phantom's landmarks, or a
+    /// sphere containing the mesh with [`SKULL_CLEARANCE_M`] to spare.
+    pub skull: Skull,
+}
+
+/// Clearance of the containing sphere made for a mesh without skull landmarks
+/// (the brain phantoms' own clearance).
+pub const SKULL_CLEARANCE_M: f64 = 0.005;
+
+/// A sphere around the bounding box's centre that contains every node with
+/// [`SKULL_CLEARANCE_M`] to spare.
+pub fn containing_skull(mesh: &TetMesh) -> Skull {
+    let (lo, hi) = mesh.bounding_box();
+    let center = (lo + hi) * 0.5;
+    let radius = mesh.positions.iter().map(|p| (p - center).norm()).fold(0.0, f64::max) + SKULL_CLEARANCE_M;
+    Skull { containing: Some(Sphere { center, radius }), excluding: None }
+}
+
 /// Meshes loaded once per study, in metres.
 #[derive(Default)]
 pub struct MeshStore {
-    entries: Vec<(MeshChoice, TetMesh)>,
+    entries: Vec<(MeshChoice, StudyMesh)>,
 }
 
 impl MeshStore {
     /// The mesh of `choice` (generated / read on first use).
-    pub fn get(&mut self, choice: &MeshChoice, scene: &Scenario) -> Result<&TetMesh, RunError> {
+    pub fn get(&mut self, choice: &MeshChoice, scene: &Scenario) -> Result<&StudyMesh, RunError> {
         if let Some(k) = self.entries.iter().position(|(c, _)| c == choice) {
             return Ok(&self.entries[k].1);
         }
         let fail = |message: String| RunError::Mesh { mesh: choice.label(), message };
-        let mesh = match choice {
-            MeshChoice::Scene => crate::sim::build::load_mesh(scene)?,
+        let (mesh, skull) = match choice {
+            MeshChoice::Scene => (crate::sim::build::load_mesh(scene)?, scene.skull.clone()),
             MeshChoice::Phantom(name) => {
-                let preset: crate::mesh::phantom::Preset = name.parse().map_err(|e: crate::mesh::phantom::UnknownPreset| fail(e.to_string()))?;
-                crate::mesh::phantom::generate(preset).map_err(|e| fail(e.to_string()))?.mesh
+                use crate::mesh::phantom::{Landmarks, Preset, UnknownPreset, generate};
+                let preset: Preset = name.parse().map_err(|e: UnknownPreset| fail(e.to_string()))?;
+                let p = generate(preset).map_err(|e| fail(e.to_string()))?;
+                let skull = match &p.landmarks {
+                    Landmarks::Brain(b) => Some(Skull {
+                        containing: Some(Sphere { center: b.skull_containing.centre, radius: b.skull_containing.radius }),
+                        excluding: Some(Sphere { center: b.skull_excluding.centre, radius: b.skull_excluding.radius }),
+                    }),
+                    Landmarks::Block(_) => None,
+                };
+                (p.mesh, skull)
             }
             MeshChoice::File { path, .. } => {
                 let mut m = crate::mesh::io::load_tet_mesh(path).map_err(|e| fail(e.to_string()))?;
                 m.scale(1e-3);
-                m
+                (m, None)
             }
         };
+        let skull = skull.unwrap_or_else(|| containing_skull(&mesh));
+        let mesh = StudyMesh { mesh, skull };
         self.entries.push((choice.clone(), mesh));
         Ok(&self.entries.last().expect("just pushed").1)
     }
@@ -149,7 +181,7 @@ fn pose_above_gap(mesh: &TetMesh, scene: &Scenario) -> Option<Pose> {
 }
 
 /// The base scene with a run's settings applied.
-pub fn configure(base: &Scenario, settings: &Settings, motion: &Motion, mesh: &TetMesh, cache_dir: Option<&Path>) -> Scenario {
+pub fn configure(base: &Scenario, settings: &Settings, motion: &Motion, mesh: &StudyMesh, cache_dir: Option<&Path>) -> Scenario {
     let mut s = base.clone();
     match &settings.mesh {
         MeshChoice::Scene => {}
@@ -157,8 +189,7 @@ pub fn configure(base: &Scenario, settings: &Settings, motion: &Motion, mesh: &T
         MeshChoice::File { path, fix_height_m } => {
             s.mesh = MeshSource::File { path: path.clone(), units: LengthUnit::Millimetres };
             s.fixed = vec![FixedRegion::LowestPerComponent { height: *fix_height_m }];
-            s.skull = None;
-            if let (Some(pose), Some(first)) = (pose_above_gap(mesh, base), s.spatulas.first_mut()) {
+            if let (Some(pose), Some(first)) = (pose_above_gap(&mesh.mesh, base), s.spatulas.first_mut()) {
                 first.initial_pose = pose;
             }
         }
@@ -167,11 +198,15 @@ pub fn configure(base: &Scenario, settings: &Settings, motion: &Motion, mesh: &T
         sp.layout = settings.layout.clone();
     }
     s.collision_backend = settings.backend;
+    s.skull = settings.skull.then(|| mesh.skull.clone());
     let mut effects = EffectSet::default();
     for e in base.effects.iter() {
-        if e != Effect::Culling && !(e == Effect::SkullSpheres && s.skull.is_none()) {
+        if e != Effect::Culling && e != Effect::SkullSpheres {
             effects.insert(e);
         }
+    }
+    if settings.skull {
+        effects.insert(Effect::SkullSpheres);
     }
     effects.insert(Effect::Collision);
     effects.insert(Effect::ForceOutput);
@@ -205,8 +240,9 @@ pub fn execute(
     cache_dir: Option<&Path>,
     keep_displacements: bool,
 ) -> Result<RunTrace, RunError> {
-    let mesh = meshes.get(&settings.mesh, base)?.clone();
-    let scene = configure(base, settings, motion, &mesh, cache_dir);
+    let study_mesh = meshes.get(&settings.mesh, base)?;
+    let scene = configure(base, settings, motion, study_mesh, cache_dir);
+    let mesh = study_mesh.mesh.clone();
     let initial: Vec<Pose> = scene.spatulas.iter().map(|s| s.initial_pose).collect();
     let thickness = scene.spatulas.first().map(|s| s.shape.thickness).unwrap_or(0.001);
     let frames = motion.frames(&initial, thickness, settings.speed);
@@ -246,4 +282,37 @@ pub fn execute(
         }
     }
     Ok(trace)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::study::plan::{MeshChoice, base_settings};
+
+    #[test]
+    fn the_skull_knob_adds_the_meshes_skull_and_its_stage_and_nothing_else() {
+        let scene = crate::study::load_scene(None).expect("built-in study scene");
+        let mut meshes = MeshStore::default();
+        let choice = MeshChoice::Phantom("small".into());
+        let mesh = meshes.get(&choice, &scene).expect("phantom");
+        let off = Settings { skull: false, ..base_settings(choice.clone()) };
+        let on = Settings { skull: true, ..off.clone() };
+        let motion = Motion::default();
+        let a = configure(&scene, &off, &motion, mesh, None);
+        let b = configure(&scene, &on, &motion, mesh, None);
+        assert!(a.skull.is_none() && !a.effects.contains(Effect::SkullSpheres));
+        assert!(b.effects.contains(Effect::SkullSpheres));
+        let skull = b.skull.clone().expect("a skull");
+        // The brain phantoms bring their landmarks: a containing sphere and the skull-base bump.
+        assert!(skull.containing.is_some() && skull.excluding.is_some(), "{skull:?}");
+        let (mut a2, mut b2) = (a.clone(), b.clone());
+        a2.skull = None;
+        b2.skull = None;
+        b2.effects = a2.effects.clone();
+        assert_eq!(format!("{a2:?}"), format!("{b2:?}"), "only the skull differs");
+        // A mesh without landmarks gets a sphere containing every node with the clearance.
+        let c = containing_skull(&mesh.mesh).containing.expect("sphere");
+        let far = mesh.mesh.positions.iter().map(|p| (p - c.center).norm()).fold(0.0, f64::max);
+        assert!((c.radius - far - SKULL_CLEARANCE_M).abs() < 1e-12);
+    }
 }
