@@ -2,14 +2,21 @@
 # Regenerates the committed study reports and the README's study section:
 #   docs/study/quick/  `fissure study --preset quick` (report.md and its plots; the README copies its summary)
 #   docs/study/ci/     `fissure study --preset ci` (the test suite re-runs it and compares its accuracy columns)
+#   docs/study/brain/  `fissure study --preset brain` (the real brains, when ../shared/data/brain has them)
+# The reference runs are kept in target/study-cache between regenerations (their times are then those of the
+# run that made them; delete the folder to time them again).
 # Release build; takes several minutes on 2 cores. Run it when a change moves the study's numbers
 # (tests/study_quick.rs says so) and commit the result.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --quiet
-for preset in quick ci; do
+presets="quick ci"
+if [ -f ../shared/data/brain/brain_pial_coarse.msh ] && [ -f ../shared/data/brain/brain_pial_q15.msh ]; then
+    presets="$presets brain"
+fi
+for preset in $presets; do
     out="$(mktemp -d)"
-    target/release/fissure study --preset "$preset" --out "$out"
+    target/release/fissure study --preset "$preset" --out "$out" --cache-dir target/study-cache
     mkdir -p "docs/study/$preset"
     cp "$out/report.md" "$out"/*.png "docs/study/$preset/"
     rm -rf "$out"

@@ -218,3 +218,22 @@ fn mesh_info_on_a_fifo_or_a_device_fails_at_once_naming_it() {
         assert!(err.contains(&path.display().to_string()) && err.contains(what) && err.contains("not a regular file"), "{err}");
     }
 }
+
+#[test]
+fn study_refuses_an_unknown_knob_and_a_mesh_that_does_not_load_before_any_run() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let out_dir = dir.path().join("out");
+    let out = fissure(&["study", "--knob", "skul", "--out", out_dir.to_str().expect("utf-8")]);
+    assert!(!out.status.success(), "an unknown knob must fail");
+    let err = text(&out.stderr);
+    assert!(err.contains("--knob skul: unknown knob") && err.contains("skull"), "names the knob and the known ones: {err}");
+    assert!(!out_dir.exists(), "nothing ran");
+
+    let bad = dir.path().join("broken.msh");
+    std::fs::write(&bad, "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n2\n1 0 0 0\n").expect("write");
+    let out = fissure(&["study", "--preset", "brain", "--mesh", bad.to_str().expect("utf-8"), "--out", out_dir.to_str().expect("utf-8")]);
+    assert!(!out.status.success(), "a broken mesh must fail");
+    let err = text(&out.stderr);
+    assert!(err.contains("broken.msh"), "names the mesh: {err}");
+    assert!(!out_dir.join("results.csv").exists(), "no run started");
+}

@@ -249,37 +249,39 @@ fn draw_budget<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Stud
         .margin(20)
         .x_label_area_size(60)
         .y_label_area_size(110)
-        .build_cartesian_2d(axis.range().log_scale(), (0..BUDGETS_MS.len() as i32).into_segmented())
+        .build_cartesian_2d(axis.range().log_scale(), -0.5..BUDGETS_MS.len() as f64 - 0.5)
         .map_err(err)?;
+    // One row a budget, centred on its index; ticks every half row, labelled on the whole ones.
+    let row_of = |v: &f64| {
+        let k = v.round();
+        ((v - k).abs() < 1e-6 && k >= 0.0).then_some(k as usize)
+    };
     chart
         .configure_mesh()
         .disable_y_mesh()
+        .y_labels(2 * BUDGETS_MS.len() + 1)
         .x_label_formatter(&|v| axis.tick(v))
-        .y_label_formatter(&|s: &SegmentValue<i32>| match s {
-            SegmentValue::CenterOf(k) => BUDGETS_MS.get(*k as usize).map(|b| format!("{b} ms")).unwrap_or_default(),
-            _ => String::new(),
-        })
+        .y_label_formatter(&|v: &f64| row_of(v).and_then(|k| BUDGETS_MS.get(k)).map(|b| format!("{b} ms")).unwrap_or_default())
         .x_desc("RMS surface displacement error against the reference (mm; shorter is better)")
-        .y_desc("frame budget")
+        .y_desc("frame budget (p95)")
         .axis_desc_style((FONT, 18))
         .label_style((FONT, 16))
         .draw()
         .map_err(err)?;
     for (k, (budget, row)) in best.iter().enumerate() {
-        let k = k as i32;
+        let y = k as f64;
         let Some(r) = row else {
-            chart
-                .draw_series(std::iter::once(Text::new(format!("nothing fits in {budget} ms"), (axis.lo, SegmentValue::CenterOf(k)), (FONT, 16))))
-                .map_err(err)?;
+            chart.draw_series(std::iter::once(Text::new(format!("nothing fits in {budget} ms"), (axis.range().start, y), (FONT, 16)))).map_err(err)?;
             continue;
         };
         let Some((p95, e)) = error_point(r) else { continue };
         let c = knob_color(r.knob);
         chart
-            .draw_series(std::iter::once(Rectangle::new([(axis.exact / 2.0, SegmentValue::Exact(k)), (axis.y(e), SegmentValue::Exact(k + 1))], c.mix(0.6).filled())))
+            .draw_series(std::iter::once(Rectangle::new([(axis.range().start, y - 0.3), (axis.y(e), y + 0.3)], c.mix(0.6).filled())))
             .map_err(err)?;
-        let text = format!("{}: {} (p95 {:.2} ms)", r.knob.map_or("reference", |k| k.name()), r.label, p95);
-        chart.draw_series(std::iter::once(Text::new(text, (axis.exact / 1.8, SegmentValue::CenterOf(k)), (FONT, 16)))).map_err(err)?;
+        let rms = if e == 0.0 { "exact".to_string() } else if e < 0.01 { format!("{e:.1e} mm") } else { format!("{e:.3} mm") };
+        let text = format!("{}: {} (p95 {:.2} ms, RMS {rms})", r.knob.map_or("reference", |k| k.name()), r.label, p95);
+        chart.draw_series(std::iter::once(Text::new(text, (axis.range().start, y + 0.05), (FONT, 16)))).map_err(err)?;
     }
     root.present().map_err(err)
 }
