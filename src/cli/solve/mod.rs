@@ -113,7 +113,10 @@ pub fn run(args: &SolveArgs) -> anyhow::Result<()> {
     mesh.scale(metres_per_unit);
 
     let prescription = boundary::load(args.fixed.as_deref(), args.enforced.as_deref(), &numbering, &mesh.positions)?;
-    boundary::check_rigid_motions(&mesh, &prescription, &numbering)?;
+    boundary::check_rigid_motions(&mesh, &prescription, &numbering).with_context(|| {
+        let files: Vec<String> = [&args.fixed, &args.enforced].into_iter().flatten().map(|p| p.display().to_string()).collect();
+        format!("the nodes in {} do not hold the mesh", files.join(" and "))
+    })?;
 
     let t_solve = Instant::now();
     let lame = vec![material.lame(); mesh.tets.len()];
