@@ -46,6 +46,9 @@ impl Cap {
     /// (`brain_pial_q15.msh`) is 13 MB; 2 GiB of ASCII is some 20 million
     /// tetrahedra, beyond what the solver factors in memory here.
     pub const MESH: Cap = Cap { bytes: 2 * GIB, what: "a mesh file" };
+    /// A JSON list of nodes (`fissure solve --fixed / --enforced`): some 40
+    /// bytes an entry, so millions of nodes.
+    pub const NODE_LIST: Cap = Cap { bytes: 256 * MIB, what: "a node list" };
     /// A triangle surface (`.obj`, `.stl`): the pial surfaces are 1.4 MB.
     pub const SURFACE: Cap = Cap { bytes: GIB, what: "a surface file" };
     /// The compliance cache: its exact size is checked against its header, so

@@ -13,6 +13,7 @@ mod replay;
 mod run;
 mod study;
 mod screenshot;
+mod solve;
 mod units;
 
 use std::path::PathBuf;
@@ -125,6 +126,8 @@ pub enum Command {
         #[arg(long)]
         trajectory: Option<PathBuf>,
     },
+    /// One static linear-elastic solve on a mesh with fixed and enforced nodes (JSON lists): displacements and reactions to a .vtu.
+    Solve(solve::SolveArgs),
     /// Mesh tools: inspect, generate phantoms, tetrahedralize surfaces, convert.
     #[command(subcommand)]
     Mesh(MeshCommand),
@@ -194,7 +197,7 @@ pub enum StudyPresetArg {
     Brain,
 }
 
-/// Length unit of a surface file.
+/// Length unit of a surface or mesh file.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 pub enum SurfaceUnits {
     /// Millimetres.
@@ -222,6 +225,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
             study::run(fissure::study::StudyOptions { preset, scene, out_dir: out, knobs: study::knobs(&knobs)?, meshes, cache_dir })
         }
         Some(Command::Check { scenario, set, trajectory }) => check::run(&scenario, &set, trajectory.as_deref()),
+        Some(Command::Solve(args)) => solve::run(&args),
         Some(Command::Mesh(MeshCommand::Info { path, json })) => mesh::info(&path, json),
         Some(Command::Mesh(MeshCommand::Phantom { preset, output, json })) => mesh::phantom(&preset, &output, json),
         Some(Command::Mesh(MeshCommand::Tetrahedralize { surface, output, edge, surface_units })) => {

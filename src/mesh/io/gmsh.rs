@@ -89,6 +89,18 @@ impl Binary {
 
 /// Parses a `.msh` file held in memory; `path` is only used in messages.
 pub fn parse(path: &Path, data: &[u8]) -> Result<TetMesh, MeshFileError> {
+    parse_raw(path, data)?.finish(path)
+}
+
+/// [`parse`], plus the Gmsh node tag of every node (`tags[i]` is node `i`'s tag;
+/// Gmsh numbers from 1 and may leave gaps), for users who name nodes by tag.
+pub fn parse_with_node_tags(path: &Path, data: &[u8]) -> Result<(TetMesh, Vec<i64>), MeshFileError> {
+    let raw = parse_raw(path, data)?;
+    let tags = raw.node_tags.clone();
+    Ok((raw.finish(path)?, tags))
+}
+
+fn parse_raw(path: &Path, data: &[u8]) -> Result<RawTets, MeshFileError> {
     let mut c = Cursor::new(path, data);
     c.keyword("$MeshFormat")?;
     let (version_token, version_line) = c.need("the format version")?;
@@ -182,7 +194,7 @@ pub fn parse(path: &Path, data: &[u8]) -> Result<TetMesh, MeshFileError> {
             };
         }
     }
-    raw.finish(path)
+    Ok(raw)
 }
 
 /// Skips an unknown section `$name ... $Endname`.

@@ -167,6 +167,11 @@ pub fn load_tet_mesh(path: &Path) -> Result<TetMesh, MeshFileError> {
     }
 }
 
+/// Loads a Gmsh `.msh` mesh with the node tag of every node (see [`gmsh::parse_with_node_tags`]).
+pub fn load_gmsh_with_node_tags(path: &Path) -> Result<(TetMesh, Vec<i64>), MeshFileError> {
+    gmsh::parse_with_node_tags(path, &read(path)?)
+}
+
 /// Loads a `.vtu` mesh with its point and cell data (see [`vtu::parse_with_fields`]).
 pub fn load_vtu_with_fields(path: &Path) -> Result<(TetMesh, FieldData), MeshFileError> {
     vtu::parse_with_fields(path, &read(path)?)
