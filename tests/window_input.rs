@@ -37,14 +37,14 @@ fn keys_select_any_blade_esc_and_tab_take_the_keys_back_from_the_panel() {
     let script = dir.path().join("script.txt");
     std::fs::write(
         &script,
-        "0.05 keydown 2\n0.06 keyup 2\n\
-         0.10 keydown W\n0.60 keyup W\n\
-         0.70 focus panel\n\
-         0.80 keydown W\n1.30 keyup W\n\
-         1.40 keydown Esc\n1.41 keyup Esc\n\
-         1.45 keydown Tab\n1.46 keyup Tab\n\
-         1.50 keydown E\n1.90 keyup E\n\
-         1.95 keydown R\n1.96 keyup R\n",
+        "0.20 keydown 2\n0.21 keyup 2\n\
+         0.30 keydown W\n1.10 keyup W\n\
+         1.20 focus panel\n\
+         1.30 keydown W\n1.90 keyup W\n\
+         2.00 keydown Esc\n2.01 keyup Esc\n\
+         2.05 keydown Tab\n2.06 keyup Tab\n\
+         2.10 keydown E\n2.50 keyup E\n\
+         2.60 keydown R\n2.61 keyup R\n",
     )
     .expect("write script");
     let mut c = Command::new(env!("CARGO_BIN_EXE_fissure"));
@@ -53,7 +53,7 @@ fn keys_select_any_blade_esc_and_tab_take_the_keys_back_from_the_panel() {
         c.env("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json").env("WGPU_BACKEND", "vulkan");
     }
     let output = c
-        .args(["run", "config/sylvian.ron", "--present-mode", "fifo", "--size", "640x400", "--frames", "210", "--no-haptics", "--script"])
+        .args(["run", "config/sylvian.ron", "--present-mode", "fifo", "--size", "640x400", "--frames", "280", "--no-haptics", "--script"])
         .arg(&script)
         .arg("--record-dir")
         .arg(blocker.join("recordings"))
@@ -62,14 +62,14 @@ fn keys_select_any_blade_esc_and_tab_take_the_keys_back_from_the_panel() {
     let stdout = String::from_utf8_lossy(&output.stdout).to_string();
     let stderr = String::from_utf8_lossy(&output.stderr).to_string();
     assert!(output.status.success(), "the window run must exit 0:\nstdout {stdout}\nstderr {stderr}");
-    assert!(stdout.contains("simulation: 210 frames"), "{stdout}\n{stderr}");
+    assert!(stdout.contains("simulation: 280 frames"), "{stdout}\n{stderr}");
 
-    // Temporal (bound to the gamepad): 2 made it active, W held ~0.5 s at 10
-    // mm/s moved it ~5 mm along its blade (world +x). Had the W typed into the
-    // panel's field reached it too, it would have moved ~10 mm.
+    // Temporal (bound to the gamepad): 2 made it active, W held ~0.8 s at 10
+    // mm/s moved it ~8 mm along its blade (world +x). Had the W typed into the
+    // panel's field reached it too, it would have moved ~14 mm.
     let temporal = final_position_mm(&stdout, "temporal");
     let dx = temporal[0] - (-133.09);
-    assert!((3.5..=6.5).contains(&dx), "temporal must move ~5 mm with W after 2 (and not with the panel's W): moved {dx} mm\n{stdout}");
+    assert!((5.5..=10.5).contains(&dx), "temporal must move ~8 mm with W after 2 (and not with the panel's W): moved {dx} mm\n{stdout}");
     // Frontal: Esc gave the keys back, Tab made it active, E lifted it ~4 mm
     // along its face normal (0, -0.34, 0.94): z up, x unchanged.
     let frontal = final_position_mm(&stdout, "frontal");
