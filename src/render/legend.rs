@@ -74,7 +74,7 @@ impl Legend {
             return None;
         }
         let marker = (kind == FieldKind::ContactPressureMmHg && shown.0 <= INJURY_LINE_MMHG && INJURY_LINE_MMHG <= shown.1)
-            .then(|| Marker { value: INJURY_LINE_MMHG, label: "20 injury line".into() });
+            .then(|| Marker { value: INJURY_LINE_MMHG, label: "20 mmHg injury line".into() });
         Some(Self { title: title.into(), map, range: shown, ticks, marker })
     }
 

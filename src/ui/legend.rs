@@ -81,7 +81,7 @@ mod tests {
                 _ => {}
             }
         }
-        for want in ["contact pressure (mmHg)", "0", "10", "20", "30", "20 injury line"] {
+        for want in ["contact pressure (mmHg)", "0", "10", "20", "30", "20 mmHg injury line"] {
             assert!(texts.iter().any(|t| t == want), "missing text `{want}` in {texts:?}");
         }
         assert!(rects > 200, "the bar is painted as one strip a point: {rects} rectangles");
