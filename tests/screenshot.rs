@@ -119,7 +119,7 @@ fn strain_field_shows_where_the_blades_stretch_the_tissue() {
 }
 
 /// The legend's box in an image `height` pixels tall (`fissure::ui::legend`:
-/// 300 x 74 at a 12-pixel margin from the lower-left corner), as (x, y) ranges.
+/// 300 x 86 at a 12-pixel margin from the lower-left corner), as (x, y) ranges.
 struct LegendBox {
     x: std::ops::Range<u32>,
     y: std::ops::Range<u32>,
@@ -132,7 +132,7 @@ impl LegendBox {
 }
 
 fn legend_box(height: u32) -> LegendBox {
-    LegendBox { x: 12..312, y: height - 12 - 74..height - 12 }
+    LegendBox { x: 12..312, y: height - 12 - 86..height - 12 }
 }
 
 /// `--field pressure` draws the colour bar: white at 0 mmHg, dark red at the
@@ -142,8 +142,8 @@ fn legend_box(height: u32) -> LegendBox {
 fn pressure_screenshot_has_a_colour_bar_with_the_injury_line() {
     let args = ["--size", "400x250", "--field", "pressure", "--set", "solver.cache_dir=None"];
     let Some((image, _)) = shoot("pressure_legend.png", &args) else { return };
-    // The bar: 14 px from the box's left, 28 px below its top, 272 x 14 px.
-    let top = 250 - 12 - 74 + 28;
+    // The bar: 14 px from the box's left, 40 px below its top, 272 x 14 px.
+    let top = 250 - 12 - 86 + 40;
     let (left, width) = (12 + 14, 272);
     let px = |x: u32, y: u32| image.get_pixel(x, y).0.map(i32::from);
     // (egui's overlay comes out about 17 % darker than the sRGB it is given on

@@ -186,7 +186,7 @@ pub const CONTROLS: &[ControlRow] = &[
     },
     ControlRow {
         input: "Esc",
-        action: "keys back to the scene (after typing in the panel's text field); the panel shows where keys go: \"keys → scene\" or \"keys → panel\"",
+        action: "keys back to the scene (after typing in the panel's text field); the panel shows where keys go: \"keys -> scene\" or \"keys -> panel\"",
         keys: &["Esc"],
     },
     ControlRow { input: "Ctrl+Q", action: "quit (a recording in progress is kept whole); closing the window does the same", keys: &["Ctrl+Q"] },

@@ -3,15 +3,15 @@
 //! screenshot's legend is the window's).
 //!
 //! In: a [`Legend`] and the rectangle of the scene. Out: shapes on an egui
-//! painter (a box at the scene's lower left: title with unit, the bar, ticks
-//! with labels, the marked value as a line). Stays true: draws nothing for a
+//! painter (a box at the scene's lower left: title with unit, the marked
+//! value's label, the bar with the marked value as a line, ticks with labels). Stays true: draws nothing for a
 //! legend without ticks; needs no layout pass (works on the first frame of a
 //! fresh egui context).
 
 use crate::render::legend::Legend;
 
 /// Size of the legend box, points.
-pub const LEGEND_SIZE: egui::Vec2 = egui::vec2(300.0, 74.0);
+pub const LEGEND_SIZE: egui::Vec2 = egui::vec2(300.0, 86.0);
 
 /// The rectangle the legend takes in `scene` (its lower-left corner, with a margin).
 pub fn legend_rect(scene: egui::Rect) -> egui::Rect {
@@ -29,7 +29,8 @@ pub fn paint_legend(painter: &egui::Painter, scene: egui::Rect, legend: &Legend)
     let text = egui::Color32::from_gray(235);
     let font = egui::FontId::proportional(13.0);
     painter.text(frame.left_top() + egui::vec2(10.0, 6.0), egui::Align2::LEFT_TOP, &legend.title, font.clone(), text);
-    let bar = egui::Rect::from_min_size(frame.left_top() + egui::vec2(14.0, 28.0), egui::vec2(frame.width() - 28.0, 14.0));
+    // Title row, then the marker's label row, then the bar and its tick labels.
+    let bar = egui::Rect::from_min_size(frame.left_top() + egui::vec2(14.0, 40.0), egui::vec2(frame.width() - 28.0, 14.0));
     let steps = bar.width().round().max(1.0) as usize;
     let step = bar.width() / steps as f32;
     for k in 0..steps {

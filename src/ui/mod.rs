@@ -8,7 +8,7 @@
 //! are pure and allocation-free per frame; the 20 mmHg line (the retraction
 //! pressure above which brain injury risk rises) is drawn and exceeding it
 //! shows a warning and accumulates pressure-time (simulated seconds); the
-//! panel's first line says where the keys go ("keys → scene" / "keys → panel")
+//! panel's first line says where the keys go ("keys -> scene" / "keys -> panel")
 //! and each blade is listed by the scene's own name, the active one marked.
 
 pub mod legend;
@@ -173,9 +173,9 @@ impl Default for PanelData {
 /// The focus line: where the keys go now.
 pub fn focus_text(keys_to_scene: bool) -> &'static str {
     if keys_to_scene {
-        "keys → scene"
+        "keys -> scene"
     } else {
-        "keys → panel (Esc or a click on the scene gives them back)"
+        "keys -> panel (Esc or a click on the scene gives them back)"
     }
 }
 
@@ -269,7 +269,7 @@ pub fn draw_panel(
                 let magnitude = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
                 let name = names.get(k).map(String::as_str).unwrap_or("?");
                 let active = k == data.active_spatula;
-                let title = format!("{} {} {name}: |F| = {magnitude:.3} N", if active { "▶" } else { "  " }, k + 1);
+                let title = format!("{} {} {name}: |F| = {magnitude:.3} N", if active { ">" } else { " " }, k + 1);
                 if ui.selectable_label(active, egui::RichText::new(title).strong()).clicked() && !active {
                     actions.push(PanelAction::SelectSpatula(k));
                 }
@@ -339,7 +339,7 @@ pub fn draw_panel(
                 }
             });
             if !state.record_dir.is_empty() {
-                ui.small(format!("recordings → {}", state.record_dir));
+                ui.small(format!("recordings -> {}", state.record_dir));
             }
             if let Some(e) = &state.record_error {
                 ui.colored_label(egui::Color32::from_rgb(255, 80, 60), e);
@@ -521,12 +521,12 @@ mod tests {
         let names = ["frontal".to_string(), "temporal".to_string(), "third".to_string()];
         let mut data = PanelData { spatulas: vec![SpatulaReadout { driver: "keys", ..SpatulaReadout::default() }; 3], active_spatula: 1, ..PanelData::default() };
         let texts = panel_texts(&data, &names);
-        assert!(texts.iter().any(|t| t.starts_with("▶ 2 temporal")), "the active blade is marked with its scene name: {texts:?}");
+        assert!(texts.iter().any(|t| t.starts_with("> 2 temporal")), "the active blade is marked with its scene name: {texts:?}");
         assert!(texts.iter().any(|t| t.contains("1 frontal")) && texts.iter().any(|t| t.contains("3 third")), "{texts:?}");
         assert!(!texts.iter().any(|t| t.contains("left") || t.contains("right")), "no left/right names: {texts:?}");
-        assert!(texts.iter().any(|t| t == "keys → scene"), "{texts:?}");
+        assert!(texts.iter().any(|t| t == "keys -> scene"), "{texts:?}");
         data.keys_to_scene = false;
         let texts = panel_texts(&data, &names);
-        assert!(texts.iter().any(|t| t.starts_with("keys → panel")), "{texts:?}");
+        assert!(texts.iter().any(|t| t.starts_with("keys -> panel")), "{texts:?}");
     }
 }
