@@ -777,3 +777,26 @@ impl ApplicationHandler for App {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    /// `--record-dir` wins over the scenario's `outputs.record_dir`, which
+    /// wins over the user's data directory (never the working directory
+    /// while the system has one).
+    #[test]
+    fn record_dir_comes_from_the_cli_then_the_scenario_then_the_data_dir() {
+        assert_eq!(record_dir_for(Some(Path::new("cli")), Some(Path::new("scene"))), PathBuf::from("cli"));
+        assert_eq!(record_dir_for(None, Some(Path::new("scene"))), PathBuf::from("scene"));
+        let default = record_dir_for(None, None);
+        match user_record_dir() {
+            Some(user) => {
+                assert_eq!(default, user);
+                assert!(user.ends_with("fissure/recordings") && user.is_absolute(), "{}", user.display());
+            }
+            None => assert_eq!(default, PathBuf::from("recordings"), "no data directory: ./recordings"),
+        }
+    }
+}
