@@ -6,7 +6,7 @@ use fissure::input::gamepad::{
     GamepadController, GamepadMapping, MotionMode, PadAxis, PadButton, PadEvent,
 };
 use fissure::input::keyboard::{Key, KeyEvent, KeyboardController};
-use fissure::input::{PoseGuard, SpatulaSlot, integrate};
+use fissure::input::{PoseGuard, integrate};
 use fissure::math::Vec3;
 
 #[test]
@@ -73,7 +73,7 @@ fn keyboard_tab_and_translation() {
         key: Key::Tab,
         pressed: true,
     });
-    assert_eq!(keys.command().spatula, SpatulaSlot::Right);
+    assert_eq!(keys.command().spatula, 1, "Tab makes the second blade active");
     keys.apply(KeyEvent {
         key: Key::E,
         pressed: true,

@@ -361,3 +361,27 @@ fn low_rank_storage_is_read_and_its_digits_are_checked() {
     assert_eq!(s.solver.compliance_storage, fissure::scenario::ComplianceStorage::LowRank { digits: 8 });
     assert_bad(from, "compliance_storage: LowRank(digits: 3)", "solver.compliance_storage", "LowRank digits must be 4..=12, got 3");
 }
+
+/// `display.pressure_max_mmhg` (the pressure colour bar's top) defaults to 30
+/// mmHg, takes a value in [1, 1000], and a bad one or an unknown key under
+/// `display` names the file, line and field; `outputs.record_dir` is kept as
+/// written and may not be empty.
+#[test]
+fn display_pressure_scale_and_record_dir_validate() {
+    let (_dir, _path, default) = load_text(&sylvian_text());
+    let default = default.expect("the Sylvian scene loads");
+    assert_eq!(default.display.pressure_max_mmhg, 30.0);
+    assert_eq!(default.outputs.record_dir, None, "no record_dir: the user's data directory");
+    let anchor = "outputs: (dir: \"out/sylvian\", vtk: false, frames: false),";
+    let text = sylvian_text().replacen(anchor, "outputs: (dir: \"out/sylvian\", record_dir: \"my/recs\"),\n    display: (pressure_max_mmhg: 15.0),", 1);
+    let (_dir, _path, set) = load_text(&text);
+    let set = set.expect("valid display and record_dir");
+    assert_eq!(set.display.pressure_max_mmhg, 15.0);
+    assert_eq!(set.outputs.record_dir.as_deref(), Some(Path::new("my/recs")));
+    assert_bad(anchor, "outputs: (dir: \"out\"), display: (pressure_max_mmhg: 0.5),", "display.pressure_max_mmhg", "must be in [1, 1000] mmHg, got 0.5");
+    assert_bad(anchor, "outputs: (dir: \"out\", record_dir: \" \"),", "outputs.record_dir", "must not be empty");
+    let text = sylvian_text().replacen(anchor, "display: (pressure_top: 20.0),", 1);
+    let (_dir, path, result) = load_text(&text);
+    let message = result.expect_err("an unknown key under display").to_string();
+    assert!(message.contains(&path.display().to_string()) && message.contains("pressure_top"), "{message}");
+}

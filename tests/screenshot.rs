@@ -101,10 +101,13 @@ fn strain_field_shows_where_the_blades_stretch_the_tissue() {
         "solver.cache_dir=None",
     ];
     let Some((image, _)) = shoot("strain.png", &args) else { return };
-    // viridis from teal up: green above red, and not below blue (the blade's steel is blue above green)
+    // viridis from teal up: green above red, and not below blue (the blade's steel is blue above green);
+    // the colour bar at the lower left is left out (its own greens would pass this alone).
+    let legend = legend_box(image.height());
     let strained = image
-        .pixels()
-        .filter(|p| {
+        .enumerate_pixels()
+        .filter(|(x, y, _)| !legend.contains(&(*x, *y)))
+        .filter(|(_, _, p)| {
             let [r, g, b, _] = p.0.map(i32::from);
             g > r + 20 && g + 10 > b
         })
@@ -113,4 +116,52 @@ fn strain_field_shows_where_the_blades_stretch_the_tissue() {
     println!("strained (green above red) pixels: {strained}, pink pixels: {brain}");
     assert!(strained > 200, "strained tissue must show in greens and yellows: {strained} pixels");
     assert!(brain < 50, "the surface is coloured by strain, not the plain pink: {brain} pink pixels");
+}
+
+/// The legend's box in an image `height` pixels tall (`fissure::ui::legend`:
+/// 300 x 86 at a 12-pixel margin from the lower-left corner), as (x, y) ranges.
+struct LegendBox {
+    x: std::ops::Range<u32>,
+    y: std::ops::Range<u32>,
+}
+
+impl LegendBox {
+    fn contains(&self, (x, y): &(u32, u32)) -> bool {
+        self.x.contains(x) && self.y.contains(y)
+    }
+}
+
+fn legend_box(height: u32) -> LegendBox {
+    LegendBox { x: 12..312, y: height - 12 - 86..height - 12 }
+}
+
+/// `--field pressure` draws the colour bar: white at 0 mmHg, dark red at the
+/// scenario's top (30 mmHg by default, `display.pressure_max_mmhg`), the 20
+/// mmHg line two thirds along; `--field none` draws no bar.
+#[test]
+fn pressure_screenshot_has_a_colour_bar_with_the_injury_line() {
+    let args = ["--size", "400x250", "--field", "pressure", "--set", "solver.cache_dir=None"];
+    let Some((image, _)) = shoot("pressure_legend.png", &args) else { return };
+    // The bar: 14 px from the box's left, 40 px below its top, 272 x 14 px.
+    let top = 250 - 12 - 86 + 40;
+    let (left, width) = (12 + 14, 272);
+    let px = |x: u32, y: u32| image.get_pixel(x, y).0.map(i32::from);
+    // (egui's overlay comes out about 17 % darker than the sRGB it is given on
+    // the software driver: white reads ~211, so the checks are relative.)
+    let low = px(left + 2, top + 7);
+    assert!(low.iter().take(3).all(|c| *c > 190) && (low[0] - low[2]).abs() < 20, "0 mmHg is white (grey-white): {low:?}");
+    let high = px(left + width - 2, top + 7);
+    assert!(high[0] > 80 && high[1] < 40 && high[2] < 70, "30 mmHg is dark red: {high:?}");
+    let mid = px(left + width / 4, top + 7);
+    assert!(mid[0] > 180 && mid[0] - mid[2] > 80, "7.5 mmHg is clearly yellow-orange, not near-white: {mid:?}");
+    // The injury line: white, above the bar at 20/30 of its length, over the dark box.
+    let x = left + width * 2 / 3;
+    let line = (x - 1..=x + 1).map(|x| px(x, top - 3)).max_by_key(|p| p[0] + p[1] + p[2]).unwrap_or([0; 4]);
+    assert!(line.iter().take(3).all(|c| *c > 150), "the 20 mmHg line shows above the bar: {line:?}");
+    let box_bg = px(left + width / 2, top - 3);
+    assert!(box_bg[0] < 90, "beside the line the legend box is dark: {box_bg:?}");
+
+    let Some((plain, _)) = shoot("no_legend.png", &["--size", "400x250", "--set", "solver.cache_dir=None"]) else { return };
+    let same = (left..left + width).filter(|x| plain.get_pixel(*x, top + 7) == image.get_pixel(*x, top + 7)).count();
+    assert!(same < 20, "without a field there is no bar ({same} of {width} bar pixels unchanged)");
 }

@@ -1,10 +1,12 @@
 //! The window under Xvfb: `fissure run` opens the default scene, a script
-//! records, pushes the frontal spatula into the fissure with the keyboard map
-//! (W: along the blade), switches view and colour (pressure, then strain from
-//! the background stress worker), and the run stops after a
-//! set number of simulation frames with exit code 0. Then the recording round
-//! trip: the recorded CSV holds every frame's poses, ends at the window's
-//! final pose, and replayed headless gives the window's peak force.
+//! pushes the frontal spatula into the fissure with the keyboard map
+//! (W: along the blade), starts recording mid-push, switches view and colour
+//! (pressure, then strain from the background stress worker), and the run
+//! stops after a set number of simulation frames with exit code 0. Then the
+//! recording round trip: the recorded CSV's t = 0 is the moment recording
+//! started, the session before it (from rest) comes first at negative times,
+//! it ends at the window's final pose, and replayed headless (lead-in first)
+//! gives the window's peak force.
 //!
 //! Skips with a message when `Xvfb` is not installed (CI installs `xvfb`).
 //! Uses the software Vulkan driver and a private XDG_RUNTIME_DIR.
@@ -43,7 +45,7 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
     std::fs::write(
         &script,
         format!(
-            "0.0 record {}\n0.05 press W\n1.65 release W\n1.7 press E\n2.2 release E\n0.3 view microscope\n0.5 field pressure\n1.2 field strain\n",
+            "1.0 record {}\n0.05 press W\n1.65 release W\n1.7 press E\n2.2 release E\n0.3 view microscope\n0.5 field pressure\n1.2 field strain\n",
             recording.display()
         ),
     )
@@ -81,14 +83,24 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
     assert!((x_mm - (-117.09)).abs() < 1e-6, "frontal must end 16 mm deeper (-133.09 -> -117.09 mm), got {x_mm}");
     let hash = line_after(&stdout, "final state ").expect("final state hash").trim().to_string();
 
-    // The recording: every frame of both spatulas, ending at the window's final pose.
+    // The recording: the rest poses and every frame of both spatulas, t = 0
+    // at the frame recording started (1.0 s into the session, the script
+    // fires at the frame reaching it), ending at the window's final pose.
     let trajectory = fissure::scenario::Trajectory::load(&recording).expect("the recording parses as a trajectory");
-    assert_eq!(trajectory.samples(0).len(), frames, "one row per frame for spatula 0");
-    assert_eq!(trajectory.samples(1).len(), frames, "one row per frame for spatula 1");
+    assert_eq!(trajectory.samples(0).len(), frames + 1, "the rest row plus one row per frame for spatula 0");
+    assert_eq!(trajectory.samples(1).len(), frames + 1, "the rest row plus one row per frame for spatula 1");
+    let start = trajectory.start_time();
+    assert!((start + 0.99).abs() < 1e-9, "the lead-in starts at rest, 0.99 s before the press (the frame before 1.0 s), got {start}");
+    for k in 0..2 {
+        assert!(trajectory.samples(k).iter().any(|s| s.time_s == 0.0), "spatula {k}: a row at t = 0, the pose at the press");
+    }
+    let at_press = trajectory.sample(0, 0.0).expect("pose at the press");
+    assert!(at_press.position.x * 1e3 > -133.09 + 9.0, "at the press W had pushed the frontal blade ~9.5 mm: {:?}", at_press.position * 1e3);
     let last = trajectory.samples(0).last().expect("rows");
+    assert!((last.time_s - (frames as f64 * 0.01 + start)).abs() < 1e-9, "the last row is the last frame in recording time: {}", last.time_s);
     assert!((last.position_mm[0] - x_mm).abs() < 1e-9, "recorded last pose {:?} vs window {x_mm}", last.position_mm);
 
-    // Replay it headless for the same frames: the same final state, bit for bit.
+    // Replay it headless for the same frames (the lead-in first, from rest).
     let out = dir.path().join("replay");
     let replay = fissure(dir.path())
         .args(["replay", "config/sylvian.ron", "--trajectory"])

@@ -28,7 +28,8 @@ pub enum SurfaceField {
     None,
     /// Displacement magnitude from rest, mm (0..[`DISPLACEMENT_FULL_SCALE_MM`]).
     Displacement,
-    /// Contact pressure at each constrained vertex, mmHg (0..2x the 20 mmHg line).
+    /// Contact pressure at each constrained vertex, mmHg (0..[`DrawOptions::pressure_max_mmhg`],
+    /// white to dark red, the 20 mmHg injury line marked on the legend).
     Pressure,
     /// Largest principal strain of the tets under each vertex (0..[`STRAIN_FULL_SCALE`]);
     /// plain while the snapshot has no strain yet.
@@ -37,8 +38,9 @@ pub enum SurfaceField {
 
 /// Displacement mapped to the top of the colour map, mm.
 pub const DISPLACEMENT_FULL_SCALE_MM: f64 = 10.0;
-/// Pressure mapped to the top of the colour map, mmHg (twice the 20 mmHg line).
-pub const PRESSURE_FULL_SCALE_MMHG: f64 = 40.0;
+/// Pressure mapped to the top of the colour map by default, mmHg: a real
+/// retraction's 6-12 mmHg shows yellow to orange, the 20 mmHg line red.
+pub const PRESSURE_FULL_SCALE_MMHG: f64 = crate::render::legend::DEFAULT_PRESSURE_MAX_MMHG;
 /// Largest principal strain mapped to the top of the colour map (10 %: the low
 /// end of the tissue strain thresholds for axonal injury reported in the
 /// literature, about 10-20 %; strain above it shows at the top).
@@ -51,12 +53,36 @@ pub struct DrawOptions {
     pub source_nodes: bool,
     pub pairs: bool,
     pub skull: bool,
+    /// Pressure at the top of the colour bar, mmHg (> 0; the scenario's
+    /// `display.pressure_max_mmhg`, the panel's slider).
+    pub pressure_max_mmhg: f64,
 }
 
 impl Default for DrawOptions {
     fn default() -> Self {
-        Self { field: SurfaceField::None, source_nodes: false, pairs: false, skull: true }
+        Self { field: SurfaceField::None, source_nodes: false, pairs: false, skull: true, pressure_max_mmhg: PRESSURE_FULL_SCALE_MMHG }
     }
+}
+
+/// How a field is coloured: its kind, map and range (the field's own unit).
+pub fn field_scale(field: SurfaceField, pressure_max_mmhg: f64) -> Option<(FieldKind, crate::render::ColorMap, (f64, f64))> {
+    let pressure_max = if pressure_max_mmhg.is_finite() && pressure_max_mmhg > 0.0 { pressure_max_mmhg } else { PRESSURE_FULL_SCALE_MMHG };
+    match field {
+        SurfaceField::None => None,
+        SurfaceField::Displacement => Some((FieldKind::DisplacementMm, FieldKind::DisplacementMm.default_map(), (0.0, DISPLACEMENT_FULL_SCALE_MM))),
+        SurfaceField::Pressure => Some((FieldKind::ContactPressureMmHg, crate::render::ColorMap::WhiteYellowRed, (0.0, pressure_max))),
+        SurfaceField::Strain => Some((FieldKind::Strain, FieldKind::Strain.default_map(), (0.0, STRAIN_FULL_SCALE))),
+    }
+}
+
+/// The colour bar of what `options` shows on `snapshot` (`None`: no field, or
+/// strain not computed yet).
+pub fn legend_for(options: &DrawOptions, snapshot: &Snapshot) -> Option<crate::render::legend::Legend> {
+    if options.field == SurfaceField::Strain && snapshot.strain.len() != snapshot.surface_positions.len() {
+        return None;
+    }
+    let (kind, map, range) = field_scale(options.field, options.pressure_max_mmhg)?;
+    crate::render::legend::Legend::of(kind, map, range)
 }
 
 /// One simulation frame as plain owned data (what the window and the
@@ -87,6 +113,9 @@ pub struct Snapshot {
     pub source_nodes: Vec<Vec3>,
     /// Feasible and culled pairs as segments.
     pub pairs: Vec<PairSegment>,
+    /// What moved each blade this frame (the window's simulation thread
+    /// fills it; empty elsewhere).
+    pub drivers: Vec<crate::input::drivers::Driver>,
 }
 
 /// Per-surface-vertex areas (a third of each adjacent rest triangle), m^2, for
@@ -294,30 +323,15 @@ impl SceneBuffers {
             self.skull.extend(pipeline_view.skull.iter().copied());
         }
         let mut view = SceneView::new(&snapshot.surface_positions, &pipeline_view.triangles, camera);
-        view.surface.field = match options.field {
-            SurfaceField::None => None,
-            SurfaceField::Displacement => Some(ScalarField {
-                values: &snapshot.displacement_mm,
-                kind: FieldKind::DisplacementMm,
-                map: FieldKind::DisplacementMm.default_map(),
-                range: (0.0, DISPLACEMENT_FULL_SCALE_MM),
-            }),
-            // Diverging map centred on zero: tissue without contact stays
-            // white (lit, readable), pressure shades to red at full scale.
-            SurfaceField::Pressure => Some(ScalarField {
-                values: &snapshot.pressure_mmhg,
-                kind: FieldKind::ContactPressureMmHg,
-                map: crate::render::ColorMap::BlueWhiteRed,
-                range: (-PRESSURE_FULL_SCALE_MMHG, PRESSURE_FULL_SCALE_MMHG),
-            }),
-            SurfaceField::Strain if snapshot.strain.len() == snapshot.surface_positions.len() => Some(ScalarField {
-                values: &snapshot.strain,
-                kind: FieldKind::Strain,
-                map: FieldKind::Strain.default_map(),
-                range: (0.0, STRAIN_FULL_SCALE),
-            }),
-            SurfaceField::Strain => None,
-        };
+        view.surface.field = field_scale(options.field, options.pressure_max_mmhg).and_then(|(kind, map, range)| {
+            let values: &[f64] = match options.field {
+                SurfaceField::Displacement => &snapshot.displacement_mm,
+                SurfaceField::Pressure => &snapshot.pressure_mmhg,
+                SurfaceField::Strain if snapshot.strain.len() == snapshot.surface_positions.len() => &snapshot.strain,
+                _ => return None,
+            };
+            Some(ScalarField { values, kind, map, range })
+        });
         view.spatulas = &self.spatulas;
         view.skull = &self.skull;
         view.overlays = Overlays {

@@ -2,13 +2,20 @@
 //! presses and app actions, for tests and demos.
 //!
 //! In: text, one action a line: `TIME_S ACTION [ARG]`, `#` starts a comment.
-//! Actions: `press KEY`, `release KEY` (KEY: W A S D Q E Up Down Left Right
-//! PageUp PageDown Tab Shift), `record PATH`, `stop`, `field none|displacement|pressure|strain`,
-//! `view overview|microscope`, `quit`. Out: a [`Script`] sorted by time.
-//! Stays true: key and record actions fire on the simulation thread at the first
-//! frame whose simulated time reaches TIME_S, so a script drives the simulation
-//! deterministically whatever the display rate; view actions fire in the window.
+//! Actions: `press KEY`, `release KEY` (KEY: W S D A E Q Up Down Left Right
+//! PageUp PageDown 1 .. 9 Tab Shift), `record PATH`, `stop`, `field none|displacement|pressure|strain`,
+//! `view overview|microscope`, `quit`; and through the window's own key
+//! handling (focus rules included, as a user's key would go): `keydown NAME`,
+//! `keyup NAME` (NAME: any key of [`crate::input::bindings::KEY_BINDINGS`],
+//! e.g. `Tab`, `Esc`, `W`, `2`), `focus panel` (the panel's text field takes
+//! the keys, as a click into it does). Out: a [`Script`] sorted by time.
+//! Stays true: `press`/`release` and record actions fire on the simulation
+//! thread at the first frame whose simulated time reaches TIME_S, so a script
+//! drives the simulation deterministically whatever the display rate (and the
+//! live keyboard is then ignored); window actions fire in the window at the
+//! first drawn frame at or after TIME_S.
 
+use crate::input::bindings::{KEY_BINDINGS, KeyBinding, key_named, key_names};
 use crate::input::keyboard::Key;
 use std::path::{Path, PathBuf};
 
@@ -33,6 +40,10 @@ pub enum ScriptAction {
     Field(SurfaceField),
     View(ViewPreset),
     Quit,
+    /// A key going down (true) or up through the window's key handling.
+    WindowKey(KeyBinding, bool),
+    /// The panel's text field takes the keyboard focus.
+    FocusPanel,
 }
 
 impl ScriptAction {
@@ -40,32 +51,18 @@ impl ScriptAction {
     pub fn is_simulation(&self) -> bool {
         matches!(self, Self::Press(_) | Self::Release(_) | Self::Record(_) | Self::Stop | Self::Quit)
     }
+
+    /// True for the actions that drive the blades from the script (the live
+    /// keyboard is then ignored, for determinism).
+    pub fn is_scripted_key(&self) -> bool {
+        matches!(self, Self::Press(_) | Self::Release(_))
+    }
 }
 
 /// Timed actions, ascending by time (ties keep file order).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Script {
     pub actions: Vec<(f64, ScriptAction)>,
-}
-
-fn key_named(name: &str) -> Option<Key> {
-    Some(match name.to_ascii_lowercase().as_str() {
-        "w" => Key::W,
-        "a" => Key::A,
-        "s" => Key::S,
-        "d" => Key::D,
-        "q" => Key::Q,
-        "e" => Key::E,
-        "up" => Key::Up,
-        "down" => Key::Down,
-        "left" => Key::Left,
-        "right" => Key::Right,
-        "pageup" => Key::PageUp,
-        "pagedown" => Key::PageDown,
-        "tab" => Key::Tab,
-        "shift" => Key::Shift,
-        _ => return None,
-    })
 }
 
 impl Script {
@@ -99,10 +96,22 @@ impl Script {
             let action = match verb {
                 "press" | "release" => {
                     let name = arg.ok_or_else(|| need("a key"))?;
-                    let key = key_named(name).ok_or_else(|| err(format!("unknown key `{name}`")))?;
+                    let key = key_named(name).ok_or_else(|| err(format!("unknown key `{name}` (keys: {})", key_names())))?;
                     if verb == "press" { ScriptAction::Press(key) } else { ScriptAction::Release(key) }
                 }
                 "record" => ScriptAction::Record(PathBuf::from(arg.ok_or_else(|| need("a file path"))?)),
+                "keydown" | "keyup" => {
+                    let name = arg.ok_or_else(|| need("a key name"))?;
+                    let binding = KEY_BINDINGS
+                        .iter()
+                        .find(|b| b.name.eq_ignore_ascii_case(name))
+                        .ok_or_else(|| err(format!("unknown key `{name}`")))?;
+                    ScriptAction::WindowKey(*binding, verb == "keydown")
+                }
+                "focus" => match arg {
+                    Some("panel") => ScriptAction::FocusPanel,
+                    _ => return Err(need("panel")),
+                },
                 "stop" => ScriptAction::Stop,
                 "quit" => ScriptAction::Quit,
                 "field" => ScriptAction::Field(match arg {
@@ -147,5 +156,13 @@ mod tests {
         assert!(e.contains("s.txt:1") && e.contains("needs a key"), "error must name file:line: {e}");
         let e = Script::parse("\n-1 quit\n", Path::new("s.txt")).unwrap_err().to_string();
         assert!(e.contains("s.txt:2"), "negative time rejected on line 2: {e}");
+        let s = Script::parse("0 press 2\n0.1 keydown esc\n0.2 keyup Tab\n0.3 focus panel\n", Path::new("s.txt")).unwrap();
+        assert_eq!(s.actions[0].1, ScriptAction::Press(Key::Digit2));
+        assert!(matches!(s.actions[1].1, ScriptAction::WindowKey(b, true) if b.name == "Esc"), "{:?}", s.actions[1]);
+        assert!(matches!(s.actions[2].1, ScriptAction::WindowKey(b, false) if b.name == "Tab"));
+        assert_eq!(s.actions[3].1, ScriptAction::FocusPanel);
+        assert!(!s.actions[1].1.is_simulation() && s.actions[0].1.is_scripted_key());
+        let e = Script::parse("0 keydown Z\n", Path::new("s.txt")).unwrap_err().to_string();
+        assert!(e.contains("unknown key `Z`"), "{e}");
     }
 }

@@ -9,9 +9,13 @@
 //! CSVs, and at the end a [`SimExit`]. Stays true: each spatula's pose comes
 //! from its binding (keyboard / gamepad velocities integrated over the fixed
 //! step, OpenIGTLink's latest pose, or the scenario's trajectory at the frame's
-//! time); the recording holds the poses the sim actually used at its frame
-//! times, from the brain at rest (time 0), so `fissure replay --trajectory`
-//! plays it back; a failing frame is logged and the last state holds.
+//! time); a recording's t = 0 is the frame at which it was started (key R),
+//! and the session before it, from the brain at rest, comes first at negative
+//! times (the lead-in), so `fissure replay --trajectory` rebuilds the tissue
+//! as it was at the press and then plays the recording with the poses the sim
+//! actually used; a recording that cannot be started or written says so in
+//! the panel and the log and keeps every row written so far; a failing frame
+//! is logged and the last state holds.
 
 use super::draw::{Snapshot, vertex_areas};
 use super::exchange::Exchange;
@@ -21,7 +25,8 @@ use crate::geometry::Pose;
 use crate::input::gamepad::PadCommand;
 use crate::input::igtl::IgtlServer;
 use crate::input::keyboard::{KeyCommand, KeyEvent, KeyboardController};
-use crate::input::{PoseGuard, integrate};
+use crate::input::PoseGuard;
+use crate::input::drivers::{BindingKind, DeviceOffers, drive};
 use crate::scenario::{CollisionBackend, Effect, EffectSet, InputBinding, Scenario, Trajectory, TrajectoryRecorder};
 use crate::sim::{BuildOptions, FrameInput, Pipeline, SimState};
 use std::path::PathBuf;
@@ -34,7 +39,8 @@ use std::time::{Duration, Instant};
 /// What the window asks the simulation to do.
 #[derive(Debug, Clone, PartialEq)]
 pub enum SimCommand {
-    /// Write the session's poses (from time 0) to this CSV, then keep appending.
+    /// Record to this CSV from now on (t = 0 now; the session so far before it
+    /// at negative times), then keep appending.
     StartRecording(PathBuf),
     /// Close the recording (every row is already on disk).
     StopRecording,
@@ -73,6 +79,8 @@ pub struct SimShared {
     pub status: Mutex<String>,
     /// True while recording.
     pub recording: AtomicBool,
+    /// The last recording failure (cannot create, a write failed), for the panel.
+    pub record_error: Mutex<Option<String>>,
     /// Set when the thread has finished.
     pub finished: AtomicBool,
 }
@@ -218,19 +226,53 @@ fn as_recorded(pose: Pose) -> Pose {
     p
 }
 
-/// The session's poses so far (for a recording started mid-session).
+/// The session's poses so far, from the scene at rest (time 0), for a
+/// recording started mid-session.
 struct History {
     rows: Vec<(f64, Vec<Pose>)>,
 }
 
-fn start_recording(path: &PathBuf, history: &History) -> Result<TrajectoryRecorder, String> {
-    let mut rec = TrajectoryRecorder::create(path).map_err(|e| e.to_string())?;
+impl History {
+    /// A history starting with the poses at rest.
+    fn at_rest(poses: &[Pose]) -> Self {
+        Self { rows: vec![(0.0, poses.to_vec())] }
+    }
+}
+
+/// A recording under way: rows at session time minus `origin_s` (the session
+/// time at which it was started).
+struct Recording {
+    recorder: TrajectoryRecorder,
+    origin_s: f64,
+}
+
+/// Starts a recording at session time `origin_s`: t = 0 is now, the history
+/// before it (the lead-in the replay needs to rebuild the tissue) at negative times.
+fn start_recording(path: &PathBuf, history: &History, origin_s: f64) -> Result<Recording, String> {
+    let note = format!(
+        "recording: t = 0 is the moment it was started ({origin_s} s into the session); the rows before it are the session from the scene at rest (replay plays them first)"
+    );
+    let mut recorder = TrajectoryRecorder::create_with_note(path, &note).map_err(|e| e.to_string())?;
     for (t, poses) in &history.rows {
         for (k, p) in poses.iter().enumerate() {
-            rec.record(*t, k, p).map_err(|e| e.to_string())?;
+            recorder.record(t - origin_s, k, p).map_err(|e| e.to_string())?;
         }
     }
-    Ok(rec)
+    Ok(Recording { recorder, origin_s })
+}
+
+/// Says in the panel and the log that a recording failed; what was written stays.
+fn recording_failed(shared: &SimShared, message: String) {
+    tracing::error!("{message}");
+    *lock(&shared.status) = message.clone();
+    *lock(&shared.record_error) = Some(message);
+    shared.recording.store(false, Ordering::Relaxed);
+}
+
+fn started(shared: &SimShared, path: &std::path::Path) {
+    *lock(&shared.record_error) = None;
+    shared.recording.store(true, Ordering::Relaxed);
+    *lock(&shared.status) = format!("recording to {}", path.display());
 }
 
 /// The strain colour for a scene without the StressField stage: a background
@@ -288,10 +330,13 @@ fn run_loop(
     let mut input = FrameInput::default();
     let mut scratch = Vec::new();
     let mut guards: Vec<PoseGuard> = b.state.poses.iter().map(|p| PoseGuard::new(*p, "window")).collect();
-    let mut history = History { rows: Vec::new() };
-    let mut recorder: Option<TrajectoryRecorder> = None;
+    let mut history = History::at_rest(&b.state.poses);
+    let mut recorder: Option<Recording> = None;
     let mut script = options.script.into_iter().peekable();
     let mut script_keys = KeyboardController::default();
+    script_keys.set_spatula_count(b.scenario.spatulas.len());
+    // Per blade: the keys took it over from its trajectory.
+    let mut taken_over = vec![false; b.scenario.spatulas.len()];
     let mut scripted = false;
     let mut failed_logged = false;
     exit.peak_force_n = vec![0.0; b.state.poses.len()];
@@ -312,18 +357,17 @@ fn run_loop(
             let mut rebuild: Option<Scenario> = None;
             match command {
                 SimCommand::Quit => break 'outer,
-                SimCommand::StartRecording(path) => match start_recording(&path, &history) {
+                SimCommand::StartRecording(path) => match start_recording(&path, &history, b.state.time_s) {
                     Ok(r) => {
                         exit.recording = Some(path.clone());
                         recorder = Some(r);
-                        shared.recording.store(true, Ordering::Relaxed);
-                        *lock(&shared.status) = format!("recording to {}", path.display());
+                        started(shared, &path);
                     }
-                    Err(e) => *lock(&shared.status) = format!("cannot record: {e}"),
+                    Err(e) => recording_failed(shared, format!("cannot record: {e}")),
                 },
                 SimCommand::StopRecording => {
                     if let Some(r) = recorder.take() {
-                        *lock(&shared.status) = format!("recorded {}", r.path().display());
+                        *lock(&shared.status) = format!("recorded {}", r.recorder.path().display());
                     }
                     shared.recording.store(false, Ordering::Relaxed);
                 }
@@ -363,7 +407,9 @@ fn run_loop(
                         strain.stress.clear();
                         rejected_before_rebuild += guards.iter().map(PoseGuard::rejected).sum::<u64>();
                         guards = b.state.poses.iter().map(|p| PoseGuard::new(*p, "window")).collect();
-                        history.rows.clear();
+                        history = History::at_rest(&b.state.poses);
+                        taken_over.clear();
+                        script_keys.set_spatula_count(b.scenario.spatulas.len());
                         recorder = None;
                         shared.recording.store(false, Ordering::Relaxed);
                         exit.peak_force_n = vec![0.0; b.state.poses.len()];
@@ -384,17 +430,18 @@ fn run_loop(
                 break;
             }
             let Some((_, action)) = script.next() else { break };
-            scripted = true;
+            scripted |= action.is_scripted_key();
             match action {
                 ScriptAction::Press(key) => script_keys.apply(KeyEvent { key, pressed: true }),
                 ScriptAction::Release(key) => script_keys.apply(KeyEvent { key, pressed: false }),
-                ScriptAction::Record(path) => {
-                    if let Ok(r) = start_recording(&path, &history) {
+                ScriptAction::Record(path) => match start_recording(&path, &history, b.state.time_s) {
+                    Ok(r) => {
+                        started(shared, &path);
                         exit.recording = Some(path);
                         recorder = Some(r);
-                        shared.recording.store(true, Ordering::Relaxed);
                     }
-                }
+                    Err(e) => recording_failed(shared, format!("cannot record: {e}")),
+                },
                 ScriptAction::Stop => {
                     recorder = None;
                     shared.recording.store(false, Ordering::Relaxed);
@@ -407,19 +454,32 @@ fn run_loop(
         let live = *lock(&shared.input);
         let keyboard = if scripted { script_keys.command() } else { live.keyboard };
         input.poses.clear();
+        back.drivers.clear();
+        taken_over.resize(b.scenario.spatulas.len(), false);
         for (k, spatula) in b.scenario.spatulas.iter().enumerate() {
             let current = b.state.poses.get(k).copied().unwrap_or(spatula.initial_pose);
-            let candidate = match &spatula.input {
-                InputBinding::Keyboard if keyboard.spatula.index() == k => integrate(&current, &keyboard.velocity, dt),
-                InputBinding::Gamepad if live.pad.spatula.index() == k => integrate(&current, &live.pad.velocity, dt),
-                InputBinding::OpenIgtLink { device, .. } => igtl
-                    .as_ref()
-                    .and_then(|s| lock(s).latest(device))
-                    .map(|t| t.pose)
-                    .unwrap_or(current),
-                InputBinding::Trajectory => b.trajectory.as_ref().and_then(|t| t.sample(k, t_next)).unwrap_or(current),
-                _ => current,
+            let mut offers = DeviceOffers {
+                keys: (keyboard.spatula == k).then_some(keyboard.velocity),
+                keys_moving: keyboard.moving,
+                ..DeviceOffers::default()
             };
+            let binding = match &spatula.input {
+                InputBinding::Keyboard => BindingKind::Keyboard,
+                InputBinding::Gamepad => {
+                    offers.pad = (live.pad.spatula.index() == k).then_some(live.pad.velocity);
+                    BindingKind::Gamepad
+                }
+                InputBinding::OpenIgtLink { device, .. } => {
+                    offers.tracker = igtl.as_ref().and_then(|s| lock(s).latest(device)).map(|t| t.pose);
+                    BindingKind::Tracker
+                }
+                InputBinding::Trajectory => {
+                    offers.trajectory = b.trajectory.as_ref().and_then(|t| t.sample(k, t_next));
+                    BindingKind::Trajectory
+                }
+            };
+            let (candidate, driver) = drive(binding, &current, &offers, &mut taken_over[k], dt);
+            back.drivers.push(driver);
             let candidate = as_recorded(candidate);
             let pose = match guards.get_mut(k) {
                 Some(g) => {
@@ -453,12 +513,11 @@ fn run_loop(
                 }
                 history.rows.push((b.state.time_s, b.state.poses.clone()));
                 if let Some(r) = recorder.as_mut() {
-                    for (k, p) in b.state.poses.iter().enumerate() {
-                        if let Err(e) = r.record(b.state.time_s, k, p) {
-                            *lock(&shared.status) = format!("recording stopped: {e}");
-                            shared.recording.store(false, Ordering::Relaxed);
-                            break;
-                        }
+                    let t = b.state.time_s - r.origin_s;
+                    if let Some(e) = b.state.poses.iter().enumerate().find_map(|(k, p)| r.recorder.record(t, k, p).err()) {
+                        let path = r.recorder.path().display().to_string();
+                        recording_failed(shared, format!("recording stopped: {e} (the rows before are kept in {path})"));
+                        recorder = None;
                     }
                 }
                 if let Some(h) = &haptics {
@@ -506,4 +565,51 @@ fn run_loop(
         exit.collision_notes = c.warnings().to_vec();
     }
     exit
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Vec3;
+
+    fn at_x(x_m: f64) -> Pose {
+        Pose { position: Vec3::new(x_m, 0.0, 0.0), ..Pose::default() }
+    }
+
+    /// The issue: a recording started at t = 0 of the session, not at the
+    /// press. Now t = 0 is the press; the poses before it stay (the lead-in,
+    /// from rest, at negative times), and each later row is at session time
+    /// minus the press's, so a replay that starts its clock at the first row
+    /// samples the rows at exactly the window's frame times.
+    #[test]
+    fn a_recording_starts_at_the_press_and_keeps_the_lead_in() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("rec.csv");
+        let dt = 0.01;
+        let mut history = History::at_rest(&[at_x(0.0)]);
+        for frame in 1..=30u32 {
+            history.rows.push((f64::from(frame) * dt, vec![at_x(f64::from(frame) * 1e-3)]));
+        }
+        let origin = 30.0 * dt;
+        let mut rec = start_recording(&path, &history, origin).expect("recording starts");
+        for frame in 31..=40u32 {
+            let t = f64::from(frame) * dt;
+            rec.recorder.record(t - rec.origin_s, 0, &at_x(f64::from(frame) * 1e-3)).expect("row");
+        }
+        drop(rec);
+        let text = std::fs::read_to_string(&path).expect("file");
+        assert!(text.starts_with("# recording: t = 0 is the moment it was started (0.3"), "{text}");
+        let t = Trajectory::load(&path).expect("a valid trajectory");
+        assert_eq!(t.samples(0).len(), 41, "rest + 30 lead-in frames + 10 recorded");
+        assert_eq!(t.start_time(), -origin, "the lead-in starts at rest, at -press");
+        let at_press = t.sample(0, 0.0).expect("pose");
+        assert!((at_press.position.x - 0.030).abs() < 1e-12, "t = 0 holds the pose at the press: {:?}", at_press.position);
+        // A replay's frame k samples (k * dt) + start_time: frame 35's pose.
+        let replay_t = 35.0 * dt + t.start_time();
+        assert_eq!(t.sample(0, replay_t).map(|p| p.position.x), Some(0.035), "replay time 0.35 s is the window's frame 35, bit for bit");
+        // A folder that does not exist: an error, no panic, nothing created.
+        let bad = dir.path().join("missing").join("rec.csv");
+        let e = start_recording(&bad, &history, origin).err().expect("cannot create");
+        assert!(e.contains("missing"), "the error names the file: {e}");
+    }
 }

@@ -9,9 +9,12 @@
 //! closing the window while recording leaves a complete CSV (every row is
 //! flushed as written).
 //!
-//! Keys beyond the spatula map of [`crate::input::keyboard`]: `M` microscope
-//! view, `O` overview, `F` cycles the surface colour, `R` starts / stops
-//! recording, `Esc` quits.
+//! Keys: [`crate::input::bindings`] (one table with the README's Controls):
+//! the blade map, `M` microscope view, `O` overview, `F` cycles the surface
+//! colour, `R` starts / stops recording, `Esc` gives the keys back to the
+//! scene, `Ctrl+Q` quits. The keys drive the scene unless the panel's text
+//! field has the focus (clicked into); any other panel interaction hands the
+//! focus straight back, and the panel's first line says where keys go.
 
 use super::draw::{DrawOptions, SceneBuffers, SceneStatic, Snapshot, SurfaceField, ViewPreset};
 use super::haptics::{ForceOutput, HAPTIC_RATE_HZ};
@@ -20,19 +23,20 @@ use super::sim_thread::{SimCommand, SimExit, SimOptions, SimThread};
 use crate::input::gamepad::{GamepadInput, GamepadMapping};
 use crate::input::igtl::{IgtlConfig, IgtlServer};
 use crate::input::tracker::TrackerLimits;
-use crate::input::keyboard::{KeyEvent, KeyboardController, KeyboardMapping, key_from_winit, map_mouse};
+use crate::input::bindings::{KeyAction, KeyRoute, route};
+use crate::input::keyboard::{KeyEvent, KeyboardController, KeyboardMapping, map_mouse};
 use crate::render::window::{FrameOutcome, WindowRenderer};
 use crate::render::{FieldKind, OrbitCamera};
 use crate::scenario::{CollisionBackend, InputBinding, Scenario};
 use crate::sim::StageId;
-use crate::ui::{FieldChoice, PanelAction, PanelData, PanelState, TimingHistory, draw_panel, update_monitors};
+use crate::ui::{FieldChoice, PanelAction, PanelData, PanelState, SpatulaReadout, TimingHistory, draw_panel, update_monitors};
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
-use winit::keyboard::{KeyCode, PhysicalKey};
+use winit::keyboard::PhysicalKey;
 use winit::window::{Window, WindowId};
 
 /// Why the window could not run.
@@ -61,7 +65,7 @@ pub struct WindowOptions {
     pub exit_after_s: Option<f64>,
     /// Timed actions (simulation and window ones).
     pub script: Vec<(f64, ScriptAction)>,
-    /// Folder for recordings started from the panel.
+    /// Folder for recordings started with R or the panel (see [`record_dir_for`]).
     pub record_dir: PathBuf,
     /// Start the 1 kHz force output.
     pub haptics: bool,
@@ -75,10 +79,31 @@ impl Default for WindowOptions {
             max_frames: None,
             exit_after_s: None,
             script: Vec::new(),
-            record_dir: PathBuf::from("recordings"),
+            record_dir: record_dir_for(None, None),
             haptics: true,
         }
     }
+}
+
+/// The user's recordings folder: `<data dir>/fissure/recordings`
+/// (`$XDG_DATA_HOME` or `~/.local/share` on Linux, `~/Library/Application
+/// Support` on macOS, `%APPDATA%` on Windows); `None` when the system has no
+/// data directory (no home).
+pub fn user_record_dir() -> Option<PathBuf> {
+    dirs::data_dir().map(|d| d.join("fissure").join("recordings"))
+}
+
+/// Where recordings go: `--record-dir`, else the scenario's
+/// `outputs.record_dir`, else [`user_record_dir`], else `./recordings` (with
+/// a warning in the log saying why).
+pub fn record_dir_for(cli: Option<&std::path::Path>, scenario: Option<&std::path::Path>) -> PathBuf {
+    if let Some(dir) = cli.or(scenario) {
+        return dir.to_path_buf();
+    }
+    user_record_dir().unwrap_or_else(|| {
+        tracing::warn!("no user data directory (no HOME or XDG_DATA_HOME): recordings go to ./recordings");
+        PathBuf::from("recordings")
+    })
 }
 
 /// What a session did.
@@ -144,6 +169,12 @@ struct App {
     fps_window: (Instant, u64, f64),
     last_frame_seen: u64,
     adapter: String,
+    /// Ctrl held (for Ctrl+Q).
+    ctrl: bool,
+    /// The panel's text field (the one widget that may keep the keys).
+    load_field: Option<egui::Id>,
+    /// Where the keys went last frame (true: the scene).
+    keys_to_scene: bool,
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -213,6 +244,7 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
     };
     let (sim_script, window_script): (Vec<_>, Vec<_>) = options.script.iter().cloned().partition(|(_, a)| a.is_simulation());
     let backend = scenario.collision_backend;
+    let pressure_max_mmhg = scenario.display.pressure_max_mmhg;
     let scenario_path = scenario.source_path.clone();
     let sim = SimThread::start(
         scenario,
@@ -222,6 +254,8 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
     )
     .map_err(WindowError::Simulation)?;
     let scene = lock(&sim.shared.scene).clone();
+    let names_len = names.len();
+    let record_dir_display = options.record_dir.display().to_string();
     let stage_names: Vec<&str> = StageId::ALL.iter().map(|s| s.name()).collect();
     let mut app = App {
         scenario_path: scenario_path.clone(),
@@ -240,11 +274,15 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
         strain_told: false,
         camera: OrbitCamera::default(),
         camera_set: false,
-        keyboard: KeyboardController::new(KeyboardMapping::default()),
+        keyboard: {
+            let mut k = KeyboardController::new(KeyboardMapping::default());
+            k.set_spatula_count(names_len);
+            k
+        },
         gamepad: GamepadInput::new(GamepadMapping::default()),
         cursor: None,
         left_down: false,
-        panel: PanelState::default(),
+        panel: PanelState { record_dir: record_dir_display, pressure_max_mmhg, ..PanelState::default() },
         history: TimingHistory::new(&stage_names, 240),
         backend,
         load_path: scenario_path.display().to_string(),
@@ -255,6 +293,9 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
         fps_window: (Instant::now(), 0, 0.0),
         last_frame_seen: 0,
         adapter: String::new(),
+        ctrl: false,
+        load_field: None,
+        keys_to_scene: true,
     };
     app.camera = OrbitCamera::framing(app.scene.bounds.0, app.scene.bounds.1);
     app.generation = app.sim.as_ref().map(|s| s.shared.generation.load(std::sync::atomic::Ordering::Relaxed)).unwrap_or(0);
@@ -303,12 +344,20 @@ impl App {
 
     fn toggle_recording(&mut self, on: bool) {
         if on {
-            let _ = std::fs::create_dir_all(&self.options.record_dir);
+            let dir = &self.options.record_dir;
+            if let Err(e) = std::fs::create_dir_all(dir) {
+                let message = format!("cannot record: cannot create the folder {}: {e} (set another with --record-dir)", dir.display());
+                tracing::error!("{message}");
+                self.panel.record_error = Some(message);
+                self.panel.recording = false;
+                return;
+            }
             let secs = std::time::SystemTime::now()
                 .duration_since(std::time::UNIX_EPOCH)
                 .map(|d| d.as_secs())
                 .unwrap_or(0);
-            self.send(SimCommand::StartRecording(self.options.record_dir.join(format!("session_{secs}.csv"))));
+            self.panel.record_error = None;
+            self.send(SimCommand::StartRecording(dir.join(format!("session_{secs}.csv"))));
         } else {
             self.send(SimCommand::StopRecording);
         }
@@ -350,6 +399,16 @@ impl App {
             match action {
                 ScriptAction::Field(f) => self.set_field(f),
                 ScriptAction::View(v) => self.preset(v),
+                ScriptAction::WindowKey(binding, down) => {
+                    let panel_has_keys = self.egui.text_edit_focused();
+                    // A key the panel would get is typed into its field: nothing for the scene.
+                    let _ = self.on_key(event_loop, route(binding.code, binding.ctrl, down, panel_has_keys), down, false);
+                }
+                ScriptAction::FocusPanel => {
+                    if let Some(id) = self.load_field {
+                        self.egui.memory_mut(|m| m.request_focus(id));
+                    }
+                }
                 _ => {}
             }
         }
@@ -367,12 +426,19 @@ impl App {
         let Some(gpu) = self.gpu.as_mut() else { return };
         // The panel.
         let raw = gpu.egui_state.take_egui_input(&gpu.window);
-        let data = panel_data_of(&self.front, self.fps_window.2);
+        let mut data = panel_data_of(&self.front, self.fps_window.2);
+        data.active_spatula = self.keyboard.spatula;
+        data.keys_to_scene = self.keys_to_scene;
         let mut actions = Vec::new();
         let previous_culling = self.panel.culling;
         let mut backend = self.backend;
         let mut load = false;
         let status = lock(&shared.status).clone();
+        if let Some(e) = lock(&shared.record_error).take() {
+            // The sim could not start or had to stop the recording (its rows so far are kept).
+            self.panel.record_error = Some(e);
+            self.panel.recording = false;
+        }
         let haptic: Vec<(f64, f64)> = (0..self.spatula_names.len())
             .map(|k| self.haptics.as_ref().and_then(|h| h.latest(k)).map(|(f, t)| (f.norm(), t)).unwrap_or((0.0, 0.0)))
             .collect();
@@ -382,8 +448,10 @@ impl App {
         let panel = &mut self.panel;
         let history = &self.history;
         let time_s = self.front.time_s;
+        let legend = super::draw::legend_for(&self.draw, &self.front);
+        let mut load_field = self.load_field;
         let mut full = self.egui.run_ui(raw, |ui| {
-            draw_panel(ui, &data, history, panel, &mut actions);
+            draw_panel(ui, &data, names, history, panel, &mut actions);
             egui::Panel::bottom("fissure_status").show(ui, |ui| {
                 ui.horizontal(|ui| {
                     ui.label(format!("t = {time_s:.2} s"));
@@ -398,7 +466,7 @@ impl App {
                                 ui.selectable_value(&mut backend, b, format!("{b:?}"));
                             }
                         });
-                    ui.text_edit_singleline(load_path);
+                    load_field = Some(ui.text_edit_singleline(load_path).id);
                     if ui.button("Load").clicked() {
                         load = true;
                     }
@@ -407,7 +475,23 @@ impl App {
                     }
                 });
             });
+            if let Some(legend) = &legend {
+                let scene = ui.available_rect_before_wrap();
+                let painter = ui.ctx().layer_painter(egui::LayerId::new(egui::Order::Foreground, egui::Id::unique("fissure_legend")));
+                crate::ui::legend::paint_legend(&painter, scene, legend);
+            }
         });
+        self.load_field = load_field;
+        // Only the text field may keep the keys: a clicked button, slider or
+        // checkbox hands them straight back to the scene.
+        if !self.egui.text_edit_focused() {
+            self.egui.memory_mut(|m| m.stop_text_input());
+        }
+        let keys_to_scene = !self.egui.text_edit_focused();
+        if !keys_to_scene && self.keys_to_scene {
+            self.keyboard.release_all(); // a key held while the focus moved must not drive on
+        }
+        self.keys_to_scene = keys_to_scene;
         gpu.egui_state.handle_platform_output(&gpu.window, full.platform_output.clone());
         for action in actions {
             match action {
@@ -416,6 +500,12 @@ impl App {
                 PanelAction::CameraOverview => self.preset(ViewPreset::Overview),
                 PanelAction::CameraMicroscope => self.preset(ViewPreset::Microscope),
                 PanelAction::LoadScenario => load = true,
+                PanelAction::SelectSpatula(k) => {
+                    if let Some(key) = crate::input::keyboard::DIGITS.get(k) {
+                        self.keyboard.apply(KeyEvent { key: *key, pressed: true });
+                        self.keyboard.apply(KeyEvent { key: *key, pressed: false });
+                    }
+                }
             }
         }
         if load {
@@ -431,6 +521,7 @@ impl App {
         self.draw.source_nodes = self.panel.show_source_nodes;
         self.draw.pairs = self.panel.show_pairs;
         self.draw.skull = self.panel.show_skull;
+        self.draw.pressure_max_mmhg = self.panel.pressure_max_mmhg;
         match self.panel.field {
             FieldChoice::None => self.draw.field = SurfaceField::None,
             FieldChoice::Field(FieldKind::DisplacementMm) => self.draw.field = SurfaceField::Displacement,
@@ -509,6 +600,42 @@ impl App {
         gpu.window.request_redraw();
     }
 
+    /// Carries out one routed key event; true when egui should get it (the
+    /// panel's text field has the keys).
+    fn on_key(&mut self, event_loop: &ActiveEventLoop, routed: KeyRoute, pressed: bool, repeat: bool) -> bool {
+        match routed {
+            KeyRoute::Panel => return true,
+            KeyRoute::Ignore => {}
+            KeyRoute::ReturnToScene => {
+                self.egui.memory_mut(|m| m.stop_text_input());
+                self.keys_to_scene = true;
+            }
+            KeyRoute::Scene(KeyAction::Blade(key)) => self.keyboard.apply(KeyEvent { key, pressed }),
+            KeyRoute::Scene(action) if pressed && !repeat => match action {
+                KeyAction::Quit => event_loop.exit(),
+                KeyAction::SceneFocus => {
+                    self.egui.memory_mut(|m| m.stop_text_input());
+                    self.keys_to_scene = true;
+                }
+                KeyAction::Microscope => self.preset(ViewPreset::Microscope),
+                KeyAction::Overview => self.preset(ViewPreset::Overview),
+                KeyAction::CycleField => self.set_field(match self.draw.field {
+                    SurfaceField::None => SurfaceField::Displacement,
+                    SurfaceField::Displacement => SurfaceField::Pressure,
+                    SurfaceField::Pressure => SurfaceField::Strain,
+                    SurfaceField::Strain => SurfaceField::None,
+                }),
+                KeyAction::Record => {
+                    let on = !self.panel.recording;
+                    self.toggle_recording(on);
+                }
+                KeyAction::Blade(_) => {}
+            },
+            KeyRoute::Scene(_) => {}
+        }
+        false
+    }
+
     fn panel_data(&self) -> PanelData {
         panel_data_of(&self.front, self.fps_window.2)
     }
@@ -516,11 +643,14 @@ impl App {
 
 fn panel_data_of(front: &Snapshot, fps: f64) -> PanelData {
     let mut data = PanelData { fps, sim_frame_ms: front.report.times.total() * 1e3, ..PanelData::default() };
-    for (slot, s) in data.spatulas.iter_mut().zip(&front.report.spatulas) {
-        slot.force_n = [s.force.x, s.force.y, s.force.z];
-        slot.mean_pressure_mmhg = s.mean_pressure_mmhg();
-        slot.feasible_pairs = s.feasible_pairs;
-        slot.culled_pairs = s.culled_pairs;
+    for (k, s) in front.report.spatulas.iter().enumerate() {
+        data.spatulas.push(SpatulaReadout {
+            driver: front.drivers.get(k).map(|d| d.label()).unwrap_or("held"),
+            force_n: [s.force.x, s.force.y, s.force.z],
+            mean_pressure_mmhg: s.mean_pressure_mmhg(),
+            feasible_pairs: s.feasible_pairs,
+            culled_pairs: s.culled_pairs,
+        });
     }
     data
 }
@@ -574,6 +704,22 @@ impl ApplicationHandler for App {
     }
 
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        // Keys first: egui sees a key only when the route gives it to the panel
+        // (so Tab never moves egui's focus into the panel).
+        if let WindowEvent::KeyboardInput { event: key, .. } = &event {
+            let pressed = key.state == ElementState::Pressed;
+            let to_panel = match key.physical_key {
+                PhysicalKey::Code(code) => {
+                    let routed = route(code, self.ctrl, pressed, self.egui.text_edit_focused());
+                    self.on_key(event_loop, routed, pressed, key.repeat)
+                }
+                PhysicalKey::Unidentified(_) => self.egui.text_edit_focused(),
+            };
+            if to_panel && let Some(gpu) = self.gpu.as_mut() {
+                let _ = gpu.egui_state.on_window_event(&gpu.window, &event);
+            }
+            return;
+        }
         let consumed = match self.gpu.as_mut() {
             Some(gpu) => gpu.egui_state.on_window_event(&gpu.window, &event).consumed,
             None => false,
@@ -587,33 +733,12 @@ impl ApplicationHandler for App {
             }
             WindowEvent::RedrawRequested => self.redraw(event_loop),
             WindowEvent::Focused(false) => self.keyboard.release_all(),
-            WindowEvent::KeyboardInput { event, .. } => {
-                if self.egui.egui_wants_keyboard_input() {
-                    return;
-                }
-                let pressed = event.state == ElementState::Pressed;
-                if let Some(key) = key_from_winit(&event.physical_key) {
-                    self.keyboard.apply(KeyEvent { key, pressed });
-                } else if pressed && !event.repeat {
-                    match event.physical_key {
-                        PhysicalKey::Code(KeyCode::Escape) => event_loop.exit(),
-                        PhysicalKey::Code(KeyCode::KeyM) => self.preset(ViewPreset::Microscope),
-                        PhysicalKey::Code(KeyCode::KeyO) => self.preset(ViewPreset::Overview),
-                        PhysicalKey::Code(KeyCode::KeyF) => {
-                            self.set_field(match self.draw.field {
-                                SurfaceField::None => SurfaceField::Displacement,
-                                SurfaceField::Displacement => SurfaceField::Pressure,
-                                SurfaceField::Pressure => SurfaceField::Strain,
-                                SurfaceField::Strain => SurfaceField::None,
-                            });
-                        }
-                        PhysicalKey::Code(KeyCode::KeyR) => {
-                            let on = !self.panel.recording;
-                            self.toggle_recording(on);
-                        }
-                        _ => {}
-                    }
-                }
+            WindowEvent::ModifiersChanged(modifiers) => self.ctrl = modifiers.state().control_key(),
+            WindowEvent::MouseInput { button: MouseButton::Left, state: ElementState::Pressed, .. } if !self.egui.is_pointer_over_egui() => {
+                // A click on the scene gives the keys back to it (and starts an orbit).
+                self.egui.memory_mut(|m| m.stop_text_input());
+                self.keys_to_scene = true;
+                self.left_down = true;
             }
             WindowEvent::MouseInput { button: MouseButton::Left, state, .. } => {
                 self.left_down = state == ElementState::Pressed && !consumed;
@@ -649,6 +774,29 @@ impl ApplicationHandler for App {
         }
         if let Some(gpu) = &self.gpu {
             gpu.window.request_redraw();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    /// `--record-dir` wins over the scenario's `outputs.record_dir`, which
+    /// wins over the user's data directory (never the working directory
+    /// while the system has one).
+    #[test]
+    fn record_dir_comes_from_the_cli_then_the_scenario_then_the_data_dir() {
+        assert_eq!(record_dir_for(Some(Path::new("cli")), Some(Path::new("scene"))), PathBuf::from("cli"));
+        assert_eq!(record_dir_for(None, Some(Path::new("scene"))), PathBuf::from("scene"));
+        let default = record_dir_for(None, None);
+        match user_record_dir() {
+            Some(user) => {
+                assert_eq!(default, user);
+                assert!(user.ends_with("fissure/recordings") && user.is_absolute(), "{}", user.display());
+            }
+            None => assert_eq!(default, PathBuf::from("recordings"), "no data directory: ./recordings"),
         }
     }
 }

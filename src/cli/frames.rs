@@ -9,7 +9,8 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use fissure::app::draw::{DrawOptions, SceneBuffers, SceneStatic, Snapshot, ViewPreset, camera_for, vertex_areas};
+use fissure::app::draw::{DrawOptions, SceneBuffers, SceneStatic, Snapshot, ViewPreset, camera_for, legend_for, vertex_areas};
+use fissure::app::overlay::OffscreenOverlay;
 use fissure::render::{Renderer, capture};
 use fissure::sim::{FrameReport, Pipeline, SimState};
 
@@ -24,13 +25,14 @@ pub struct OffscreenFrames {
     areas: Vec<f64>,
     snapshot: Snapshot,
     buffers: SceneBuffers,
+    overlay: OffscreenOverlay,
     pub options: DrawOptions,
     pub view: ViewPreset,
 }
 
 impl OffscreenFrames {
     pub fn new(size: (u32, u32), options: DrawOptions, view: ViewPreset) -> Self {
-        Self { size, renderer: None, scene: None, areas: Vec::new(), snapshot: Snapshot::default(), buffers: SceneBuffers::default(), options, view }
+        Self { size, renderer: None, scene: None, areas: Vec::new(), snapshot: Snapshot::default(), buffers: SceneBuffers::default(), overlay: OffscreenOverlay::default(), options, view }
     }
 
     /// Draws the current state of `pipeline` (`report`: the last step's, or default).
@@ -49,6 +51,12 @@ impl OffscreenFrames {
         let camera = camera_for(self.view, pipeline, &state.poses);
         let view = self.buffers.view(scene, &self.snapshot, &self.options, camera);
         renderer.render_offscreen(&view).context("rendering a frame")?;
+        // The shown field's colour bar, painted by the window's legend code.
+        if let Some(legend) = legend_for(&self.options, &self.snapshot) {
+            self.overlay
+                .paint(renderer, |painter, rect| fissure::ui::legend::paint_legend(painter, rect, &legend))
+                .context("drawing the colour legend")?;
+        }
         capture::read_offscreen(renderer).context("reading the frame back")
     }
 }

@@ -46,7 +46,9 @@ pub struct WindowArgs {
     /// Window size, WIDTHxHEIGHT pixels.
     #[arg(long, value_parser = super::screenshot::parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Folder for recordings started from the panel (default: recordings).
+    /// Folder for recordings (key R, the panel's Record); default: the
+    /// scenario's `outputs.record_dir`, else the user's data directory
+    /// (`$XDG_DATA_HOME/fissure/recordings`, `~/.local/share/fissure/recordings` on Linux).
     #[arg(long, value_name = "DIR")]
     pub record_dir: Option<PathBuf>,
     /// Do not start the 1 kHz force output.
@@ -93,9 +95,7 @@ pub fn run(scenario: Option<&Path>, set: &[String], headless_only: bool, args: &
     if let Some(size) = args.size {
         options.size = size;
     }
-    if let Some(dir) = &args.record_dir {
-        options.record_dir = dir.clone();
-    }
+    options.record_dir = fissure::app::window::record_dir_for(args.record_dir.as_deref(), loaded.outputs.record_dir.as_deref());
     let names: Vec<String> = loaded.spatulas.iter().map(|s| s.name.clone()).collect();
     let dt = loaded.time_step;
     match run_window(loaded, options) {

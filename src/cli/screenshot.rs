@@ -2,7 +2,9 @@
 //! builds the pipeline, plays the scenario's trajectory (or holds the initial
 //! poses) to `--time`, and renders one frame offscreen (works on the software
 //! Vulkan driver; no display needed), through the same drawing code as the
-//! window and `replay --frames`.
+//! window and `replay --frames`; a shown field gets the window's colour bar
+//! (units, ticks, the 20 mmHg line on pressure, whose scale is the scenario's
+//! `display.pressure_max_mmhg`).
 
 use std::path::PathBuf;
 
@@ -99,6 +101,7 @@ pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
         source_nodes: args.overlays,
         pairs: args.overlays,
         skull: false,
+        pressure_max_mmhg: scenario.display.pressure_max_mmhg,
     };
     let view = match args.view {
         ViewArg::Overview => ViewPreset::Overview,

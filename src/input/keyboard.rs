@@ -1,12 +1,14 @@
 //! Keyboard and mouse input: the fallback when no gamepad or tracker is used.
 //!
-//! In: [`KeyEvent`]s and mouse deltas (synthetic in tests; [`key_from_winit`]
-//! converts winit physical keys at the edge). Out: a [`KeyCommand`] each frame:
-//! the selected spatula's velocity in its own frame, camera orbit and zoom.
-//! Stays true: the mapping is a pure function of the held keys; keys are
-//! physical (layout-independent: "W" is the key left of "E" on any layout).
+//! In: [`KeyEvent`]s and mouse deltas (synthetic in tests;
+//! [`super::bindings`] converts winit physical keys at the edge). Out: a
+//! [`KeyCommand`] each frame: the active blade and its velocity in its own
+//! frame; camera orbit and zoom. Stays true: the mapping is a pure function of
+//! the held keys and the active blade; keys are physical (layout-independent:
+//! "W" is the key left of "E" on any layout); the active blade is always below
+//! the scene's blade count.
 //!
-//! ## Key map (physical keys, US names)
+//! ## Key map (physical keys, US names; the window's table is [`super::bindings::CONTROLS`])
 //! | key | action (spatula frame) |
 //! |---|---|
 //! | W / S | +x / -x: along the blade, towards / away from the tip |
@@ -15,14 +17,15 @@
 //! | Up / Down | pitch about y, + / - |
 //! | Right / Left | yaw about z, + / - |
 //! | Page Up / Page Down | roll about x (blade axis), + / - |
-//! | Tab | switch spatula (left <-> right) |
+//! | 1 .. 9 | make blade 1 .. 9 the active one (beyond the scene's count: nothing) |
+//! | Tab | next blade (cycles) |
 //! | Shift (held) | precision: speeds x 0.25 |
 //! | mouse drag (left button) | camera orbit |
 //! | mouse wheel | camera zoom |
 //!
 //! Opposite keys held together cancel.
 
-use super::{PoseVelocity, SpatulaSlot};
+use super::PoseVelocity;
 use crate::math::Vec3;
 
 /// Keys this map reads.
@@ -42,14 +45,46 @@ pub enum Key {
     PageDown,
     Tab,
     Shift,
+    Digit1,
+    Digit2,
+    Digit3,
+    Digit4,
+    Digit5,
+    Digit6,
+    Digit7,
+    Digit8,
+    Digit9,
 }
 
+/// The digit keys in order: `DIGITS[k]` selects blade k (0-based).
+pub const DIGITS: [Key; 9] = [
+    Key::Digit1,
+    Key::Digit2,
+    Key::Digit3,
+    Key::Digit4,
+    Key::Digit5,
+    Key::Digit6,
+    Key::Digit7,
+    Key::Digit8,
+    Key::Digit9,
+];
+
 #[cfg(test)]
-const KEY_COUNT: usize = 14;
+const KEY_COUNT: usize = 23;
 
 impl Key {
-    fn bit(self) -> u16 {
-        1 << (self as u16)
+    fn bit(self) -> u32 {
+        1 << (self as u32)
+    }
+
+    /// The blade a digit key selects (0-based), `None` for other keys.
+    pub fn digit_index(self) -> Option<usize> {
+        DIGITS.iter().position(|d| *d == self)
+    }
+
+    /// True for the keys that move the active blade (not Tab, Shift or digits).
+    pub fn moves(self) -> bool {
+        !matches!(self, Key::Tab | Key::Shift) && self.digit_index().is_none()
     }
 }
 
@@ -63,7 +98,7 @@ pub struct KeyEvent {
 /// Which keys are held (a bit set).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct KeyState {
-    held: u16,
+    held: u32,
 }
 
 impl KeyState {
@@ -79,6 +114,12 @@ impl KeyState {
         } else {
             self.held &= !key.bit();
         }
+    }
+
+    /// True when a key that moves the blade is held.
+    pub fn any_motion(&self) -> bool {
+        let selection = Key::Tab.bit() | Key::Shift.bit() | DIGITS.iter().fold(0, |m, d| m | d.bit());
+        self.held & !selection != 0
     }
 
     fn axis(&self, plus: Key, minus: Key) -> f64 {
@@ -174,20 +215,33 @@ pub fn map_mouse(
 /// What the keyboard asks for this frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct KeyCommand {
-    pub spatula: SpatulaSlot,
+    /// The active blade (index into the scene's spatulas).
+    pub spatula: usize,
     pub velocity: PoseVelocity,
+    /// True while a key that moves the blade is held (a trajectory-bound
+    /// blade is taken over by the keys only then).
+    pub moving: bool,
 }
 
-/// Held keys plus the selected spatula (Tab toggles on key-down only).
-#[derive(Debug, Clone, Default)]
+/// Held keys plus the active blade (Tab cycles and digits select, on key-down only).
+#[derive(Debug, Clone)]
 pub struct KeyboardController {
     pub keys: KeyState,
-    pub spatula: SpatulaSlot,
+    /// The active blade, below `spatula_count`.
+    pub spatula: usize,
+    /// Blades in the scene (>= 1).
+    spatula_count: usize,
     pub mapping: KeyboardMapping,
 }
 
+impl Default for KeyboardController {
+    fn default() -> Self {
+        Self { keys: KeyState::default(), spatula: 0, spatula_count: 2, mapping: KeyboardMapping::default() }
+    }
+}
+
 impl KeyboardController {
-    /// A controller with the given tuning.
+    /// A controller with the given tuning (two blades until [`Self::set_spatula_count`]).
     pub fn new(mapping: KeyboardMapping) -> Self {
         Self {
             mapping,
@@ -195,10 +249,29 @@ impl KeyboardController {
         }
     }
 
-    /// Applies one key event; auto-repeat of a held Tab does not switch again.
+    /// Tells the controller how many blades the scene has (at least 1 is
+    /// assumed); the active blade stays in range.
+    pub fn set_spatula_count(&mut self, count: usize) {
+        self.spatula_count = count.max(1);
+        if self.spatula >= self.spatula_count {
+            self.spatula = 0;
+        }
+    }
+
+    /// Blades the controller cycles through.
+    pub fn spatula_count(&self) -> usize {
+        self.spatula_count
+    }
+
+    /// Applies one key event; auto-repeat of a held Tab or digit does not
+    /// select again; a digit beyond the scene's blades does nothing.
     pub fn apply(&mut self, event: KeyEvent) {
-        if event.key == Key::Tab && event.pressed && !self.keys.is_held(Key::Tab) {
-            self.spatula = self.spatula.other();
+        let fresh = event.pressed && !self.keys.is_held(event.key);
+        if fresh && event.key == Key::Tab {
+            self.spatula = (self.spatula + 1) % self.spatula_count;
+        }
+        if fresh && let Some(k) = event.key.digit_index().filter(|k| *k < self.spatula_count) {
+            self.spatula = k;
         }
         self.keys.set(event.key, event.pressed);
     }
@@ -213,33 +286,9 @@ impl KeyboardController {
         KeyCommand {
             spatula: self.spatula,
             velocity: map_keys(&self.keys, &self.mapping),
+            moving: self.keys.any_motion(),
         }
     }
-}
-
-/// The key a winit physical key stands for in this map.
-pub fn key_from_winit(key: &winit::keyboard::PhysicalKey) -> Option<Key> {
-    use winit::keyboard::{KeyCode, PhysicalKey};
-    let PhysicalKey::Code(code) = key else {
-        return None;
-    };
-    Some(match code {
-        KeyCode::KeyW => Key::W,
-        KeyCode::KeyA => Key::A,
-        KeyCode::KeyS => Key::S,
-        KeyCode::KeyD => Key::D,
-        KeyCode::KeyQ => Key::Q,
-        KeyCode::KeyE => Key::E,
-        KeyCode::ArrowUp => Key::Up,
-        KeyCode::ArrowDown => Key::Down,
-        KeyCode::ArrowLeft => Key::Left,
-        KeyCode::ArrowRight => Key::Right,
-        KeyCode::PageUp => Key::PageUp,
-        KeyCode::PageDown => Key::PageDown,
-        KeyCode::Tab => Key::Tab,
-        KeyCode::ShiftLeft | KeyCode::ShiftRight => Key::Shift,
-        _ => return None,
-    })
 }
 
 #[cfg(test)]
@@ -267,7 +316,10 @@ mod tests {
             Key::PageDown,
             Key::Tab,
             Key::Shift,
-        ];
+        ]
+        .into_iter()
+        .chain(DIGITS)
+        .collect::<Vec<_>>();
         assert_eq!(all.len(), KEY_COUNT);
         let mut state = KeyState::default();
         for k in all {
@@ -310,17 +362,31 @@ mod tests {
         let mut c = KeyboardController::default();
         press(&mut c, Key::Tab);
         press(&mut c, Key::Tab); // auto-repeat
-        assert_eq!(
-            c.spatula,
-            SpatulaSlot::Right,
-            "auto-repeat must not switch back"
-        );
+        assert_eq!(c.spatula, 1, "auto-repeat must not switch back");
         c.apply(KeyEvent {
             key: Key::Tab,
             pressed: false,
         });
         press(&mut c, Key::Tab);
-        assert_eq!(c.spatula, SpatulaSlot::Left);
+        assert_eq!(c.spatula, 0, "two blades: Tab cycles back to the first");
+    }
+
+    #[test]
+    fn digits_select_a_blade_of_the_scene_only() {
+        let mut c = KeyboardController::default();
+        c.set_spatula_count(3);
+        press(&mut c, Key::Digit3);
+        assert_eq!(c.command().spatula, 2, "3 selects the third blade");
+        assert!(!c.command().moving, "selecting is not moving");
+        press(&mut c, Key::Digit9);
+        assert_eq!(c.spatula, 2, "9 is beyond three blades: nothing changes");
+        press(&mut c, Key::Tab);
+        assert_eq!(c.spatula, 0, "Tab after the last blade cycles to the first");
+        press(&mut c, Key::Digit2);
+        press(&mut c, Key::W);
+        assert!(c.command().moving && c.command().spatula == 1);
+        c.set_spatula_count(1);
+        assert_eq!(c.spatula, 0, "a smaller scene keeps the active blade in range");
     }
 
     #[test]
@@ -336,19 +402,5 @@ mod tests {
             map_mouse([f64::NAN, 0.0], true, f64::NAN, &m).orbit_rad,
             [0.0, 0.0]
         );
-    }
-
-    #[test]
-    fn winit_keys_convert() {
-        use winit::keyboard::{KeyCode, PhysicalKey};
-        assert_eq!(
-            key_from_winit(&PhysicalKey::Code(KeyCode::KeyW)),
-            Some(Key::W)
-        );
-        assert_eq!(
-            key_from_winit(&PhysicalKey::Code(KeyCode::ShiftRight)),
-            Some(Key::Shift)
-        );
-        assert_eq!(key_from_winit(&PhysicalKey::Code(KeyCode::KeyZ)), None);
     }
 }

@@ -14,6 +14,8 @@
 //! them with synthetic events; only the thin adapters touch gilrs, winit and
 //! sockets.
 
+pub mod bindings;
+pub mod drivers;
 pub mod gamepad;
 pub mod igtl;
 pub mod igtl_codec;

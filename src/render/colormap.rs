@@ -18,6 +18,10 @@ pub enum ColorMap {
     Inferno,
     /// Diverging blue -> white -> red (signed quantities).
     BlueWhiteRed,
+    /// White -> yellow -> orange -> red -> dark red (contact pressure: tissue
+    /// without contact stays white, a few mmHg already show yellow). The
+    /// white start, then ColorBrewer's YlOrRd.
+    WhiteYellowRed,
 }
 
 const VIRIDIS: [[f32; 3]; 9] = [
@@ -48,6 +52,27 @@ const BLUE_WHITE_RED: [[f32; 3]; 3] = [
     [0.706, 0.016, 0.150],
 ];
 
+const WHITE_YELLOW_RED: [[f32; 3]; 9] = [
+    [1.000, 1.000, 1.000],
+    [1.000, 0.929, 0.627],
+    [0.996, 0.851, 0.463],
+    [0.996, 0.698, 0.298],
+    [0.992, 0.553, 0.235],
+    [0.988, 0.306, 0.165],
+    [0.890, 0.102, 0.110],
+    [0.741, 0.000, 0.149],
+    [0.502, 0.000, 0.149],
+];
+
+/// Linear component (0..1) to sRGB.
+pub fn linear_to_srgb(c: f32) -> f32 {
+    if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
 /// sRGB component (0..1) to linear.
 pub fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.04045 {
@@ -63,7 +88,13 @@ impl ColorMap {
             ColorMap::Viridis => &VIRIDIS,
             ColorMap::Inferno => &INFERNO,
             ColorMap::BlueWhiteRed => &BLUE_WHITE_RED,
+            ColorMap::WhiteYellowRed => &WHITE_YELLOW_RED,
         }
+    }
+
+    /// 8-bit sRGB colour of `value` within `range` (for legends drawn in sRGB).
+    pub fn color_srgb8(self, value: f64, range: (f64, f64)) -> [u8; 3] {
+        self.color(value, range).map(|c| (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8)
     }
 
     /// Linear-RGB colour of `value` within `range`.
@@ -98,6 +129,30 @@ mod tests {
         assert_eq!(m.color(7.0, (0.0, 1.0)), m.color(1.0, (0.0, 1.0)));
         assert_eq!(m.color(f64::NAN, (0.0, 1.0)), NO_DATA);
         assert_eq!(m.color(0.5, (1.0, 1.0)), NO_DATA, "empty range");
+    }
+
+    #[test]
+    fn white_yellow_red_darkens_monotonically_and_low_pressure_shows() {
+        let lum = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+        let m = ColorMap::WhiteYellowRed;
+        assert_eq!(m.color_srgb8(0.0, (0.0, 30.0)), [255, 255, 255], "no contact stays white");
+        let mut last = 2.0;
+        for k in 0..=30 {
+            let l = lum(m.color(k as f64, (0.0, 30.0)));
+            assert!(l < last, "luminance must fall with pressure: {k} mmHg gave {l} after {last}");
+            last = l;
+        }
+        // The issue: 6-12 mmHg was invisible on the old white->red 0-40 scale.
+        let blue = m.color_srgb8(8.0, (0.0, 30.0))[2];
+        assert!(blue < 140, "8 mmHg of 30 must be clearly yellow (blue channel {blue})");
+    }
+
+    #[test]
+    fn srgb_round_trips() {
+        for k in 0..=20 {
+            let c = k as f32 / 20.0;
+            assert!((linear_to_srgb(srgb_to_linear(c)) - c).abs() < 1e-5, "{c}");
+        }
     }
 
     #[test]

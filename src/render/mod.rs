@@ -11,6 +11,7 @@ pub mod camera;
 pub mod capture;
 pub mod colormap;
 pub mod gpu_types;
+pub mod legend;
 pub mod meshes;
 pub mod renderer;
 pub mod scene;

@@ -666,6 +666,11 @@ impl Renderer {
         self.render(view, &target, size)
     }
 
+    /// The offscreen target's view and size (for overlays painted after the scene).
+    pub fn offscreen_target(&self) -> Option<(&wgpu::TextureView, (u32, u32))> {
+        self.offscreen.as_ref().map(|o| (&o.view, o.size))
+    }
+
     pub(crate) fn check_gpu_error(&self) -> Result<(), RenderError> {
         self.take_gpu_error()
     }

@@ -55,9 +55,12 @@ pub struct ScenarioFile {
     /// scene lacks. Default `None`.
     #[serde(default)]
     pub trajectory: Option<String>,
-    /// Where results go. Default `(dir: "out", vtk: false, frames: false)`.
+    /// Where results go. Default `(dir: "out", vtk: false, frames: false, record_dir: None)`.
     #[serde(default)]
     pub outputs: OutputsFile,
+    /// How the window and screenshots show fields. Default `(pressure_max_mmhg: 30.0)`.
+    #[serde(default)]
+    pub display: DisplayFile,
     /// What a run may do to the tissue before its summary says it failed
     /// (`replay --strict` then exits 3). Default
     /// `(max_penetration_mm: 0.05, max_inverted_elements: 0, max_crossed_vertices: 0)`.
@@ -488,6 +491,33 @@ pub struct OutputsFile {
     /// Write PNG frames (needs the renderer). Default false.
     #[serde(default)]
     pub frames: bool,
+    /// Folder for the window's recordings (key R), relative to the working
+    /// directory; `--record-dir` wins over it. Default `None`: the user's data
+    /// directory (`$XDG_DATA_HOME/fissure/recordings` on Linux).
+    #[serde(default)]
+    pub record_dir: Option<String>,
+}
+
+/// Display options: `(pressure_max_mmhg: 30.0)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DisplayFile {
+    /// Top of the contact-pressure colour bar, mmHg, in [1, 1000]. Default 30
+    /// (a real retraction's 6-12 mmHg shows; the 20 mmHg line is marked).
+    #[serde(default = "default_pressure_max_mmhg")]
+    pub pressure_max_mmhg: f64,
+}
+
+/// `render::legend::DEFAULT_PRESSURE_MAX_MMHG` (the scenario core does not
+/// import the renderer; a test there holds the two equal).
+fn default_pressure_max_mmhg() -> f64 {
+    30.0
+}
+
+impl Default for DisplayFile {
+    fn default() -> Self {
+        Self { pressure_max_mmhg: default_pressure_max_mmhg() }
+    }
 }
 
 fn default_out_dir() -> String {
@@ -496,6 +526,6 @@ fn default_out_dir() -> String {
 
 impl Default for OutputsFile {
     fn default() -> Self {
-        Self { dir: default_out_dir(), vtk: false, frames: false }
+        Self { dir: default_out_dir(), vtk: false, frames: false, record_dir: None }
     }
 }

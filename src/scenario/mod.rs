@@ -25,7 +25,7 @@ pub use file::{CollisionBackend, ComplianceStorage, Effect, LengthUnit, Scenario
 pub use overrides::Document;
 pub use trajectory::{Sample, Trajectory, TrajectoryError, TrajectoryRecorder};
 pub use validate::{
-    EffectSet, FixedRegion, InputBinding, IntegrityLimits, Material, MeshSource, Outputs, RegionMaterial, RegionOfInterest,
+    Display, EffectSet, FixedRegion, InputBinding, IntegrityLimits, Material, MeshSource, Outputs, RegionMaterial, RegionOfInterest,
     Scenario, Skull, SolverOptions, SpatulaConfig, Sphere,
 };
 

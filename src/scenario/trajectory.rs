@@ -265,6 +265,14 @@ impl Trajectory {
         self.tracks.iter().filter_map(|t| t.last()).map(|s| s.time_s).fold(0.0, f64::max)
     }
 
+    /// Time of the earliest row over all tracks, s (0 without rows). A
+    /// window recording starts its lead-in (the session before R was pressed)
+    /// at a negative time.
+    pub fn start_time(&self) -> f64 {
+        let earliest = self.tracks.iter().filter_map(|t| t.first()).map(|s| s.time_s).fold(f64::INFINITY, f64::min);
+        if earliest.is_finite() { earliest } else { 0.0 }
+    }
+
     /// The pose of `spatula` at `time_s`: linear in position, slerp in rotation,
     /// clamped to the first / last sample outside the recorded range. `None`
     /// when the spatula has no rows or `time_s` is NaN.
@@ -331,9 +339,18 @@ pub struct TrajectoryRecorder {
 impl TrajectoryRecorder {
     /// Creates (truncates) the file and writes the comment block and header.
     pub fn create(path: &Path) -> Result<Self, TrajectoryError> {
+        Self::create_with_note(path, "")
+    }
+
+    /// [`Self::create`] with `note` as a further comment line (none when empty).
+    pub fn create_with_note(path: &Path, note: &str) -> Result<Self, TrajectoryError> {
         let io = |io| TrajectoryError::Io { path: path.to_path_buf(), io };
         let mut file = File::create(path).map_err(io)?;
-        file.write_all(Trajectory::new().to_csv().as_bytes()).map_err(io)?;
+        let mut text = Trajectory::new().to_csv();
+        if !note.is_empty() {
+            text.insert_str(0, &format!("# {}\n", note.replace('\n', " ")));
+        }
+        file.write_all(text.as_bytes()).map_err(io)?;
         file.flush().map_err(io)?;
         Ok(Self { file, path: path.to_path_buf(), row: String::with_capacity(192), last_time: Vec::new() })
     }

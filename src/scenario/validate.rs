@@ -236,6 +236,15 @@ pub struct Outputs {
     pub vtk: bool,
     /// Write PNG frames.
     pub frames: bool,
+    /// The window's recordings folder (as written), `None`: the user's data directory.
+    pub record_dir: Option<PathBuf>,
+}
+
+/// How fields are shown.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Display {
+    /// Top of the contact-pressure colour bar, mmHg, in [1, 1000].
+    pub pressure_max_mmhg: f64,
 }
 
 /// Pass/fail limits on what a run may do to the tissue (scenario `integrity`).
@@ -297,6 +306,8 @@ pub struct Scenario {
     pub trajectory: Option<PathBuf>,
     /// Outputs.
     pub outputs: Outputs,
+    /// Display options.
+    pub display: Display,
     /// Pass/fail limits of the run's integrity verdict.
     pub integrity: IntegrityLimits,
     /// Legal but doubtful values, in the order found (`fissure check` prints
@@ -678,6 +689,13 @@ impl Scenario {
         if file.outputs.dir.trim().is_empty() {
             return Err(c.invalid("outputs.dir", "must not be empty"));
         }
+        if file.outputs.record_dir.as_ref().is_some_and(|d| d.trim().is_empty()) {
+            return Err(c.invalid("outputs.record_dir", "must not be empty (leave it out for the user's data directory)"));
+        }
+        let pressure_max_mmhg = file.display.pressure_max_mmhg;
+        if !(pressure_max_mmhg.is_finite() && (1.0..=1000.0).contains(&pressure_max_mmhg)) {
+            return Err(c.invalid("display.pressure_max_mmhg", format!("must be in [1, 1000] mmHg, got {pressure_max_mmhg}")));
+        }
 
         Ok(Scenario {
             name: file.name,
@@ -697,7 +715,13 @@ impl Scenario {
             time_step,
             duration,
             trajectory: trajectory.map(|(p, _)| p),
-            outputs: Outputs { dir: PathBuf::from(&file.outputs.dir), vtk: file.outputs.vtk, frames: file.outputs.frames },
+            outputs: Outputs {
+                dir: PathBuf::from(&file.outputs.dir),
+                vtk: file.outputs.vtk,
+                frames: file.outputs.frames,
+                record_dir: file.outputs.record_dir.as_ref().map(PathBuf::from),
+            },
+            display: Display { pressure_max_mmhg },
             integrity: IntegrityLimits {
                 max_penetration_mm: match file.integrity.max_penetration_mm {
                     d if d.is_finite() && d >= 0.0 => d,

@@ -78,16 +78,25 @@ impl PoseSource {
         Ok(Self { trajectory, initial })
     }
 
-    /// Time of the trajectory's last row, s; `None` without a trajectory.
+    /// Replay time of the trajectory's last row, s; `None` without a trajectory.
     pub fn trajectory_end(&self) -> Option<f64> {
-        self.trajectory.as_ref().map(Trajectory::duration)
+        self.trajectory.as_ref().map(|t| t.duration() - self.trajectory_origin())
     }
 
-    /// Poses at `time_s` into `out` (a track missing for a spatula holds its initial pose).
+    /// Where the trajectory's clock starts, s: 0, or the first row's time when
+    /// that is negative (a window recording's lead-in: the session from rest
+    /// before R was pressed). Replay time 0 is then that row.
+    pub fn trajectory_origin(&self) -> f64 {
+        self.trajectory.as_ref().map_or(0.0, |t| t.start_time().min(0.0))
+    }
+
+    /// Poses at replay time `time_s` into `out` (the trajectory sampled at
+    /// `time_s + trajectory_origin()`; a track missing for a spatula holds its initial pose).
     pub fn poses_at(&self, time_s: f64, out: &mut FrameInput) {
         out.poses.clear();
+        let origin = self.trajectory_origin();
         for (k, p0) in self.initial.iter().enumerate() {
-            let p = self.trajectory.as_ref().and_then(|t| t.sample(k, time_s)).unwrap_or(*p0);
+            let p = self.trajectory.as_ref().and_then(|t| t.sample(k, time_s + origin)).unwrap_or(*p0);
             out.poses.push(Some(p));
         }
     }

@@ -7,12 +7,16 @@
 //! Stays true: no simulation types; [`PressureMonitor`] and [`TimingHistory`]
 //! are pure and allocation-free per frame; the 20 mmHg line (the retraction
 //! pressure above which brain injury risk rises) is drawn and exceeding it
-//! shows a warning and accumulates pressure-time.
+//! shows a warning and accumulates pressure-time (simulated seconds); the
+//! panel's first line says where the keys go ("keys -> scene" / "keys -> panel")
+//! and each blade is listed by the scene's own name, the active one marked.
+
+pub mod legend;
 
 use crate::render::FieldKind;
 
 /// Retraction pressure above which the panel warns, mmHg.
-pub const PRESSURE_LIMIT_MMHG: f64 = 20.0;
+pub const PRESSURE_LIMIT_MMHG: f64 = crate::render::legend::INJURY_LINE_MMHG;
 
 /// Tracks retraction pressure against the limit over time.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -133,6 +137,8 @@ impl TimingHistory {
 /// Per-spatula numbers for the panel.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SpatulaReadout {
+    /// What moves the blade now (e.g. "keys", "keys + gamepad", "tracker (keys ignored)").
+    pub driver: &'static str,
     /// Reaction force, N, world axes.
     pub force_n: [f64; 3],
     /// Mean retraction pressure over the contact, mmHg.
@@ -144,13 +150,33 @@ pub struct SpatulaReadout {
 }
 
 /// What the panel shows this frame (copied from the simulation's report).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct PanelData {
     /// Frames per second of the window.
     pub fps: f64,
     /// Simulation frame time, ms.
     pub sim_frame_ms: f64,
-    pub spatulas: [SpatulaReadout; 2],
+    /// One per blade of the scene, in its order.
+    pub spatulas: Vec<SpatulaReadout>,
+    /// The keyboard's active blade (index into `spatulas`).
+    pub active_spatula: usize,
+    /// True when keys drive the scene, false while the panel's text field has them.
+    pub keys_to_scene: bool,
+}
+
+impl Default for PanelData {
+    fn default() -> Self {
+        Self { fps: 0.0, sim_frame_ms: 0.0, spatulas: Vec::new(), active_spatula: 0, keys_to_scene: true }
+    }
+}
+
+/// The focus line: where the keys go now.
+pub fn focus_text(keys_to_scene: bool) -> &'static str {
+    if keys_to_scene {
+        "keys -> scene"
+    } else {
+        "keys -> panel (Esc or a click on the scene gives them back)"
+    }
 }
 
 /// Field shown on the surface.
@@ -170,7 +196,14 @@ pub struct PanelState {
     pub show_skull: bool,
     pub culling: bool,
     pub recording: bool,
-    pub monitors: [PressureMonitor; 2],
+    /// Where recordings go (shown under the Record button).
+    pub record_dir: String,
+    /// The last recording problem (shown in red until the next start).
+    pub record_error: Option<String>,
+    /// Top of the pressure colour bar, mmHg (1..=1000, as the scenario's `display.pressure_max_mmhg`).
+    pub pressure_max_mmhg: f64,
+    /// One per blade (resized by [`update_monitors`]).
+    pub monitors: Vec<PressureMonitor>,
 }
 
 impl Default for PanelState {
@@ -182,7 +215,10 @@ impl Default for PanelState {
             show_skull: true,
             culling: true,
             recording: false,
-            monitors: [PressureMonitor::default(); 2],
+            record_dir: String::new(),
+            record_error: None,
+            pressure_max_mmhg: crate::render::legend::DEFAULT_PRESSURE_MAX_MMHG,
+            monitors: Vec::new(),
         }
     }
 }
@@ -195,6 +231,8 @@ pub enum PanelAction {
     CameraOverview,
     CameraMicroscope,
     LoadScenario,
+    /// Make this blade the keyboard's active one (a click on its name).
+    SelectSpatula(usize),
 }
 
 /// Draws the right-hand panel into `ui` (the root ui of `Context::run_ui`),
@@ -202,6 +240,7 @@ pub enum PanelAction {
 pub fn draw_panel(
     ui: &mut egui::Ui,
     data: &PanelData,
+    names: &[String],
     history: &TimingHistory,
     state: &mut PanelState,
     actions: &mut Vec<PanelAction>,
@@ -210,6 +249,15 @@ pub fn draw_panel(
         .default_size(280.0)
         .show(ui, |ui| {
             ui.heading("fissure");
+            let (colour, hint) = if data.keys_to_scene {
+                (egui::Color32::from_rgb(110, 210, 120), "1, 2, … or Tab pick the blade")
+            } else {
+                (egui::Color32::from_rgb(255, 170, 40), "")
+            };
+            ui.colored_label(colour, egui::RichText::new(focus_text(data.keys_to_scene)).strong());
+            if !hint.is_empty() {
+                ui.small(hint);
+            }
             ui.label(format!(
                 "{:.0} fps, simulation {:.2} ms",
                 data.fps, data.sim_frame_ms
@@ -219,10 +267,13 @@ pub fn draw_panel(
             for (k, (s, monitor)) in data.spatulas.iter().zip(state.monitors.iter()).enumerate() {
                 let f = s.force_n;
                 let magnitude = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
-                ui.label(format!(
-                    "Spatula {}: |F| = {magnitude:.3} N",
-                    if k == 0 { "left" } else { "right" }
-                ));
+                let name = names.get(k).map(String::as_str).unwrap_or("?");
+                let active = k == data.active_spatula;
+                let title = format!("{} {} {name}: |F| = {magnitude:.3} N", if active { ">" } else { " " }, k + 1);
+                if ui.selectable_label(active, egui::RichText::new(title).strong()).clicked() && !active {
+                    actions.push(PanelAction::SelectSpatula(k));
+                }
+                ui.label(format!("  moved by: {}{}", s.driver, if active { " (active)" } else { "" }));
                 ui.label(format!(
                     "  pairs {} feasible, {} culled",
                     s.feasible_pairs, s.culled_pairs
@@ -240,8 +291,8 @@ pub fn draw_panel(
                     ui.label(text);
                 }
                 ui.label(format!(
-                    "  over limit {:.1} s, excess {:.1} mmHg*s, peak {:.1}",
-                    monitor.time_over_s, monitor.excess_mmhg_s, monitor.peak_mmhg
+                    "  above {:.0} mmHg: {:.2} s (simulated), excess {:.1} mmHg*s, peak {:.1}",
+                    monitor.limit_mmhg, monitor.time_over_s, monitor.excess_mmhg_s, monitor.peak_mmhg
                 ));
                 pressure_bar(ui, s.mean_pressure_mmhg, monitor.limit_mmhg);
             }
@@ -255,6 +306,7 @@ pub fn draw_panel(
             ] {
                 ui.radio_value(&mut state.field, FieldChoice::Field(kind), kind.label());
             }
+            ui.add(egui::Slider::new(&mut state.pressure_max_mmhg, 1.0..=1000.0).logarithmic(true).text("pressure bar top (mmHg)"));
             ui.checkbox(&mut state.show_source_nodes, "source nodes");
             ui.checkbox(&mut state.show_pairs, "pairs (feasible / culled)");
             ui.checkbox(&mut state.show_skull, "skull spheres");
@@ -286,11 +338,18 @@ pub fn draw_panel(
                     actions.push(PanelAction::LoadScenario);
                 }
             });
+            if !state.record_dir.is_empty() {
+                ui.small(format!("recordings -> {}", state.record_dir));
+            }
+            if let Some(e) = &state.record_error {
+                ui.colored_label(egui::Color32::from_rgb(255, 80, 60), e);
+            }
         });
 }
 
 /// Updates the pressure monitors from this frame's data (call once per simulation frame).
 pub fn update_monitors(state: &mut PanelState, data: &PanelData, dt_s: f64) {
+    state.monitors.resize(data.spatulas.len(), PressureMonitor::default());
     for (m, s) in state.monitors.iter_mut().zip(data.spatulas.iter()) {
         m.update(s.mean_pressure_mmhg, dt_s);
     }
@@ -416,15 +475,17 @@ mod tests {
         let mut data = PanelData {
             fps: 60.0,
             sim_frame_ms: 1.6,
+            spatulas: vec![SpatulaReadout::default(); 2],
             ..PanelData::default()
         };
         data.spatulas[0].mean_pressure_mmhg = 25.0;
+        let names = ["frontal".to_string(), "temporal".to_string()];
         update_monitors(&mut state, &data, 0.1);
         assert!(state.monitors[0].over && !state.monitors[1].over);
         let mut actions = Vec::new();
         for _ in 0..2 {
             ctx.run_ui(egui::RawInput::default(), |ui| {
-                draw_panel(ui, &data, &history, &mut state, &mut actions)
+                draw_panel(ui, &data, &names, &history, &mut state, &mut actions)
             })
             .drop_without_applying_deltas();
         }
@@ -432,10 +493,40 @@ mod tests {
         assert_eq!(
             state,
             PanelState {
-                monitors: state.monitors,
+                monitors: state.monitors.clone(),
                 ..PanelState::default()
             },
             "no input must not flip switches"
         );
+    }
+
+    fn panel_texts(data: &PanelData, names: &[String]) -> Vec<String> {
+        let ctx = egui::Context::default();
+        let mut state = PanelState::default();
+        update_monitors(&mut state, data, 0.0);
+        let history = TimingHistory::new(&["fem"], 4);
+        let mut texts = Vec::new();
+        for _ in 0..2 {
+            let mut out = ctx.run_ui(egui::RawInput::default(), |ui| draw_panel(ui, data, names, &history, &mut state, &mut Vec::new()));
+            out.textures_delta.clear();
+            texts = out.shapes.iter().filter_map(|c| if let egui::Shape::Text(t) = &c.shape { Some(t.galley.text().to_string()) } else { None }).collect();
+        }
+        texts
+    }
+
+    /// The panel names blades as the scene does, marks the active one and
+    /// says where the keys go (the issue: "Spatula left/right", no focus cue).
+    #[test]
+    fn panel_uses_the_scene_names_marks_the_active_blade_and_the_key_focus() {
+        let names = ["frontal".to_string(), "temporal".to_string(), "third".to_string()];
+        let mut data = PanelData { spatulas: vec![SpatulaReadout { driver: "keys", ..SpatulaReadout::default() }; 3], active_spatula: 1, ..PanelData::default() };
+        let texts = panel_texts(&data, &names);
+        assert!(texts.iter().any(|t| t.starts_with("> 2 temporal")), "the active blade is marked with its scene name: {texts:?}");
+        assert!(texts.iter().any(|t| t.contains("1 frontal")) && texts.iter().any(|t| t.contains("3 third")), "{texts:?}");
+        assert!(!texts.iter().any(|t| t.contains("left") || t.contains("right")), "no left/right names: {texts:?}");
+        assert!(texts.iter().any(|t| t == "keys -> scene"), "{texts:?}");
+        data.keys_to_scene = false;
+        let texts = panel_texts(&data, &names);
+        assert!(texts.iter().any(|t| t.starts_with("keys -> panel")), "{texts:?}");
     }
 }
