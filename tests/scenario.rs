@@ -385,3 +385,31 @@ fn display_pressure_scale_and_record_dir_validate() {
     let message = result.expect_err("an unknown key under display").to_string();
     assert!(message.contains(&path.display().to_string()) && message.contains("pressure_top"), "{message}");
 }
+
+/// `display.microscope` / `display.overview` name a camera (eye and target in
+/// mm, field of view in degrees, default 25); an eye on the target or a field
+/// of view outside [5, 120] degrees is refused naming the field.
+#[test]
+fn display_views_validate() {
+    let anchor = "outputs: (dir: \"out/sylvian\", vtk: false, frames: false),";
+    let text = sylvian_text()
+        .replacen(anchor, "display: (microscope: Some((eye_mm: (-200.0, 10.0, 0.0), target_mm: (-70.0, 10.0, -11.0)))),", 1);
+    let (_dir, _path, set) = load_text(&text);
+    let v = set.expect("a valid microscope").display.views;
+    assert!(v.overview.is_none());
+    let m = v.microscope.expect("the named microscope");
+    assert!((m.eye.x + 0.2).abs() < 1e-12 && (m.target.z + 0.011).abs() < 1e-12, "mm to m: {m:?}");
+    assert!((m.fov_y_rad - 25f64.to_radians()).abs() < 1e-12, "default 25 degrees");
+    assert_bad(
+        anchor,
+        "display: (overview: Some((eye_mm: (1.0, 2.0, 3.0), target_mm: (1.0, 2.0, 3.0)))),",
+        "display.overview",
+        "at least 1 mm apart",
+    );
+    assert_bad(
+        anchor,
+        "display: (microscope: Some((eye_mm: (0.0, 0.0, 100.0), target_mm: (0.0, 0.0, 0.0), fov_deg: 170.0))),",
+        "display.microscope.fov_deg",
+        "must be in [5, 120] degrees, got 170",
+    );
+}

@@ -56,11 +56,20 @@ pub struct DrawOptions {
     /// Pressure at the top of the colour bar, mmHg (> 0; the scenario's
     /// `display.pressure_max_mmhg`, the panel's slider).
     pub pressure_max_mmhg: f64,
+    /// The scenario's own cameras (`display.overview` / `display.microscope`).
+    pub views: crate::scenario::Views,
 }
 
 impl Default for DrawOptions {
     fn default() -> Self {
-        Self { field: SurfaceField::None, source_nodes: false, pairs: false, skull: true, pressure_max_mmhg: PRESSURE_FULL_SCALE_MMHG }
+        Self {
+            field: SurfaceField::None,
+            source_nodes: false,
+            pairs: false,
+            skull: true,
+            pressure_max_mmhg: PRESSURE_FULL_SCALE_MMHG,
+            views: crate::scenario::Views::default(),
+        }
     }
 }
 
@@ -240,10 +249,15 @@ pub enum ViewPreset {
     Microscope,
 }
 
-/// A camera for `preset` on the pipeline's mesh and the given spatula poses.
-pub fn camera_for(preset: ViewPreset, pipeline: &Pipeline, poses: &[Pose]) -> OrbitCamera {
-    camera_from_parts(preset, pipeline.mesh().bounding_box(), pipeline.spatula_shapes(), poses)
+/// A camera for `preset` on the pipeline's mesh and the given spatula poses
+/// (the scenario's own view of that name when `views` has one).
+pub fn camera_for(preset: ViewPreset, pipeline: &Pipeline, poses: &[Pose], views: &crate::scenario::Views) -> OrbitCamera {
+    camera_from_parts(preset, pipeline.mesh().bounding_box(), pipeline.spatula_shapes(), poses, views)
 }
+
+/// Tilt of the default microscope's line of sight off the blades' axis,
+/// towards their width (depth cue; the handles stay edge-on), rad.
+const MICROSCOPE_TILT_RAD: f64 = 15.0 * std::f64::consts::PI / 180.0;
 
 /// [`camera_for`] from the mesh box (m) and the blades (what the window keeps).
 pub fn camera_from_parts(
@@ -251,7 +265,15 @@ pub fn camera_from_parts(
     (lo, hi): (Vec3, Vec3),
     shapes: &[crate::geometry::SpatulaShape],
     poses: &[Pose],
+    views: &crate::scenario::Views,
 ) -> OrbitCamera {
+    let named = match preset {
+        ViewPreset::Overview => views.overview,
+        ViewPreset::Microscope => views.microscope,
+    };
+    if let Some(v) = named {
+        return OrbitCamera::looking(v.eye, v.target, v.fov_y_rad);
+    }
     let n = poses.len().min(shapes.len());
     if n == 0 {
         return OrbitCamera::framing(lo, hi);
@@ -259,12 +281,14 @@ pub fn camera_from_parts(
     let mut tip_sum = Vec3::zeros();
     let mut blade = Vec3::zeros();
     let mut normal = Vec3::zeros();
+    let mut width = Vec3::zeros();
     let (mut box_lo, mut box_hi) = (lo, hi);
     for (pose, shape) in poses.iter().zip(shapes) {
         let along = pose.rotation * Vec3::x();
         tip_sum += pose.position + along * shape.length * 0.85;
         blade += along;
         normal += pose.rotation * Vec3::z();
+        width += pose.rotation * Vec3::y();
         for end in [pose.position, pose.position + along * shape.length] {
             box_lo = box_lo.inf(&end);
             box_hi = box_hi.sup(&end);
@@ -283,12 +307,20 @@ pub fn camera_from_parts(
             cam
         }
         ViewPreset::Microscope => {
-            // The surgeon's line of sight: from above the blades' faces and
-            // lateral to the entry, down into the fissure at the tips.
+            // The surgeon's line of sight: from behind the handles, down the
+            // blades' insertion direction into the fissure at the tips, in the
+            // plane of the blades' faces (so two blades that open the fissure
+            // along their normal stand apart on screen, the gap between them
+            // in view, neither hiding the other), tilted a little across the
+            // blades' width.
             let target = tip_sum / n as f64;
-            let direction = blade * 0.55 - up * 0.85;
-            let size = (hi - lo).norm();
-            OrbitCamera::microscope(target, direction, size * 0.55)
+            let across = width - blade * blade.dot(&width);
+            let across = if across.norm() > 1e-9 { across.normalize() } else { up.cross(&blade) };
+            let direction = blade * MICROSCOPE_TILT_RAD.cos() + across * MICROSCOPE_TILT_RAD.sin();
+            // Far enough that the handles' ends, nearest the eye, do not fill the view.
+            let longest = shapes.iter().map(|s| s.length).fold(0.0, f64::max);
+            let distance = ((hi - lo).norm() * 0.55).max(2.0 * longest);
+            OrbitCamera::microscope(target, direction, distance)
         }
     }
 }
@@ -381,6 +413,51 @@ impl SceneStatic {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Screen position (NDC x, y) and depth of `p` through `cam`, 16:10.
+    fn project(cam: &OrbitCamera, p: Vec3) -> (f64, f64, f64) {
+        let q = cam.view_projection(1.6) * nalgebra::Vector4::new(p.x - cam.target.x, p.y - cam.target.y, p.z - cam.target.z, 1.0);
+        (q.x / q.w, q.y / q.w, q.z / q.w)
+    }
+
+    /// The default microscope looks down the blades into the fissure with both
+    /// tips on screen and apart, whatever the blades' orientation (the
+    /// default scene's horizontal blades, the valley scenes' vertical ones);
+    /// a scenario's named view wins.
+    #[test]
+    fn the_microscope_sees_both_tips_apart_and_a_named_view_wins() {
+        use crate::geometry::{SpatulaShape, Pose};
+        use nalgebra::UnitQuaternion;
+        let shape = SpatulaShape { length: 0.06, width: 0.008, thickness: 0.001 };
+        let bounds = (Vec3::new(-0.1, -0.1, -0.1), Vec3::new(0.1, 0.1, 0.1));
+        // Blade along +x, faces +z (the default scene, roughly), and along -z, faces +x (a valley).
+        for rotation in [UnitQuaternion::identity(), UnitQuaternion::rotation_between(&Vec3::x(), &-Vec3::z()).expect("turn")] {
+            let along = rotation * Vec3::x();
+            let normal = rotation * Vec3::z();
+            let tip_target = Vec3::new(0.0, 0.01, 0.02);
+            // Two blades 8 mm apart along their normal, tips at the target.
+            let poses: Vec<Pose> = [-0.004, 0.004]
+                .iter()
+                .map(|o| Pose { position: tip_target + normal * *o - along * shape.length, rotation })
+                .collect();
+            let cam = camera_from_parts(ViewPreset::Microscope, bounds, &[shape, shape], &poses, &crate::scenario::Views::default());
+            let forward = -cam.back_direction();
+            assert!(forward.dot(&normal).abs() < 1e-6, "the line of sight lies in the blades' face plane: {forward:?}");
+            assert!(forward.dot(&along) > 0.9, "down the insertion direction: {forward:?}");
+            let tips: Vec<(f64, f64, f64)> = poses.iter().map(|p| project(&cam, p.position + p.rotation * Vec3::x() * shape.length)).collect();
+            for (x, y, z) in &tips {
+                assert!(x.abs() < 1.0 && y.abs() < 1.0 && (0.0..1.0).contains(z), "tip on screen: {tips:?}");
+            }
+            let apart = ((tips[0].0 - tips[1].0).powi(2) + (tips[0].1 - tips[1].1).powi(2)).sqrt();
+            assert!(apart > 0.02, "the two tips stand apart on screen: {tips:?}");
+        }
+        let views = crate::scenario::Views {
+            overview: None,
+            microscope: Some(crate::scenario::NamedView { eye: Vec3::new(0.1, -0.05, 0.2), target: Vec3::zeros(), fov_y_rad: 0.5 }),
+        };
+        let cam = camera_from_parts(ViewPreset::Microscope, bounds, &[], &[], &views);
+        assert!((cam.eye() - Vec3::new(0.1, -0.05, 0.2)).norm() < 1e-9 && cam.target == Vec3::zeros() && cam.fov_y_rad == 0.5, "{cam:?}");
+    }
 
     #[test]
     fn vertex_areas_split_each_triangle_in_thirds() {

@@ -44,24 +44,7 @@ impl OffscreenOverlay {
         }
         let descriptor = egui_wgpu::ScreenDescriptor { size_in_pixels: [width, height], pixels_per_point: out.pixels_per_point };
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("overlay encoder") });
-        let extra = egui_renderer.update_buffers(device, queue, &mut encoder, &jobs, &descriptor);
-        {
-            let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("overlay pass"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    resolve_target: None,
-                    depth_slice: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            let mut pass = pass.forget_lifetime();
-            egui_renderer.render(&mut pass, &jobs, &descriptor);
-        }
+        let extra = egui_pass(egui_renderer, device, queue, &mut encoder, target, &jobs, &descriptor);
         queue.submit(extra.into_iter().chain([encoder.finish()]));
         for id in &out.textures_delta.free {
             egui_renderer.free_texture(id);
@@ -69,4 +52,35 @@ impl OffscreenOverlay {
         out.textures_delta.clear(); // handled above (an unhandled delta panics on drop)
         Ok(())
     }
+}
+
+/// Uploads egui's buffers and draws `jobs` over `target` (loaded, not
+/// cleared) in one render pass; returns the command buffers egui needs
+/// submitted before `encoder`'s. The window and the offscreen overlay share it.
+pub fn egui_pass(
+    egui_renderer: &mut egui_wgpu::Renderer,
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    encoder: &mut wgpu::CommandEncoder,
+    target: &wgpu::TextureView,
+    jobs: &[egui::ClippedPrimitive],
+    screen: &egui_wgpu::ScreenDescriptor,
+) -> Vec<wgpu::CommandBuffer> {
+    let extra = egui_renderer.update_buffers(device, queue, encoder, jobs, screen);
+    let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("egui pass"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: target,
+            resolve_target: None,
+            depth_slice: None,
+            ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
+        })],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    let mut pass = pass.forget_lifetime();
+    egui_renderer.render(&mut pass, jobs, screen);
+    extra
 }

@@ -245,6 +245,7 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
     let (sim_script, window_script): (Vec<_>, Vec<_>) = options.script.iter().cloned().partition(|(_, a)| a.is_simulation());
     let backend = scenario.collision_backend;
     let pressure_max_mmhg = scenario.display.pressure_max_mmhg;
+    let views = scenario.display.views;
     let scenario_path = scenario.source_path.clone();
     let sim = SimThread::start(
         scenario,
@@ -270,7 +271,7 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
         scene,
         generation: 0,
         buffers: SceneBuffers::default(),
-        draw: DrawOptions::default(),
+        draw: DrawOptions { views, ..DrawOptions::default() },
         strain_told: false,
         camera: OrbitCamera::default(),
         camera_set: false,
@@ -313,7 +314,7 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
 impl App {
     fn preset(&mut self, preset: ViewPreset) {
         // camera_for needs the pipeline only for the mesh box and blade shapes, both in SceneStatic.
-        self.camera = camera_for_static(preset, &self.scene, &self.front.poses);
+        self.camera = camera_for_static(preset, &self.scene, &self.front.poses, &self.draw.views);
     }
 
     /// Tells the simulation whether the strain colour is shown (it then
@@ -554,24 +555,7 @@ impl App {
         let view = self.buffers.view(&self.scene, &self.front, &self.draw, self.camera);
         let egui_renderer = &mut gpu.egui_renderer;
         let outcome = gpu.renderer.render(&view, |device, queue, encoder, target| {
-            let extra = egui_renderer.update_buffers(device, queue, encoder, &paint_jobs, &screen);
-            {
-                let pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("egui pass"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: target,
-                        resolve_target: None,
-                        depth_slice: None,
-                        ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
-                    })],
-                    depth_stencil_attachment: None,
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
-                let mut pass = pass.forget_lifetime();
-                egui_renderer.render(&mut pass, &paint_jobs, &screen);
-            }
+            let extra = super::overlay::egui_pass(egui_renderer, device, queue, encoder, target, &paint_jobs, &screen);
             queue.submit(extra);
         });
         for id in &textures.free {
@@ -656,8 +640,8 @@ fn panel_data_of(front: &Snapshot, fps: f64) -> PanelData {
 }
 
 /// [`camera_for`] from the static scene data (the window has no pipeline).
-pub fn camera_for_static(preset: ViewPreset, scene: &SceneStatic, poses: &[crate::geometry::Pose]) -> OrbitCamera {
-    super::draw::camera_from_parts(preset, scene.bounds, &scene.shapes, poses)
+pub fn camera_for_static(preset: ViewPreset, scene: &SceneStatic, poses: &[crate::geometry::Pose], views: &crate::scenario::Views) -> OrbitCamera {
+    super::draw::camera_from_parts(preset, scene.bounds, &scene.shapes, poses, views)
 }
 
 impl ApplicationHandler for App {

@@ -48,7 +48,7 @@ impl OffscreenFrames {
             anyhow::bail!("the offscreen renderer did not start");
         };
         self.snapshot.capture(pipeline, state, report, &self.areas);
-        let camera = camera_for(self.view, pipeline, &state.poses);
+        let camera = camera_for(self.view, pipeline, &state.poses, &self.options.views);
         let view = self.buffers.view(scene, &self.snapshot, &self.options, camera);
         renderer.render_offscreen(&view).context("rendering a frame")?;
         // The shown field's colour bar, painted by the window's legend code.

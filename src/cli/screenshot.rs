@@ -102,6 +102,7 @@ pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
         pairs: args.overlays,
         skull: false,
         pressure_max_mmhg: scenario.display.pressure_max_mmhg,
+        views: scenario.display.views,
     };
     let view = match args.view {
         ViewArg::Overview => ViewPreset::Overview,

@@ -88,6 +88,17 @@ impl OrbitCamera {
         }
     }
 
+    /// A camera at `eye` looking at `target` (metres) with a vertical field of
+    /// view of `fov_y_rad`; the orbit turns about `target`. Pitch is clamped
+    /// to the limit as in [`OrbitCamera::microscope`].
+    pub fn looking(eye: Vec3, target: Vec3, fov_y_rad: f64) -> Self {
+        let mut cam = Self::microscope(target, target - eye, (eye - target).norm());
+        if fov_y_rad.is_finite() && fov_y_rad > 0.0 && fov_y_rad < std::f64::consts::PI {
+            cam.fov_y_rad = fov_y_rad;
+        }
+        cam
+    }
+
     /// Turns the eye about the target (rad); pitch is clamped.
     pub fn orbit(&mut self, d_yaw: f64, d_pitch: f64) {
         if d_yaw.is_finite() {

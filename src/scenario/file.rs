@@ -506,6 +506,30 @@ pub struct DisplayFile {
     /// (a real retraction's 6-12 mmHg shows; the 20 mmHg line is marked).
     #[serde(default = "default_pressure_max_mmhg")]
     pub pressure_max_mmhg: f64,
+    /// The overview camera (key `O`). Default `None`: framed from the mesh and the blades.
+    #[serde(default)]
+    pub overview: Option<ViewFile>,
+    /// The microscope camera (key `M`). Default `None`: down the blades'
+    /// insertion direction at their tips, from behind the handles.
+    #[serde(default)]
+    pub microscope: Option<ViewFile>,
+}
+
+/// A named camera: `(eye_mm: (x, y, z), target_mm: (x, y, z), fov_deg: 25.0)`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViewFile {
+    /// Where the eye is, mm.
+    pub eye_mm: [f64; 3],
+    /// What it looks at (the orbit centre), mm; not the eye.
+    pub target_mm: [f64; 3],
+    /// Vertical field of view, degrees, in [5, 120]. Default 25 (a microscope's).
+    #[serde(default = "default_fov_deg")]
+    pub fov_deg: f64,
+}
+
+fn default_fov_deg() -> f64 {
+    25.0
 }
 
 /// `render::legend::DEFAULT_PRESSURE_MAX_MMHG` (the scenario core does not
@@ -516,7 +540,7 @@ fn default_pressure_max_mmhg() -> f64 {
 
 impl Default for DisplayFile {
     fn default() -> Self {
-        Self { pressure_max_mmhg: default_pressure_max_mmhg() }
+        Self { pressure_max_mmhg: default_pressure_max_mmhg(), overview: None, microscope: None }
     }
 }
 

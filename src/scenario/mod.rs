@@ -26,7 +26,7 @@ pub use overrides::Document;
 pub use trajectory::{Sample, Trajectory, TrajectoryError, TrajectoryRecorder};
 pub use validate::{
     Display, EffectSet, FixedRegion, InputBinding, IntegrityLimits, Material, MeshSource, Outputs, RegionMaterial, RegionOfInterest,
-    Scenario, Skull, SolverOptions, SpatulaConfig, Sphere,
+    NamedView, Scenario, Skull, SolverOptions, SpatulaConfig, Sphere, Views,
 };
 
 impl Scenario {

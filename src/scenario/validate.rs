@@ -245,6 +245,23 @@ pub struct Outputs {
 pub struct Display {
     /// Top of the contact-pressure colour bar, mmHg, in [1, 1000].
     pub pressure_max_mmhg: f64,
+    /// The scene's own cameras (`None`: computed from the mesh and the blades).
+    pub views: Views,
+}
+
+/// Cameras a scenario names.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Views {
+    pub overview: Option<NamedView>,
+    pub microscope: Option<NamedView>,
+}
+
+/// A camera from a scenario: eye and target (m, distinct), vertical field of view (rad).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NamedView {
+    pub eye: Vec3,
+    pub target: Vec3,
+    pub fov_y_rad: f64,
 }
 
 /// Pass/fail limits on what a run may do to the tissue (scenario `integrity`).
@@ -356,6 +373,20 @@ impl Checker<'_> {
 
     fn vec_mm(&self, field: &str, v: [f64; 3]) -> Result<Vec3, ScenarioError> {
         Ok(self.vec3(field, v)? * MM)
+    }
+
+    fn view(&self, field: &str, v: Option<super::file::ViewFile>) -> Result<Option<NamedView>, ScenarioError> {
+        let Some(v) = v else { return Ok(None) };
+        let eye = self.vec_mm(&format!("{field}.eye_mm"), v.eye_mm)?;
+        let target = self.vec_mm(&format!("{field}.target_mm"), v.target_mm)?;
+        if (eye - target).norm() < 1e-3 {
+            return Err(self.invalid(field, "eye_mm and target_mm must be at least 1 mm apart (the camera looks from the eye to the target)"));
+        }
+        let fov = self.finite(&format!("{field}.fov_deg"), v.fov_deg)?;
+        if !(5.0..=120.0).contains(&fov) {
+            return Err(self.invalid(&format!("{field}.fov_deg"), format!("must be in [5, 120] degrees, got {}", number(fov))));
+        }
+        Ok(Some(NamedView { eye, target, fov_y_rad: fov.to_radians() }))
     }
 
     fn material(&self, field: &str, young_modulus_pa: f64, poisson_ratio: f64) -> Result<Material, ScenarioError> {
@@ -721,7 +752,10 @@ impl Scenario {
                 frames: file.outputs.frames,
                 record_dir: file.outputs.record_dir.as_ref().map(PathBuf::from),
             },
-            display: Display { pressure_max_mmhg },
+            display: Display {
+                pressure_max_mmhg,
+                views: Views { overview: c.view("display.overview", file.display.overview)?, microscope: c.view("display.microscope", file.display.microscope)? },
+            },
             integrity: IntegrityLimits {
                 max_penetration_mm: match file.integrity.max_penetration_mm {
                     d if d.is_finite() && d >= 0.0 => d,
