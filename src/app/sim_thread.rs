@@ -142,13 +142,39 @@ struct Built {
     areas: Vec<f64>,
 }
 
+/// A compliance progress bar on stderr with an ETA; hidden when stderr is not a terminal.
+fn terminal_bar() -> indicatif::ProgressBar {
+    use std::io::IsTerminal;
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(0);
+    if let Ok(style) = indicatif::ProgressStyle::with_template("{msg:>12} [{bar:40}] {pos}/{len} columns ({eta})") {
+        bar.set_style(style);
+    }
+    bar.set_message("compliance");
+    bar
+}
+
 fn build(scenario: Scenario, shared: &SimShared) -> Result<Built, String> {
     *lock(&shared.status) = format!("building {} ...", scenario.name);
     let trajectory = match &scenario.trajectory {
         Some(p) => Some(Trajectory::load(p).map_err(|e| e.to_string())?),
         None => None,
     };
-    let (pipeline, state) = Pipeline::build(&scenario, BuildOptions::default()).map_err(|e| e.to_string())?;
+    // The compliance precompute can take minutes on a fine mesh: its progress
+    // goes to the panel's status line (a reload in the open window) and to a
+    // bar on the terminal (the first load, before the window opens).
+    let bar = terminal_bar();
+    let name = scenario.name.clone();
+    let mut progress = |done: usize, total: usize| {
+        *lock(&shared.status) = format!("building {name}: compliance {done} / {total} columns");
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
+    let built = Pipeline::build(&scenario, BuildOptions { progress: Some(&mut progress), ..BuildOptions::default() });
+    bar.finish_and_clear();
+    let (pipeline, state) = built.map_err(|e| e.to_string())?;
     let areas = vertex_areas(pipeline.rest_positions(), &pipeline.surface().triangles);
     *lock(&shared.scene) = Arc::new(super::draw::SceneStatic::of(&pipeline));
     shared.generation.fetch_add(1, Ordering::Relaxed);
