@@ -385,6 +385,9 @@ pub struct SceneStatic {
     pub skull: Vec<SkullSphere>,
     /// Mesh bounding box, m.
     pub bounds: (Vec3, Vec3),
+    /// The scenario's display settings (colour-bar top, named cameras), for a
+    /// window that loads another scene; `None` where only the pipeline was known.
+    pub display: Option<crate::scenario::Display>,
 }
 
 impl SceneStatic {
@@ -406,6 +409,7 @@ impl SceneStatic {
             shapes: pipeline.spatula_shapes().to_vec(),
             skull,
             bounds: pipeline.mesh().bounding_box(),
+            display: None,
         }
     }
 }

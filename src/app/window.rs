@@ -374,6 +374,11 @@ impl App {
             self.generation = generation;
             self.scene = lock(&shared.scene).clone();
             self.camera_set = false;
+            // Another scene was loaded: its colour-bar top and its cameras.
+            if let Some(display) = self.scene.display {
+                self.draw.views = display.views;
+                self.panel.pressure_max_mmhg = display.pressure_max_mmhg;
+            }
         }
         if shared.frames.take_latest(&mut self.front) && self.front.frame != self.last_frame_seen {
             let ms: Vec<f64> = StageId::ALL.iter().map(|s| self.front.report.times.get(*s).unwrap_or(0.0) * 1e3).collect();
@@ -388,7 +393,10 @@ impl App {
             update_monitors(&mut self.panel, &data, dt);
         }
         if !self.camera_set && !self.front.poses.is_empty() {
-            self.camera = OrbitCamera::framing(self.scene.bounds.0, self.scene.bounds.1);
+            self.camera = match self.draw.views.overview {
+                Some(v) => OrbitCamera::looking(v.eye, v.target, v.fov_y_rad),
+                None => OrbitCamera::framing(self.scene.bounds.0, self.scene.bounds.1),
+            };
             self.camera_set = true;
         }
         // Window-side script actions by simulated time.
