@@ -3,8 +3,8 @@
 #   docs/study/quick/  `fissure study --preset quick` (report.md and its plots; the README copies its summary)
 #   docs/study/ci/     `fissure study --preset ci` (the test suite re-runs it and compares its accuracy columns)
 #   docs/study/brain/  `fissure study --preset brain` (the real brains, when ../shared/data/brain has them)
-# The reference runs are kept in target/study-cache between regenerations (their times are then those of the
-# run that made them; delete the folder to time them again).
+# The reference runs are kept in target/study-cache between regenerations by the same build (their times are
+# then those of the run that made them; any code change, hence a new binary, runs them again).
 # Release build; takes several minutes on 2 cores. Run it when a change moves the study's numbers
 # (tests/study_quick.rs says so) and commit the result.
 set -euo pipefail

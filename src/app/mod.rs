@@ -13,6 +13,7 @@ pub mod draw;
 pub mod exchange;
 pub mod haptics;
 pub mod overlay;
+pub mod progress;
 pub mod script;
 pub mod sim_thread;
 pub mod window;

@@ -142,20 +142,6 @@ struct Built {
     areas: Vec<f64>,
 }
 
-/// A compliance progress bar on stderr with an ETA; hidden when stderr is not a terminal.
-fn terminal_bar() -> indicatif::ProgressBar {
-    use std::io::IsTerminal;
-    if !std::io::stderr().is_terminal() {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::new(0);
-    if let Ok(style) = indicatif::ProgressStyle::with_template("{msg:>12} [{bar:40}] {pos}/{len} columns ({eta})") {
-        bar.set_style(style);
-    }
-    bar.set_message("compliance");
-    bar
-}
-
 fn build(scenario: Scenario, shared: &SimShared) -> Result<Built, String> {
     *lock(&shared.status) = format!("building {} ...", scenario.name);
     let trajectory = match &scenario.trajectory {
@@ -165,7 +151,7 @@ fn build(scenario: Scenario, shared: &SimShared) -> Result<Built, String> {
     // The compliance precompute can take minutes on a fine mesh: its progress
     // goes to the panel's status line (a reload in the open window) and to a
     // bar on the terminal (the first load, before the window opens).
-    let bar = terminal_bar();
+    let bar = super::progress::terminal_bar(0, "compliance", "{msg:>12} [{bar:40}] {pos}/{len} columns ({eta})");
     let name = scenario.name.clone();
     let mut progress = |done: usize, total: usize| {
         *lock(&shared.status) = format!("building {name}: compliance {done} / {total} columns");

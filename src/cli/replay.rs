@@ -3,7 +3,6 @@
 //! stops after the current frame with every row so far valid and the summary
 //! written, then the command returns [`super::Interrupted`] (exit 130).
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -12,7 +11,7 @@ use anyhow::Context;
 use fissure::scenario::Scenario;
 use fissure::sim::metrics::Summary;
 use fissure::sim::replay::{ReplayOptions, replay};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 
 /// Options of one replay from the command line.
 pub struct ReplayArgs<'a> {
@@ -27,15 +26,7 @@ pub struct ReplayArgs<'a> {
 }
 
 fn bar(len: u64, message: &str) -> ProgressBar {
-    if !std::io::stderr().is_terminal() {
-        return ProgressBar::hidden();
-    }
-    let b = ProgressBar::new(len);
-    b.set_style(
-        ProgressStyle::with_template("{msg:>12} [{bar:40}] {pos}/{len} ({eta})").unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    b.set_message(message.to_string());
-    b
+    fissure::app::progress::terminal_bar(len, message, fissure::app::progress::DEFAULT_TEMPLATE)
 }
 
 /// Sets a flag on Ctrl-C (once per process; later calls reuse the flag): the

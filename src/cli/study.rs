@@ -3,11 +3,9 @@
 //! finishes the run under way, writes every output with the runs left marked
 //! "not run" and returns [`super::Interrupted`] (exit 130).
 
-use std::io::IsTerminal;
 
 use anyhow::Context;
 use fissure::study::{Knob, NOT_RUN_INTERRUPTED, StudyOptions, StudyProgress, run_study_until};
-use indicatif::{ProgressBar, ProgressStyle};
 
 /// The knobs named on the command line; an unknown name is an error that lists the known ones.
 pub fn knobs(names: &[String]) -> anyhow::Result<Vec<Knob>> {
@@ -32,8 +30,7 @@ pub fn run(options: StudyOptions) -> anyhow::Result<()> {
             unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
         }
     }
-    let bar = if std::io::stderr().is_terminal() { ProgressBar::new(0) } else { ProgressBar::hidden() };
-    bar.set_style(ProgressStyle::with_template("{msg:<40} [{bar:30}] {pos}/{len} ({elapsed})").unwrap_or_else(|_| ProgressStyle::default_bar()));
+    let bar = fissure::app::progress::terminal_bar(0, "", "{msg:<40} [{bar:30}] {pos}/{len} ({elapsed})");
     let mut progress = |p: StudyProgress| {
         bar.set_length(p.total as u64);
         bar.set_position(p.done as u64);

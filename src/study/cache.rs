@@ -1,8 +1,10 @@
 //! The reference run on disk: a study's most expensive run is made once.
 //!
-//! In: a [`RunTrace`] and its key (blake3 of the format version, the crate
-//! version, the configured scenario, the run's settings, the motion and the
-//! mesh's nodes and elements: [`key`]). Out: `reference-<key>.trace` in the
+//! In: a [`RunTrace`] and its key (blake3 of the format version, the running
+//! executable's bytes (any change to the code that computed the trace makes
+//! another key), the configured scenario, the run's settings, the motion and
+//! the mesh's nodes and elements: [`key`]; `None` when the executable cannot
+//! be read, and then nothing is cached). Out: `reference-<key>.trace` in the
 //! cache folder, and the trace again on a later study with the same key.
 //! Stays true: a file that is truncated, corrupt (its blake3 checksum), of
 //! another format version or of another key is never used: [`load`] says why
@@ -25,14 +27,27 @@ use crate::sim::{StageId, StageTimes};
 const FORMAT_VERSION: u32 = 1;
 const MAGIC: &[u8; 8] = b"FISSREF\0";
 
-/// blake3 of everything that decides the reference's answers.
-pub fn key(scene: &Scenario, settings: &Settings, motion: &Motion, mesh: &TetMesh) -> [u8; 32] {
+/// blake3 of the running executable, read once: the build that computes a
+/// trace. `None` when it cannot be read.
+fn build_fingerprint() -> Option<[u8; 32]> {
+    static FINGERPRINT: std::sync::OnceLock<Option<[u8; 32]>> = std::sync::OnceLock::new();
+    *FINGERPRINT.get_or_init(|| {
+        let exe = std::env::current_exe().ok()?;
+        let bytes = std::fs::read(exe).ok()?;
+        Some(*blake3::hash(&bytes).as_bytes())
+    })
+}
+
+/// blake3 of everything that decides the reference's answers, the build
+/// included; `None` (do not cache) when the executable cannot be read.
+pub fn key(scene: &Scenario, settings: &Settings, motion: &Motion, mesh: &TetMesh) -> Option<[u8; 32]> {
+    let build = build_fingerprint()?;
     let mut scene = scene.clone();
     // Where the compliance cache lives changes nothing the trace holds.
     scene.solver.cache_dir = None;
     let mut h = blake3::Hasher::new();
     h.update(&FORMAT_VERSION.to_le_bytes());
-    h.update(env!("CARGO_PKG_VERSION").as_bytes());
+    h.update(&build);
     h.update(format!("{scene:?}\n{settings:?}\n{motion:?}").as_bytes());
     for p in &mesh.positions {
         for c in p.iter() {
@@ -44,7 +59,7 @@ pub fn key(scene: &Scenario, settings: &Settings, motion: &Motion, mesh: &TetMes
             h.update(&n.to_le_bytes());
         }
     }
-    *h.finalize().as_bytes()
+    Some(*h.finalize().as_bytes())
 }
 
 /// The file of `key` in `dir`.

@@ -317,13 +317,20 @@ fn reference_trace(
     let study_mesh = meshes.get(&spec.settings.mesh, scene)?;
     let configured = runner::configure(scene, &spec.settings, &plan.motion, study_mesh, None);
     let key = cache::key(&configured, &spec.settings, &plan.motion, &study_mesh.mesh);
-    match cache::load(cache, &key) {
-        Ok(Some(trace)) => return Ok((trace, Some("reference from the cache (its times are those of the run that made it)".into()))),
-        Ok(None) => {}
-        Err(why) => tracing::warn!("reference cache not used, running the reference again: {why}"),
+    if key.is_none() {
+        tracing::warn!("the running executable cannot be read to key the reference cache; the reference runs and is not cached");
+    }
+    if let Some(key) = &key {
+        match cache::load(cache, key) {
+            Ok(Some(trace)) => return Ok((trace, Some("reference from the cache (its times are those of the run that made it)".into()))),
+            Ok(None) => {}
+            Err(why) => tracing::warn!("reference cache not used, running the reference again: {why}"),
+        }
     }
     let trace = runner::execute(scene, &spec.settings, &plan.motion, meshes, Some(cache), true)?;
-    if let Err(e) = cache::save(cache, &key, &trace) {
+    if let Some(key) = &key
+        && let Err(e) = cache::save(cache, key, &trace)
+    {
         tracing::warn!("could not save the reference run's trace into {}: {e}", cache.display());
     }
     Ok((trace, None))

@@ -391,7 +391,7 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         "Every sweep changes one knob from the base (150 grid nodes a face, BVH, culling on, 0.5 blade thicknesses a frame, \
          f64 compliance, automatic region of interest, unilateral contact, sub-steps of 1/8 blade thickness, the skull simulated) and every run is compared with \
          one *reference* run, the finest setting of every knob at once, which no swept run equals. The reference is \
-         run once and kept in the cache folder; a later study with the same scene, mesh, motion and settings reads it back.\n\n\
+         run once and kept in the cache folder; a later study by the same build with the same scene, mesh, motion and settings reads it back.\n\n\
          - **RMS / max error**: surface displacement vs the reference, mm, at the frames where both runs are at the same \
          point of the path; RMS over the vertices the reference moves (more than 1% of its peak), max over all. Same mesh: \
          vertex by vertex; across meshes: at the reference's moving surface vertices, where the other mesh's displacement is \
