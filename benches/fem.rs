@@ -1,10 +1,12 @@
 //! FEM stage benchmark: assembly, factorization, compliance precompute and
 //! reload, per-frame constrained solve (100 / 300 constrained vertices, 10 / 30
 //! new a frame), interior solve, memory peak. For `paper-12k` (the phantom
-//! generator) and the real brain (`../shared/data/brain/brain_pial_coarse.msh`,
-//! skipped when absent).
+//! generator) and both real brains (`../shared/data/brain/brain_pial_coarse.msh`
+//! and `brain_pial_q15.msh`, each skipped when absent). Before the precompute,
+//! each model's `K_FF` is factored with AMD and with nested dissection.
 //!
-//! Run: `cargo bench --bench fem` (add `-- brain` or `-- paper` to run one model).
+//! Run: `cargo bench --bench fem` (add `-- brain`, `-- coarse`, `-- q15` or
+//! `-- paper` to run some models).
 //! Storage: env `FEM_BENCH_STORAGE` = `f32` (default) | `f64` | `lowrank<digits>`
 //! (e.g. `lowrank8`). After the frames, the last 300-constrained frame is solved
 //! again with an f64 compliance whose ROI is exactly its constrained nodes (a
@@ -16,6 +18,8 @@ use fissure::fem::{
     Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, Material,
     RegionMaterials, element_stress,
 };
+use fissure::fem::factor::SparseCholesky;
+use fissure::fem::ordering::FillOrdering;
 use fissure::math::Vec3;
 use fissure::mesh::TetMesh;
 use std::path::{Path, PathBuf};
@@ -103,6 +107,7 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
         s.numeric_seconds,
         t.elapsed().as_secs_f64()
     );
+    ordering_lines(&model);
     let surface = model.surface().vertices.clone();
     let roi: Vec<u32> = surface.iter().copied().filter(|&n| roi_pred(&mesh.positions[n as usize]) && !model.is_fixed(n)).collect();
     println!("surface vertices {}, ROI vertices {}", surface.len(), roi.len());
@@ -214,6 +219,48 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
             ),
             Err(e) => println!("f64 reference failed: {e}"),
         }
+    }
+}
+
+/// The same `K_FF` factored with each fill-reducing ordering: entries of L,
+/// analysis, numeric factor and one 96-column solve (the precompute's batch),
+/// best of three. One thread, as the model factors.
+fn ordering_lines(model: &FemModel) {
+    let k = model.stiffness();
+    let dofs = model.dofs();
+    let mut base: Option<(f64, f64)> = None;
+    for ordering in [FillOrdering::Amd, FillOrdering::NestedDissection] {
+        let t = Instant::now();
+        let chol = match SparseCholesky::new(k, dofs, ordering) {
+            Ok(c) => c,
+            Err(e) => {
+                println!("ordering {ordering:?}: factor failed: {e}");
+                continue;
+            }
+        };
+        let total = t.elapsed().as_secs_f64();
+        let mut rhs = faer::Mat::<f64>::zeros(k.dim, 96);
+        let mut scratch = chol.scratch(96).expect("scratch");
+        let mut solve = f64::INFINITY;
+        for rep in 0..3 {
+            rhs.fill(0.0);
+            for c in 0..96 {
+                rhs[((c * 7919 + rep) % k.dim, c)] = 1.0;
+            }
+            let t = Instant::now();
+            chol.solve_in_place(rhs.as_mut(), &mut scratch);
+            solve = solve.min(t.elapsed().as_secs_f64());
+        }
+        let (nnz, numeric) = (chol.nnz_l() as f64, chol.numeric_seconds);
+        let ratio = base.map(|(n, s)| format!(" ({:.2}x AMD's entries, {:.2}x AMD's solve)", nnz / n, solve / s)).unwrap_or_default();
+        base.get_or_insert((nnz, solve));
+        println!(
+            "ordering {ordering:?}: nnz(L) {:.2} M, analysis {:.2} s, numeric {:.2} s, 96-column solve {:.1} ms, factor total {total:.2} s{ratio}",
+            nnz / 1e6,
+            chol.symbolic_seconds,
+            numeric,
+            solve * 1e3
+        );
     }
 }
 
@@ -363,21 +410,24 @@ fn main() {
             Err(e) => println!("paper-12k phantom unavailable: {e}"),
         }
     }
-    if want("brain") {
-        let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/brain/brain_pial_coarse.msh"));
+    for name in ["brain_pial_coarse", "brain_pial_q15"] {
+        if !want(name) {
+            continue;
+        }
+        let path = PathBuf::from(format!("{}/../shared/data/brain/{name}.msh", env!("CARGO_MANIFEST_DIR")));
         if !path.exists() {
             println!("real brain mesh absent ({}), skipped", path.display());
-            return;
+            continue;
         }
-        match fissure::mesh::io::load_tet_mesh(path) {
+        match fissure::mesh::io::load_tet_mesh(&path) {
             Ok(mut mesh) => {
                 mesh.scale(1e-3); // the file is in mm
                 let (_, hi) = mesh.bounding_box();
                 // ROI: the upper medial region around the inter-hemispheric fissure (|x| < 20 mm, top 40 mm)
                 let roi = move |x: &Vec3| x.x.abs() < 0.020 && x.z > hi.z - 0.040;
-                run("brain_pial_coarse", &mesh, &roi, &cache.join("brain"));
+                run(name, &mesh, &roi, &cache.join(name));
             }
-            Err(e) => println!("brain mesh failed to load: {e}"),
+            Err(e) => println!("brain mesh {} failed to load: {e}", path.display()),
         }
     }
 }

@@ -1,4 +1,5 @@
-//! Sparse Cholesky of the free-DOF stiffness (faer, supernodal, AMD ordering).
+//! Sparse Cholesky of the free-DOF stiffness (faer, supernodal; AMD or nested
+//! dissection ordering, see [`super::ordering`]).
 //!
 //! In: the lower triangle of `K_FF` ([`LowerCsc`]). Out: a [`SparseCholesky`]
 //! that solves `K_FF X = B` in place for any number of right-hand sides.
@@ -8,11 +9,21 @@
 
 use super::FemError;
 use super::assembly::{DofMap, LowerCsc};
+use super::ordering::{FillOrdering, nested_dissection};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
 use faer::sparse::linalg::cholesky::{CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky};
 use faer::{Conj, MatMut, Par, Side, Spec};
 use std::time::Instant;
+
+/// Supernode amalgamation (faer's rule: merge two adjacent supernodes of `n`
+/// columns in all when the merged one has a fraction of zeros below `z`, for
+/// the first `(n, z)` with `n` at most its bound). Coarser than faer's default
+/// `[(4, 1.0), (16, 0.8), (48, 0.1), (MAX, 0.05)]`: the precompute's 96-column
+/// solves run dense kernels per supernode, and on the coarse brain this made a
+/// nested-dissection solve 1.38x AMD's become 0.99x (`cargo bench --bench fem
+/// -- coarse`, "ordering" lines) for 9 % more stored entries.
+const SUPERNODE_RELAX: &[(usize, f64)] = &[(32, 1.0), (96, 0.8), (256, 0.2), (usize::MAX, 0.05)];
 
 /// A factored `K_FF`.
 pub struct SparseCholesky {
@@ -22,6 +33,8 @@ pub struct SparseCholesky {
     pub symbolic_seconds: f64,
     /// Seconds spent in the numeric factorization.
     pub numeric_seconds: f64,
+    /// The ordering the factor uses ([`FillOrdering::Best`] resolved).
+    pub ordering: FillOrdering,
 }
 
 impl std::fmt::Debug for SparseCholesky {
@@ -33,16 +46,44 @@ impl std::fmt::Debug for SparseCholesky {
 impl SparseCholesky {
     /// Analyzes and factors `k`. A non-positive pivot is reported with the free
     /// DOF (in the caller's numbering) and its node.
-    pub fn new(k: &LowerCsc, dofs: &DofMap) -> Result<Self, FemError> {
-        Self::with_names(k, &|dof| (dofs.free_nodes.get(dof / 3).copied().unwrap_or(u32::MAX), dof % 3))
+    pub fn new(k: &LowerCsc, dofs: &DofMap, ordering: FillOrdering) -> Result<Self, FemError> {
+        Self::with_names(k, ordering, &|dof| (dofs.free_nodes.get(dof / 3).copied().unwrap_or(u32::MAX), dof % 3))
     }
 
     /// As [`SparseCholesky::new`], naming a DOF's (node, component) with `name`.
-    pub fn with_names(k: &LowerCsc, name: &dyn Fn(usize) -> (u32, usize)) -> Result<Self, FemError> {
+    pub fn with_names(k: &LowerCsc, ordering: FillOrdering, name: &dyn Fn(usize) -> (u32, usize)) -> Result<Self, FemError> {
         let a = k.as_faer();
         let t0 = Instant::now();
-        let symbolic = factorize_symbolic_cholesky(a.symbolic(), Side::Lower, SymmetricOrdering::Amd, CholeskySymbolicParams::default())
-            .map_err(|e| FemError::Factorization { reason: format!("symbolic analysis: {e:?}") })?;
+        let analyse = |ord: SymmetricOrdering<'_, usize>| {
+            let mut params = CholeskySymbolicParams::default();
+            params.supernodal_params.relax = Some(SUPERNODE_RELAX);
+            factorize_symbolic_cholesky(a.symbolic(), Side::Lower, ord, params)
+                .map_err(|e| FemError::Factorization { reason: format!("symbolic analysis: {e:?}") })
+        };
+        let nd = || -> Result<Option<SymbolicCholesky<usize>>, FemError> {
+            let Some(fwd) = nested_dissection(k) else { return Ok(None) };
+            let mut inv = vec![0usize; fwd.len()];
+            for (new, &old) in fwd.iter().enumerate() {
+                inv[old] = new;
+            }
+            analyse(SymmetricOrdering::Custom(faer::perm::PermRef::new_checked(&fwd, &inv, fwd.len()))).map(Some)
+        };
+        let (symbolic, ordering) = match ordering {
+            FillOrdering::NestedDissection => match nd()? {
+                Some(s) => (s, FillOrdering::NestedDissection),
+                None => (analyse(SymmetricOrdering::Amd)?, FillOrdering::Amd),
+            },
+            FillOrdering::Best => {
+                // Both analyses are cheap next to the numeric factor; keep the
+                // one with less fill (every solve streams all of L).
+                let by_amd = analyse(SymmetricOrdering::Amd)?;
+                match nd()? {
+                    Some(by_nd) if by_nd.len_val() < by_amd.len_val() => (by_nd, FillOrdering::NestedDissection),
+                    _ => (by_amd, FillOrdering::Amd),
+                }
+            }
+            FillOrdering::Amd => (analyse(SymmetricOrdering::Amd)?, FillOrdering::Amd),
+        };
         let symbolic_seconds = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
         let len = symbolic.len_val();
@@ -60,7 +101,7 @@ impl SparseCholesky {
             return Err(FemError::NotPositiveDefinite { dof, node, component });
         }
         let numeric_seconds = t1.elapsed().as_secs_f64();
-        Ok(Self { symbolic, values, symbolic_seconds, numeric_seconds })
+        Ok(Self { symbolic, values, symbolic_seconds, numeric_seconds, ordering })
     }
 
     /// Dimension (free DOFs).

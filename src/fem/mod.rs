@@ -22,6 +22,7 @@ pub mod element;
 pub mod error;
 pub mod factor;
 pub mod model;
+pub mod ordering;
 pub mod prefetch;
 pub mod reference;
 pub mod fixtures;

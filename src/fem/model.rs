@@ -10,6 +10,7 @@ use super::FemError;
 use super::assembly::{DofMap, LowerCsc, assemble_lower, body_force, check_components};
 use super::element::RegionMaterials;
 use super::factor::SparseCholesky;
+use super::ordering::FillOrdering;
 use crate::math::{Vec3, is_finite3};
 use crate::mesh::{BoundarySurface, TetMesh};
 use std::time::Instant;
@@ -93,7 +94,7 @@ impl FemModel {
             mesh.regions.iter().map(|&r| RegionMaterials::lookup(&sorted, materials.default, r).lame()).collect();
         let k = assemble_lower(mesh, &lame, &dofs);
         let assembly_seconds = t0.elapsed().as_secs_f64();
-        let chol = SparseCholesky::new(&k, &dofs)?;
+        let chol = SparseCholesky::new(&k, &dofs, FillOrdering::Best)?;
         let (body, u0) = match &options.gravity {
             Some(g) => {
                 let f = body_force(mesh, &dofs, g.density, g.acceleration);

@@ -81,7 +81,7 @@ pub fn solve_direct(mesh: &TetMesh, lame: &[(f64, f64)], prescribed: &[(usize, f
         col_ptr[j + 1] += col_ptr[j];
     }
     let k = LowerCsc { dim: nf, col_ptr, row_idx, values };
-    let chol = SparseCholesky::with_names(&k, &|dof| ((free_dofs[dof] / 3) as u32, free_dofs[dof] % 3))?;
+    let chol = SparseCholesky::with_names(&k, crate::fem::ordering::FillOrdering::Amd, &|dof| ((free_dofs[dof] / 3) as u32, free_dofs[dof] % 3))?;
     let mut scratch = chol.scratch(1)?;
     chol.solve_vec_in_place(&mut rhs, &mut scratch);
     let mut u = vec![0.0; n];

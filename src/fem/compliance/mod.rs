@@ -40,6 +40,8 @@ const CACHE_MAGIC: &[u8; 8] = b"FISSCOMP";
 const CACHE_VERSION: u32 = 6;
 /// ROI nodes solved together (3 right-hand sides each).
 const BATCH_NODES: usize = 32;
+/// Bytes the precompute's right-hand sides may take over all its threads.
+const PRECOMPUTE_RHS_BUDGET: usize = 1 << 30;
 /// Rows of one chunk of the surface product (9 f64 partials a row: 36 KiB, a multiple of 8 rows).
 const ROW_CHUNK: usize = 512;
 
@@ -373,6 +375,19 @@ impl Compliance {
             return Ok(Values::LowRank(Box::new(b)));
         }
         let len = self.entry_count();
+        let entry_bytes = if storage == ComplianceStorage::F32 { 4 } else { 8 };
+        let need = len * entry_bytes + self.layout.lo_blocks() * 9 * 2 * usize::from(storage == ComplianceStorage::F32);
+        if let Some(available) = available_memory_bytes()
+            && need as u64 > available
+        {
+            return Err(FemError::RegionTooLarge {
+                cols: self.n_cols,
+                rows: self.row_nodes.len(),
+                storage: format!("{storage:?}"),
+                need_mb: need as u64 >> 20,
+                available_mb: available >> 20,
+            });
+        }
         let mut values = match storage {
             ComplianceStorage::F64 | ComplianceStorage::LowRank { .. } => {
                 let mut v: Vec<f64> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 8 })?;
@@ -389,43 +404,101 @@ impl Compliance {
         };
         let n_free = model.dofs.dof_count();
         let row_dofs: Vec<usize> = self.row_nodes.iter().map(|&n| model.dofs.dof(n).unwrap_or(0)).collect();
-        let mut rhs = faer::Mat::<f64>::zeros(n_free, 3 * BATCH_NODES);
-        let mut scratch = model.chol.scratch(3 * BATCH_NODES)?;
-        let mut j0 = 0;
-        progress(0, self.n_cols);
-        while j0 < self.n_cols {
-            let nb = BATCH_NODES.min(self.n_cols - j0);
-            rhs.fill(0.0);
-            for b in 0..nb {
-                let d = row_dofs[j0 + b];
-                for c in 0..3 {
-                    rhs[(d + c, 3 * b + c)] = 1.0;
+        // Cut the storage into the disjoint pieces each batch of columns fills
+        // (columns are stored one after another), so batches run on several
+        // threads without sharing anything mutable.
+        let batches: Vec<usize> = (0..self.n_cols).step_by(BATCH_NODES).collect();
+        let mut pieces: Vec<(usize, Piece<'_>)> = Vec::with_capacity(batches.len());
+        match &mut values {
+            Values::F64(v) => {
+                let mut rest: &mut [f64] = v;
+                for &j0 in &batches {
+                    let j1 = (j0 + BATCH_NODES).min(self.n_cols);
+                    let (head, tail) = rest.split_at_mut((self.layout.col_off[j1] - self.layout.col_off[j0]) * 9);
+                    pieces.push((j0, Piece::F64(head)));
+                    rest = tail;
                 }
             }
-            model.chol.solve_in_place(rhs.as_mut().subcols_mut(0, 3 * nb), &mut scratch);
-            for b in 0..nb {
-                let j = j0 + b;
-                let cols = [rhs.col(3 * b), rhs.col(3 * b + 1), rhs.col(3 * b + 2)];
-                let cols = cols.map(|c| c.try_as_col_major().map(|c| c.as_slice()).unwrap_or(&[]));
-                for (run, (r0, r1, off)) in self.layout.runs(j).into_iter().enumerate() {
-                    let (base, count) = (off * 9, (r1 - r0) * 9);
-                    match &mut values {
-                        Values::F64(v) => fill_column(&mut v[base..base + count], &row_dofs[r0..r1], &cols, |x| x),
-                        Values::F32(v, lo) => {
-                            fill_column(&mut v[base..base + count], &row_dofs[r0..r1], &cols, |x| split_f32(x).0);
-                            if run == 0 {
-                                let b = self.layout.lo_off[j] * 9;
-                                fill_column(&mut lo[b..b + count], &row_dofs[r0..r1], &cols, |x| split_f32(x).1);
+            Values::F32(v, lo) => {
+                let (mut rest, mut rest_lo): (&mut [f32], &mut [i16]) = (v, lo);
+                for &j0 in &batches {
+                    let j1 = (j0 + BATCH_NODES).min(self.n_cols);
+                    let (head, tail) = rest.split_at_mut((self.layout.col_off[j1] - self.layout.col_off[j0]) * 9);
+                    let (head_lo, tail_lo) = rest_lo.split_at_mut((self.layout.lo_off[j1] - self.layout.lo_off[j0]) * 9);
+                    pieces.push((j0, Piece::F32(head, head_lo)));
+                    (rest, rest_lo) = (tail, tail_lo);
+                }
+            }
+            Values::LowRank(_) => {}
+        }
+        let threads = precompute_threads(n_free, pieces.len());
+        let queue = std::sync::Mutex::new(pieces.into_iter());
+        progress(0, self.n_cols);
+        std::thread::scope(|scope| -> Result<(), FemError> {
+            let (done_tx, done_rx) = std::sync::mpsc::channel::<Result<usize, FemError>>();
+            for _ in 0..threads {
+                let (queue, done_tx, row_dofs) = (&queue, done_tx.clone(), &row_dofs);
+                scope.spawn(move || {
+                    let work = || -> Result<(), FemError> {
+                        let mut rhs = faer::Mat::<f64>::zeros(n_free, 3 * BATCH_NODES);
+                        let mut scratch = model.chol.scratch(3 * BATCH_NODES)?;
+                        loop {
+                            let next = queue.lock().map_err(|_| FemError::Factorization { reason: "a precompute thread panicked".into() })?.next();
+                            let Some((j0, piece)) = next else { return Ok(()) };
+                            let nb = BATCH_NODES.min(self.n_cols - j0);
+                            self.solve_batch(model, row_dofs, j0, nb, &mut rhs, &mut scratch, piece);
+                            if done_tx.send(Ok(nb)).is_err() {
+                                return Ok(()); // the caller stopped listening
                             }
                         }
-                        Values::LowRank(_) => {}
+                    };
+                    if let Err(e) = work() {
+                        let _ = done_tx.send(Err(e));
+                    }
+                });
+            }
+            drop(done_tx);
+            let mut done = 0;
+            for msg in done_rx {
+                done += msg?;
+                progress(done, self.n_cols);
+            }
+            Ok(())
+        })?;
+        Ok(values)
+    }
+
+    /// Solves the columns `j0..j0 + nb` (3 right-hand sides a node) and writes
+    /// their stored rows into `piece`, the storage of exactly those columns.
+    #[allow(clippy::too_many_arguments)]
+    fn solve_batch(&self, model: &FemModel, row_dofs: &[usize], j0: usize, nb: usize, rhs: &mut faer::Mat<f64>, scratch: &mut faer::dyn_stack::MemBuffer, mut piece: Piece<'_>) {
+        rhs.fill(0.0);
+        for b in 0..nb {
+            let d = row_dofs[j0 + b];
+            for c in 0..3 {
+                rhs[(d + c, 3 * b + c)] = 1.0;
+            }
+        }
+        model.chol.solve_in_place(rhs.as_mut().subcols_mut(0, 3 * nb), scratch);
+        let (base, base_lo) = (self.layout.col_off[j0] * 9, self.layout.lo_off[j0] * 9);
+        for b in 0..nb {
+            let j = j0 + b;
+            let cols = [rhs.col(3 * b), rhs.col(3 * b + 1), rhs.col(3 * b + 2)];
+            let cols = cols.map(|c| c.try_as_col_major().map(|c| c.as_slice()).unwrap_or(&[]));
+            for (run, (r0, r1, off)) in self.layout.runs(j).into_iter().enumerate() {
+                let (start, count) = (off * 9 - base, (r1 - r0) * 9);
+                match &mut piece {
+                    Piece::F64(v) => fill_column(&mut v[start..start + count], &row_dofs[r0..r1], &cols, |x| x),
+                    Piece::F32(v, lo) => {
+                        fill_column(&mut v[start..start + count], &row_dofs[r0..r1], &cols, |x| split_f32(x).0);
+                        if run == 0 {
+                            let b = self.layout.lo_off[j] * 9 - base_lo;
+                            fill_column(&mut lo[b..b + count], &row_dofs[r0..r1], &cols, |x| split_f32(x).1);
+                        }
                     }
                 }
             }
-            j0 += nb;
-            progress(j0, self.n_cols);
         }
-        Ok(values)
     }
 
     /// Statistics of the last build or load.
@@ -772,6 +845,30 @@ fn advise_huge_pages<T>(v: &mut [T]) {
             unsafe { libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE) };
         }
     }
+}
+
+/// Memory the kernel says a new allocation can take without swapping
+/// (`MemAvailable`), when it says.
+fn available_memory_bytes() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    line.split_whitespace().nth(1)?.parse::<u64>().ok().map(|kb| kb * 1024)
+}
+
+/// The storage of one batch of columns (see [`Compliance::build`]).
+enum Piece<'a> {
+    F64(&'a mut [f64]),
+    F32(&'a mut [f32], &'a mut [i16]),
+}
+
+/// Threads for the precompute: one a core, as many as the memory for their
+/// right-hand sides allows (each holds `n_free x 3 BATCH_NODES` f64, 145 MB on
+/// the fine brain) within [`PRECOMPUTE_RHS_BUDGET`], at least one, at most one a batch.
+fn precompute_threads(n_free: usize, batches: usize) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let per_thread = n_free * 3 * BATCH_NODES * 8;
+    let by_memory = PRECOMPUTE_RHS_BUDGET / per_thread.max(1);
+    cores.min(by_memory).min(batches).max(1)
 }
 
 fn fill_column<T: Copy>(out: &mut [T], row_dofs: &[usize], cols: &[&[f64]; 3], conv: impl Fn(f64) -> T) {
