@@ -78,6 +78,13 @@ pub fn nested_dissection(k: &LowerCsc) -> Option<Vec<usize>> {
     // Fixed seed: the same mesh always gets the same ordering (deterministic replays).
     options[metis_sys::moptions_et_METIS_OPTION_SEED as usize] = 7;
     let (mut perm, mut iperm) = (vec![0 as idx_t; n], vec![0 as idx_t; n]);
+    // METIS seeds one process-wide random state (libc's srand/rand, as
+    // metis-sys builds GKlib) at each call: two calls at
+    // once (tests on parallel threads, a study building several models) would
+    // draw from each other's sequence and order the same mesh differently,
+    // breaking bitwise replays. One call at a time.
+    static METIS: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _one_at_a_time = METIS.lock().unwrap_or_else(|e| e.into_inner());
     // SAFETY: xadj has n + 1 entries, adjncy xadj[n], perm and iperm n each;
     // the graph is symmetric without self loops, as METIS requires.
     let status = unsafe {
