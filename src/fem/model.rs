@@ -94,7 +94,7 @@ impl FemModel {
             mesh.regions.iter().map(|&r| RegionMaterials::lookup(&sorted, materials.default, r).lame()).collect();
         let k = assemble_lower(mesh, &lame, &dofs);
         let assembly_seconds = t0.elapsed().as_secs_f64();
-        let chol = SparseCholesky::new(&k, &dofs, FillOrdering::Best)?;
+        let chol = SparseCholesky::new(&k, &dofs, FillOrdering::from_env())?;
         let (body, u0) = match &options.gravity {
             Some(g) => {
                 let f = body_force(mesh, &dofs, g.density, g.acceleration);

@@ -23,6 +23,23 @@ pub enum FillOrdering {
     Best,
 }
 
+impl FillOrdering {
+    /// `FISSURE_ORDERING=amd|nd` forces one ordering (to compare them on a
+    /// whole run); unset, [`FillOrdering::Best`]. Another value is named in a
+    /// warning and ignored.
+    pub fn from_env() -> Self {
+        match std::env::var("FISSURE_ORDERING").as_deref() {
+            Err(_) | Ok("") | Ok("best") => Self::Best,
+            Ok("amd") => Self::Amd,
+            Ok("nd") => Self::NestedDissection,
+            Ok(other) => {
+                tracing::warn!("FISSURE_ORDERING={other:?} is not amd, nd or best; using best");
+                Self::Best
+            }
+        }
+    }
+}
+
 /// Node adjacency (compressed rows, both directions, no self loops).
 struct Graph {
     start: Vec<usize>,
