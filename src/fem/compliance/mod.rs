@@ -22,7 +22,7 @@
 //! Stays true: entries are `K^-1` to round-off (f64), rounded once to f32, or
 //! within `10^-digits` (relative Frobenius, per block) for low rank; ROI x ROI
 //! blocks are exactly symmetric in every storage; a cache file is used only
-//! when its key (blake3 of model fingerprint, ROI, storage) and its checksum
+//! when its key (blake3 of model fingerprint, factor ordering, ROI, storage) and its checksum
 //! match; otherwise it is rebuilt and rewritten.
 
 mod lowrank;
@@ -37,7 +37,7 @@ use std::time::Instant;
 
 const NO_ROW: u32 = u32::MAX;
 const CACHE_MAGIC: &[u8; 8] = b"FISSCOMP";
-const CACHE_VERSION: u32 = 6;
+const CACHE_VERSION: u32 = 7;
 /// ROI nodes solved together (3 right-hand sides each).
 const BATCH_NODES: usize = 32;
 /// Bytes the precompute's right-hand sides may take over all its threads.
@@ -1242,6 +1242,9 @@ fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage) -> [u8; 
     h.update(b"fissure-compliance");
     h.update(&CACHE_VERSION.to_le_bytes());
     h.update(&model.fingerprint);
+    // The factor's ordering moves the last bits of every column: a replay
+    // reading a cache must see the bits a fresh precompute would give.
+    h.update(format!("{:?}", model.chol.ordering).as_bytes());
     h.update(&(roi.len() as u64).to_le_bytes());
     h.update(bytemuck::cast_slice(roi));
     h.update(&storage.code()[..1]);
