@@ -21,6 +21,7 @@ pub mod dense;
 pub mod element;
 pub mod error;
 pub mod factor;
+pub mod meminfo;
 pub mod model;
 pub mod ordering;
 pub mod prefetch;

@@ -377,17 +377,7 @@ impl Compliance {
         let len = self.entry_count();
         let entry_bytes = if storage == ComplianceStorage::F32 { 4 } else { 8 };
         let need = len * entry_bytes + self.layout.lo_blocks() * 9 * 2 * usize::from(storage == ComplianceStorage::F32);
-        if let Some(available) = available_memory_bytes()
-            && need as u64 > available
-        {
-            return Err(FemError::RegionTooLarge {
-                cols: self.n_cols,
-                rows: self.row_nodes.len(),
-                storage: format!("{storage:?}"),
-                need_mb: need as u64 >> 20,
-                available_mb: available >> 20,
-            });
-        }
+        region_fits(self.n_cols, self.row_nodes.len(), storage, need as u64, super::meminfo::available_bytes())?;
         let mut values = match storage {
             ComplianceStorage::F64 | ComplianceStorage::LowRank { .. } => {
                 let mut v: Vec<f64> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 8 })?;
@@ -847,12 +837,19 @@ fn advise_huge_pages<T>(v: &mut [T]) {
     }
 }
 
-/// Memory the kernel says a new allocation can take without swapping
-/// (`MemAvailable`), when it says.
-fn available_memory_bytes() -> Option<u64> {
-    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    line.split_whitespace().nth(1)?.parse::<u64>().ok().map(|kb| kb * 1024)
+/// Refuses a compliance of `need` bytes when the machine has less
+/// `available` (unknown: allowed), naming the region and what to change.
+fn region_fits(cols: usize, rows: usize, storage: ComplianceStorage, need: u64, available: Option<u64>) -> Result<(), FemError> {
+    match available {
+        Some(available) if need > available => Err(FemError::RegionTooLarge {
+            cols,
+            rows,
+            storage: format!("{storage:?}"),
+            need_mb: need >> 20,
+            available_mb: available >> 20,
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// The storage of one batch of columns (see [`Compliance::build`]).
@@ -1386,6 +1383,16 @@ mod tests {
         let mut file = std::fs::File::open(&path).unwrap();
         let mut longer = vec![0u8; data.len() + 1];
         assert!(read_and_hash(&mut file, &mut longer, &mut blake3::Hasher::new()).is_err());
+    }
+
+    #[test]
+    fn a_region_larger_than_memory_is_refused_with_its_size() {
+        assert!(region_fits(10, 20, ComplianceStorage::F32, 1 << 30, None).is_ok());
+        assert!(region_fits(10, 20, ComplianceStorage::F32, 1 << 30, Some(2 << 30)).is_ok());
+        let e = region_fits(3864, 33601, ComplianceStorage::F32, 2271 << 20, Some(1 << 30)).unwrap_err().to_string();
+        for part in ["3864 nodes", "33601 stored rows", "F32", "2271 MB", "1024 MB", "smaller region of interest"] {
+            assert!(e.contains(part), "{e:?} lacks {part:?}");
+        }
     }
 
     #[test]
