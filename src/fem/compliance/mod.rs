@@ -375,8 +375,14 @@ impl Compliance {
             return Ok(Values::LowRank(Box::new(b)));
         }
         let len = self.entry_count();
+        let n_free = model.dofs.dof_count();
+        let batches: Vec<usize> = (0..self.n_cols).step_by(BATCH_NODES).collect();
+        let threads = precompute_threads(n_free, batches.len());
+        // The stored entries plus every thread's right-hand sides.
         let entry_bytes = if storage == ComplianceStorage::F32 { 4 } else { 8 };
-        let need = len * entry_bytes + self.layout.lo_blocks() * 9 * 2 * usize::from(storage == ComplianceStorage::F32);
+        let need = len * entry_bytes
+            + self.layout.lo_blocks() * 9 * 2 * usize::from(storage == ComplianceStorage::F32)
+            + threads * n_free * 3 * BATCH_NODES * 8;
         region_fits(self.n_cols, self.row_nodes.len(), storage, need as u64, super::meminfo::available_bytes())?;
         let mut values = match storage {
             ComplianceStorage::F64 | ComplianceStorage::LowRank { .. } => {
@@ -392,12 +398,10 @@ impl Compliance {
                 Values::F32(v, lo)
             }
         };
-        let n_free = model.dofs.dof_count();
         let row_dofs: Vec<usize> = self.row_nodes.iter().map(|&n| model.dofs.dof(n).unwrap_or(0)).collect();
         // Cut the storage into the disjoint pieces each batch of columns fills
         // (columns are stored one after another), so batches run on several
         // threads without sharing anything mutable.
-        let batches: Vec<usize> = (0..self.n_cols).step_by(BATCH_NODES).collect();
         let mut pieces: Vec<(usize, Piece<'_>)> = Vec::with_capacity(batches.len());
         match &mut values {
             Values::F64(v) => {
@@ -421,7 +425,6 @@ impl Compliance {
             }
             Values::LowRank(_) => {}
         }
-        let threads = precompute_threads(n_free, pieces.len());
         let queue = std::sync::Mutex::new(pieces.into_iter());
         progress(0, self.n_cols);
         std::thread::scope(|scope| -> Result<(), FemError> {
