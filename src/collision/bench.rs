@@ -108,6 +108,10 @@ pub struct BenchRow {
     pub backend: String,
     pub p50_ms: f64,
     pub p95_ms: f64,
+    /// Medians of the caster's part (surface update and cast) and of the rest of
+    /// the stage (rays, candidates, culling, targets: the same code on every backend).
+    pub cast_p50_ms: f64,
+    pub rest_p50_ms: f64,
     /// Median GPU breakdown (gpu rows).
     pub gpu: Option<GpuBreakdown>,
     /// Candidate pairs over the run (the same for every backend of a case).
@@ -188,6 +192,8 @@ fn run_case(surface: &BenchSurface, nodes: u32, backend: BenchBackend, frames: u
     let rest = &surface.positions;
     let mut cur = rest.clone();
     let mut times = Vec::with_capacity(frames);
+    let mut cast_times = Vec::with_capacity(frames);
+    let mut rest_times = Vec::with_capacity(frames);
     let mut gpu: Vec<GpuTimings> = Vec::new();
     let mut hasher = blake3::Hasher::new();
     let mut candidates = 0;
@@ -199,6 +205,8 @@ fn run_case(surface: &BenchSurface, nodes: u32, backend: BenchBackend, frames: u
         let dt = t0.elapsed().as_secs_f64();
         if f >= warmup {
             times.push(dt * 1e3);
+            cast_times.push(stage.last_cast_seconds() * 1e3);
+            rest_times.push((dt - stage.last_cast_seconds()) * 1e3);
             if let Some(g) = stage.gpu_timings() {
                 gpu.push(g);
             }
@@ -243,6 +251,8 @@ fn run_case(surface: &BenchSurface, nodes: u32, backend: BenchBackend, frames: u
         backend: backend.name(),
         p50_ms: percentile(&mut times.clone(), 0.5),
         p95_ms: percentile(&mut times, 0.95),
+        cast_p50_ms: percentile(&mut cast_times, 0.5),
+        rest_p50_ms: percentile(&mut rest_times, 0.5),
         gpu,
         candidates,
         answer_hash: hasher.finalize().to_hex()[..16].to_string(),
@@ -272,7 +282,7 @@ pub fn run(cases: &[(&BenchSurface, u32)], backends: &[BenchBackend], frames: us
 }
 
 /// The header of [`table_row`]'s Markdown table.
-pub const TABLE_HEADER: &str = "| surface | triangles | nodes a face | backend | p50 ms | p95 ms | gpu: upload / wait / f64 decide ms | gpu timestamps: refit / traversal ms | lines to CPU % (cluster / grazing / stack) | answers |\n|---|---:|---:|---|---:|---:|---|---|---:|---|";
+pub const TABLE_HEADER: &str = "| surface | triangles | nodes a face | backend | p50 ms | p95 ms | p50 ms: cast / rest of stage | gpu: upload / wait / f64 decide ms | gpu timestamps: refit / traversal ms | lines to CPU % (cluster / grazing / stack) | answers |\n|---|---:|---:|---|---:|---:|---|---|---|---:|---|";
 
 /// One Markdown table row.
 pub fn table_row(r: &BenchRow) -> String {
@@ -288,8 +298,8 @@ pub fn table_row(r: &BenchRow) -> String {
         None => ("".into(), "".into(), "".into()),
     };
     format!(
-        "| {} | {} | {} | {} | {:.3} | {:.3} | {} | {} | {} | {} |",
-        r.surface, r.triangles, r.nodes_a_face, r.backend, r.p50_ms, r.p95_ms, split, stamps, flagged, r.answer_hash
+        "| {} | {} | {} | {} | {:.3} | {:.3} | {:.3} / {:.3} | {} | {} | {} | {} |",
+        r.surface, r.triangles, r.nodes_a_face, r.backend, r.p50_ms, r.p95_ms, r.cast_p50_ms, r.rest_p50_ms, split, stamps, flagged, r.answer_hash
     )
 }
 

@@ -33,12 +33,22 @@ pub struct VertexTarget {
     pub node: u32,
 }
 
-/// One claim on a vertex (scratch).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Claim(VertexTarget);
+/// Scratch of [`resolve_targets`], reused across frames: the best claim so far of
+/// each claimed vertex, found in one pass (no sort of every claim: at 2000 nodes a
+/// face the sort of about 20k claims was 1.5 ms of a 3.8 ms collision stage).
+#[derive(Debug, Default)]
+pub(crate) struct Claims {
+    /// Per surface vertex: its entry in `best`, or `NONE`.
+    slot: Vec<u32>,
+    /// The winning claim of each claimed vertex, in first-claim order.
+    best: Vec<VertexTarget>,
+    /// (vertex << 32 | entry in `best`), sorted to emit targets by vertex.
+    order: Vec<u64>,
+}
 
-fn claim_order(a: &Claim, b: &Claim) -> Ordering {
-    let (a, b) = (&a.0, &b.0);
+const NONE: u32 = u32::MAX;
+
+fn claim_order(a: &VertexTarget, b: &VertexTarget) -> Ordering {
     a.vertex
         .cmp(&b.vertex)
         .then(b.depth.total_cmp(&a.depth))
@@ -58,10 +68,13 @@ pub(crate) fn resolve_targets(
     spatula_offsets: &[usize],
     contact_tolerances: &[f64],
     other_side: &OtherSide<'_>,
-    claims: &mut Vec<Claim>,
+    claims: &mut Claims,
     targets: &mut Vec<VertexTarget>,
 ) {
-    claims.clear();
+    claims.best.clear();
+    if claims.slot.len() < current.len() {
+        claims.slot.resize(current.len(), NONE);
+    }
     for p in feasible {
         let ray = &rays[spatula_offsets[p.spatula as usize] + p.node as usize];
         let n = ray.direction;
@@ -70,7 +83,7 @@ pub(crate) fn resolve_targets(
             let depth = (ray.origin - v).dot(&n);
             if depth >= -contact_tolerances[p.spatula as usize] && !other_side.holds(p.spatula as usize, p.face, &v, depth) {
                 let projected = v + n * depth;
-                claims.push(Claim(VertexTarget {
+                let claim = VertexTarget {
                     vertex,
                     displacement: projected - rest[vertex as usize],
                     spatula: p.spatula,
@@ -78,16 +91,32 @@ pub(crate) fn resolve_targets(
                     normal: n,
                     depth,
                     node: p.node,
-                }));
+                };
+                // Keep the least claim by `claim_order` (a total order on distinct
+                // claims: one pair per node), whatever the order of the pairs.
+                match claims.slot[vertex as usize] {
+                    NONE => {
+                        claims.slot[vertex as usize] = claims.best.len() as u32;
+                        claims.best.push(claim);
+                    }
+                    k => {
+                        let held = &mut claims.best[k as usize];
+                        if claim_order(&claim, held) == Ordering::Less {
+                            *held = claim;
+                        }
+                    }
+                }
             }
         }
     }
-    claims.sort_unstable_by(claim_order);
+    claims.order.clear();
+    claims.order.extend(claims.best.iter().enumerate().map(|(k, t)| (t.vertex as u64) << 32 | k as u64));
+    claims.order.sort_unstable();
     targets.clear();
-    for c in claims.iter() {
-        if targets.last().is_none_or(|t| t.vertex != c.0.vertex) {
-            targets.push(c.0);
-        }
+    for &o in &claims.order {
+        let t = claims.best[(o & 0xffff_ffff) as usize];
+        claims.slot[t.vertex as usize] = NONE;
+        targets.push(t);
     }
 }
 
@@ -149,7 +178,7 @@ mod tests {
             Pair { spatula: 1, face: 0, node: 0, triangle: 0, t: -0.001 },
             Pair { spatula: 0, face: 0, node: 0, triangle: 0, t: -0.001 },
         ];
-        let (mut claims, mut targets) = (Vec::new(), Vec::new());
+        let (mut claims, mut targets) = (Claims::default(), Vec::new());
         resolve_targets(&triangles, &current, &rest, &rays, &feasible, &[0, 1, 2], &[0.0, 0.0], &NO_PREVIOUS, &mut claims, &mut targets);
         assert_eq!(targets.len(), 2, "vertex 2 lies in front of both planes and must stay free: {targets:?}");
         let t0 = targets[0];
@@ -175,7 +204,7 @@ mod tests {
         let current = vec![Vec3::new(0.02, 0.0, 0.00048), Vec3::new(0.02, 0.001, 0.00048), Vec3::new(0.021, 0.0, 0.00048)];
         let rays = vec![SourceRay { origin: Vec3::new(0.02, 0.0, -0.0005), direction: -Vec3::z() }];
         let feasible = vec![Pair { spatula: 0, face: 1, node: 0, triangle: 0, t: -0.00098 }];
-        let (mut claims, mut targets) = (Vec::new(), Vec::new());
+        let (mut claims, mut targets) = (Claims::default(), Vec::new());
         resolve_targets(&[[0, 1, 2]], &current, &current, &rays, &feasible, &[0, 1], &[1e-6], &other, &mut claims, &mut targets);
         assert!(targets.is_empty(), "the -z face must not pull the +z face's tissue through the blade: {targets:?}");
         // Without the previous pose the rule is off and the claim goes through.
@@ -191,7 +220,7 @@ mod tests {
             Pair { spatula: 1, face: 0, node: 0, triangle: 0, t: -0.001 },
             Pair { spatula: 0, face: 0, node: 0, triangle: 0, t: -0.001 },
         ];
-        let (mut claims, mut targets) = (Vec::new(), Vec::new());
+        let (mut claims, mut targets) = (Claims::default(), Vec::new());
         resolve_targets(&[[0, 1, 2]], &current, &current, &rays, &feasible, &[0, 1, 2], &[0.0, 0.0], &NO_PREVIOUS, &mut claims, &mut targets);
         assert!(targets.iter().all(|t| t.spatula == 0), "equal depth: the lower spatula index must win: {targets:?}");
     }

@@ -195,7 +195,7 @@ struct Workspace {
     lines: Vec<PairLine>,
     pair_hits: Vec<PairHits>,
     hits: Vec<NearestHits>,
-    claims: Vec<displacement::Claim>,
+    claims: displacement::Claims,
 }
 
 /// The collision history between frames (His-flags and the last poses), saved
@@ -231,6 +231,10 @@ pub struct CollisionStage {
     /// Poses of the last successful frame (for swept-side culling), if any.
     previous_poses: Option<Vec<Pose>>,
     swept_culling: bool,
+    /// Seconds the last frame spent in its caster (surface update and cast); the
+    /// rest of `step` is the backend-independent part (rays, candidates, culling,
+    /// targets).
+    last_cast_seconds: f64,
 }
 
 /// An `Auto` stage's side-by-side timing of `bvh` (the stage's caster) and `gpu`.
@@ -323,7 +327,7 @@ impl CollisionStage {
             lines: Vec::with_capacity(line_slots.len()),
             pair_hits: Vec::with_capacity(line_slots.len()),
             hits: vec![NearestHits::default(); n],
-            claims: Vec::with_capacity(n * 3),
+            claims: displacement::Claims::default(),
         };
         let output = CollisionOutput {
             per_spatula: vec![SpatulaCounts::default(); spatulas.len()],
@@ -349,6 +353,7 @@ impl CollisionStage {
             trial,
             previous_poses: None,
             swept_culling: true,
+            last_cast_seconds: 0.0,
         })
     }
 
@@ -369,9 +374,18 @@ impl CollisionStage {
         // Rays of this frame.
         let rays = &mut self.work.rays;
         rays.clear();
+        // Every node of a face shares its direction: one rotation per (spatula, face).
+        let mut face_dir: Option<(u8, u8, Vec3)> = None;
         for slot in &self.slots {
             let pose = &poses[slot.spatula as usize];
-            let direction = pose.transform_vector(&crate::geometry::face_normal_local(slot.face));
+            let direction = match face_dir {
+                Some((s, f, d)) if s == slot.spatula && f == slot.face => d,
+                _ => {
+                    let d = pose.transform_vector(&crate::geometry::face_normal_local(slot.face));
+                    face_dir = Some((slot.spatula, slot.face, d));
+                    d
+                }
+            };
             rays.push(SourceRay { origin: pose.transform_point(&slot.local), direction });
         }
         self.work.lines.clear();
@@ -475,6 +489,7 @@ impl CollisionStage {
         let t0 = std::time::Instant::now();
         let first = self.caster.update_surface(current).and_then(|()| self.caster.cast(&self.work.lines, &mut self.work.pair_hits));
         let caster_seconds = t0.elapsed().as_secs_f64();
+        self.last_cast_seconds = caster_seconds;
         match first {
             Ok(()) => {}
             Err(CollisionError::Gpu(cause)) => {
@@ -525,6 +540,12 @@ impl CollisionStage {
             }
         }
         Ok(())
+    }
+
+    /// Seconds the last frame spent in its caster (surface update and cast), without
+    /// the backend-independent rest of the stage.
+    pub fn last_cast_seconds(&self) -> f64 {
+        self.last_cast_seconds
     }
 
     /// Where the last frame's cast spent its time, when the GPU backend is in use.

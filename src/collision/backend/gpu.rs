@@ -26,10 +26,13 @@
 //! configurations and the real brain surfaces.
 //!
 //! Latency: the frame's next stages need the hits, so the CPU waits for the map;
-//! nothing is pipelined across frames (that would change answers). Persistent
-//! buffers; per frame only vertices whose f32 value changed are written, in runs
-//! (gaps of up to `RUN_GAP` unchanged vertices are bridged); when more than half
-//! changed, the whole buffer is written at once ([`GpuCaster::last_upload`]).
+//! nothing is pipelined across frames (that would change answers). While the GPU
+//! works, the CPU refits its own tree for the flagged lines (when the last frame
+//! had some), so that refit costs no wait. Persistent buffers; per frame only
+//! vertices whose f32 value changed are written, in runs (gaps of up to `RUN_GAP`
+//! unchanged vertices are bridged; past `MAX_WRITES` runs, one span from the first
+//! to the last); when more than half changed, the whole buffer is written at once
+//! ([`GpuCaster::last_upload`]).
 //! Timestamp queries, where the adapter has them, split the GPU time into refit and
 //! traversal ([`GpuCaster::last_timings`]).
 //!
@@ -49,6 +52,9 @@ use std::time::Instant;
 
 /// Unchanged vertices bridged inside one upload run.
 const RUN_GAP: usize = 16;
+/// Most `write_buffer` calls a frame's positions take; past it one span goes up
+/// (`fissure bench collision`: hundreds of scattered runs cost more than the span).
+const MAX_WRITES: usize = 8;
 const NO_HIT: u32 = u32::MAX;
 const WORKGROUP: u32 = 64;
 /// u32 words a line returns: 12 candidate ids and a flag word.
@@ -135,13 +141,16 @@ pub struct GpuTimings {
     pub lines: usize,
 }
 
-/// Timestamp queries: 4 (refit begin/end, traversal begin/end).
+/// Timestamp queries: 4 (refit begin/end, traversal begin/end), read back in the
+/// first [`STAMP_BYTES`] of the results' staging buffer.
 struct Timestamps {
     set: wgpu::QuerySet,
     resolve: wgpu::Buffer,
-    staging: wgpu::Buffer,
     period_ns: f64,
 }
+
+/// Bytes of the staging buffer before the results: the four timestamps.
+const STAMP_BYTES: u64 = 32;
 
 /// The device passes and their persistent resources.
 pub struct GpuCaster {
@@ -183,6 +192,10 @@ pub struct GpuCaster {
     /// CPU tree for flagged lines, refit only in frames that have one.
     exact: BvhCaster,
     exact_stale: bool,
+    /// The last cast had flagged lines: refit `exact` while the GPU works.
+    expect_flagged: bool,
+    /// Runs of changed vertices of this frame's upload.
+    runs: Vec<(usize, usize)>,
     flagged: Vec<usize>,
     flagged_lines: Vec<PairLine>,
     flagged_hits: Vec<PairHits>,
@@ -322,9 +335,10 @@ impl GpuCaster {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
+        // One readback a frame: the timestamps (32 bytes) first, then the results.
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("collision staging"),
-            size: results_size,
+            size: STAMP_BYTES + results_size,
             usage: wgpu::BufferUsages::MAP_READ | copy_dst,
             mapped_at_creation: false,
         });
@@ -389,12 +403,6 @@ impl GpuCaster {
                 usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             }),
-            staging: device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("collision timestamp staging"),
-                size: 32,
-                usage: wgpu::BufferUsages::MAP_READ | copy_dst,
-                mapped_at_creation: false,
-            }),
             period_ns: queue.get_timestamp_period() as f64,
         });
 
@@ -448,6 +456,8 @@ impl GpuCaster {
             fan,
             exact,
             exact_stale: false,
+            expect_flagged: false,
+            runs: Vec::new(),
             flagged: Vec::new(),
             flagged_lines: Vec::new(),
             flagged_hits: Vec::new(),
@@ -585,45 +595,42 @@ impl GpuCaster {
             pass.set_bind_group(0, &self.traverse_group, &[]);
             pass.dispatch_workgroups((lines.len() as u32).div_ceil(WORKGROUP), 1, 1);
         }
-        encoder.copy_buffer_to_buffer(&self.results, 0, &self.staging, 0, bytes);
+        encoder.copy_buffer_to_buffer(&self.results, 0, &self.staging, STAMP_BYTES, bytes);
         if let Some(ts) = &self.timestamps {
             encoder.resolve_query_set(&ts.set, 0..4, &ts.resolve, 0);
-            encoder.copy_buffer_to_buffer(&ts.resolve, 0, &ts.staging, 0, 32);
+            encoder.copy_buffer_to_buffer(&ts.resolve, 0, &self.staging, 0, STAMP_BYTES);
         }
         self.queue.submit(Some(encoder.finish()));
         let (tx, rx) = std::sync::mpsc::channel();
-        let tx2 = tx.clone();
-        self.staging.map_async(wgpu::MapMode::Read, 0..bytes, move |r| {
+        let mapped = STAMP_BYTES + bytes;
+        self.staging.map_async(wgpu::MapMode::Read, 0..mapped, move |r| {
             let _ = tx.send(r);
         });
-        if let Some(ts) = &self.timestamps {
-            ts.staging.map_async(wgpu::MapMode::Read, 0..32, move |r| {
-                let _ = tx2.send(r);
-            });
-        } else {
-            drop(tx2);
+        // The GPU works now: refit the CPU tree for the flagged lines meanwhile when
+        // the last frame had some (the refit changes no answer, only when it is paid).
+        if self.expect_flagged && self.exact_stale {
+            self.exact.update_surface(&self.positions64)?;
+            self.exact_stale = false;
         }
         self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| gpu_err("poll", e))?;
-        for _ in 0..1 + self.timestamps.is_some() as usize {
-            rx.recv().map_err(|e| gpu_err("readback", e))?.map_err(|e| gpu_err("map", e))?;
-        }
+        rx.recv().map_err(|e| gpu_err("readback", e))?.map_err(|e| gpu_err("map", e))?;
         self.check_fault()?;
-        {
-            let view = self.staging.get_mapped_range(0..bytes).map_err(|e| gpu_err("mapped range", e))?;
-            self.words.clear();
-            self.words.extend_from_slice(bytemuck::cast_slice(&view));
-        }
-        self.staging.unmap();
         let mut gpu_times = (None, None);
-        if let Some(ts) = &self.timestamps {
-            {
-                let view = ts.staging.get_mapped_range(0..32).map_err(|e| gpu_err("mapped range", e))?;
-                let q: &[u64] = bytemuck::cast_slice(&view);
+        {
+            let view = self.staging.get_mapped_range(0..mapped).map_err(|e| gpu_err("mapped range", e))?;
+            let (stamps, words) = view.split_at(STAMP_BYTES as usize);
+            self.words.clear();
+            self.words.extend_from_slice(bytemuck::cast_slice(words));
+            if let Some(ts) = &self.timestamps {
+                let mut q = [0u64; 4];
+                for (q, c) in q.iter_mut().zip(stamps.chunks_exact(8)) {
+                    *q = <[u8; 8]>::try_from(c).map_or(0, u64::from_le_bytes);
+                }
                 let span = |a: u64, b: u64| (b >= a && a > 0).then(|| (b - a) as f64 * ts.period_ns * 1e-9);
                 gpu_times = (span(q[0], q[1]), span(q[2], q[3]));
             }
-            ts.staging.unmap();
         }
+        self.staging.unmap();
         Ok(gpu_times)
     }
 }
@@ -640,47 +647,45 @@ impl RayCaster for GpuCaster {
         let t0 = Instant::now();
         self.positions64.copy_from_slice(positions);
         self.exact_stale = true;
+        // One pass: the f32 value, the frame's scale and the runs of changed vertices
+        // (gaps of up to RUN_GAP unchanged ones bridged).
         let mut changed = 0;
         let mut scale = self.rest_scale;
-        for (f, p) in self.fresh.iter_mut().zip(positions) {
+        self.runs.clear();
+        for (i, ((f, p), u)) in self.fresh.iter_mut().zip(positions).zip(&self.uploaded).enumerate() {
             *f = to_f32(p, &self.centre);
             scale = scale.max(max_abs(p, &self.centre));
+            if *f != *u {
+                changed += 1;
+                match self.runs.last_mut() {
+                    Some(r) if i - r.1 <= RUN_GAP => r.1 = i + 1,
+                    _ => self.runs.push((i, i + 1)),
+                }
+            }
         }
         self.frame_scale = scale;
         if scale > self.margin_scale {
             self.write_margins(scale);
         }
-        for (f, u) in self.fresh.iter().zip(&self.uploaded) {
-            changed += (f != u) as usize;
-        }
         let mut stats = UploadStats { changed_vertices: changed, ..Default::default() };
-        if changed * 2 > self.fresh.len() {
+        let n = self.fresh.len();
+        if changed * 2 > n {
             self.queue.write_buffer(&self.positions, 0, bytemuck::cast_slice(&self.fresh));
             stats.whole_buffer = true;
             stats.writes = 1;
-            stats.written_vertices = self.fresh.len();
-        } else if changed > 0 {
-            let n = self.fresh.len();
-            let mut i = 0;
-            while i < n {
-                if self.fresh[i] == self.uploaded[i] {
-                    i += 1;
-                    continue;
-                }
-                // A run from i to the last changed vertex, bridging short gaps.
-                let start = i;
-                let mut end = i + 1;
-                let mut j = i + 1;
-                while j < n && j - end <= RUN_GAP {
-                    if self.fresh[j] != self.uploaded[j] {
-                        end = j + 1;
-                    }
-                    j += 1;
-                }
+            stats.written_vertices = n;
+        } else if self.runs.len() > MAX_WRITES {
+            // Each write_buffer is a staging allocation and a copy command: past
+            // MAX_WRITES runs, one span from the first changed vertex to the last.
+            let (start, end) = (self.runs[0].0, self.runs[self.runs.len() - 1].1);
+            self.queue.write_buffer(&self.positions, (start * 16) as u64, bytemuck::cast_slice(&self.fresh[start..end]));
+            stats.writes = 1;
+            stats.written_vertices = end - start;
+        } else {
+            for &(start, end) in &self.runs {
                 self.queue.write_buffer(&self.positions, (start * 16) as u64, bytemuck::cast_slice(&self.fresh[start..end]));
                 stats.writes += 1;
                 stats.written_vertices += end - start;
-                i = end;
             }
         }
         std::mem::swap(&mut self.uploaded, &mut self.fresh);
@@ -787,6 +792,7 @@ impl RayCaster for GpuCaster {
         self.last_timings.refit_gpu = refit_gpu;
         self.last_timings.traverse_gpu = traverse_gpu;
         self.last_timings.flagged_lines = self.flagged.len();
+        self.expect_flagged = !self.flagged.is_empty();
         self.last_timings.flag_reasons = reasons;
         Ok(())
     }
