@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# Packs what a GPU machine without a Rust toolchain needs to run the collision
+# benchmark and a real-brain replay per backend (how the README's H100 table was
+# made): the stripped release binary, the shared libraries it and NVIDIA's Vulkan
+# driver load (copied from this machine; x86-64 Linux with glibc >= this one's),
+# the two real brains, and run.sh. The folder is .devkit/ (add it to
+# .git/info/exclude); about 46 MB.
+#
+#   bash scripts/gpu_devkit.sh            # build and pack
+#   # on the GPU machine, in a copy of the repository with .devkit/ beside it:
+#   REPLAY=1 bash .devkit/run.sh          # writes $OUT/bench.md (OUT defaults to /tmp/fissure-gpu)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+brains=../shared/data/brain
+kit=.devkit
+cargo build --release
+rm -rf "$kit" && mkdir -p "$kit/lib"
+strip -o "$kit/fissure" target/release/fissure
+# The binary's own libraries, then the GL dispatch libraries NVIDIA's Vulkan ICD
+# (libGLX_nvidia.so.0) needs: without them the loader finds the ICD but not
+# vkCreateInstance, and wgpu reports no adapter.
+libs=$(ldd target/release/fissure | awk '/=> \//{print $3}' | grep -v -E '/(libc|libm|libgcc_s|ld-linux)[.-]')
+for name in libvulkan.so.1 libGLdispatch.so.0 libGLX.so.0 libGL.so.1 libEGL.so.1 libOpenGL.so.0 libX11.so.6 libXext.so.6 libxcb.so.1 libXau.so.6 libXdmcp.so.6 libbsd.so.0 libmd.so.0; do
+    path=$(ldconfig -p | awk -v n="$name" '$1 == n && /x86-64/ {print $NF; exit}')
+    if [ -z "$path" ]; then
+        echo "error: $name is not installed here (apt-get install the package that has it, e.g. libvulkan1, libglvnd0, libx11-6)" >&2
+        exit 1
+    fi
+    libs="$libs $path"
+done
+for l in $libs; do cp -L "$l" "$kit/lib/"; done
+for m in brain_pial_coarse.msh brain_pial_q15.msh; do
+    if [ -f "$brains/$m" ]; then cp "$brains/$m" "$kit/"; else echo "note: $brains/$m not found; its bench cases will be skipped"; fi
+done
+cat > "$kit/run.sh" <<'EOF'
+#!/usr/bin/env bash
+# The collision bench on every backend in one run (so their ratio is fair), then
+# with REPLAY=1 the coarse real brain's replay with collision.backend Bvh, Gpu, Auto.
+R=$(pwd); K=$R/.devkit; OUT=${OUT:-/tmp/fissure-gpu}; mkdir -p "$OUT" /tmp/xdg
+export LD_LIBRARY_PATH=$K/lib XDG_RUNTIME_DIR=/tmp/xdg RUST_LOG=${RUST_LOG:-error,fissure=warn}
+export VK_DRIVER_FILES=${VK_DRIVER_FILES:-/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json}
+chmod +x "$K/fissure"
+nvidia-smi -L 2>/dev/null; nproc
+ldd "$K/fissure" | grep "not found"
+time "$K/fissure" bench collision --mesh-dir "$K" --frames "${FR:-60}" --out "$OUT/bench.md" > "$OUT/bench.log" 2>&1; echo "bench rc $?"
+cat "$OUT/bench.log"
+if [ -n "${REPLAY:-}" ] && [ -f "$K/brain_pial_coarse.msh" ]; then
+    for b in Bvh Gpu Auto; do
+        rm -rf /tmp/fissure-replay
+        "$K/fissure" replay config/real_brain/interhemispheric.ron --set "mesh=File(path: \"$K/brain_pial_coarse.msh\", units: Millimetres)" \
+            --set 'solver.cache_dir=Some("/tmp/fissure-cache")' --set collision.backend=$b --out /tmp/fissure-replay > /tmp/fissure-replay.log 2>&1
+        echo "replay $b rc $?"; grep -E "collision|frame time|backend" /tmp/fissure-replay.log | head -4
+        cp /tmp/fissure-replay/summary.json "$OUT/summary_$b.json" 2>/dev/null
+    done
+fi
+EOF
+chmod +x "$kit/run.sh"
+du -sh "$kit"
