@@ -21,6 +21,7 @@ use super::haptics::{ForceOutput, HAPTIC_RATE_HZ};
 use super::script::ScriptAction;
 use super::sim_thread::{SimCommand, SimExit, SimOptions, SimThread};
 use crate::input::gamepad::{GamepadInput, GamepadMapping};
+use crate::input::rumble::{RumbleSettings, RumbleStatus};
 use crate::input::igtl::{IgtlConfig, IgtlServer};
 use crate::input::tracker::TrackerLimits;
 use crate::input::bindings::{KeyAction, KeyRoute, route};
@@ -69,6 +70,8 @@ pub struct WindowOptions {
     pub record_dir: PathBuf,
     /// Start the 1 kHz force output.
     pub haptics: bool,
+    /// Gamepad force feedback on at start (key H toggles it).
+    pub rumble: bool,
 }
 
 impl Default for WindowOptions {
@@ -81,6 +84,7 @@ impl Default for WindowOptions {
             script: Vec::new(),
             record_dir: record_dir_for(None, None),
             haptics: true,
+            rumble: true,
         }
     }
 }
@@ -156,6 +160,9 @@ struct App {
     camera_set: bool,
     keyboard: KeyboardController,
     gamepad: GamepadInput,
+    /// Gamepad force feedback: the settings (H toggles) and what it did last.
+    rumble: RumbleSettings,
+    rumble_status: RumbleStatus,
     cursor: Option<(f64, f64)>,
     left_down: bool,
     panel: PanelState,
@@ -183,6 +190,7 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 
 /// Runs the window on `scenario` until closed; see the module docs.
 pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSummary, WindowError> {
+    let rumble_on = options.rumble;
     let event_loop = EventLoop::new().map_err(|e| WindowError::NoDisplay(e.to_string()))?;
     event_loop.set_control_flow(ControlFlow::Poll);
 
@@ -281,6 +289,8 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
             k
         },
         gamepad: GamepadInput::new(GamepadMapping::default()),
+        rumble: RumbleSettings { enabled: rumble_on, ..RumbleSettings::default() },
+        rumble_status: RumbleStatus::NoPad,
         cursor: None,
         left_down: false,
         panel: PanelState { record_dir: record_dir_display, pressure_max_mmhg, ..PanelState::default() },
@@ -452,6 +462,14 @@ impl App {
             .map(|k| self.haptics.as_ref().and_then(|h| h.latest(k)).map(|(f, t)| (f.norm(), t)).unwrap_or((0.0, 0.0)))
             .collect();
         let haptic_rate = self.haptics.as_ref().map(|h| h.ticks() as f64 / h.elapsed_s().max(1e-9)).unwrap_or(0.0);
+        // The pad feels the blade it drives: the 1 kHz output's force, else the frame's.
+        let driven = pad.spatula.index();
+        let pad_force = match &self.haptics {
+            Some(_) => haptic.get(driven).map_or(0.0, |h| h.0),
+            None => data.spatulas.get(driven).map_or(0.0, |s| crate::math::Vec3::from(s.force_n).norm()),
+        };
+        self.rumble_status = self.gamepad.rumble(pad_force, &self.rumble);
+        let rumble_line = self.rumble_status.describe();
         let names = &self.spatula_names;
         let load_path = &mut self.load_path;
         let panel = &mut self.panel;
@@ -462,12 +480,14 @@ impl App {
         let mut full = self.egui.run_ui(raw, |ui| {
             draw_panel(ui, &data, names, history, panel, &mut actions);
             egui::Panel::bottom("fissure_status").show(ui, |ui| {
-                ui.horizontal(|ui| {
+                // Wraps onto a second line rather than cutting the end off (1280 px).
+                ui.horizontal_wrapped(|ui| {
                     ui.label(format!("t = {time_s:.2} s"));
                     for (name, (f, _)) in names.iter().zip(&haptic) {
                         ui.label(format!("{name}: haptic |F| {f:.3} N"));
                     }
                     ui.label(format!("force loop {haptic_rate:.0} Hz"));
+                    ui.label(&rumble_line);
                     egui::ComboBox::from_label("backend")
                         .selected_text(format!("{backend:?}"))
                         .show_ui(ui, |ui| {
@@ -621,6 +641,7 @@ impl App {
                     let on = !self.panel.recording;
                     self.toggle_recording(on);
                 }
+                KeyAction::Rumble => self.rumble.enabled = !self.rumble.enabled,
                 KeyAction::Blade(_) => {}
             },
             KeyRoute::Scene(_) => {}

@@ -54,6 +54,9 @@ pub struct WindowArgs {
     /// Do not start the 1 kHz force output.
     #[arg(long)]
     pub no_haptics: bool,
+    /// Start with the gamepad's force feedback off (key H turns it on).
+    #[arg(long)]
+    pub no_rumble: bool,
 }
 
 /// The default scene's path: `config/sylvian.ron` under the working directory,
@@ -90,6 +93,7 @@ pub fn run(scenario: Option<&Path>, set: &[String], headless_only: bool, args: &
         exit_after_s: args.exit_after,
         script,
         haptics: !args.no_haptics,
+        rumble: !args.no_rumble,
         ..WindowOptions::default()
     };
     if let Some(size) = args.size {

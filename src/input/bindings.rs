@@ -23,6 +23,8 @@ pub enum KeyAction {
     CycleField,
     /// Start / stop recording.
     Record,
+    /// Gamepad force feedback on / off.
+    Rumble,
     /// Give the keys back to the scene (from the panel's text field).
     SceneFocus,
     /// Quit (Ctrl+Q).
@@ -77,6 +79,7 @@ pub const KEY_BINDINGS: &[KeyBinding] = &[
     bind(KeyCode::KeyO, "O", KeyAction::Overview),
     bind(KeyCode::KeyF, "F", KeyAction::CycleField),
     bind(KeyCode::KeyR, "R", KeyAction::Record),
+    bind(KeyCode::KeyH, "H", KeyAction::Rumble),
     bind(KeyCode::Escape, "Esc", KeyAction::SceneFocus),
     KeyBinding { code: KeyCode::KeyQ, ctrl: true, name: "Ctrl+Q", action: KeyAction::Quit },
 ];
@@ -183,6 +186,11 @@ pub const CONTROLS: &[ControlRow] = &[
         input: "R",
         action: "record / stop: a trajectory CSV in the recordings folder (see Recordings below) that `fissure replay --trajectory` plays back",
         keys: &["R"],
+    },
+    ControlRow {
+        input: "H",
+        action: "gamepad force feedback on / off: the pad rumbles with the reaction force on the blade it drives (stronger with more force, capped; the status bar says \"pad rumble N %\", or that the pad has none); `fissure run --no-rumble` starts with it off",
+        keys: &["H"],
     },
     ControlRow {
         input: "Esc",

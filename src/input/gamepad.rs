@@ -316,6 +316,7 @@ pub struct GamepadInput {
     active: Option<gilrs::GamepadId>,
     /// The controller the events drive.
     pub controller: GamepadController,
+    rumble: super::rumble::Rumble,
 }
 
 impl GamepadInput {
@@ -339,12 +340,23 @@ impl GamepadInput {
             gilrs,
             active: None,
             controller: GamepadController::new(mapping),
+            rumble: super::rumble::Rumble::default(),
         }
     }
 
     /// True when gilrs initialised.
     pub fn available(&self) -> bool {
         self.gilrs.is_some()
+    }
+
+    /// Rumbles the driving pad for a reaction force of `force_n` newtons on the
+    /// blade it drives (see [`super::rumble`]) and says how that went.
+    pub fn rumble(&mut self, force_n: f64, settings: &super::rumble::RumbleSettings) -> super::rumble::RumbleStatus {
+        match self.gilrs.as_mut() {
+            Some(gilrs) => self.rumble.update(gilrs, self.active, force_n, settings),
+            None if settings.enabled => super::rumble::RumbleStatus::NoPad,
+            None => super::rumble::RumbleStatus::Off,
+        }
     }
 
     /// Drains pending events and returns this frame's command.

@@ -20,6 +20,7 @@ pub mod gamepad;
 pub mod igtl;
 pub mod igtl_codec;
 pub mod keyboard;
+pub mod rumble;
 pub mod tracker;
 
 use crate::geometry::Pose;
