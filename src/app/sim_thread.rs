@@ -83,6 +83,19 @@ pub struct SimShared {
     pub record_error: Mutex<Option<String>>,
     /// Set when the thread has finished.
     pub finished: AtomicBool,
+    /// The first build's progress while it runs (the window's loading screen).
+    pub progress: Mutex<Option<BuildProgress>>,
+    /// Why the first build failed (the thread then ends without frames).
+    pub build_error: Mutex<Option<String>>,
+}
+
+/// How far a build is: compliance columns done of the total, and the time left
+/// at the rate so far.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BuildProgress {
+    pub done: usize,
+    pub total: usize,
+    pub eta_s: Option<f64>,
 }
 
 /// What the simulation thread leaves when it ends.
@@ -150,16 +163,26 @@ fn build(scenario: Scenario, shared: &SimShared) -> Result<Built, String> {
     };
     // The compliance precompute can take minutes on a fine mesh: its progress
     // goes to the panel's status line (a reload in the open window) and to a
-    // bar on the terminal (the first load, before the window opens).
+    // bar on the terminal, and to the window's loading screen ([`SimShared::progress`]).
     let bar = super::progress::terminal_bar(0, "compliance", "{msg:>12} [{bar:40}] {pos}/{len} columns ({eta})");
     let name = scenario.name.clone();
+    let mut first: Option<(std::time::Instant, usize)> = None;
     let mut progress = |done: usize, total: usize| {
-        *lock(&shared.status) = format!("building {name}: compliance {done} / {total} columns");
+        // The rate since the first report (the factorization before it is not columns).
+        let (t0, d0) = *first.get_or_insert((std::time::Instant::now(), done));
+        let rate = (done - d0.min(done)) as f64 / t0.elapsed().as_secs_f64().max(1e-9);
+        let eta_s = (done > d0 && rate > 0.0).then(|| (total.saturating_sub(done)) as f64 / rate);
+        *lock(&shared.status) = match eta_s {
+            Some(eta) => format!("building {name}: compliance {done} / {total} columns, about {eta:.0} s left"),
+            None => format!("building {name}: compliance {done} / {total} columns"),
+        };
+        *lock(&shared.progress) = Some(BuildProgress { done, total, eta_s });
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     };
     let built = Pipeline::build(&scenario, BuildOptions { progress: Some(&mut progress), ..BuildOptions::default() });
     bar.finish_and_clear();
+    *lock(&shared.progress) = None;
     let (pipeline, state) = built.map_err(|e| e.to_string())?;
     let areas = vertex_areas(pipeline.rest_positions(), &pipeline.surface().triangles);
     *lock(&shared.scene) = Arc::new(super::draw::SceneStatic { display: Some(scenario.display), ..super::draw::SceneStatic::of(&pipeline) });
@@ -169,8 +192,10 @@ fn build(scenario: Scenario, shared: &SimShared) -> Result<Built, String> {
 }
 
 impl SimThread {
-    /// Builds the pipeline (on the calling thread, so errors come back here)
-    /// and starts the loop.
+    /// Starts the thread, which builds the pipeline and then runs the loop; the
+    /// window opens meanwhile and shows the build's progress
+    /// ([`SimShared::progress`]). A build that fails ends the thread with
+    /// [`SimShared::build_error`] set (the window then closes with it).
     pub fn start(
         scenario: Scenario,
         igtl: Option<Arc<Mutex<IgtlServer>>>,
@@ -178,13 +203,21 @@ impl SimThread {
         options: SimOptions,
     ) -> Result<Self, String> {
         let shared = Arc::new(SimShared::default());
-        let built = build(scenario, &shared)?;
+        *lock(&shared.status) = format!("building {} ...", scenario.name);
         let (tx, rx) = std::sync::mpsc::channel();
         let s = shared.clone();
         let thread = std::thread::Builder::new()
             .name("fissure-sim".into())
             .spawn(move || {
-                let exit = run_loop(built, &s, rx, igtl, haptics, options);
+                let exit = match build(scenario, &s) {
+                    Ok(built) => run_loop(built, &s, rx, igtl, haptics, options),
+                    Err(e) => {
+                        *lock(&s.status) = format!("could not build the scene: {e}");
+                        *lock(&s.build_error) = Some(e);
+                        SimExit::default()
+                    }
+                };
+                *lock(&s.progress) = None;
                 s.finished.store(true, Ordering::Release);
                 exit
             })

@@ -17,6 +17,7 @@
 //! focus straight back, and the panel's first line says where keys go.
 
 use super::draw::{DrawOptions, SceneBuffers, SceneStatic, Snapshot, SurfaceField, ViewPreset};
+use super::sim_thread::BuildProgress;
 use super::haptics::{ForceOutput, HAPTIC_RATE_HZ};
 use super::script::ScriptAction;
 use super::sim_thread::{SimCommand, SimExit, SimOptions, SimThread};
@@ -378,6 +379,13 @@ impl App {
     fn redraw(&mut self, event_loop: &ActiveEventLoop) {
         let Some(sim) = &self.sim else { return };
         let shared = sim.shared.clone();
+        if let Some(e) = lock(&shared.build_error).take() {
+            // The first build failed (a broken mesh, too little memory): the same
+            // error, naming the file, as before the window existed.
+            self.error = Some(WindowError::Simulation(e));
+            event_loop.exit();
+            return;
+        }
         // Newest frame (and new static data after a rebuild).
         let generation = shared.generation.load(std::sync::atomic::Ordering::Relaxed);
         if generation != self.generation {
@@ -477,7 +485,13 @@ impl App {
         let time_s = self.front.time_s;
         let legend = super::draw::legend_for(&self.draw, &self.front);
         let mut load_field = self.load_field;
+        let building = *lock(&shared.progress);
+        let no_frame_yet = self.front.surface_positions.is_empty();
+        let scene_name = self.scenario_path.display().to_string();
         let mut full = self.egui.run_ui(raw, |ui| {
+            if no_frame_yet || building.is_some() {
+                loading_screen(ui, &scene_name, building, &status);
+            }
             draw_panel(ui, &data, names, history, panel, &mut actions);
             egui::Panel::bottom("fissure_status").show(ui, |ui| {
                 // Wraps onto a second line rather than cutting the end off (1280 px).
@@ -572,15 +586,11 @@ impl App {
                 }
             }
         }
-        if self.front.surface_positions.is_empty() {
-            for id in &textures.free {
-                gpu.egui_renderer.free_texture(id);
-            }
-            textures.clear();
-            gpu.window.request_redraw();
-            return;
-        }
-        let view = self.buffers.view(&self.scene, &self.front, &self.draw, self.camera);
+        // Before the first frame (the scene is still being built) only the panel
+        // and the loading screen are drawn, over an empty scene.
+        let empty = SceneStatic::default();
+        let scene = if self.front.surface_positions.is_empty() { &empty } else { &*self.scene };
+        let view = self.buffers.view(scene, &self.front, &self.draw, self.camera);
         let egui_renderer = &mut gpu.egui_renderer;
         let outcome = gpu.renderer.render(&view, |device, queue, encoder, target| {
             let extra = super::overlay::egui_pass(egui_renderer, device, queue, encoder, target, &paint_jobs, &screen);
@@ -655,7 +665,7 @@ impl App {
 }
 
 fn panel_data_of(front: &Snapshot, fps: f64) -> PanelData {
-    let mut data = PanelData { fps, sim_frame_ms: front.report.times.total() * 1e3, ..PanelData::default() };
+    let mut data = PanelData { fps, sim_frame_ms: front.report.times.total() * 1e3 + 0.0, ..PanelData::default() };
     for (k, s) in front.report.spatulas.iter().enumerate() {
         data.spatulas.push(SpatulaReadout {
             driver: front.drivers.get(k).map(|d| d.label()).unwrap_or("held"),
@@ -666,6 +676,30 @@ fn panel_data_of(front: &Snapshot, fps: f64) -> PanelData {
         });
     }
     data
+}
+
+/// The loading screen over the scene while a build runs: the scene's file, what
+/// is being done, a progress bar with the time left once the compliance
+/// columns are being computed.
+fn loading_screen(ui: &mut egui::Ui, scene: &str, progress: Option<BuildProgress>, status: &str) {
+    egui::Area::new(egui::Id::unique("fissure_loading")).anchor(egui::Align2::CENTER_CENTER, [-160.0, 0.0]).show(ui.ctx(), |ui| {
+        egui::Frame::popup(ui.style()).show(ui, |ui| {
+            ui.set_width(420.0);
+            ui.heading("Preparing the scene");
+            ui.label(scene);
+            match progress {
+                Some(p) if p.total > 0 => {
+                    let fraction = p.done as f32 / p.total as f32;
+                    let left = p.eta_s.map_or("estimating the time left".to_string(), |s| format!("about {s:.0} s left"));
+                    ui.add(egui::ProgressBar::new(fraction).text(format!("compliance {} / {} columns, {left}", p.done, p.total)));
+                }
+                _ => {
+                    ui.label(if status.is_empty() { "loading the mesh and factorizing the stiffness ..." } else { status });
+                }
+            }
+            ui.label("The window stays usable; the simulation starts when this is done.");
+        });
+    });
 }
 
 /// [`camera_for`] from the static scene data (the window has no pipeline).

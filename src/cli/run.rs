@@ -5,7 +5,8 @@
 //!
 //! For tests and demos: `--script FILE` injects timed key presses and actions
 //! (see `fissure::app::script`), `--frames N` stops after N simulation frames,
-//! `--exit-after SECONDS` closes the window after that wall time; the run then
+//! `--exit-after SECONDS` closes the window that long after it opened (the
+//! scene's preparation, shown in the window, counts); the run then
 //! prints a summary (frames, frame rate, force-loop rate, final poses, peak
 //! forces, poses refused when any, final state hash) and exits 0.
 
