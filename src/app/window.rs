@@ -164,6 +164,10 @@ struct App {
     /// Gamepad force feedback: the settings (H toggles) and what it did last.
     rumble: RumbleSettings,
     rumble_status: RumbleStatus,
+    /// The pad's last LB / RB choice, and whether it maps to the other blade (the
+    /// first blade stood on the right of the screen at that press).
+    pad_slot: Option<crate::input::SpatulaSlot>,
+    pad_swap: bool,
     cursor: Option<(f64, f64)>,
     left_down: bool,
     panel: PanelState,
@@ -292,6 +296,8 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
         gamepad: GamepadInput::new(GamepadMapping::default()),
         rumble: RumbleSettings { enabled: rumble_on, ..RumbleSettings::default() },
         rumble_status: RumbleStatus::NoPad,
+        pad_slot: None,
+        pad_swap: false,
         cursor: None,
         left_down: false,
         panel: PanelState { record_dir: record_dir_display, pressure_max_mmhg, ..PanelState::default() },
@@ -440,7 +446,20 @@ impl App {
             }
         }
         // Devices.
-        let pad = self.gamepad.poll();
+        let mut pad = self.gamepad.poll();
+        // LB / RB name blades by their side on the screen, decided at the press.
+        if self.pad_slot != Some(pad.spatula) && self.front.poses.len() >= 2 {
+            self.pad_slot = Some(pad.spatula);
+            let centre = |k: usize| {
+                let p = &self.front.poses[k];
+                let half = self.scene.shapes.get(k).map_or(0.0, |s| 0.5 * s.length);
+                p.position + p.rotation * crate::math::Vec3::new(half, 0.0, 0.0)
+            };
+            self.pad_swap = crate::input::gamepad::screen_order_swaps(centre(0), centre(1), self.camera.right_up().0);
+        }
+        if self.pad_swap {
+            pad.spatula = pad.spatula.other();
+        }
         if pad.camera_orbit_rad_s != [0.0, 0.0] {
             let dt = 1.0 / self.fps_window.2.max(30.0);
             self.camera.orbit(pad.camera_orbit_rad_s[0] * dt, pad.camera_orbit_rad_s[1] * dt);

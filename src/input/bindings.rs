@@ -200,7 +200,7 @@ pub const CONTROLS: &[ControlRow] = &[
     ControlRow { input: "Ctrl+Q", action: "quit (a recording in progress is kept whole); closing the window does the same", keys: &["Ctrl+Q"] },
     ControlRow {
         input: "gamepad",
-        action: "left stick and triggers move (A toggles translate / rotate), LB / RB pick the spatula, right stick orbits, X precision (table in `src/input/gamepad.rs`)",
+        action: "left stick and triggers move (A toggles translate / rotate), LB / RB pick the spatula on the left / right of the screen, right stick orbits, X precision (table in `src/input/gamepad.rs`)",
         keys: &[],
     },
     ControlRow {

@@ -16,8 +16,8 @@
 //! | right trigger − left trigger [RightTrigger2, LeftTrigger2] | +z through the blade (opens the fissure) | yaw about z |
 //! | right stick [RightStickX/Y] | camera orbit (yaw, pitch) | camera orbit |
 //! | A [South] | toggle translate / rotate | |
-//! | LB [LeftTrigger] | select the left spatula | |
-//! | RB [RightTrigger] | select the right spatula | |
+//! | LB [LeftTrigger] | select the spatula on the left of the screen (at the press) | |
+//! | RB [RightTrigger] | select the spatula on the right of the screen | |
 //! | X [West] | slow (precision) mode toggle: speeds x 0.25 | |
 //!
 //! Full deflection gives [`GamepadMapping::max_speed_m_s`] or
@@ -308,6 +308,16 @@ pub fn from_gilrs(event: &gilrs::EventType) -> Option<PadEvent> {
     }
 }
 
+/// True when LB / RB must swap blades so that LB picks the blade on the LEFT of
+/// the screen: the first blade's centre lies to the right of the second's along
+/// the camera's right vector. The window applies it when LB / RB is pressed (not
+/// while a blade is being driven, so orbiting the camera never hands the pad to
+/// the other blade mid-motion).
+pub fn screen_order_swaps(first_centre: Vec3, second_centre: Vec3, camera_right: Vec3) -> bool {
+    let (a, b) = (first_centre.dot(&camera_right), second_centre.dot(&camera_right));
+    a.is_finite() && b.is_finite() && a > b
+}
+
 /// The gilrs adapter: polls events and feeds the controller. Only the pad that
 /// sent the latest event drives (a second pad takes over when it is used); a
 /// disconnect of the active pad zeroes the state.
@@ -392,6 +402,15 @@ impl GamepadInput {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn lb_picks_the_blade_on_the_left_of_the_screen() {
+        let (a, b) = (Vec3::new(-0.02, 0.0, 0.0), Vec3::new(0.02, 0.0, 0.0));
+        assert!(!screen_order_swaps(a, b, Vec3::x()), "first blade on the left: LB keeps it");
+        assert!(screen_order_swaps(a, b, -Vec3::x()), "camera turned round: the first blade is on the right, LB takes the second");
+        assert!(!screen_order_swaps(a, b, Vec3::z()), "side by side in depth only: no swap");
+        assert!(!screen_order_swaps(Vec3::repeat(f64::NAN), b, Vec3::x()), "a NaN pose never swaps");
+    }
 
     #[test]
     fn dead_zone_zeroes_small_and_keeps_full() {
