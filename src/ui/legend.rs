@@ -25,7 +25,10 @@ pub fn paint_legend(painter: &egui::Painter, scene: egui::Rect, legend: &Legend)
         return;
     }
     let frame = legend_rect(scene);
-    painter.rect_filled(frame, 4.0, egui::Color32::from_black_alpha(170));
+    // Near-opaque, with an edge: the bar must read over white tissue as well as
+    // over the dark background.
+    painter.rect_filled(frame, 4.0, egui::Color32::from_rgba_unmultiplied(16, 18, 24, 232));
+    painter.rect_stroke(frame, 4.0, egui::Stroke::new(1.0, egui::Color32::from_gray(90)), egui::StrokeKind::Inside);
     let text = egui::Color32::from_gray(235);
     let font = egui::FontId::proportional(13.0);
     painter.text(frame.left_top() + egui::vec2(10.0, 6.0), egui::Align2::LEFT_TOP, &legend.title, font.clone(), text);
