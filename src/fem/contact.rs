@@ -29,6 +29,9 @@ pub struct ContactPatch {
     pub owner: u16,
     /// Lumped area of the pushed surface vertices, m^2.
     pub area: f64,
+    /// How many surface vertices this spatula alone pushes (the patch's size in
+    /// vertices: a few dots or a patch).
+    pub vertices: u32,
     /// Sum of the reactions of this owner's enforced constraints (force on the tissue), N.
     pub force: Vec3,
     /// |force| / area, Pa (0 when the area is 0).
@@ -58,7 +61,7 @@ pub fn contact_patches(
         }
         match out.binary_search_by_key(&c.owner, |p| p.owner) {
             Ok(i) => out[i].force += r,
-            Err(i) => out.insert(i, ContactPatch { owner: c.owner, area: 0.0, force: *r, mean_pressure_pa: 0.0, mean_pressure_mmhg: 0.0 }),
+            Err(i) => out.insert(i, ContactPatch { owner: c.owner, area: 0.0, vertices: 0, force: *r, mean_pressure_pa: 0.0, mean_pressure_mmhg: 0.0 }),
         }
         if !matches!(c.kind, ConstraintKind::Enforced { .. }) && *r == Vec3::zeros() {
             continue;
@@ -67,6 +70,13 @@ pub fn contact_patches(
         if v != NOT_ON_SURFACE {
             let slot = &mut vertex_owner[v as usize];
             *slot = if *slot == NONE || *slot == c.owner as u32 { c.owner as u32 } else { MANY };
+        }
+    }
+    for &o in vertex_owner.iter() {
+        if o != NONE && o != MANY {
+            if let Ok(i) = out.binary_search_by_key(&(o as u16), |p| p.owner) {
+                out[i].vertices += 1;
+            }
         }
     }
     for tri in &surface.triangles {
@@ -117,6 +127,7 @@ mod tests {
         assert_eq!(out.len(), 1);
         // Vertex 0 touches both triangles (0.5 mm^2 each): a third of each.
         assert!((out[0].area - 1e-6 / 3.0).abs() < 1e-18, "area {}", out[0].area);
+        assert_eq!(out[0].vertices, 1, "one pushed vertex; the inactive barrier rows are no contact");
         assert!((out[0].mean_pressure_pa - 1e-3 / (1e-6 / 3.0)).abs() < 1e-9);
         // Every vertex pushed: the whole square.
         let constraints: Vec<Constraint> = (0..4).map(|v| barrier(v, 0)).collect();

@@ -51,7 +51,7 @@ impl MetricsWriter {
         header.extend(stages.iter().map(|s| format!("{}_ms", s.name())));
         header.push("frame_ms".into());
         for name in spatula_names {
-            for col in ["candidate_pairs", "culled_pairs", "feasible_pairs", "constrained_vertices", "force_n", "force_x_n", "force_y_n", "force_z_n", "contact_area_mm2", "mean_pressure_mmhg"] {
+            for col in ["candidate_pairs", "culled_pairs", "feasible_pairs", "constrained_vertices", "force_n", "force_x_n", "force_y_n", "force_z_n", "contact_area_mm2", "contact_vertices", "mean_pressure_mmhg"] {
                 header.push(format!("{name}_{col}"));
             }
         }
@@ -97,7 +97,7 @@ impl MetricsWriter {
             let s = r.spatulas.get(k).copied().unwrap_or_default();
             let _ = write!(
                 l,
-                ",{},{},{},{},{},{},{},{},{},{}",
+                ",{},{},{},{},{},{},{},{},{},{},{}",
                 s.candidate_pairs,
                 s.culled_pairs,
                 s.feasible_pairs,
@@ -107,6 +107,7 @@ impl MetricsWriter {
                 s.force.y,
                 s.force.z,
                 s.contact_area_m2 * 1e6,
+                s.contact_vertices,
                 s.mean_pressure_mmhg()
             );
         }

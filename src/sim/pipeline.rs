@@ -447,6 +447,7 @@ impl Pipeline {
                 for p in &self.patches {
                     if let Some(s) = r.spatulas.get_mut(p.owner as usize) {
                         s.contact_area_m2 = p.area;
+                        s.contact_vertices = p.vertices;
                         s.mean_pressure_pa = p.mean_pressure_pa;
                     }
                 }

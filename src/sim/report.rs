@@ -86,6 +86,8 @@ pub struct SpatulaReport {
     pub force: Vec3,
     /// Contact area (triangles whose three vertices this spatula constrains), m^2.
     pub contact_area_m2: f64,
+    /// Surface vertices this spatula pushes (the contact patch in vertices).
+    pub contact_vertices: u32,
     /// Mean contact pressure |force| / area, Pa (0 without contact).
     pub mean_pressure_pa: f64,
 }
