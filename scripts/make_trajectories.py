@@ -120,3 +120,22 @@ write("assets/trajectories/real_brain_interhemispheric.csv",
       "Real brain (fsaverage5, ../shared/data/brain): two 60 x 8 x 0.5 mm blades enter the\n"
       "inter-hemispheric gap at y = -30 mm (tips 25 mm deep at 1 s), then spread 5 mm each\n"
       "towards their hemisphere until 3 s and hold.", rows)
+
+# The real brain's left Sylvian fissure (fsaverage5 RAS millimetres): at its
+# anterior stem (y = 15 mm) the lateral surface has a cleft about 10 mm tall
+# (z = -11 .. -1 mm) and 12-15 mm deep (lateral surface x = -54 mm, floor
+# x = -40 mm). Two 60 x 8 x 0.5 mm blades, faces up and down, go into it
+# side by side (tips 14 mm past x = -56 mm at 1 s), then spread SPREAD mm each,
+# the upper blade lifting the frontal operculum and the lower one pressing the
+# temporal one, until 3 s, and hold.
+SPREAD = 10.5
+entry, inward, normal = (-56.0, 15.0, -6.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
+rows = []
+for k, side in ((0, 1.0), (1, -1.0)):
+    for t, depth, off in ((0.0, -5.0, 0.4), (1.0, 14.0, 0.4), (3.0, 14.0, 0.4 + SPREAD), (4.0, 14.0, 0.4 + SPREAD)):
+        p, q = blade_pose(entry, inward, normal, 60.0, depth, side * off)
+        rows.append(row(t, k, p, q))
+write("assets/trajectories/real_brain_sylvian.csv",
+      "Real brain (fsaverage5, ../shared/data/brain): two 60 x 8 x 0.5 mm blades enter the\n"
+      f"left Sylvian fissure's stem at y = 15 mm, z = -6 mm (tips 14 mm deep at 1 s), then spread {SPREAD:g} mm each\n"
+      "(upper blade up, lower blade down) until 3 s and hold.", rows)
