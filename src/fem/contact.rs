@@ -73,10 +73,11 @@ pub fn contact_patches(
         }
     }
     for &o in vertex_owner.iter() {
-        if o != NONE && o != MANY {
-            if let Ok(i) = out.binary_search_by_key(&(o as u16), |p| p.owner) {
-                out[i].vertices += 1;
-            }
+        if o != NONE
+            && o != MANY
+            && let Ok(i) = out.binary_search_by_key(&(o as u16), |p| p.owner)
+        {
+            out[i].vertices += 1;
         }
     }
     for tri in &surface.triangles {

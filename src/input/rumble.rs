@@ -37,7 +37,8 @@ impl Default for RumbleSettings {
 /// `cap * min(1, sqrt(force / full_scale))`; 0 when off, for no force, or for a
 /// value that is not a finite positive number.
 pub fn strength(force_n: f64, settings: &RumbleSettings) -> f32 {
-    if !settings.enabled || !force_n.is_finite() || force_n <= 0.0 || !(settings.full_scale_n > 0.0) {
+    let scale_ok = settings.full_scale_n.is_finite() && settings.full_scale_n > 0.0;
+    if !settings.enabled || !force_n.is_finite() || force_n <= 0.0 || !scale_ok {
         return 0.0;
     }
     let cap = if settings.cap.is_finite() { settings.cap.clamp(0.0, 1.0) } else { 0.0 };
@@ -115,17 +116,17 @@ impl Rumble {
                 }
             }
         }
-        if let Some((_, effect)) = &self.effect {
-            if (s - self.gain).abs() >= GAIN_STEP || (s == 0.0 && self.gain != 0.0) {
-                if let Err(e) = effect.set_gain(s) {
-                    let e = e.to_string();
-                    tracing::warn!(pad = %id, error = %e, "gamepad force feedback failed; the pad is left without rumble");
-                    self.effect = None;
-                    self.failed.push((id, e.clone()));
-                    return RumbleStatus::Failed(e);
-                }
-                self.gain = s;
+        if let Some((_, effect)) = &self.effect
+            && ((s - self.gain).abs() >= GAIN_STEP || (s == 0.0 && self.gain != 0.0))
+        {
+            if let Err(e) = effect.set_gain(s) {
+                let e = e.to_string();
+                tracing::warn!(pad = %id, error = %e, "gamepad force feedback failed; the pad is left without rumble");
+                self.effect = None;
+                self.failed.push((id, e.clone()));
+                return RumbleStatus::Failed(e);
             }
+            self.gain = s;
         }
         if settings.enabled { RumbleStatus::Active(self.gain) } else { RumbleStatus::Off }
     }
