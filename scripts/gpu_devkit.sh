@@ -4,7 +4,7 @@
 # made): the stripped release binary, the shared libraries it and NVIDIA's Vulkan
 # driver load (copied from this machine; x86-64 Linux with glibc >= this one's),
 # the two real brains, and run.sh. The folder is .devkit/ (add it to
-# .git/info/exclude); about 46 MB.
+# about 46 MB.
 #
 #   bash scripts/gpu_devkit.sh            # build and pack
 #   # on the GPU machine, in a copy of the repository with .devkit/ beside it:
