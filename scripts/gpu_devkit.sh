@@ -3,7 +3,7 @@
 # benchmark and a real-brain replay per backend (how the README's H100 table was
 # made): the stripped release binary, the shared libraries it and NVIDIA's Vulkan
 # driver load (copied from this machine; x86-64 Linux with glibc >= this one's),
-# the two real brains, and run.sh. The folder is .devkit/ (add it to
+# the two real brains, and run.sh. The folder is .devkit/ (git ignores it);
 # about 46 MB.
 #
 #   bash scripts/gpu_devkit.sh            # build and pack
