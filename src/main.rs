@@ -48,8 +48,9 @@ fn install_logging() {
 
 /// The window on a software renderer (Mesa's llvmpipe, where no GPU is) must
 /// leave the simulation a core: llvmpipe rasterizes on every core by default,
-/// and on two cores the simulation's step p95 rose from 1.4 to 4.9 ms at
-/// 1280x800 under Xvfb (README, "The window's frame time"). Sets
+/// and on two cores the simulation's step p95 was 5.9-6.4 ms at 1280x800 under
+/// Xvfb against 1.5-1.9 ms with one llvmpipe thread (README, "The window's
+/// frame time"). Sets
 /// `LP_NUM_THREADS` to cores - 1 for a windowed run unless the user set it; a
 /// real GPU's driver never reads it.
 fn leave_a_core_for_the_simulation(args: &cli::Cli) {

@@ -87,6 +87,8 @@ pub struct SimShared {
     pub progress: Mutex<Option<BuildProgress>>,
     /// Why the first build failed (the thread then ends without frames).
     pub build_error: Mutex<Option<String>>,
+    /// Set when the first build is done and the loop runs (it reads commands).
+    pub running: AtomicBool,
 }
 
 /// How far a build is: compliance columns done of the total, and the time left
@@ -210,7 +212,10 @@ impl SimThread {
             .name("fissure-sim".into())
             .spawn(move || {
                 let exit = match build(scenario, &s) {
-                    Ok(built) => run_loop(built, &s, rx, igtl, haptics, options),
+                    Ok(built) => {
+                        s.running.store(true, Ordering::Release);
+                        run_loop(built, &s, rx, igtl, haptics, options)
+                    }
                     Err(e) => {
                         *lock(&s.status) = format!("could not build the scene: {e}");
                         *lock(&s.build_error) = Some(e);
@@ -236,18 +241,26 @@ impl SimThread {
     }
 
     /// Stops the loop (flushing any recording) and returns its summary.
+    ///
+    /// Closed while the first build still runs (it reads no commands until it
+    /// is done, a minute or more on a fine mesh), the thread is left to the
+    /// process's exit instead of being waited for: nothing was simulated or
+    /// recorded yet, and a compliance cache file is written whole or not at all.
     pub fn stop(mut self) -> SimExit {
+        self.join_if_running().unwrap_or_default()
+    }
+
+    fn join_if_running(&mut self) -> Option<SimExit> {
         let _ = self.commands.send(SimCommand::Quit);
-        self.thread.take().and_then(|t| t.join().ok()).unwrap_or_default()
+        let thread = self.thread.take()?;
+        let running = self.shared.running.load(Ordering::Acquire) || self.shared.finished.load(Ordering::Acquire);
+        running.then(|| thread.join().ok()).flatten()
     }
 }
 
 impl Drop for SimThread {
     fn drop(&mut self) {
-        let _ = self.commands.send(SimCommand::Quit);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
+        let _ = self.join_if_running();
     }
 }
 

@@ -382,13 +382,19 @@ impl App {
         self.panel.recording = on;
     }
 
+    /// Moves the first build's error, if any, into `self.error` (the window then
+    /// closes with it: the same error, naming the file, and exit code as before
+    /// the window existed). True when there was one.
+    fn take_build_error(&mut self) -> bool {
+        let Some(e) = self.sim.as_ref().and_then(|s| lock(&s.shared.build_error).take()) else { return false };
+        self.error = Some(WindowError::Simulation(e));
+        true
+    }
+
     fn redraw(&mut self, event_loop: &ActiveEventLoop) {
         let Some(sim) = &self.sim else { return };
         let shared = sim.shared.clone();
-        if let Some(e) = lock(&shared.build_error).take() {
-            // The first build failed (a broken mesh, too little memory): the same
-            // error, naming the file, as before the window existed.
-            self.error = Some(WindowError::Simulation(e));
+        if self.take_build_error() {
             event_loop.exit();
             return;
         }
@@ -398,6 +404,9 @@ impl App {
             self.generation = generation;
             self.scene = lock(&shared.scene).clone();
             self.camera_set = false;
+            // Other blades: the next LB / RB decides their sides again.
+            self.pad_slot = None;
+            self.pad_swap = false;
             // Another scene was loaded: its colour-bar top and its cameras.
             if let Some(display) = self.scene.display {
                 self.draw.views = display.views;
@@ -505,11 +514,10 @@ impl App {
         let legend = super::draw::legend_for(&self.draw, &self.front);
         let mut load_field = self.load_field;
         let building = *lock(&shared.progress);
-        let no_frame_yet = self.front.surface_positions.is_empty();
-        let scene_name = self.scenario_path.display().to_string();
+        let loading = (self.front.surface_positions.is_empty() || building.is_some()).then(|| self.scenario_path.display().to_string());
         let mut full = self.egui.run_ui(raw, |ui| {
-            if no_frame_yet || building.is_some() {
-                loading_screen(ui, &scene_name, building, &status);
+            if let Some(scene_name) = &loading {
+                loading_screen(ui, scene_name, building, &status);
             }
             draw_panel(ui, &data, names, history, panel, &mut actions);
             egui::Panel::bottom("fissure_status").show(ui, |ui| {
@@ -684,7 +692,7 @@ impl App {
 }
 
 fn panel_data_of(front: &Snapshot, fps: f64) -> PanelData {
-    let mut data = PanelData { fps, sim_frame_ms: front.report.times.total() * 1e3 + 0.0, ..PanelData::default() };
+    let mut data = PanelData { fps, sim_frame_ms: front.report.times.total() * 1e3, ..PanelData::default() };
     for (k, s) in front.report.spatulas.iter().enumerate() {
         data.spatulas.push(SpatulaReadout {
             driver: front.drivers.get(k).map(|d| d.label()).unwrap_or("held"),
@@ -833,6 +841,11 @@ impl ApplicationHandler for App {
 
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
         let sim_done = self.sim.as_ref().is_none_or(|s| s.finished());
+        if sim_done {
+            // A build that failed ends the thread at once: keep its error even when
+            // no redraw came in between.
+            self.take_build_error();
+        }
         let timed_out = self.options.exit_after_s.is_some_and(|t| self.started.elapsed().as_secs_f64() >= t);
         if sim_done || timed_out {
             event_loop.exit();

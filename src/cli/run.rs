@@ -121,6 +121,11 @@ pub fn run(scenario: Option<&Path>, set: &[String], headless_only: bool, args: &
             if summary.haptic_s > 0.0 {
                 println!("force output: {} ticks in {:.2} s ({:.0} Hz)", summary.haptic_ticks, summary.haptic_s, summary.haptic_ticks as f64 / summary.haptic_s);
             }
+            if sim.state_hash.is_empty() {
+                // The loop never ran: the window closed while the scene was being built.
+                println!("  closed while the scene was being built: nothing was simulated");
+                return Ok(());
+            }
             for (k, name) in names.iter().enumerate() {
                 let p = sim.final_poses.get(k).map(|p| p.position * 1e3).unwrap_or_default();
                 let peak = sim.peak_force_n.get(k).copied().unwrap_or(0.0);

@@ -67,7 +67,8 @@ impl StageTimes {
     }
     /// Sum over the built stages.
     pub fn total(&self) -> f64 {
-        self.seconds.iter().flatten().sum()
+        // From +0.0: `sum` starts at -0.0, so a frame with no stage timed read "-0.00 ms".
+        self.seconds.iter().flatten().fold(0.0, |a, b| a + b)
     }
 }
 
