@@ -14,7 +14,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let sets: Vec<String> = args.iter().skip(1).filter(|a| *a != "--set").cloned().collect();
     let scenario = Scenario::load(std::path::Path::new(path), &sets)?;
     let source = PoseSource::for_scenario(&scenario, None)?;
-    let (mut p, mut state) = Pipeline::build(&scenario, BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None })?;
+    let (mut p, mut state) = Pipeline::build(&scenario, BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None, ..BuildOptions::default() })?;
     let mut input = FrameInput::default();
     for k in 0..scenario.step_count() {
         source.poses_at((k + 1) as f64 * scenario.time_step, &mut input);

@@ -14,7 +14,7 @@ fn main() {
     let scenario = Scenario::load(Path::new(path), &overrides).expect("scenario");
     let source = PoseSource::for_scenario(&scenario, None).expect("trajectory");
     let (mut pipeline, mut state) =
-        Pipeline::build(&scenario, BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None }).expect("build");
+        Pipeline::build(&scenario, BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None, ..BuildOptions::default() }).expect("build");
     let mut input = FrameInput::default();
     let dt = scenario.time_step;
     let mut times = Vec::new();

@@ -25,7 +25,7 @@ fn main() {
     };
     let (pipeline, _state) = Pipeline::build(
         &scenario,
-        BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: Some(&mut progress) },
+        BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: Some(&mut progress), ..BuildOptions::default() },
     )
     .expect("build");
     let total = t.elapsed().as_secs_f64();

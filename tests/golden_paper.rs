@@ -100,7 +100,7 @@ fn fig12_v_valley_holds_steady_once_the_blade_stops() {
 /// off its plane (an active barrier row) in the last `frames` frames.
 fn faces_over_last_frames(s: &Scenario, traj: &str, frames: usize) -> [usize; 2] {
     let source = PoseSource::for_scenario(s, Some(&repo(traj))).unwrap();
-    let (mut p, mut state) = Pipeline::build(s, BuildOptions { expected_poses: source.samples(s.duration, 50), progress: None }).unwrap();
+    let (mut p, mut state) = Pipeline::build(s, BuildOptions { expected_poses: source.samples(s.duration, 50), progress: None, ..BuildOptions::default() }).unwrap();
     let mut input = FrameInput::default();
     let mut faces = [0; 2];
     let steps = s.step_count();
@@ -195,7 +195,7 @@ fn skull_contacts_outside_the_roi_get_their_columns_in_the_background() {
     let roi = "solver.region_of_interest=Sphere(center_mm: (-68.0, 10.0, -12.0), radius_mm: 30.0)";
     let s = Scenario::load(&repo("config/sylvian.ron"), &["solver.cache_dir=None".into(), "time_step_s=0.02".into(), roi.into()]).unwrap();
     let source = PoseSource::for_scenario(&s, Some(&repo(traj))).unwrap();
-    let (mut p, mut state) = Pipeline::build(&s, BuildOptions { expected_poses: source.samples(s.duration, 100), progress: None }).unwrap();
+    let (mut p, mut state) = Pipeline::build(&s, BuildOptions { expected_poses: source.samples(s.duration, 100), progress: None, ..BuildOptions::default() }).unwrap();
     let mut input = FrameInput::default();
     let mut lazy = LazyColumnUse::default();
     for k in 0..s.step_count() {
@@ -213,7 +213,7 @@ fn fig14_two_spatulas_open_the_sylvian_fissure_and_the_skull_holds() {
     let traj = "assets/trajectories/paper_fig14_sylvian.csv";
     let s = Scenario::load(&repo("config/sylvian.ron"), &["solver.cache_dir=None".into(), "time_step_s=0.02".into()]).unwrap();
     let source = PoseSource::for_scenario(&s, Some(&repo(traj))).unwrap();
-    let (mut p, mut state) = Pipeline::build(&s, BuildOptions { expected_poses: source.samples(s.duration, 100), progress: None }).unwrap();
+    let (mut p, mut state) = Pipeline::build(&s, BuildOptions { expected_poses: source.samples(s.duration, 100), progress: None, ..BuildOptions::default() }).unwrap();
     let mut input = FrameInput::default();
     let mut max_crossed = 0;
     let mut lazy = LazyColumnUse::default();

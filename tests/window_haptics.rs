@@ -20,7 +20,7 @@ fn force_output_matches_the_simulation_when_the_pose_holds() {
     let source = PoseSource::for_scenario(&scenario, None).expect("trajectory");
     let (mut pipeline, mut state) = Pipeline::build(
         &scenario,
-        BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None },
+        BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None, ..BuildOptions::default() },
     )
     .expect("build");
     let mut input = FrameInput::default();

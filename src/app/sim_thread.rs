@@ -182,7 +182,9 @@ fn build(scenario: Scenario, shared: &SimShared) -> Result<Built, String> {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     };
-    let built = Pipeline::build(&scenario, BuildOptions { progress: Some(&mut progress), ..BuildOptions::default() });
+    // With `solver.early_start` the columns are computed in the background
+    // once the factor is done: the scene opens without waiting for them.
+    let built = Pipeline::build(&scenario, BuildOptions { progress: Some(&mut progress), background_columns: true, ..BuildOptions::default() });
     bar.finish_and_clear();
     *lock(&shared.progress) = None;
     let (pipeline, state) = built.map_err(|e| e.to_string())?;
@@ -404,6 +406,8 @@ fn run_loop(
     // Guards replaced by a rebuild leave their counts here.
     let mut rejected_before_rebuild = 0u64;
     let mut tracker_refused_shown = 0u64;
+    // Compliance columns computed in the background: the count last shown.
+    let mut columns_shown: Option<usize> = None;
     'outer: loop {
         // Commands from the window.
         loop {
@@ -588,6 +592,16 @@ fn run_loop(
                     exit.background_strain_frames += 1;
                 }
                 shared.frames.publish(&mut back);
+                match b.pipeline.solver().compliance().fill_progress() {
+                    Some((done, total)) if columns_shown != Some(done) => {
+                        columns_shown = Some(done);
+                        *lock(&shared.status) = format!(
+                            "compliance {done} / {total} columns, the rest in the background (a blade on tissue not yet computed waits for it)"
+                        );
+                    }
+                    None if columns_shown.take().is_some() => *lock(&shared.status) = "compliance complete".into(),
+                    _ => {}
+                }
             }
             Err(e) => {
                 exit.failed_frames += 1;

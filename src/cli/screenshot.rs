@@ -75,7 +75,7 @@ pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
     let source = PoseSource::for_scenario(&scenario, None).context("loading the scenario's trajectory")?;
     let (mut pipeline, mut state) = Pipeline::build(
         &scenario,
-        BuildOptions { expected_poses: source.samples(scenario.duration.max(args.time), 200), progress: None },
+        BuildOptions { expected_poses: source.samples(scenario.duration.max(args.time), 200), progress: None, ..BuildOptions::default() },
     )
     .with_context(|| format!("building {}", args.scenario.display()))?;
     let dt = scenario.time_step;

@@ -183,7 +183,8 @@ pub struct PhaseTimings {
     /// Part of `surface`: gathering the rows `K^-1[c, ..c]` of newly forced columns.
     pub surface_gather: f64,
     /// Columns outside the ROI: joining background batches (waiting for the
-    /// worker when it is late) and sparse solves in the frame.
+    /// worker when it is late) and sparse solves in the frame; and waiting for
+    /// ROI columns still computed in the background ([`crate::fem::ComputeOptions::background`]).
     pub lazy: f64,
 }
 
@@ -469,10 +470,12 @@ impl ConstrainedSolver {
         self.collect_candidates(constraints);
         self.touch_candidate_columns();
         let lazy_before = self.lazy_computed;
-        // Candidates that are neither surface nor ROI rows need their own columns to be evaluated.
+        // Candidates that are neither surface nor ROI rows need their own columns to be
+        // evaluated; ROI candidates need theirs final (a W entry between two ROI nodes
+        // is read from the earlier column).
         let mut extra: Vec<u32> = Vec::new();
         for c in &self.candidates {
-            if self.compliance.row_of(c.node).is_none() {
+            if self.compliance.row_of(c.node).is_none() || self.compliance.col_of(c.node).is_some() {
                 extra.push(c.node);
             }
         }
@@ -907,6 +910,12 @@ impl ConstrainedSolver {
     }
 
     fn ensure_lazy_untimed(&mut self, nodes: &[u32]) -> Result<(), FemError> {
+        // ROI columns still being computed in the background: wait for the ones read here.
+        for &n in nodes {
+            if let Some(c) = self.compliance.col_of(n) {
+                self.compliance.wait_column(c)?;
+            }
+        }
         let frame = self.frame;
         let mut missing: Vec<u32> = Vec::new();
         loop {

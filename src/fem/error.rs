@@ -55,6 +55,10 @@ pub enum FemError {
     /// A memory request could not be met.
     #[error("out of memory while allocating {what} ({bytes} bytes)")]
     OutOfMemory { what: &'static str, bytes: usize },
+    /// The columns being computed in the background could not be completed
+    /// (out of memory, a failed thread); a frame that needed one stops with this.
+    #[error("the compliance columns being computed in the background are not available: {reason}")]
+    ComplianceIncomplete { reason: String },
     /// A background thread could not be started.
     #[error("{what} thread did not start: {reason}")]
     ThreadStart { what: &'static str, reason: String },

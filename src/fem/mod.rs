@@ -30,7 +30,7 @@ pub mod fixtures;
 pub mod stress;
 pub mod wfactor;
 
-pub use compliance::{Compliance, ComplianceStats, ComplianceStorage, ProductWorkspace};
+pub use compliance::{Compliance, ComplianceStats, ComplianceStorage, ComputeOptions, ProductWorkspace};
 pub use constrained::{ConstrainedSolver, Constraint, ConstraintKind, ConstraintRow, FrameSolution};
 pub use contact::{ContactPatch, PA_PER_MMHG, RETRACTION_DANGER_PA, contact_patches};
 pub use element::{Material, RegionMaterials};

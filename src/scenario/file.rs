@@ -414,6 +414,14 @@ pub struct SolverFile {
     /// the default scene's motion gives the same forces within 1 % at any speed).
     #[serde(default = "default_substep_travel")]
     pub substep_travel: Option<f64>,
+    /// Order the compliance columns (dense storage) by how soon a blade
+    /// reaches them, so that the window shows the scene and runs its frames
+    /// while the rest are computed in the background; a frame that needs a
+    /// column not yet computed waits for it. Replays, benches and the study
+    /// compute every column first. The answers do not depend on when a column
+    /// became final; the order is part of the cache key. Default `false`.
+    #[serde(default)]
+    pub early_start: bool,
 }
 
 fn default_substep_travel() -> Option<f64> {
@@ -428,6 +436,7 @@ impl Default for SolverFile {
             cache_dir: None,
             spatula_contact: SpatulaContact::default(),
             substep_travel: default_substep_travel(),
+            early_start: false,
         }
     }
 }

@@ -225,6 +225,8 @@ pub struct SolverOptions {
     pub spatula_contact: SpatulaContact,
     /// Largest blade travel of one sub-step, in blade thicknesses; `None`: one step a frame.
     pub substep_travel: Option<f64>,
+    /// Compliance columns ordered by the blades' reach; the window starts before they are all computed.
+    pub early_start: bool,
 }
 
 /// Output options.
@@ -695,6 +697,7 @@ impl Scenario {
                 }
                 t => t,
             },
+            early_start: file.solver.early_start,
         };
 
         let gravity = c.vec3("gravity_m_s2", file.gravity_m_s2)?;

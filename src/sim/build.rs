@@ -185,6 +185,46 @@ pub fn region_of_interest(
     }
 }
 
+/// Width of a reach shell beyond the poses a build is told about (m).
+const REACH_SHELL_M: f64 = 0.005;
+
+/// How soon a blade reaches each ROI node (per mesh node; `u32::MAX` off the
+/// ROI), which orders the compliance columns with `solver.early_start`: the
+/// index of the first pose set (the start, then the expected poses in time
+/// order) whose blades pass within the `Auto` region's reach of it
+/// (`width / 2 + AUTO_ROI_MARGIN_M` of the blade's centre line), else the
+/// number of sets plus its distance to the nearest blade at the start in
+/// shells of [`REACH_SHELL_M`].
+fn reach_ranks(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], pose_sets: &[Vec<Pose>]) -> Vec<u32> {
+    let segments: Vec<Vec<(Vec3, Vec3, f64)>> = pose_sets
+        .iter()
+        .map(|set| {
+            set.iter()
+                .zip(&scenario.spatulas)
+                .map(|(pose, sp)| {
+                    let a = pose.transform_point(&Vec3::zeros());
+                    let b = pose.transform_point(&Vec3::new(sp.shape.length, 0.0, 0.0));
+                    (a, b, 0.5 * sp.shape.width + AUTO_ROI_MARGIN_M)
+                })
+                .collect()
+        })
+        .collect();
+    let mut rank = vec![u32::MAX; mesh.node_count()];
+    for &n in roi {
+        let p = mesh.positions[n as usize];
+        let reached = segments.iter().position(|set| set.iter().any(|(a, b, r)| distance_to_segment(&p, a, b) <= *r));
+        rank[n as usize] = match reached {
+            Some(k) => k as u32,
+            None => {
+                let d = segments.first().into_iter().flatten().map(|(a, b, _)| distance_to_segment(&p, a, b)).fold(f64::INFINITY, f64::min);
+                let shells = if d.is_finite() { (d / REACH_SHELL_M).floor().min(1e6) as u32 } else { 1_000_000 };
+                (segments.len() as u32).saturating_add(shells)
+            }
+        };
+    }
+    rank
+}
+
 /// Options of the build that are not in the scenario.
 #[derive(Default)]
 pub struct BuildOptions<'a> {
@@ -192,6 +232,11 @@ pub struct BuildOptions<'a> {
     pub expected_poses: Vec<Vec<Pose>>,
     /// Called with (done, total) while the compliance is computed.
     pub progress: Option<&'a mut dyn FnMut(usize, usize)>,
+    /// With `solver.early_start`: return once the compliance's storage is
+    /// allocated and compute its columns in the background (the window); a
+    /// frame that needs a column not yet computed waits for it. Otherwise every
+    /// column is computed before the build returns.
+    pub background_columns: bool,
 }
 
 impl Pipeline {
@@ -242,7 +287,15 @@ impl Pipeline {
             Some(p) => p,
             None => &mut no_progress,
         };
-        let compliance = Compliance::compute(&model, &roi, storage, scenario.solver.cache_dir.as_deref(), progress)?;
+        let early = scenario.solver.early_start;
+        let reach = if early { reach_ranks(scenario, &mesh, &roi, &pose_sets) } else { Vec::new() };
+        let compute = fem::ComputeOptions {
+            storage,
+            cache_dir: scenario.solver.cache_dir.as_deref(),
+            reach: early.then_some(reach.as_slice()),
+            background: early && options.background_columns,
+        };
+        let compliance = Compliance::compute_with(&model, &roi, compute, progress)?;
         let solver = ConstrainedSolver::new(model, compliance)?;
 
         let collision = if effects.contains(Effect::Collision) {

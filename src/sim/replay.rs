@@ -147,7 +147,7 @@ pub fn replay(
     let (mut pipeline, mut state) = Pipeline::build_checked(
         scenario,
         checked.mesh,
-        BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: compliance_progress },
+        BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: compliance_progress, ..BuildOptions::default() },
     )?;
     std::fs::create_dir_all(&options.out_dir).map_err(|e| OutputError::new(&options.out_dir, e))?;
     let stages = pipeline.built_stages();

@@ -249,7 +249,7 @@ pub fn execute(
     let stride = (frames.len() / 200).max(1);
     let expected_poses = frames.iter().step_by(stride).map(|f| f.poses.clone()).collect();
     let t = Instant::now();
-    let (mut pipeline, mut state) = Pipeline::build_with_mesh(&scene, mesh, BuildOptions { expected_poses, progress: None })?;
+    let (mut pipeline, mut state) = Pipeline::build_with_mesh(&scene, mesh, BuildOptions { expected_poses, progress: None, ..BuildOptions::default() })?;
     let build_s = t.elapsed().as_secs_f64();
     let stats = pipeline.solver().compliance().stats();
     let mut trace = RunTrace {

@@ -25,6 +25,7 @@
 //! when its key (blake3 of model fingerprint, factor ordering, ROI, storage) and its checksum
 //! match; otherwise it is rebuilt and rewritten.
 
+mod fill;
 mod lowrank;
 
 use super::FemError;
@@ -32,7 +33,9 @@ use super::assembly::{find, join};
 use super::model::FemModel;
 use crate::math::{Matrix3, Vec3};
 use std::io::{Read, Write};
+use fill::{Buf, Dense, Fill, FillOwner};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 const NO_ROW: u32 = u32::MAX;
@@ -79,11 +82,37 @@ impl ComplianceStorage {
 
 #[derive(Debug, Clone)]
 enum Values {
-    F64(Vec<f64>),
+    F64(Arc<Dense<f64>>),
     /// f32 entries and, for the ROI x ROI entries ([`Layout::lo_offset`]), the
     /// rest `x - f32(x)` in units of 2^-15 of the f32's ulp ([`split_f32`]).
-    F32(Vec<f32>, Vec<i16>),
-    LowRank(Box<lowrank::BlockLowRank>),
+    F32(Arc<Dense<f32>>),
+    LowRank(Arc<lowrank::BlockLowRank>),
+}
+
+/// How [`Compliance::compute_with`] orders, fills and caches the columns.
+#[derive(Debug, Clone, Copy)]
+pub struct ComputeOptions<'a> {
+    pub storage: ComplianceStorage,
+    /// Folder of the disk cache; `None`: no cache.
+    pub cache_dir: Option<&'a Path>,
+    /// Dense storage: per mesh node, how soon a tool reaches it (lower:
+    /// sooner). The ROI columns of each free component are then ordered by it
+    /// (Morton order among equals) and solved in that order, in batches that
+    /// never straddle two components, so the columns a frame needs first are
+    /// the first to be final. `None`: Morton order. Part of the cache key.
+    pub reach: Option<&'a [u32]>,
+    /// Dense storage, not from the cache: return as soon as the storage is
+    /// allocated and solve the columns on background threads (one core is
+    /// left to the caller). A read of a column that is not final yet waits
+    /// for it; the values are those of a build that waits, bit for bit.
+    pub background: bool,
+}
+
+impl ComputeOptions<'_> {
+    /// Morton order, no cache, built before returning.
+    pub fn new(storage: ComplianceStorage) -> Self {
+        Self { storage, cache_dir: None, reach: None, background: false }
+    }
 }
 
 /// What building or loading the compliance cost.
@@ -112,10 +141,12 @@ pub struct ComplianceStats {
 #[derive(Debug, Clone)]
 pub struct Compliance {
     values: Values,
+    /// Dense storage filled in the background: which columns are final (`None`: all).
+    fill: Option<Arc<FillOwner>>,
     row_nodes: Vec<u32>,
     n_cols: usize,
     /// Which rows each column stores (dense storage; unused for low rank).
-    layout: Layout,
+    layout: Arc<Layout>,
     node_row: Vec<u32>,
     key: [u8; 32],
     model_fingerprint: [u8; 32],
@@ -257,6 +288,14 @@ impl Compliance {
         cache_dir: Option<&Path>,
         progress: &mut dyn FnMut(usize, usize),
     ) -> Result<Self, FemError> {
+        Self::compute_with(model, roi_nodes, ComputeOptions { cache_dir, ..ComputeOptions::new(storage) }, progress)
+    }
+
+    /// As [`Self::compute`], with the column order and the background filling
+    /// of [`ComputeOptions`]. With `background`, `progress` is called once
+    /// with `(0, total)`; [`Self::fill_progress`] says how far the filling is.
+    pub fn compute_with(model: &FemModel, roi_nodes: &[u32], options: ComputeOptions<'_>, progress: &mut dyn FnMut(usize, usize)) -> Result<Self, FemError> {
+        let ComputeOptions { storage, cache_dir, reach, background } = options;
         let count = model.mesh.node_count();
         if let ComplianceStorage::LowRank { digits } = storage
             && !(4..=12).contains(&digits)
@@ -280,9 +319,13 @@ impl Compliance {
         // consecutive columns, so the per-frame product streams through memory.
         morton_sort(&mut roi, &model.mesh.positions);
         morton_sort(&mut others, &model.mesh.positions);
-        // Dense storage groups rows by free component (see [`Layout`]); the sort
-        // is stable, so each component keeps its Morton order.
+        // Dense storage groups rows by free component (see [`Layout`]); the sorts
+        // are stable, so each component keeps its reach and Morton order.
         let dense = !matches!(storage, ComplianceStorage::LowRank { .. });
+        let reach = reach.filter(|r| dense && r.len() == count);
+        if let Some(reach) = reach {
+            roi.sort_by_key(|&n| reach[n as usize]);
+        }
         let comp = if dense { free_components(model) } else { Vec::new() };
         if dense {
             roi.sort_by_key(|&n| comp[n as usize]);
@@ -297,10 +340,11 @@ impl Compliance {
         }
         let key = cache_key(model, &roi, storage);
         let mut this = Self {
-            values: Values::F64(Vec::new()),
+            values: Values::F64(Arc::new(Dense { v: Buf::new(Vec::new()), lo: Buf::new(Vec::new()) })),
+            fill: None,
             row_nodes,
             n_cols,
-            layout,
+            layout: Arc::new(layout),
             node_row,
             key,
             model_fingerprint: model.fingerprint,
@@ -328,12 +372,50 @@ impl Compliance {
             }
         }
         let t = Instant::now();
-        this.values = this.build(model, storage, progress)?;
+        if let ComplianceStorage::LowRank { digits } = storage {
+            let layout = this.clusters(model);
+            let b = lowrank::BlockLowRank::build(model, &this.row_nodes, n_cols, layout, digits, progress)?;
+            this.values = Values::LowRank(Arc::new(b));
+        } else {
+            let job = this.prepare_fill(model, storage, reach, background)?;
+            this.values = job.values.clone();
+            if background {
+                let cache = path.clone().map(|p| (p, this.header(storage), this.row_nodes.clone()));
+                let fill = Arc::clone(&job.fill);
+                progress(0, n_cols);
+                match job.spawn(cache) {
+                    Ok(()) => {
+                        this.fill = Some(Arc::new(FillOwner(fill)));
+                        this.stats = this.make_stats(0.0, 0.0, false);
+                        return Ok(this);
+                    }
+                    Err(job) => {
+                        // No thread: fill here, as a build that waits.
+                        tracing::warn!("the compliance columns are computed before the first frame (no background thread)");
+                        job.run(progress)?;
+                    }
+                }
+            } else {
+                job.run(progress)?;
+            }
+        }
         this.stats = this.make_stats(t.elapsed().as_secs_f64(), 0.0, false);
         if let Some(p) = &path {
             // The cache only saves time next run: a failure to write it loses
             // nothing computed, so it is a warning, not an error.
-            match this.save(p) {
+            let header = this.header(storage);
+            let written = match &this.values {
+                Values::LowRank(b) => {
+                    let meta = b.meta();
+                    let mut sections: Vec<&[u8]> = vec![bytemuck::cast_slice(&meta)];
+                    sections.extend(b.sections());
+                    write_cache(p, &header, &this.row_nodes, &sections)
+                }
+                // SAFETY: the filling above ran to its end; nothing writes any more.
+                Values::F64(d) => write_cache(p, &header, &this.row_nodes, &unsafe { dense_sections(d) }),
+                Values::F32(d) => write_cache(p, &header, &this.row_nodes, &unsafe { dense_sections(d) }),
+            };
+            match written {
                 Ok(()) => prune_cache_dir(p, CACHE_DIR_BUDGET_BYTES),
                 Err(e) => {
                     let _ = std::fs::remove_file(tmp_path(p));
@@ -346,8 +428,8 @@ impl Compliance {
 
     fn make_stats(&self, compute_seconds: f64, load_seconds: f64, from_cache: bool) -> ComplianceStats {
         let (bytes, counts) = match &self.values {
-            Values::F64(v) => (v.len() * 8, Default::default()),
-            Values::F32(v, lo) => (v.len() * 4 + lo.len() * 2, Default::default()),
+            Values::F64(d) => (d.v.len() * 8, Default::default()),
+            Values::F32(d) => (d.v.len() * 4 + d.lo.len() * 2, Default::default()),
             Values::LowRank(b) => (b.bytes(), b.counts()),
         };
         ComplianceStats {
@@ -368,135 +450,113 @@ impl Compliance {
         self.layout.blocks() * 9
     }
 
-    fn build(&self, model: &FemModel, storage: ComplianceStorage, progress: &mut dyn FnMut(usize, usize)) -> Result<Values, FemError> {
-        if let ComplianceStorage::LowRank { digits } = storage {
-            let layout = self.clusters(model);
-            let b = lowrank::BlockLowRank::build(model, &self.row_nodes, self.n_cols, layout, digits, progress)?;
-            return Ok(Values::LowRank(Box::new(b)));
-        }
+    /// Allocates the dense storage (after checking it fits) and lays out its
+    /// batches: 32 columns each, cut at component starts when `reach` orders
+    /// the columns (then solved in the order of their first column's reach),
+    /// else straight through the columns (solved in column order).
+    fn prepare_fill(&self, model: &FemModel, storage: ComplianceStorage, reach: Option<&[u32]>, background: bool) -> Result<FillJob, FemError> {
         let len = self.entry_count();
         let n_free = model.dofs.dof_count();
-        let batches: Vec<usize> = (0..self.n_cols).step_by(BATCH_NODES).collect();
-        let threads = precompute_threads(n_free, batches.len());
+        let starts: Vec<usize> = match reach {
+            Some(_) => self.layout.spans.iter().flat_map(|s| (s[0]..s[1]).step_by(BATCH_NODES)).collect(),
+            None => (0..self.n_cols).step_by(BATCH_NODES).collect(),
+        };
+        let mut order: Vec<usize> = (0..starts.len()).collect();
+        if let Some(reach) = reach {
+            order.sort_by_key(|&b| reach[self.row_nodes[starts[b]] as usize]);
+        }
+        let mut threads = precompute_threads(n_free, starts.len());
+        if background {
+            // One core stays with the frames.
+            let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+            threads = threads.min(cores.saturating_sub(1)).max(1);
+        }
         // The stored entries plus every thread's right-hand sides.
         let entry_bytes = if storage == ComplianceStorage::F32 { 4 } else { 8 };
         let need = len * entry_bytes
             + self.layout.lo_blocks() * 9 * 2 * usize::from(storage == ComplianceStorage::F32)
             + threads * n_free * 3 * BATCH_NODES * 8;
         region_fits(self.n_cols, self.row_nodes.len(), storage, need as u64, super::meminfo::available_bytes())?;
-        let mut values = match storage {
+        let values = match storage {
             ComplianceStorage::F64 | ComplianceStorage::LowRank { .. } => {
                 let mut v: Vec<f64> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 8 })?;
                 advise_huge_pages(&mut v);
-                Values::F64(v)
+                Values::F64(Arc::new(Dense { v: Buf::new(v), lo: Buf::new(Vec::new()) }))
             }
             ComplianceStorage::F32 => {
                 let mut v: Vec<f32> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 4 })?;
                 advise_huge_pages(&mut v);
                 let n_lo = self.layout.lo_blocks() * 9;
                 let lo: Vec<i16> = bytemuck::allocation::try_zeroed_vec(n_lo).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: n_lo * 2 })?;
-                Values::F32(v, lo)
+                Values::F32(Arc::new(Dense { v: Buf::new(v), lo: Buf::new(lo) }))
             }
         };
+        let fill = Arc::new(Fill::new(&self.layout, self.n_cols, &starts));
         let row_dofs: Vec<usize> = self.row_nodes.iter().map(|&n| model.dofs.dof(n).unwrap_or(0)).collect();
-        // Cut the storage into the disjoint pieces each batch of columns fills
-        // (columns are stored one after another), so batches run on several
-        // threads without sharing anything mutable.
-        let mut pieces: Vec<(usize, Piece<'_>)> = Vec::with_capacity(batches.len());
-        match &mut values {
-            Values::F64(v) => {
-                let mut rest: &mut [f64] = v;
-                for &j0 in &batches {
-                    let j1 = (j0 + BATCH_NODES).min(self.n_cols);
-                    let (head, tail) = rest.split_at_mut((self.layout.col_off[j1] - self.layout.col_off[j0]) * 9);
-                    pieces.push((j0, Piece::F64(head)));
-                    rest = tail;
-                }
-            }
-            Values::F32(v, lo) => {
-                let (mut rest, mut rest_lo): (&mut [f32], &mut [i16]) = (v, lo);
-                for &j0 in &batches {
-                    let j1 = (j0 + BATCH_NODES).min(self.n_cols);
-                    let (head, tail) = rest.split_at_mut((self.layout.col_off[j1] - self.layout.col_off[j0]) * 9);
-                    let (head_lo, tail_lo) = rest_lo.split_at_mut((self.layout.lo_off[j1] - self.layout.lo_off[j0]) * 9);
-                    pieces.push((j0, Piece::F32(head, head_lo)));
-                    (rest, rest_lo) = (tail, tail_lo);
-                }
-            }
-            Values::LowRank(_) => {}
-        }
-        let queue = std::sync::Mutex::new(pieces.into_iter());
-        progress(0, self.n_cols);
-        std::thread::scope(|scope| -> Result<(), FemError> {
-            let (done_tx, done_rx) = std::sync::mpsc::channel::<Result<usize, FemError>>();
-            for _ in 0..threads {
-                let (queue, done_tx, row_dofs) = (&queue, done_tx.clone(), &row_dofs);
-                scope.spawn(move || {
-                    let work = || -> Result<(), FemError> {
-                        let mut rhs = faer::Mat::<f64>::zeros(n_free, 3 * BATCH_NODES);
-                        let mut scratch = model.chol.scratch(3 * BATCH_NODES)?;
-                        loop {
-                            let next = queue.lock().map_err(|_| FemError::Factorization { reason: "a precompute thread panicked".into() })?.next();
-                            let Some((j0, piece)) = next else { return Ok(()) };
-                            let nb = BATCH_NODES.min(self.n_cols - j0);
-                            self.solve_batch(model, row_dofs, j0, nb, &mut rhs, &mut scratch, piece);
-                            if done_tx.send(Ok(nb)).is_err() {
-                                return Ok(()); // the caller stopped listening
-                            }
-                        }
-                    };
-                    if let Err(e) = work() {
-                        let _ = done_tx.send(Err(e));
-                    }
-                });
-            }
-            drop(done_tx);
-            let mut done = 0;
-            for msg in done_rx {
-                done += msg?;
-                progress(done, self.n_cols);
-            }
-            Ok(())
-        })?;
-        Ok(values)
+        Ok(FillJob { chol: Arc::clone(&model.chol), n_free, row_dofs, layout: Arc::clone(&self.layout), values, order, fill, threads })
     }
-
-    /// Solves the columns `j0..j0 + nb` (3 right-hand sides a node) and writes
-    /// their stored rows into `piece`, the storage of exactly those columns.
-    #[allow(clippy::too_many_arguments)]
-    fn solve_batch(&self, model: &FemModel, row_dofs: &[usize], j0: usize, nb: usize, rhs: &mut faer::Mat<f64>, scratch: &mut faer::dyn_stack::MemBuffer, mut piece: Piece<'_>) {
-        rhs.fill(0.0);
-        for b in 0..nb {
-            let d = row_dofs[j0 + b];
-            for c in 0..3 {
-                rhs[(d + c, 3 * b + c)] = 1.0;
-            }
-        }
-        model.chol.solve_in_place(rhs.as_mut().subcols_mut(0, 3 * nb), scratch);
-        let (base, base_lo) = (self.layout.col_off[j0] * 9, self.layout.lo_off[j0] * 9);
-        for b in 0..nb {
-            let j = j0 + b;
-            let cols = [rhs.col(3 * b), rhs.col(3 * b + 1), rhs.col(3 * b + 2)];
-            let cols = cols.map(|c| c.try_as_col_major().map(|c| c.as_slice()).unwrap_or(&[]));
-            for (run, (r0, r1, off)) in self.layout.runs(j).into_iter().enumerate() {
-                let (start, count) = (off * 9 - base, (r1 - r0) * 9);
-                match &mut piece {
-                    Piece::F64(v) => fill_column(&mut v[start..start + count], &row_dofs[r0..r1], &cols, |x| x),
-                    Piece::F32(v, lo) => {
-                        fill_column(&mut v[start..start + count], &row_dofs[r0..r1], &cols, |x| split_f32(x).0);
-                        if run == 0 {
-                            let b = self.layout.lo_off[j] * 9 - base_lo;
-                            fill_column(&mut lo[b..b + count], &row_dofs[r0..r1], &cols, |x| split_f32(x).1);
-                        }
-                    }
-                }
-            }
-        }
-    }
-
     /// Statistics of the last build or load.
     pub fn stats(&self) -> ComplianceStats {
-        self.stats
+        let mut s = self.stats;
+        if let Some(f) = &self.fill {
+            s.compute_seconds = f.0.seconds();
+        }
+        s
+    }
+
+    /// While the columns are still being computed in the background
+    /// ([`ComputeOptions::background`]): `(final columns, all columns)`.
+    /// `None` once every column is final (or when none was left to compute).
+    pub fn fill_progress(&self) -> Option<(usize, usize)> {
+        let f = &self.fill.as_ref()?.0;
+        (!f.is_complete()).then(|| (f.columns_done(), self.n_cols))
+    }
+
+    /// Waits until every column is final (at once when none is being computed).
+    pub fn wait_complete(&self) -> Result<(), FemError> {
+        let Some(f) = &self.fill else { return Ok(()) };
+        for (k, s) in self.layout.spans.iter().enumerate() {
+            f.0.wait(k, s[1] - s[0]).map_err(|reason| FemError::ComplianceIncomplete { reason })?;
+        }
+        Ok(())
+    }
+
+    /// Waits until column `col` can be read (its component's columns up to
+    /// it are final): at once unless the columns are computed in the background.
+    #[inline]
+    pub fn wait_column(&self, col: usize) -> Result<(), FemError> {
+        let Some(f) = &self.fill else { return Ok(()) };
+        if f.0.is_complete() || col >= self.n_cols {
+            return Ok(());
+        }
+        let k = self.layout.row_comp[col] as usize;
+        f.0.wait(k, col + 1 - self.layout.spans[k][0]).map_err(|reason| FemError::ComplianceIncomplete { reason })
+    }
+
+    /// The final leading columns of component `k`: their entries from block
+    /// `col_off[first column]` on, and their ROI corrections (f32 storage)
+    /// from block `lo_off[first column]` on.
+    #[inline]
+    fn region<'a, T>(&'a self, d: &'a Dense<T>, k: usize) -> Region<'a, T> {
+        let s = &self.layout.spans[k];
+        let ready = match &self.fill {
+            Some(f) if !f.0.is_complete() => f.0.ready(k),
+            _ => s[1] - s[0],
+        };
+        let (col_off, lo_off) = (&self.layout.col_off, &self.layout.lo_off);
+        let (a, b) = (col_off[s[0]], col_off[s[0] + ready]);
+        let (la, lb) = (lo_off[s[0]], lo_off[s[0] + ready]);
+        // SAFETY: columns s[0]..s[0] + ready are final: the filling threads
+        // wrote them before publishing `ready` (release, read with acquire
+        // above) and never write them again.
+        unsafe {
+            Region {
+                v: d.v.slice(9 * a..9 * b),
+                base: a,
+                lo: if d.lo.len() == 0 { &[] } else { d.lo.slice(9 * la..9 * lb) },
+                lo_base: la,
+            }
+        }
     }
 
     /// The cache key (blake3 of the model fingerprint, ROI and precision).
@@ -555,6 +615,9 @@ impl Compliance {
     }
 
     /// `K^-1[row node, col node]` by row and column index (`col < column_count()`).
+    /// While the columns are computed in the background it waits for the ones
+    /// it reads (a frame asks [`Self::wait_column`] first, which can fail;
+    /// here a failed filling reads as zero).
     #[inline]
     pub fn block(&self, row: usize, col: usize) -> Matrix3<f64> {
         if let Values::LowRank(b) = &self.values {
@@ -572,7 +635,14 @@ impl Compliance {
     pub fn product_block(&self, row: usize, col: usize) -> Matrix3<f64> {
         let (r, c, transpose) = if row >= col { (row, col, false) } else { (col, row, true) };
         let m = match (&self.values, self.layout.offset(r, c)) {
-            (Values::F32(v, _), Some(b)) => Matrix3::from_iterator(v[9 * b..9 * b + 9].iter().map(|&x| x as f64)),
+            (Values::F32(d), Some(b)) => {
+                if self.wait_column(c).is_err() {
+                    return Matrix3::zeros();
+                }
+                let g = self.region(d, self.layout.row_comp[c] as usize);
+                let o = 9 * (b - g.base);
+                Matrix3::from_iterator(g.v[o..o + 9].iter().map(|&x| x as f64))
+            }
             (Values::F32(..), None) => Matrix3::zeros(),
             _ => return self.block(row, col),
         };
@@ -581,15 +651,30 @@ impl Compliance {
 
     #[inline]
     fn stored(&self, row: usize, col: usize) -> Matrix3<f64> {
-        let Some(o) = self.layout.offset(row, col).map(|b| b * 9) else {
+        let Some(b) = self.layout.offset(row, col) else {
             return Matrix3::zeros();
         };
+        if self.wait_column(col).is_err() {
+            return Matrix3::zeros();
+        }
+        let k = self.layout.row_comp[col] as usize;
         match &self.values {
-            Values::F64(v) => Matrix3::from_column_slice(&v[o..o + 9]),
-            Values::F32(v, lo) => match self.layout.lo_offset(row, col) {
-                Some(b) => Matrix3::from_fn(|r, c| join_f32(v[o + 3 * c + r], lo[9 * b + 3 * c + r])),
-                None => Matrix3::from_iterator(v[o..o + 9].iter().map(|&x| x as f64)),
-            },
+            Values::F64(d) => {
+                let g = self.region(d, k);
+                let o = 9 * (b - g.base);
+                Matrix3::from_column_slice(&g.v[o..o + 9])
+            }
+            Values::F32(d) => {
+                let g = self.region(d, k);
+                let o = 9 * (b - g.base);
+                match self.layout.lo_offset(row, col) {
+                    Some(l) => {
+                        let lo = 9 * (l - g.lo_base);
+                        Matrix3::from_fn(|r, c| join_f32(g.v[o + 3 * c + r], g.lo[lo + 3 * c + r]))
+                    }
+                    None => Matrix3::from_iterator(g.v[o..o + 9].iter().map(|&x| x as f64)),
+                }
+            }
             Values::LowRank(b) => b.block(row, col),
         }
     }
@@ -598,6 +683,9 @@ impl Compliance {
     /// `(col, F)` sorted by ascending column. `workspace` is reused between
     /// calls (for dense storage it keeps the rows `K^-1[c, s..c]` of the forced
     /// columns, see [`ProductWorkspace`]); once it has grown, nothing is allocated.
+    /// While the columns are computed in the background it waits for the
+    /// forced ones; if their filling failed it adds nothing (a frame asks
+    /// [`Self::wait_column`] for its columns first and stops there).
     pub fn accumulate(&self, forces: &[(usize, Vec3)], u: &mut [Vec3], workspace: &mut ProductWorkspace) {
         workspace.gathered = 0;
         workspace.gather_seconds = 0.0;
@@ -607,59 +695,35 @@ impl Compliance {
             workspace.rows64.clear();
             workspace.key = self.key;
         }
+        if forces.iter().any(|&(c, _)| self.wait_column(c).is_err()) {
+            tracing::error!("the surface product skipped: its compliance columns are not available");
+            return;
+        }
         let layout = &self.layout;
         let chunk = workspace.chunk();
         match &self.values {
-            Values::F64(v) => {
+            Values::F64(d) => {
+                let region = |k: usize| {
+                    let g = self.region(d, k);
+                    (g.v, g.base)
+                };
                 let t = Instant::now();
-                workspace.gathered = workspace.rows64.prepare(v, layout, forces);
+                workspace.gathered = workspace.rows64.prepare(&region, layout, forces);
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(v, layout, forces, &workspace.rows64.rows, u, &mut workspace.acc, chunk)
+                accumulate_impl(&region, layout, forces, &workspace.rows64.rows, u, &mut workspace.acc, chunk)
             }
-            Values::F32(v, _) => {
+            Values::F32(d) => {
+                let region = |k: usize| {
+                    let g = self.region(d, k);
+                    (g.v, g.base)
+                };
                 let t = Instant::now();
-                workspace.gathered = workspace.rows32.prepare(v, layout, forces);
+                workspace.gathered = workspace.rows32.prepare(&region, layout, forces);
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(v, layout, forces, &workspace.rows32.rows, u, &mut workspace.acc, chunk)
+                accumulate_impl(&region, layout, forces, &workspace.rows32.rows, u, &mut workspace.acc, chunk)
             }
             Values::LowRank(b) => b.accumulate(forces, u, &mut workspace.acc),
         }
-    }
-
-    fn save(&self, path: &Path) -> Result<(), FemError> {
-        let err = |e: std::io::Error| FemError::Cache { path: path.to_path_buf(), reason: e.to_string() };
-        if let Some(dir) = path.parent() {
-            std::fs::create_dir_all(dir).map_err(err)?;
-        }
-        let tmp = tmp_path(path);
-        let file = std::fs::File::create(&tmp).map_err(err)?;
-        let mut w = std::io::BufWriter::with_capacity(1 << 22, file);
-        let mut hasher = blake3::Hasher::new();
-        let mut put = |w: &mut std::io::BufWriter<std::fs::File>, bytes: &[u8]| -> Result<(), FemError> {
-            hasher.update(bytes);
-            w.write_all(bytes).map_err(err)
-        };
-        put(&mut w, &self.header(self.storage()))?;
-        put(&mut w, bytemuck::cast_slice(&self.row_nodes))?;
-        match &self.values {
-            Values::F64(v) => put(&mut w, bytemuck::cast_slice(v))?,
-            Values::F32(v, lo) => {
-                put(&mut w, bytemuck::cast_slice(v))?;
-                put(&mut w, bytemuck::cast_slice(lo))?;
-            }
-            Values::LowRank(b) => {
-                put(&mut w, bytemuck::cast_slice(&b.meta()))?;
-                for section in b.sections() {
-                    put(&mut w, section)?;
-                }
-            }
-        }
-        let sum = *hasher.finalize().as_bytes();
-        w.write_all(&sum).map_err(err)?;
-        w.flush().map_err(err)?;
-        drop(w);
-        std::fs::rename(&tmp, path).map_err(err)?;
-        Ok(())
     }
 
     fn header(&self, storage: ComplianceStorage) -> Vec<u8> {
@@ -719,14 +783,14 @@ impl Compliance {
                 let remaining = size - prefix - 24 - 32;
                 let layout = self.clusters(model);
                 let b = lowrank::BlockLowRank::read(digits, self.row_nodes.len(), self.n_cols, layout, meta, remaining, &mut read_hashed)?;
-                Values::LowRank(Box::new(b))
+                Values::LowRank(Arc::new(b))
             }
             ComplianceStorage::F64 => {
                 // Zeroed allocation: fresh pages, filled once by the read (no memset pass).
                 let mut v: Vec<f64> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| "out of memory".to_string())?;
                 read_hashed(bytemuck::cast_slice_mut(&mut v))?;
                 advise_huge_pages(&mut v);
-                Values::F64(v)
+                Values::F64(Arc::new(Dense { v: Buf::new(v), lo: Buf::new(Vec::new()) }))
             }
             ComplianceStorage::F32 => {
                 let mut v: Vec<f32> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| "out of memory".to_string())?;
@@ -734,7 +798,7 @@ impl Compliance {
                 advise_huge_pages(&mut v);
                 let mut lo: Vec<i16> = bytemuck::allocation::try_zeroed_vec(n_lo).map_err(|_| "out of memory".to_string())?;
                 read_hashed(bytemuck::cast_slice_mut(&mut lo))?;
-                Values::F32(v, lo)
+                Values::F32(Arc::new(Dense { v: Buf::new(v), lo: Buf::new(lo) }))
             }
         };
         let mut sum = [0u8; 32];
@@ -855,10 +919,221 @@ fn region_fits(cols: usize, rows: usize, storage: ComplianceStorage, need: u64, 
     }
 }
 
-/// The storage of one batch of columns (see [`Compliance::build`]).
+/// The final leading columns of one component ([`Compliance::region`]).
+struct Region<'a, T> {
+    v: &'a [T],
+    /// Block offset of `v[0]` in the whole storage.
+    base: usize,
+    /// ROI corrections (f32 storage; empty otherwise) and the block offset of `lo[0]`.
+    lo: &'a [i16],
+    lo_base: usize,
+}
+
+/// The storage of one batch of columns (see [`FillJob::solve_batch`]).
 enum Piece<'a> {
     F64(&'a mut [f64]),
     F32(&'a mut [f32], &'a mut [i16]),
+}
+
+/// Everything the threads that fill a dense compliance need ([`Compliance::prepare_fill`]).
+struct FillJob {
+    chol: Arc<super::factor::SparseCholesky>,
+    n_free: usize,
+    /// First free DOF of every stored row.
+    row_dofs: Vec<usize>,
+    layout: Arc<Layout>,
+    values: Values,
+    /// Batches in the order they are solved.
+    order: Vec<usize>,
+    fill: Arc<Fill>,
+    threads: usize,
+}
+
+impl FillJob {
+    /// Solves every batch on `threads` threads (scoped: returns when all are
+    /// final, or at the first error); `progress(done, total)` after each.
+    fn run(&self, progress: &mut dyn FnMut(usize, usize)) -> Result<(), FemError> {
+        let t = Instant::now();
+        let n_cols = self.layout.col_off.len() - 1;
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let result = std::thread::scope(|scope| -> Result<(), FemError> {
+            let (done_tx, done_rx) = std::sync::mpsc::channel::<Result<usize, FemError>>();
+            for _ in 0..self.threads {
+                let (next, done_tx) = (&next, done_tx.clone());
+                scope.spawn(move || {
+                    let work = || -> Result<(), FemError> {
+                        let mut rhs = faer::Mat::<f64>::zeros(self.n_free, 3 * BATCH_NODES);
+                        let mut scratch = self.chol.scratch(3 * BATCH_NODES)?;
+                        loop {
+                            if self.fill.is_cancelled() {
+                                return Ok(());
+                            }
+                            let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            let Some(&b) = self.order.get(i) else { return Ok(()) };
+                            let cols = self.fill.batch(b);
+                            // SAFETY: batch b is taken by this thread alone (the
+                            // counter hands each out once) and nobody reads its
+                            // columns before `finish_batch` publishes them.
+                            let piece = unsafe { self.piece(cols.clone()) };
+                            self.solve_batch(cols.clone(), &mut rhs, &mut scratch, piece);
+                            self.fill.finish_batch(b, t.elapsed().as_secs_f64());
+                            if done_tx.send(Ok(cols.len())).is_err() {
+                                return Ok(()); // the caller stopped listening
+                            }
+                        }
+                    };
+                    if let Err(e) = work() {
+                        let _ = done_tx.send(Err(e));
+                    }
+                });
+            }
+            drop(done_tx);
+            let mut done = 0;
+            for msg in done_rx {
+                done += msg?;
+                progress(done, n_cols);
+            }
+            Ok(())
+        });
+        if let Err(e) = &result {
+            self.fill.fail(e.to_string());
+        } else if !self.fill.is_complete() {
+            // Stopped (cancelled, or a thread that died without a word).
+            let reason = if self.fill.is_cancelled() { "stopped" } else { "a precompute thread stopped" };
+            self.fill.fail(reason.into());
+            return Err(FemError::ComplianceIncomplete { reason: reason.into() });
+        }
+        result
+    }
+
+    /// Fills in the background; the cache `(path, header, row nodes)` is
+    /// written once every column is final. `Err(self)` when no thread starts.
+    fn spawn(self, cache: Option<(PathBuf, Vec<u8>, Vec<u32>)>) -> Result<(), Self> {
+        let job = Arc::new(self);
+        let worker = Arc::clone(&job);
+        let started = std::thread::Builder::new().name("fissure-compliance".into()).spawn(move || {
+            match worker.run(&mut |_, _| {}) {
+                Ok(()) => {
+                    tracing::info!("compliance: every column final after {:.1} s in the background", worker.fill.seconds());
+                    if let Some((path, header, row_nodes)) = cache {
+                        // SAFETY: every batch is final (run returned Ok); nothing writes any more.
+                        let sections = match &worker.values {
+                            Values::F64(d) => unsafe { dense_sections(d) },
+                            Values::F32(d) => unsafe { dense_sections(d) },
+                            Values::LowRank(_) => return,
+                        };
+                        match write_cache(&path, &header, &row_nodes, &sections) {
+                            Ok(()) => prune_cache_dir(&path, CACHE_DIR_BUDGET_BYTES),
+                            Err(e) => {
+                                let _ = std::fs::remove_file(tmp_path(&path));
+                                tracing::warn!("{e}; the compliance is used without a cache");
+                            }
+                        }
+                    }
+                }
+                Err(e) if worker.fill.is_cancelled() => tracing::debug!("compliance filling stopped: {e}"),
+                Err(e) => tracing::error!("compliance columns in the background: {e}"),
+            }
+        });
+        match started {
+            Ok(_) => Ok(()),
+            Err(e) => {
+                tracing::warn!("compliance thread did not start: {e}");
+                // The closure that held the other reference was dropped with the error.
+                Arc::try_unwrap(job).map_err(|job| job.fill.fail(format!("the compliance thread did not start: {e}")))
+                    .map_or(Ok(()), Err)
+            }
+        }
+    }
+
+    /// The storage of columns `cols` (one batch).
+    ///
+    /// # Safety
+    /// No other thread reads or writes these columns while the piece lives.
+    unsafe fn piece(&self, cols: std::ops::Range<usize>) -> Piece<'_> {
+        let (col_off, lo_off) = (&self.layout.col_off, &self.layout.lo_off);
+        let range = 9 * col_off[cols.start]..9 * col_off[cols.end];
+        // SAFETY: exclusive (the caller's promise).
+        unsafe {
+            match &self.values {
+                Values::F64(d) => Piece::F64(d.v.slice_mut(range)),
+                Values::F32(d) => Piece::F32(d.v.slice_mut(range), d.lo.slice_mut(9 * lo_off[cols.start]..9 * lo_off[cols.end])),
+                Values::LowRank(_) => unreachable!("low rank is not filled in batches"),
+            }
+        }
+    }
+
+    /// Solves columns `cols` (3 right-hand sides a node) and writes their
+    /// stored rows into `piece`, the storage of exactly those columns.
+    fn solve_batch(&self, cols: std::ops::Range<usize>, rhs: &mut faer::Mat<f64>, scratch: &mut faer::dyn_stack::MemBuffer, mut piece: Piece<'_>) {
+        let (j0, nb) = (cols.start, cols.len());
+        let row_dofs = &self.row_dofs;
+        rhs.fill(0.0);
+        for b in 0..nb {
+            let d = row_dofs[j0 + b];
+            for c in 0..3 {
+                rhs[(d + c, 3 * b + c)] = 1.0;
+            }
+        }
+        self.chol.solve_in_place(rhs.as_mut().subcols_mut(0, 3 * nb), scratch);
+        let (base, base_lo) = (self.layout.col_off[j0] * 9, self.layout.lo_off[j0] * 9);
+        for b in 0..nb {
+            let j = j0 + b;
+            let cols = [rhs.col(3 * b), rhs.col(3 * b + 1), rhs.col(3 * b + 2)];
+            let cols = cols.map(|c| c.try_as_col_major().map(|c| c.as_slice()).unwrap_or(&[]));
+            for (run, (r0, r1, off)) in self.layout.runs(j).into_iter().enumerate() {
+                let (start, count) = (off * 9 - base, (r1 - r0) * 9);
+                match &mut piece {
+                    Piece::F64(v) => fill_column(&mut v[start..start + count], &row_dofs[r0..r1], &cols, |x| x),
+                    Piece::F32(v, lo) => {
+                        fill_column(&mut v[start..start + count], &row_dofs[r0..r1], &cols, |x| split_f32(x).0);
+                        if run == 0 {
+                            let b = self.layout.lo_off[j] * 9 - base_lo;
+                            fill_column(&mut lo[b..b + count], &row_dofs[r0..r1], &cols, |x| split_f32(x).1);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The bytes of a dense storage as the cache file holds them.
+///
+/// # Safety
+/// Every batch is final.
+unsafe fn dense_sections<T: bytemuck::Pod>(d: &Dense<T>) -> Vec<&[u8]> {
+    // SAFETY: the caller's promise.
+    let (v, lo) = unsafe { d.all() };
+    let mut sections: Vec<&[u8]> = vec![bytemuck::cast_slice(v)];
+    if !lo.is_empty() {
+        sections.push(bytemuck::cast_slice(lo));
+    }
+    sections
+}
+
+/// Writes a cache file: header, row nodes, the storage's sections, then the
+/// blake3 of all of it; into a temporary file renamed at the end, so a
+/// reader never sees half a file.
+fn write_cache(path: &Path, header: &[u8], row_nodes: &[u32], sections: &[&[u8]]) -> Result<(), FemError> {
+    let err = |e: std::io::Error| FemError::Cache { path: path.to_path_buf(), reason: e.to_string() };
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(err)?;
+    }
+    let tmp = tmp_path(path);
+    let file = std::fs::File::create(&tmp).map_err(err)?;
+    let mut w = std::io::BufWriter::with_capacity(1 << 22, file);
+    let mut hasher = blake3::Hasher::new();
+    for bytes in [header, bytemuck::cast_slice(row_nodes)].into_iter().chain(sections.iter().copied()) {
+        hasher.update(bytes);
+        w.write_all(bytes).map_err(err)?;
+    }
+    let sum = *hasher.finalize().as_bytes();
+    w.write_all(&sum).map_err(err)?;
+    w.flush().map_err(err)?;
+    drop(w);
+    std::fs::rename(&tmp, path).map_err(err)?;
+    Ok(())
 }
 
 /// Threads for the precompute: one a core, as many as the memory for their
@@ -995,7 +1270,10 @@ impl<T: Copy> RowStore<T> {
 
     /// Makes `rows[k]` the row of `forces[k].0` (ascending): kept rows are moved,
     /// missing ones gathered. Returns how many were gathered.
-    fn prepare(&mut self, v: &[T], layout: &Layout, forces: &[(usize, Vec3)]) -> usize {
+    fn prepare<'a>(&mut self, region: &impl Fn(usize) -> (&'a [T], usize), layout: &Layout, forces: &[(usize, Vec3)]) -> usize
+    where
+        T: 'a,
+    {
         self.next_cols.clear();
         self.next_rows.clear();
         let mut gathered = 0;
@@ -1019,8 +1297,9 @@ impl<T: Copy> RowStore<T> {
                     // gathering stops allocating once the pool has grown.
                     row.reserve_exact(len.next_power_of_two());
                 }
+                let (v, base) = region(layout.row_comp[c] as usize);
                 for i in s..c {
-                    let o = (layout.col_off[i] + c - i) * 9;
+                    let o = (layout.col_off[i] + c - i - base) * 9;
                     row.extend_from_slice(&v[o..o + 9]);
                 }
                 row
@@ -1142,16 +1421,26 @@ fn upper_pattern(f: &Vec3) -> [f64; 9] {
 /// order. Plain multiplies and adds (no fused multiply-add): the SIMD and
 /// scalar builds give the same bits.
 #[inline(always)]
-fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
+fn accumulate_kernel<'a, T: Entry + 'a>(
+    region: &impl Fn(usize) -> (&'a [T], usize),
+    layout: &Layout,
+    forces: &[(usize, Vec3)],
+    rows: &[Vec<T>],
+    u: &mut [Vec3],
+    acc: &mut Vec<f64>,
+    chunk: usize,
+) {
     acc.clear();
     acc.resize(9 * chunk, 0.0);
-    let col_off = &layout.col_off;
-    for s in &layout.spans {
+    for (k, s) in layout.spans.iter().enumerate() {
         let f_lo = forces.partition_point(|f| f.0 < s[0]);
         let f_hi = forces.partition_point(|f| f.0 < s[1]);
         if f_lo == f_hi {
             continue;
         }
+        // This component's storage, from its first column's block `base` on.
+        let (v, base) = region(k);
+        let col_off = |c: usize| layout.col_off[c] - base;
         let fk = &forces[f_lo..f_hi];
         let rows_k = &rows[f_lo..f_hi];
         // Lower part, ROI rows: columns c <= r0 cover the chunk, r0 < c < r1 its rows from c on.
@@ -1165,13 +1454,13 @@ fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)
                 out,
                 n_full,
                 |i| {
-                    let o = 9 * (col_off[fk[i].0] + r0 - fk[i].0);
+                    let o = 9 * (col_off(fk[i].0) + r0 - fk[i].0);
                     &v[o..o + len]
                 },
                 |i| lower_pattern(&fk[i].1),
             );
             for &(c, f) in &fk[n_full..n_part] {
-                let o = 9 * col_off[c];
+                let o = 9 * col_off(c);
                 add_scaled_runs::<T, 1>(&mut out[9 * (c - r0)..], [&v[o..o + 9 * (r1 - c)]], [lower_pattern(&f)]);
             }
             flush_lower(&mut u[r0..r1], out);
@@ -1187,7 +1476,7 @@ fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)
                 fk.len(),
                 |i| {
                     let c = fk[i].0;
-                    let o = 9 * (col_off[c] + (s[1] - c) + (r0 - s[2]));
+                    let o = 9 * (col_off(c) + (s[1] - c) + (r0 - s[2]));
                     &v[o..o + len]
                 },
                 |i| lower_pattern(&fk[i].1),
@@ -1220,21 +1509,37 @@ fn accumulate_kernel<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn accumulate_avx2<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
-    accumulate_kernel(v, layout, forces, rows, u, acc, chunk)
+unsafe fn accumulate_avx2<'a, T: Entry + 'a>(
+    region: &impl Fn(usize) -> (&'a [T], usize),
+    layout: &Layout,
+    forces: &[(usize, Vec3)],
+    rows: &[Vec<T>],
+    u: &mut [Vec3],
+    acc: &mut Vec<f64>,
+    chunk: usize,
+) {
+    accumulate_kernel(region, layout, forces, rows, u, acc, chunk)
 }
 
 /// Dispatches the kernel to an AVX2 build when the CPU has it (runtime
 /// detection; no `RUSTFLAGS` needed). Both builds round identically. (An
 /// AVX-512 build measured no faster: the kernel waits on memory.)
-fn accumulate_impl<T: Entry>(v: &[T], layout: &Layout, forces: &[(usize, Vec3)], rows: &[Vec<T>], u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
+fn accumulate_impl<'a, T: Entry + 'a>(
+    region: &impl Fn(usize) -> (&'a [T], usize),
+    layout: &Layout,
+    forces: &[(usize, Vec3)],
+    rows: &[Vec<T>],
+    u: &mut [Vec3],
+    acc: &mut Vec<f64>,
+    chunk: usize,
+) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2 (checked just above).
-        unsafe { accumulate_avx2(v, layout, forces, rows, u, acc, chunk) };
+        unsafe { accumulate_avx2(region, layout, forces, rows, u, acc, chunk) };
         return;
     }
-    accumulate_kernel(v, layout, forces, rows, u, acc, chunk)
+    accumulate_kernel(region, layout, forces, rows, u, acc, chunk)
 }
 
 fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage) -> [u8; 32] {

@@ -1,0 +1,169 @@
+//! `solver.early_start`: the compliance's columns ordered by the blades' reach
+//! and computed in the background. A compliance read while it fills, and a
+//! solver that runs its frames meanwhile, give what a build that waits gives,
+//! bit for bit; the cache the background writes is the one the next start reads.
+
+#[path = "fem_common/mod.rs"]
+mod common;
+
+use common::*;
+use fissure::fem::{Compliance, ComplianceStorage, ComputeOptions, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution};
+use fissure::math::Vec3;
+use fissure::mesh::TetMesh;
+
+/// Two disjoint blocks side by side (two free components, as the real
+/// brain's hemispheres), each fixed at the bottom.
+fn two_blocks() -> TetMesh {
+    let a = block(6, 4, 4);
+    let offset = a.positions.len() as u32;
+    let mut positions = a.positions.clone();
+    positions.extend(a.positions.iter().map(|p| p + Vec3::new(0.1, 0.0, 0.0)));
+    let mut tets = a.tets.clone();
+    tets.extend(a.tets.iter().map(|t| t.map(|n| n + offset)));
+    TetMesh::new(positions, tets, vec![]).unwrap()
+}
+
+fn model() -> FemModel {
+    let mesh = two_blocks();
+    let fixed = bottom_fixed(&mesh);
+    FemModel::new(&mesh, &uniform(BRAIN), &fixed, &FemOptions::default()).unwrap()
+}
+
+/// A reach that is not the Morton order: distance (mm) from a point between the blocks.
+fn reach(model: &FemModel) -> Vec<u32> {
+    model.mesh().positions.iter().map(|p| ((p - Vec3::new(0.08, 0.02, 0.03)).norm() * 1e3) as u32).collect()
+}
+
+fn options<'a>(storage: ComplianceStorage, reach: &'a [u32], background: bool) -> ComputeOptions<'a> {
+    ComputeOptions { reach: Some(reach), background, ..ComputeOptions::new(storage) }
+}
+
+fn all_blocks(c: &Compliance) -> Vec<u64> {
+    let mut v = Vec::new();
+    for col in 0..c.column_count() {
+        for row in 0..c.row_nodes().len() {
+            v.extend(c.block(row, col).iter().map(|x| x.to_bits()));
+        }
+    }
+    v
+}
+
+#[test]
+fn a_compliance_read_while_it_fills_equals_one_built_first() {
+    let m = model();
+    let reach = reach(&m);
+    let roi = m.surface().vertices.clone();
+    for storage in [ComplianceStorage::F64, ComplianceStorage::F32] {
+        let waited = Compliance::compute_with(&m, &roi, options(storage, &reach, false), &mut |_, _| {}).unwrap();
+        assert_eq!(waited.fill_progress(), None);
+        let mut calls = Vec::new();
+        let filling = Compliance::compute_with(&m, &roi, options(storage, &reach, true), &mut |d, t| calls.push((d, t))).unwrap();
+        assert_eq!(calls, vec![(0, waited.column_count())], "{storage:?}: the build reports no columns and returns");
+        // Read at once: each read waits for the columns it needs.
+        assert_eq!(all_blocks(&filling), all_blocks(&waited), "{storage:?}: entries read while filling");
+        filling.wait_complete().unwrap();
+        assert_eq!(filling.fill_progress(), None);
+        assert!(filling.stats().compute_seconds > 0.0, "the filling's time is kept");
+        assert_eq!(filling.key(), waited.key());
+    }
+}
+
+#[test]
+fn columns_follow_the_reach_within_each_component() {
+    let m = model();
+    let reach = reach(&m);
+    let roi = m.surface().vertices.clone();
+    let c = Compliance::compute_with(&m, &roi, options(ComplianceStorage::F64, &reach, false), &mut |_, _| {}).unwrap();
+    let half = m.mesh().node_count() as u32 / 2;
+    let cols = &c.row_nodes()[..c.column_count()];
+    let split = cols.iter().position(|&n| n >= half).expect("both blocks in the ROI");
+    for part in [&cols[..split], &cols[split..]] {
+        assert!(part.windows(2).all(|w| reach[w[0] as usize] <= reach[w[1] as usize]), "a component's columns in reach order");
+    }
+    assert!(cols[split..].iter().all(|&n| n >= half), "components are not interleaved");
+    let morton = Compliance::compute(&m, &roi, ComplianceStorage::F64, None, &mut |_, _| {}).unwrap();
+    assert_ne!(morton.key(), c.key(), "the order is part of the cache key");
+}
+
+/// Pushes on the top of both blocks, more each frame.
+fn frame_constraints(m: &FemModel, frame: usize) -> Vec<Constraint> {
+    let d = 0.001 * (frame + 1) as f64;
+    m.mesh()
+        .positions
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| (p.z - 0.03).abs() < 1e-12 && (p.y - 0.02).abs() < 0.011 && ((p.x - 0.03).abs() < 0.011 || (p.x - 0.13).abs() < 0.011))
+        .map(|(n, p)| Constraint {
+            node: n as u32,
+            owner: u16::from(p.x > 0.08),
+            kind: ConstraintKind::Enforced { displacement: Vec3::new(0.2 * d, 0.0, -d) },
+        })
+        .collect()
+}
+
+#[test]
+fn frames_on_a_filling_compliance_equal_frames_on_a_finished_one() {
+    let mut results: Vec<Vec<FrameSolution>> = Vec::new();
+    for background in [false, true] {
+        let m = model();
+        let reach = reach(&m);
+        let roi = m.surface().vertices.clone();
+        let c = Compliance::compute_with(&m, &roi, options(ComplianceStorage::F32, &reach, background), &mut |_, _| {}).unwrap();
+        let mut solver = ConstrainedSolver::new(m, c).unwrap();
+        let mut frames = Vec::new();
+        for f in 0..4 {
+            let constraints = frame_constraints(solver.model(), f);
+            assert!(constraints.len() > 4, "the push holds several nodes");
+            let mut out = FrameSolution::default();
+            solver.step(&constraints, &mut out).unwrap();
+            frames.push(out);
+        }
+        results.push(frames);
+    }
+    for (a, b) in results[0].iter().zip(&results[1]) {
+        let bits = |s: &FrameSolution| -> Vec<u64> {
+            s.displacement_surface.iter().chain(&s.reactions).flat_map(|v| v.iter().map(|x| x.to_bits())).collect()
+        };
+        assert_eq!(bits(a), bits(b), "a frame's answers do not depend on when its columns became final");
+    }
+    assert!(results[0][3].max_displacement > 0.003);
+}
+
+#[test]
+fn the_cache_the_background_writes_is_read_at_the_next_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = model();
+    let reach = reach(&m);
+    let roi = m.surface().vertices.clone();
+    let opts = |background| ComputeOptions { cache_dir: Some(dir.path()), ..options(ComplianceStorage::F64, &reach, background) };
+    let first = Compliance::compute_with(&m, &roi, opts(true), &mut |_, _| {}).unwrap();
+    first.wait_complete().unwrap();
+    // The file is written after the last column, by the background thread.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    let written = loop {
+        let files: Vec<_> = std::fs::read_dir(dir.path()).unwrap().flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|e| e == "bin")).collect();
+        if !files.is_empty() || std::time::Instant::now() > deadline {
+            break files;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    assert_eq!(written.len(), 1, "one cache file, renamed into place when complete");
+    let second = Compliance::compute_with(&m, &roi, opts(true), &mut |_, _| {}).unwrap();
+    assert!(second.stats().from_cache, "the next start reads it");
+    assert_eq!(second.fill_progress(), None, "nothing left to fill");
+    assert_eq!(all_blocks(&second), all_blocks(&first));
+}
+
+#[test]
+fn a_compliance_dropped_while_it_fills_lets_go() {
+    let m = model();
+    let reach = reach(&m);
+    let roi = m.surface().vertices.clone();
+    for _ in 0..3 {
+        let c = Compliance::compute_with(&m, &roi, options(ComplianceStorage::F64, &reach, true), &mut |_, _| {}).unwrap();
+        drop(c);
+    }
+    // The filling threads stop after their batch; a new one still fills.
+    let c = Compliance::compute_with(&m, &roi, options(ComplianceStorage::F64, &reach, true), &mut |_, _| {}).unwrap();
+    c.wait_complete().unwrap();
+}
