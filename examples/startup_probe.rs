@@ -1,5 +1,9 @@
 //! Where a scene's start goes (model, factor, compliance) and what it keeps:
-//! `cargo run --release --example startup_probe -- config/real_brain/interhemispheric.ron [PATH=VALUE..]`.
+//! `cargo run --release --example startup_probe -- config/real_brain/interhemispheric.ron [PATH=VALUE..] [--background]`.
+//! With `--background` (and `solver.early_start: true`) the build returns
+//! before the columns are computed, as in the window; the probe then runs the
+//! scene's motion and says when its first frame was done, which frames waited
+//! for columns, and when the last column was final.
 use fissure::scenario::Scenario;
 use fissure::sim::replay::PoseSource;
 use fissure::sim::{BuildOptions, Pipeline};
@@ -13,7 +17,8 @@ fn peak_rss_mb() -> f64 {
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let path = args.get(1).map(String::as_str).unwrap_or("config/sylvian.ron");
-    let overrides: Vec<String> = args.iter().skip(2).cloned().collect();
+    let background = args.iter().any(|a| a == "--background");
+    let overrides: Vec<String> = args.iter().skip(2).filter(|a| *a != "--background").cloned().collect();
     let scenario = Scenario::load(Path::new(path), &overrides).expect("scenario");
     let source = PoseSource::for_scenario(&scenario, None).expect("trajectory");
     let t = Instant::now();
@@ -25,10 +30,47 @@ fn main() {
     };
     let (pipeline, _state) = Pipeline::build(
         &scenario,
-        BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: Some(&mut progress), ..BuildOptions::default() },
+        BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: Some(&mut progress), background_columns: background },
     )
     .expect("build");
     let total = t.elapsed().as_secs_f64();
+    if background {
+        // The scene's motion, frame after frame, as soon as the build returns.
+        let mut pipeline = pipeline;
+        let mut state = _state;
+        let mut input = fissure::sim::FrameInput::default();
+        let frames = (scenario.duration / scenario.time_step).round() as usize;
+        let (mut first_frame, mut slow, mut worst, mut complete_at) = (None, Vec::new(), 0.0f64, None);
+        for f in 1..=frames {
+            source.poses_at(f as f64 * scenario.time_step, &mut input);
+            let s = Instant::now();
+            pipeline.step(&mut state, &input).expect("frame");
+            let ms = s.elapsed().as_secs_f64() * 1e3;
+            first_frame.get_or_insert(t.elapsed().as_secs_f64());
+            worst = worst.max(ms);
+            if ms > 50.0 {
+                slow.push((f, ms));
+            }
+            if complete_at.is_none() && pipeline.solver().compliance().fill_progress().is_none() {
+                complete_at = Some((f, t.elapsed().as_secs_f64()));
+            }
+        }
+        let motion_end = t.elapsed().as_secs_f64();
+        pipeline.solver().compliance().wait_complete().expect("columns");
+        println!("build returned {total:.2} s; first frame done {:.2} s from start", first_frame.unwrap_or(f64::NAN));
+        println!(
+            "{frames} frames done {motion_end:.2} s from start; slowest {worst:.0} ms; {} frames over 50 ms: {:?}",
+            slow.len(),
+            slow.iter().take(12).map(|(f, ms)| format!("{f}: {ms:.0} ms")).collect::<Vec<_>>()
+        );
+        match complete_at {
+            Some((f, s)) => println!("every column final by frame {f} ({s:.2} s from start)"),
+            None => println!("every column final {:.2} s from start (after the motion)", t.elapsed().as_secs_f64()),
+        }
+        let cs = pipeline.solver().compliance().stats();
+        println!("compliance: rows {}, cols {}, {:.0} MB, filled in {:.2} s; peak RSS {:.0} MB", cs.rows, cs.cols, cs.bytes as f64 / 1e6, cs.compute_seconds, peak_rss_mb());
+        return;
+    }
     let model = pipeline.solver().model();
     let fs = model.stats();
     let cs = pipeline.solver().compliance().stats();

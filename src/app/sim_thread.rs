@@ -184,7 +184,14 @@ fn build(scenario: Scenario, shared: &SimShared) -> Result<Built, String> {
     };
     // With `solver.early_start` the columns are computed in the background
     // once the factor is done: the scene opens without waiting for them.
-    let built = Pipeline::build(&scenario, BuildOptions { progress: Some(&mut progress), background_columns: true, ..BuildOptions::default() });
+    // Blades that follow the trajectory: their path sets the `Auto` region of
+    // interest, as in a replay of the scene.
+    let follows = scenario.spatulas.iter().any(|s| matches!(s.input, InputBinding::Trajectory));
+    let expected_poses = match crate::sim::replay::PoseSource::for_scenario(&scenario, None) {
+        Ok(source) if follows => source.samples(scenario.duration, 200),
+        _ => Vec::new(),
+    };
+    let built = Pipeline::build(&scenario, BuildOptions { expected_poses, progress: Some(&mut progress), background_columns: true });
     bar.finish_and_clear();
     *lock(&shared.progress) = None;
     let (pipeline, state) = built.map_err(|e| e.to_string())?;

@@ -185,16 +185,18 @@ pub fn region_of_interest(
     }
 }
 
-/// Width of a reach shell beyond the poses a build is told about (m).
-const REACH_SHELL_M: f64 = 0.005;
+/// A blade "reaches" a node when the node is this close to the blade's
+/// centre line beyond its half width (m): about where contact begins.
+const REACH_MARGIN_M: f64 = 0.003;
+/// Width of the distance shells that order the nodes no blade reaches (m).
+const REACH_SHELL_M: f64 = 0.002;
 
 /// How soon a blade reaches each ROI node (per mesh node; `u32::MAX` off the
 /// ROI), which orders the compliance columns with `solver.early_start`: the
 /// index of the first pose set (the start, then the expected poses in time
-/// order) whose blades pass within the `Auto` region's reach of it
-/// (`width / 2 + AUTO_ROI_MARGIN_M` of the blade's centre line), else the
-/// number of sets plus its distance to the nearest blade at the start in
-/// shells of [`REACH_SHELL_M`].
+/// order) whose blades come within `width / 2 + REACH_MARGIN_M` of it, else
+/// the number of sets plus its least distance to a blade over all the sets
+/// in shells of [`REACH_SHELL_M`].
 fn reach_ranks(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], pose_sets: &[Vec<Pose>]) -> Vec<u32> {
     let segments: Vec<Vec<(Vec3, Vec3, f64)>> = pose_sets
         .iter()
@@ -204,7 +206,7 @@ fn reach_ranks(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], pose_sets: &[Ve
                 .map(|(pose, sp)| {
                     let a = pose.transform_point(&Vec3::zeros());
                     let b = pose.transform_point(&Vec3::new(sp.shape.length, 0.0, 0.0));
-                    (a, b, 0.5 * sp.shape.width + AUTO_ROI_MARGIN_M)
+                    (a, b, 0.5 * sp.shape.width)
                 })
                 .collect()
         })
@@ -212,12 +214,24 @@ fn reach_ranks(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], pose_sets: &[Ve
     let mut rank = vec![u32::MAX; mesh.node_count()];
     for &n in roi {
         let p = mesh.positions[n as usize];
-        let reached = segments.iter().position(|set| set.iter().any(|(a, b, r)| distance_to_segment(&p, a, b) <= *r));
+        let mut least = f64::INFINITY;
+        let mut reached = None;
+        for (k, set) in segments.iter().enumerate() {
+            for (a, b, half_width) in set {
+                let beyond = distance_to_segment(&p, a, b) - half_width;
+                least = least.min(beyond);
+                if beyond <= REACH_MARGIN_M {
+                    reached = Some(k);
+                }
+            }
+            if reached.is_some() {
+                break;
+            }
+        }
         rank[n as usize] = match reached {
             Some(k) => k as u32,
             None => {
-                let d = segments.first().into_iter().flatten().map(|(a, b, _)| distance_to_segment(&p, a, b)).fold(f64::INFINITY, f64::min);
-                let shells = if d.is_finite() { (d / REACH_SHELL_M).floor().min(1e6) as u32 } else { 1_000_000 };
+                let shells = if least.is_finite() { (least / REACH_SHELL_M).floor().clamp(0.0, 1e6) as u32 } else { 1_000_000 };
                 (segments.len() as u32).saturating_add(shells)
             }
         };

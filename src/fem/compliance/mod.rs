@@ -465,12 +465,7 @@ impl Compliance {
         if let Some(reach) = reach {
             order.sort_by_key(|&b| reach[self.row_nodes[starts[b]] as usize]);
         }
-        let mut threads = precompute_threads(n_free, starts.len());
-        if background {
-            // One core stays with the frames.
-            let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-            threads = threads.min(cores.saturating_sub(1)).max(1);
-        }
+        let threads = precompute_threads(n_free, starts.len());
         // The stored entries plus every thread's right-hand sides.
         let entry_bytes = if storage == ComplianceStorage::F32 { 4 } else { 8 };
         let need = len * entry_bytes
@@ -493,7 +488,7 @@ impl Compliance {
         };
         let fill = Arc::new(Fill::new(&self.layout, self.n_cols, &starts));
         let row_dofs: Vec<usize> = self.row_nodes.iter().map(|&n| model.dofs.dof(n).unwrap_or(0)).collect();
-        Ok(FillJob { chol: Arc::clone(&model.chol), n_free, row_dofs, layout: Arc::clone(&self.layout), values, order, fill, threads })
+        Ok(FillJob { chol: Arc::clone(&model.chol), n_free, row_dofs, layout: Arc::clone(&self.layout), values, order, fill, threads, background })
     }
     /// Statistics of the last build or load.
     pub fn stats(&self) -> ComplianceStats {
@@ -947,6 +942,8 @@ struct FillJob {
     order: Vec<usize>,
     fill: Arc<Fill>,
     threads: usize,
+    /// Filling beside the frames: its threads run at a lower priority.
+    background: bool,
 }
 
 impl FillJob {
@@ -961,6 +958,9 @@ impl FillJob {
             for _ in 0..self.threads {
                 let (next, done_tx) = (&next, done_tx.clone());
                 scope.spawn(move || {
+                    if self.background {
+                        lower_thread_priority();
+                    }
                     let work = || -> Result<(), FemError> {
                         let mut rhs = faer::Mat::<f64>::zeros(self.n_free, 3 * BATCH_NODES);
                         let mut scratch = self.chol.scratch(3 * BATCH_NODES)?;
@@ -1094,6 +1094,23 @@ impl FillJob {
                     }
                 }
             }
+        }
+    }
+}
+
+/// Makes the calling thread yield to the frames: Linux nice 10 for this
+/// thread alone (on Linux a thread's nice value is its own). A hint: where it
+/// is refused, or elsewhere, the thread keeps the default priority.
+fn lower_thread_priority() {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: plain system calls on the calling thread's own id.
+        let refused = unsafe {
+            let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
+            libc::setpriority(libc::PRIO_PROCESS, tid, 10) != 0
+        };
+        if refused {
+            tracing::debug!("compliance filling thread: lower priority refused");
         }
     }
 }
