@@ -470,12 +470,20 @@ impl ConstrainedSolver {
         self.collect_candidates(constraints);
         self.touch_candidate_columns();
         let lazy_before = self.lazy_computed;
-        // Candidates that are neither surface nor ROI rows need their own columns to be
-        // evaluated; ROI candidates need theirs final (a W entry between two ROI nodes
-        // is read from the earlier column).
+        // ROI candidates need their columns final (a W entry between two ROI
+        // nodes is read from the earlier column): at once unless they are
+        // still computed in the background.
+        let t = std::time::Instant::now();
+        for c in &self.candidates {
+            if let Some(col) = self.compliance.col_of(c.node) {
+                self.compliance.wait_column(col)?;
+            }
+        }
+        self.timings.lazy += t.elapsed().as_secs_f64();
+        // Candidates that are neither surface nor ROI rows need their own columns to be evaluated.
         let mut extra: Vec<u32> = Vec::new();
         for c in &self.candidates {
-            if self.compliance.row_of(c.node).is_none() || self.compliance.col_of(c.node).is_some() {
+            if self.compliance.row_of(c.node).is_none() {
                 extra.push(c.node);
             }
         }
