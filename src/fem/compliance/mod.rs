@@ -396,6 +396,7 @@ impl Compliance {
                     }
                 }
             } else {
+                progress(0, n_cols);
                 job.run(progress)?;
             }
         }
