@@ -60,6 +60,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let t: Vec<_> = c.output().targets.iter().filter(|t| t.vertex as usize == v).map(|t| (t.spatula, t.face, t.depth * 1e3)).collect();
                     println!("    targets (spatula, face, depth mm): {t:?}");
                 }
+                let q0 = poses_before[s].rotation.inverse_transform_vector(&(before[v] - poses_before[s].position));
+                println!("    at the frame's start: blade frame {:.4?} mm", q0 * 1e3);
                 let fixed = p.solver().model().is_fixed(node);
                 println!(
                     "  spatula {s} vertex {v} (node {node}{}): rest {:.3?} mm, blade frame {:.4?} mm, depth {:.4} mm, |u| {:.3} mm, rows {:?}",

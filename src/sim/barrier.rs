@@ -113,13 +113,19 @@ fn over_footprint(shape: &SpatulaShape, q: &Vec3, margin: f64) -> bool {
     q.x >= -margin && q.x <= shape.length + margin && q.y.abs() <= 0.5 * shape.width + margin
 }
 
-/// The blade's end face (tip at `x = length`, or a side edge at `y = ±width/2`)
-/// that separates a point off the footprint (`q`, blade frame of `pose`) from
-/// the blade, when the point lies within `band` of it and nearer that face's
-/// plane than a broad face's (`|z| - thickness/2` smaller than its distance
-/// beyond the end): outward normal and a point of the plane, world. `None` for
-/// points behind the blade's base (the shaft continues there), farther than
-/// `band`, or diagonally off a corner of the broad faces.
+/// The plane that separates a point off the footprint (`q`, blade frame of
+/// `pose`) from the blade, when the point lies within `band` beyond the tip
+/// (`x = length`) or a side edge (`y = ±width/2`): outward normal and a point
+/// of the plane, world. Nearer that end face's plane than a broad face's
+/// (`|z| - thickness/2` at most its distance beyond the end): the end face's
+/// plane. Diagonally off an edge (farther beyond a broad face's plane than
+/// beyond the end, and within `band` of it): the plane touching the blade at
+/// its nearest point, normal from there to the point, so the vertex may pass
+/// beside or below the edge but not into it (without it a vertex 0.2 mm below
+/// a face and a hair beside its edge got no row and ended 0.09 mm inside the
+/// blade: the fine real brain, a flap swinging back when the blades stopped).
+/// `None` for points behind the blade's base (the shaft continues there) or
+/// farther than `band`.
 fn end_face(shape: &SpatulaShape, pose: &Pose, q: &Vec3, band: f64) -> Option<(Vec3, Vec3)> {
     if q.x < 0.0 {
         return None;
@@ -127,8 +133,17 @@ fn end_face(shape: &SpatulaShape, pose: &Pose, q: &Vec3, band: f64) -> Option<(V
     let beyond_tip = q.x - shape.length;
     let beyond_side = q.y.abs() - 0.5 * shape.width;
     let beyond = beyond_tip.max(beyond_side);
-    if beyond <= 0.0 || beyond > band || q.z.abs() - 0.5 * shape.thickness > beyond {
+    if beyond <= 0.0 || beyond > band {
         return None;
+    }
+    let (half_l, half_w, half_t) = (shape.length, 0.5 * shape.width, 0.5 * shape.thickness);
+    if q.z.abs() - half_t > beyond {
+        if q.z.abs() - half_t > band {
+            return None;
+        }
+        let nearest = Vec3::new(q.x.clamp(0.0, half_l), q.y.clamp(-half_w, half_w), q.z.clamp(-half_t, half_t));
+        let n_local = (q - nearest).normalize();
+        return Some((pose.rotation * n_local, pose.position + pose.rotation * nearest));
     }
     let (n_local, p_local) = if beyond_tip >= beyond_side {
         (Vec3::x(), Vec3::new(shape.length, 0.0, 0.0))
@@ -376,12 +391,13 @@ mod tests {
         let start = [
             Vec3::new(0.04001, 0.001, -0.0001), // 0.01 mm past the tip, inside the slab: the tip
             Vec3::new(0.02, -0.0052, 0.0002),   // 0.2 mm beside the -y edge: that edge
-            Vec3::new(0.0403, 0.0, 0.0015),     // past the tip but 1 mm above the +z face: diagonal, none
+            Vec3::new(0.0403, 0.0, 0.0015),     // past the tip but 1 mm above the +z face: the tip's edge
             Vec3::new(-0.001, 0.0, 0.0),        // behind the base (the shaft): none
             Vec3::new(0.045, 0.0, 0.0),         // 5 mm past the tip: outside the band
+            Vec3::new(0.0403, 0.0, 0.0031),     // past the tip and 2.6 mm above the face: outside the band
         ];
         let out = rows(at(0.0), at(0.0), &start, &[]);
-        assert_eq!(out.len(), 2, "{out:?}");
+        assert_eq!(out.len(), 3, "{out:?}");
         let ConstraintKind::Barrier { displacement, normal } = out[0].kind else { panic!() };
         assert_eq!(out[0].node, 10);
         assert!((normal - Vec3::x()).norm() < 1e-15, "the tip's plane, got {normal:?}");
@@ -389,6 +405,25 @@ mod tests {
         let ConstraintKind::Barrier { normal, .. } = out[1].kind else { panic!() };
         assert_eq!(out[1].node, 11);
         assert!((normal + Vec3::y()).norm() < 1e-15, "the -y edge's plane, got {normal:?}");
+        let ConstraintKind::Barrier { displacement, normal } = out[2].kind else { panic!() };
+        assert_eq!(out[2].node, 12);
+        let expected = Vec3::new(0.3, 0.0, 1.0).normalize();
+        assert!((normal - expected).norm() < 1e-12, "from the tip's upper edge towards the vertex, got {normal:?}");
+        // The plane touches the edge (x = 40 mm, z = 0.5 mm): the vertex is |(0.3, 1.0)| mm in front of it.
+        assert!((normal.dot(&displacement) + 0.3f64.hypot(1.0) * 1e-3).abs() < 1e-12, "n . g = {}", normal.dot(&displacement));
+    }
+
+    #[test]
+    fn a_vertex_below_a_face_a_hair_beside_its_edge_cannot_enter_the_blade() {
+        // The fine real brain's flap: 0.23 mm below the -z face, 1e-8 m beside the -y edge.
+        let start = [Vec3::new(0.02, -0.005 - 1e-8, -0.0005 - 0.00023)];
+        let out = rows(at(0.0), at(0.0), &start, &[]);
+        assert_eq!(out.len(), 1, "{out:?}");
+        let ConstraintKind::Barrier { displacement, normal } = out[0].kind else { panic!() };
+        assert!(normal.z < -0.999 && normal.y < 0.0, "from the lower edge, nearly straight down: {normal:?}");
+        // Moving 0.32 mm up and 0.12 mm inwards (what it did) violates the row.
+        let moved = Vec3::new(0.0, 0.00012, 0.00032);
+        assert!(normal.dot(&moved) < normal.dot(&displacement), "the row stops that move");
     }
 
     #[test]
