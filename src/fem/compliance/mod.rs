@@ -706,7 +706,7 @@ impl Compliance {
                 let t = Instant::now();
                 workspace.gathered = workspace.rows64.prepare(&region, layout, forces);
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(&region, layout, forces, &workspace.rows64.rows, u, &mut workspace.acc, chunk)
+                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows64.rows }, u, &mut workspace.acc, chunk)
             }
             Values::F32(d) => {
                 let region = |k: usize| {
@@ -716,7 +716,7 @@ impl Compliance {
                 let t = Instant::now();
                 workspace.gathered = workspace.rows32.prepare(&region, layout, forces);
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(&region, layout, forces, &workspace.rows32.rows, u, &mut workspace.acc, chunk)
+                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows32.rows }, u, &mut workspace.acc, chunk)
             }
             Values::LowRank(b) => b.accumulate(forces, u, &mut workspace.acc),
         }
@@ -1439,15 +1439,8 @@ fn upper_pattern(f: &Vec3) -> [f64; 9] {
 /// order. Plain multiplies and adds (no fused multiply-add): the SIMD and
 /// scalar builds give the same bits.
 #[inline(always)]
-fn accumulate_kernel<'a, T: Entry + 'a>(
-    region: &impl Fn(usize) -> (&'a [T], usize),
-    layout: &Layout,
-    forces: &[(usize, Vec3)],
-    rows: &[Vec<T>],
-    u: &mut [Vec3],
-    acc: &mut Vec<f64>,
-    chunk: usize,
-) {
+fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
+    let Product { region, layout, forces, rows } = p;
     acc.clear();
     acc.resize(9 * chunk, 0.0);
     for (k, s) in layout.spans.iter().enumerate() {
@@ -1527,37 +1520,39 @@ fn accumulate_kernel<'a, T: Entry + 'a>(
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn accumulate_avx2<'a, T: Entry + 'a>(
-    region: &impl Fn(usize) -> (&'a [T], usize),
-    layout: &Layout,
-    forces: &[(usize, Vec3)],
-    rows: &[Vec<T>],
-    u: &mut [Vec3],
-    acc: &mut Vec<f64>,
-    chunk: usize,
-) {
-    accumulate_kernel(region, layout, forces, rows, u, acc, chunk)
+unsafe fn accumulate_avx2<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
+    accumulate_kernel(p, u, acc, chunk)
 }
+
+/// What the surface product reads: each component's storage (`region(k)`:
+/// its final columns and the block offset of their first entry), the layout,
+/// the forces `(column, F)` ascending, and the gathered upper rows of the
+/// forced columns (`rows[k]` for `forces[k]`).
+struct Product<'p, R, T> {
+    region: &'p R,
+    layout: &'p Layout,
+    forces: &'p [(usize, Vec3)],
+    rows: &'p [Vec<T>],
+}
+
+impl<R, T> Clone for Product<'_, R, T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<R, T> Copy for Product<'_, R, T> {}
 
 /// Dispatches the kernel to an AVX2 build when the CPU has it (runtime
 /// detection; no `RUSTFLAGS` needed). Both builds round identically. (An
 /// AVX-512 build measured no faster: the kernel waits on memory.)
-fn accumulate_impl<'a, T: Entry + 'a>(
-    region: &impl Fn(usize) -> (&'a [T], usize),
-    layout: &Layout,
-    forces: &[(usize, Vec3)],
-    rows: &[Vec<T>],
-    u: &mut [Vec3],
-    acc: &mut Vec<f64>,
-    chunk: usize,
-) {
+fn accumulate_impl<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2 (checked just above).
-        unsafe { accumulate_avx2(region, layout, forces, rows, u, acc, chunk) };
+        unsafe { accumulate_avx2(p, u, acc, chunk) };
         return;
     }
-    accumulate_kernel(region, layout, forces, rows, u, acc, chunk)
+    accumulate_kernel(p, u, acc, chunk)
 }
 
 fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage) -> [u8; 32] {
