@@ -125,6 +125,9 @@ pub struct Snapshot {
     /// What moved each blade this frame (the window's simulation thread
     /// fills it; empty elsewhere).
     pub drivers: Vec<crate::input::drivers::Driver>,
+    /// The blade a `--script` made active (it drives the keys then; `None`
+    /// without a script: the window's own keyboard says which).
+    pub scripted_spatula: Option<usize>,
 }
 
 /// Per-surface-vertex areas (a third of each adjacent rest triangle), m^2, for

@@ -522,6 +522,7 @@ fn run_loop(
         // Poses from the bindings.
         let live = *lock(&shared.input);
         let keyboard = if scripted { script_keys.command() } else { live.keyboard };
+        back.scripted_spatula = scripted.then_some(keyboard.spatula);
         input.poses.clear();
         back.drivers.clear();
         taken_over.resize(b.scenario.spatulas.len(), false);

@@ -482,7 +482,7 @@ impl App {
         // The panel.
         let raw = gpu.egui_state.take_egui_input(&gpu.window);
         let mut data = panel_data_of(&self.front, self.fps_window.2);
-        data.active_spatula = self.keyboard.spatula;
+        data.active_spatula = self.front.scripted_spatula.unwrap_or(self.keyboard.spatula);
         data.keys_to_scene = self.keys_to_scene;
         let mut actions = Vec::new();
         let previous_culling = self.panel.culling;

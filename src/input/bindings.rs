@@ -156,7 +156,7 @@ pub struct ControlRow {
 pub const CONTROLS: &[ControlRow] = &[
     ControlRow {
         input: "W / S, D / A, E / Q",
-        action: "move the active blade along it, across it, through it (E opens the fissure)",
+        action: "move the active blade along it, across it, through it (E towards its +z face; in the default scene both blades face up, so E lifts and Q lowers: E opens with the frontal blade, Q with the temporal one)",
         keys: &["W", "S", "D", "A", "E", "Q"],
     },
     ControlRow {

@@ -13,7 +13,7 @@
 //! |---|---|---|
 //! | left stick x [LeftStickX] | +y across the blade | roll about x (blade axis) |
 //! | left stick y [LeftStickY] | +x along the blade (push = towards the tip) | pitch about y |
-//! | right trigger − left trigger [RightTrigger2, LeftTrigger2] | +z through the blade (opens the fissure) | yaw about z |
+//! | right trigger − left trigger [RightTrigger2, LeftTrigger2] | +z through the blade (towards its +z face: opens the fissure with an upper blade, closes it with a lower blade facing the same way) | yaw about z |
 //! | right stick [RightStickX/Y] | camera orbit (yaw, pitch) | camera orbit |
 //! | A [South] | toggle translate / rotate | |
 //! | LB [LeftTrigger] | select the spatula on the left of the screen (at the press) | |

@@ -13,7 +13,7 @@
 //! |---|---|
 //! | W / S | +x / -x: along the blade, towards / away from the tip |
 //! | D / A | +y / -y: across the blade |
-//! | E / Q | +z / -z: through the blade (opens / closes the fissure) |
+//! | E / Q | +z / -z: through the blade, towards its +z / -z face |
 //! | Up / Down | pitch about y, + / - |
 //! | Right / Left | yaw about z, + / - |
 //! | Page Up / Page Down | roll about x (blade axis), + / - |
