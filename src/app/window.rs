@@ -484,6 +484,7 @@ impl App {
         let mut data = panel_data_of(&self.front, self.fps_window.2);
         data.active_spatula = self.front.scripted_spatula.unwrap_or(self.keyboard.spatula);
         data.keys_to_scene = self.keys_to_scene;
+        data.has_skull = !self.scene.skull.is_empty();
         let mut actions = Vec::new();
         let previous_culling = self.panel.culling;
         let mut backend = self.backend;

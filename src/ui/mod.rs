@@ -162,11 +162,13 @@ pub struct PanelData {
     pub active_spatula: usize,
     /// True when keys drive the scene, false while the panel's text field has them.
     pub keys_to_scene: bool,
+    /// The scene has skull spheres to show (else their switch is greyed out).
+    pub has_skull: bool,
 }
 
 impl Default for PanelData {
     fn default() -> Self {
-        Self { fps: 0.0, sim_frame_ms: 0.0, spatulas: Vec::new(), active_spatula: 0, keys_to_scene: true }
+        Self { fps: 0.0, sim_frame_ms: 0.0, spatulas: Vec::new(), active_spatula: 0, keys_to_scene: true, has_skull: false }
     }
 }
 
@@ -309,7 +311,8 @@ pub fn draw_panel(
             ui.add(egui::Slider::new(&mut state.pressure_max_mmhg, 1.0..=1000.0).logarithmic(true).text("pressure bar top (mmHg)"));
             ui.checkbox(&mut state.show_source_nodes, "source nodes");
             ui.checkbox(&mut state.show_pairs, "pairs (feasible / culled)");
-            ui.checkbox(&mut state.show_skull, "skull spheres");
+            ui.add_enabled(data.has_skull, egui::Checkbox::new(&mut state.show_skull, "skull spheres"))
+                .on_disabled_hover_text("this scene has no skull spheres");
             ui.checkbox(&mut state.culling, "His-flag culling");
             ui.separator();
             ui.horizontal(|ui| {
