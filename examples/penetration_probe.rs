@@ -31,6 +31,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let over = |q: &Vec3| q.x >= 0.0 && q.x <= shape.length && q.y.abs() <= 0.5 * shape.width;
                     if over(&q1) && q0.z.signum() != q1.z.signum() && (over(&q0) || q0.z.abs() < shape.thickness) {
                         println!("  spatula {s} vertex {v}: frame start {:.4?} mm -> end {:.4?} mm (blade frames), rest {:.3?} mm", q0 * 1e3, q1 * 1e3, p.rest_positions()[v] * 1e3);
+                        let node = p.surface().vertices[v];
+                        for c in p.last_constraints().iter().filter(|c| c.node == node) {
+                            println!("    row: owner {} {:?}", c.owner, c.kind);
+                        }
+                        if let Some(c) = p.collision() {
+                            let t: Vec<_> = c.output().targets.iter().filter(|t| t.vertex as usize == v).map(|t| (t.spatula, t.face, t.depth * 1e3)).collect();
+                            println!("    targets (spatula, face, depth mm): {t:?}");
+                        }
                     }
                 }
             }
