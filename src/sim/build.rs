@@ -151,14 +151,8 @@ pub fn region_of_interest(
             surface_nodes.iter().copied().filter(|&n| (mesh.positions[n as usize] - s.center).norm() <= s.radius).collect()
         }
         RegionOfInterest::Auto => {
-            let mut segments = Vec::new();
-            for set in poses {
-                for (pose, sp) in set.iter().zip(&scenario.spatulas) {
-                    let a = pose.transform_point(&Vec3::zeros());
-                    let b = pose.transform_point(&Vec3::new(sp.shape.length, 0.0, 0.0));
-                    segments.push((a, b, 0.5 * sp.shape.width + AUTO_ROI_MARGIN_M));
-                }
-            }
+            let segments: Vec<(Vec3, Vec3, f64)> =
+                poses.iter().flat_map(|set| blade_segments(scenario, set)).map(|(a, b, w)| (a, b, w + AUTO_ROI_MARGIN_M)).collect();
             let mut roi: Vec<u32> = surface_nodes
                 .iter()
                 .copied()
@@ -185,6 +179,13 @@ pub fn region_of_interest(
     }
 }
 
+/// Each blade of a pose set as its centre line (handle end, tip) and half width.
+fn blade_segments<'a>(scenario: &'a Scenario, set: &'a [Pose]) -> impl Iterator<Item = (Vec3, Vec3, f64)> + 'a {
+    set.iter().zip(&scenario.spatulas).map(|(pose, sp)| {
+        (pose.transform_point(&Vec3::zeros()), pose.transform_point(&Vec3::new(sp.shape.length, 0.0, 0.0)), 0.5 * sp.shape.width)
+    })
+}
+
 /// A blade "reaches" a node when the node is this close to the blade's
 /// centre line beyond its half width (m): about where contact begins.
 const REACH_MARGIN_M: f64 = 0.003;
@@ -198,19 +199,7 @@ const REACH_SHELL_M: f64 = 0.002;
 /// the number of sets plus its least distance to a blade over all the sets
 /// in shells of [`REACH_SHELL_M`].
 fn reach_ranks(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], pose_sets: &[Vec<Pose>]) -> Vec<u32> {
-    let segments: Vec<Vec<(Vec3, Vec3, f64)>> = pose_sets
-        .iter()
-        .map(|set| {
-            set.iter()
-                .zip(&scenario.spatulas)
-                .map(|(pose, sp)| {
-                    let a = pose.transform_point(&Vec3::zeros());
-                    let b = pose.transform_point(&Vec3::new(sp.shape.length, 0.0, 0.0));
-                    (a, b, 0.5 * sp.shape.width)
-                })
-                .collect()
-        })
-        .collect();
+    let segments: Vec<Vec<(Vec3, Vec3, f64)>> = pose_sets.iter().map(|set| blade_segments(scenario, set).collect()).collect();
     let mut rank = vec![u32::MAX; mesh.node_count()];
     for &n in roi {
         let p = mesh.positions[n as usize];
