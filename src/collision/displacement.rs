@@ -153,7 +153,17 @@ impl OtherSide<'_> {
         // Over the footprint grown by one thickness (a vertex at the blade's edge is claimed through its triangle).
         let m = shape.thickness;
         let over = q.x >= -m && q.x <= shape.length + m && q.y.abs() <= 0.5 * shape.width + m;
-        over && side <= -0.5 * shape.thickness + tol
+        // At or beyond the other face, give or take a thousandth of the thickness:
+        // a vertex held on that face sits on its plane only to the solver's
+        // accuracy (f32 compliance rows, a few nm on a brain), more than the
+        // contact tolerance (1e-6 of the thickness). At a blade's tip on the fine
+        // real brain (blades 18 mm deep), a vertex held on the upper face 1 nm
+        // inside the slab was claimed by the lower face's ray through its
+        // triangle and went 5.6 mm through the blade in one frame. (A quarter
+        // thickness also fixed it but gave the other face vertices that had
+        // really crossed three quarters of a fast blade, changing the study's
+        // answers widely; a thousandth changes only its culling-off row.)
+        over && side <= -0.5 * shape.thickness + (1e-3 * shape.thickness).max(tol)
     }
 }
 
@@ -210,6 +220,25 @@ mod tests {
         // Without the previous pose the rule is off and the claim goes through.
         resolve_targets(&[[0, 1, 2]], &current, &current, &rays, &feasible, &[0, 1], &[1e-6], &NO_PREVIOUS, &mut claims, &mut targets);
         assert_eq!(targets.len(), 3);
+    }
+
+    #[test]
+    fn a_vertex_held_on_the_other_face_to_the_solvers_accuracy_stays_there() {
+        use crate::geometry::{Pose, SpatulaShape};
+        // The fine real brain's case: a 0.5 mm blade moving up 0.0525 mm a frame;
+        // at the previous pose the vertex sat on the +z face 1 nm inside the slab
+        // (the solver holds it on the plane only that well), near the tip.
+        let shapes = [SpatulaShape { length: 0.06, width: 0.008, thickness: 0.0005 }];
+        let previous = [Pose::default()];
+        let tol = 1e-6 * 0.0005;
+        let other = OtherSide { shapes: &shapes, previous: Some(&previous), tolerances: &[tol] };
+        let v = Vec3::new(0.0576, 0.0, 0.00025 - 1e-9);
+        // Seen from the -z face at the new pose (0.0525 mm higher): 0.4475 mm behind, past the mid-plane.
+        assert!(other.holds(0, 1, &v, 0.0004475), "the +z face's vertex is not the -z face's to claim");
+        // A vertex in front of the -z face at the previous pose stays the -z face's.
+        assert!(!other.holds(0, 1, &Vec3::new(0.0576, 0.0, -0.0003), 0.0004475));
+        // One that had crossed most of the blade (10 um short of the +z face) is not held by the +z face.
+        assert!(!other.holds(0, 1, &Vec3::new(0.0576, 0.0, 0.00025 - 1e-5), 0.0004475));
     }
 
     #[test]
