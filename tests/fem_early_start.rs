@@ -148,10 +148,105 @@ fn the_cache_the_background_writes_is_read_at_the_next_start() {
         std::thread::sleep(std::time::Duration::from_millis(20));
     };
     assert_eq!(written.len(), 1, "one cache file, renamed into place when complete");
+    let written_at = std::fs::metadata(&written[0]).unwrap().len();
+    // The next start reads it in the background, batch by batch.
     let second = Compliance::compute_with(&m, &roi, opts(true), &mut |_, _| {}).unwrap();
+    assert_eq!(all_blocks(&second), all_blocks(&first), "read while it loads, equal bit for bit");
+    second.wait_complete().unwrap();
     assert!(second.stats().from_cache, "the next start reads it");
     assert_eq!(second.fill_progress(), None, "nothing left to fill");
     assert_eq!(all_blocks(&second), all_blocks(&first));
+    assert_eq!(std::fs::metadata(&written[0]).unwrap().len(), written_at);
+}
+
+/// Four constrained frames, then every node's displacement (a solve with the factor).
+fn run_frames(m: FemModel, c: Compliance) -> (Vec<FrameSolution>, Vec<Vec3>) {
+    let mut solver = ConstrainedSolver::new(m, c).unwrap();
+    let mut frames = Vec::new();
+    for f in 0..4 {
+        let constraints = frame_constraints(solver.model(), f);
+        let mut out = FrameSolution::default();
+        solver.step(&constraints, &mut out).unwrap();
+        frames.push(out);
+    }
+    let mut interior = Vec::new();
+    solver.interior_displacements(&mut interior).unwrap();
+    solver.compliance().wait_complete().unwrap();
+    (frames, interior)
+}
+
+fn solution_bits(frames: &[FrameSolution], interior: &[Vec3]) -> Vec<u64> {
+    frames
+        .iter()
+        .flat_map(|s| s.displacement_surface.iter().chain(&s.reactions))
+        .chain(interior)
+        .flat_map(|v| v.iter().map(|x| x.to_bits()))
+        .collect()
+}
+
+/// A start from the cache: the model's factor is not made before the first
+/// frame (`FemModel::new_deferred`) and the columns are read in the
+/// background; the frames and a solve with the factor equal those of a
+/// model factored first and a compliance computed first, bit for bit.
+#[test]
+fn a_start_from_the_cache_without_the_factor_first_gives_the_same_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = model();
+    let reach = reach(&m);
+    let roi = m.surface().vertices.clone();
+    let opts = |background| ComputeOptions { cache_dir: Some(dir.path()), ..options(ComplianceStorage::F32, &reach, background) };
+    let computed = Compliance::compute_with(&m, &roi, opts(false), &mut |_, _| {}).unwrap();
+    assert!(!computed.stats().from_cache);
+    let (frames, interior) = run_frames(m, computed);
+    assert!(frames[3].max_displacement > 0.003);
+
+    let mesh = two_blocks();
+    let deferred = FemModel::new_deferred(&mesh, &uniform(BRAIN), &bottom_fixed(&mesh), &FemOptions::default()).unwrap();
+    let loaded = Compliance::compute_with(&deferred, &roi, opts(true), &mut |_, _| {}).unwrap();
+    let (frames2, interior2) = run_frames(deferred, loaded);
+    assert_eq!(solution_bits(&frames, &interior), solution_bits(&frames2, &interior2));
+}
+
+/// One corrupt byte costs one batch: it is computed again (the others are
+/// read), the answers are those of the file before, and the file is rewritten.
+#[test]
+fn a_corrupt_batch_is_computed_again_and_the_file_rewritten() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = model();
+    let reach = reach(&m);
+    let roi = m.surface().vertices.clone();
+    for storage in [ComplianceStorage::F64, ComplianceStorage::F32] {
+        for background in [false, true] {
+            let opts = ComputeOptions { cache_dir: Some(dir.path()), ..options(storage, &reach, background) };
+            let first = Compliance::compute_with(&m, &roi, ComputeOptions { background: false, ..opts }, &mut |_, _| {}).unwrap();
+            let file = std::fs::read_dir(dir.path())
+                .unwrap()
+                .flatten()
+                .map(|e| e.path())
+                .find(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with(&format!("compliance-{}", hex16(&first.key())))))
+                .expect("the cache file");
+            let mut bytes = std::fs::read(&file).unwrap();
+            let at = bytes.len() * 3 / 4;
+            bytes[at] ^= 0x10;
+            std::fs::write(&file, &bytes).unwrap();
+            let again = Compliance::compute_with(&m, &roi, opts, &mut |_, _| {}).unwrap();
+            again.wait_complete().unwrap();
+            assert!(!again.stats().from_cache, "{storage:?}: a corrupt batch is not read");
+            assert_eq!(all_blocks(&again), all_blocks(&first), "{storage:?}: the batch computed again equals the one written");
+            // The rewrite (by the filling thread, in the background) puts the byte back.
+            let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+            while std::fs::read(&file).map(|b| b[at] == bytes[at]).unwrap_or(true) && std::time::Instant::now() < deadline {
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+            let third = Compliance::compute_with(&m, &roi, ComputeOptions { background: false, ..opts }, &mut |_, _| {}).unwrap();
+            assert!(third.stats().from_cache, "{storage:?}: the rewritten file is read");
+            assert_eq!(all_blocks(&third), all_blocks(&first));
+        }
+    }
+}
+
+fn hex16(key: &[u8; 32]) -> String {
+    key[..16].iter().map(|b| format!("{b:02x}")).collect()
 }
 
 #[test]

@@ -15,7 +15,7 @@
 
 use super::assembly::DofMap;
 use super::constrained::displacements_from_forces;
-use super::factor::SparseCholesky;
+use super::factor::LazyFactor;
 use super::stress::{ElementStress, tet_stress};
 use super::{FemError, FemModel};
 use crate::math::Vec3;
@@ -24,7 +24,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 
 /// What the worker keeps of the model.
 struct Inputs {
-    chol: Arc<SparseCholesky>,
+    chol: Arc<LazyFactor>,
     dofs: DofMap,
     body_force: Vec<f64>,
     mesh: TetMesh,
@@ -167,14 +167,19 @@ fn work(inputs: &Inputs, shared: &Shared) {
                 x = shared.1.wait(x).unwrap_or_else(std::sync::PoisonError::into_inner);
             }
         };
-        let result = displacements_from_forces(
-            (&inputs.chol, &inputs.dofs, &inputs.body_force),
-            inputs.mesh.node_count(),
-            &forces,
-            (&mut rhs, &mut scratch),
-            &mut nodes,
-        )
-        .and_then(|()| tet_stress(&inputs.mesh, &inputs.lame, &nodes, &mut stress));
+        let result = inputs
+            .chol
+            .get()
+            .and_then(|chol| {
+                displacements_from_forces(
+                    (chol, &inputs.dofs, &inputs.body_force),
+                    inputs.mesh.node_count(),
+                    &forces,
+                    (&mut rhs, &mut scratch),
+                    &mut nodes,
+                )
+            })
+            .and_then(|()| tet_stress(&inputs.mesh, &inputs.lame, &nodes, &mut stress));
         let mut x = lock(shared);
         x.spare_forces = forces;
         match result {

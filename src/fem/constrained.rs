@@ -954,7 +954,7 @@ impl ConstrainedSolver {
         }
         missing.sort_unstable();
         self.make_room(missing.len(), frame);
-        let columns = super::prefetch::solve_columns(&self.model.chol, &self.model.dofs, &missing)?;
+        let columns = super::prefetch::solve_columns(self.model.chol.get()?, &self.model.dofs, &missing)?;
         self.lazy_computed += columns.len();
         self.insert_columns(columns, frame);
         Ok(())
@@ -1235,7 +1235,7 @@ impl ConstrainedSolver {
     pub fn interior_displacements(&mut self, out: &mut Vec<Vec3>) -> Result<(), FemError> {
         let m = &self.model;
         let mut rhs = Vec::new();
-        displacements_from_forces((&m.chol, &m.dofs, &m.body_force), m.mesh.node_count(), &self.last_forces, (&mut rhs, &mut self.solve_scratch), out)
+        displacements_from_forces((m.chol.get()?, &m.dofs, &m.body_force), m.mesh.node_count(), &self.last_forces, (&mut rhs, &mut self.solve_scratch), out)
     }
 
     /// Nodal forces (node, N, on the tissue) of the last frame.

@@ -133,3 +133,69 @@ impl SparseCholesky {
         self.solve_in_place(m, scratch);
     }
 }
+
+/// The factor of `K_FF`, made on first use or on a background thread.
+///
+/// In: `K_FF` (lower) and the DOF names, moved in. Out: the factor, or the
+/// error its build gave, to every caller of [`LazyFactor::get`] (which waits
+/// while it is made). Stays true: it is made once, by one thread, exactly as
+/// [`SparseCholesky::new`] makes it; so every answer is the same whether it
+/// was made at the start, in the background, or by the first caller. A scene
+/// whose compliance comes from a valid cache starts without it (the cache
+/// holds every column a frame reads); the lazy columns, interior
+/// displacements and a rebuilt cache batch wait for it.
+pub struct LazyFactor {
+    cell: std::sync::OnceLock<Result<SparseCholesky, FemError>>,
+    k: LowerCsc,
+    dofs: DofMap,
+    /// The ordering asked for ([`FillOrdering::Best`] is resolved by the factor).
+    pub(crate) requested: FillOrdering,
+    started: std::sync::atomic::AtomicBool,
+}
+
+impl std::fmt::Debug for LazyFactor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LazyFactor").field("dim", &self.k.dim).field("ready", &self.is_ready()).finish()
+    }
+}
+
+impl LazyFactor {
+    pub(crate) fn new(k: LowerCsc, dofs: DofMap, requested: FillOrdering) -> Self {
+        Self { cell: std::sync::OnceLock::new(), k, dofs, requested, started: std::sync::atomic::AtomicBool::new(false) }
+    }
+
+    /// The factor: made here if nobody has started it, else waits for the thread making it.
+    pub fn get(&self) -> Result<&SparseCholesky, FemError> {
+        self.cell.get_or_init(|| SparseCholesky::new(&self.k, &self.dofs, self.requested)).as_ref().map_err(Clone::clone)
+    }
+
+    /// True once the factor (or its error) is there.
+    pub fn is_ready(&self) -> bool {
+        self.cell.get().is_some()
+    }
+
+    /// The lower triangle of `K_FF` it factors.
+    pub(crate) fn stiffness(&self) -> &LowerCsc {
+        &self.k
+    }
+
+    /// Starts making the factor on its own thread (once; nothing when it is
+    /// made or being made). If the thread cannot start, the first caller of
+    /// [`Self::get`] makes it.
+    pub(crate) fn start_background(self: &std::sync::Arc<Self>) {
+        if self.is_ready() || self.started.swap(true, std::sync::atomic::Ordering::AcqRel) {
+            return;
+        }
+        let this = std::sync::Arc::clone(self);
+        let spawned = std::thread::Builder::new().name("fissure-factor".into()).spawn(move || {
+            let t = Instant::now();
+            match this.get() {
+                Ok(_) => tracing::debug!("factor of K_FF ready after {:.2} s in the background", t.elapsed().as_secs_f64()),
+                Err(e) => tracing::error!("factor of K_FF in the background: {e}"),
+            }
+        });
+        if let Err(e) = spawned {
+            tracing::warn!("factor thread did not start ({e}); the first solve makes the factor");
+        }
+    }
+}

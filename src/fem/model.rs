@@ -1,7 +1,8 @@
 //! The assembled and factored FEM model.
 //!
 //! In: a [`TetMesh`] (m), [`RegionMaterials`], per-node fixed flags, [`FemOptions`].
-//! Out: a [`FemModel`] holding `K_FF` (lower), its Cholesky factor, the boundary
+//! Out: a [`FemModel`] holding `K_FF` (lower), its Cholesky factor (made at the
+//! build, or on first use: [`FemModel::new_deferred`]), the boundary
 //! surface, the optional gravity displacement `u0 = K^-1 f`, build statistics and
 //! a fingerprint (blake3 of mesh, materials and fixed set) that keys caches.
 //! Stays true: immutable after `new`; every solve is exact up to round-off.
@@ -9,7 +10,7 @@
 use super::FemError;
 use super::assembly::{DofMap, LowerCsc, assemble_lower, body_force, check_components};
 use super::element::RegionMaterials;
-use super::factor::SparseCholesky;
+use super::factor::{LazyFactor, SparseCholesky};
 use super::ordering::FillOrdering;
 use crate::math::{Vec3, is_finite3};
 use crate::mesh::{BoundarySurface, TetMesh};
@@ -55,8 +56,8 @@ pub struct FemModel {
     pub(crate) surface: BoundarySurface,
     pub(crate) dofs: DofMap,
     pub(crate) lame: Vec<(f64, f64)>,
-    pub(crate) k: LowerCsc,
-    pub(crate) chol: std::sync::Arc<SparseCholesky>,
+    /// `K_FF` and its factor (made at the build, or later: [`FemModel::new_deferred`]).
+    pub(crate) chol: std::sync::Arc<LazyFactor>,
     /// Body force per free DOF (N), empty without gravity.
     pub(crate) body_force: Vec<f64>,
     /// K^-1 body force per free DOF (m), empty without gravity.
@@ -72,6 +73,17 @@ impl FemModel {
     /// with no fixed node ([`FemError::UnfixedComponent`]), no free DOF, a
     /// non-positive pivot, invalid gravity.
     pub fn new(mesh: &TetMesh, materials: &RegionMaterials, fixed: &[bool], options: &FemOptions) -> Result<Self, FemError> {
+        let model = Self::new_deferred(mesh, materials, fixed, options)?;
+        model.chol.get()?;
+        Ok(model)
+    }
+
+    /// As [`FemModel::new`], without making the factor of `K_FF` (unless
+    /// gravity needs it now): the first solve makes it, or a thread started
+    /// by [`FemModel::start_factor`]. What a scene whose compliance comes
+    /// from a cache uses: its first frame reads no factor. A factor that
+    /// fails (a non-positive pivot) fails that first solve instead of the build.
+    pub fn new_deferred(mesh: &TetMesh, materials: &RegionMaterials, fixed: &[bool], options: &FemOptions) -> Result<Self, FemError> {
         if fixed.len() != mesh.node_count() {
             return Err(FemError::FixedLength { expected: mesh.node_count(), got: fixed.len() });
         }
@@ -94,9 +106,11 @@ impl FemModel {
             mesh.regions.iter().map(|&r| RegionMaterials::lookup(&sorted, materials.default, r).lame()).collect();
         let k = assemble_lower(mesh, &lame, &dofs);
         let assembly_seconds = t0.elapsed().as_secs_f64();
-        let chol = SparseCholesky::new(&k, &dofs, FillOrdering::from_env())?;
+        let nnz_k = k.values.len();
+        let chol = LazyFactor::new(k, dofs.clone(), FillOrdering::from_env());
         let (body, u0) = match &options.gravity {
             Some(g) => {
+                let chol = chol.get()?;
                 let f = body_force(mesh, &dofs, g.density, g.acceleration);
                 let mut u = f.clone();
                 let mut scratch = chol.scratch(1)?;
@@ -106,21 +120,25 @@ impl FemModel {
             None => (Vec::new(), Vec::new()),
         };
         let fingerprint = fingerprint(mesh, &sorted, materials, fixed);
-        let stats = FemStats {
-            free_dofs: dofs.dof_count(),
-            nnz_k: k.values.len(),
-            nnz_l: chol.nnz_l(),
-            assembly_seconds,
-            symbolic_seconds: chol.symbolic_seconds,
-            numeric_seconds: chol.numeric_seconds,
-            unused_nodes: dofs.unused_nodes,
-        };
-        Ok(Self { surface: mesh.boundary(), mesh: mesh.clone(), dofs, lame, k, chol: std::sync::Arc::new(chol), body_force: body, u0, fingerprint, stats })
+        let stats = FemStats { free_dofs: dofs.dof_count(), nnz_k, assembly_seconds, unused_nodes: dofs.unused_nodes, ..FemStats::default() };
+        Ok(Self { surface: mesh.boundary(), mesh: mesh.clone(), dofs, lame, chol: std::sync::Arc::new(chol), body_force: body, u0, fingerprint, stats })
     }
 
-    /// Build statistics.
+    /// Starts making the factor of `K_FF` on its own thread, if it is not made
+    /// yet (a model from [`FemModel::new_deferred`]); the first solve waits for it.
+    pub fn start_factor(&self) {
+        self.chol.start_background();
+    }
+
+    /// Build statistics (the factor's figures wait for the factor; zero if it failed).
     pub fn stats(&self) -> FemStats {
-        self.stats
+        let mut s = self.stats;
+        if let Ok(chol) = self.chol.get() {
+            s.nnz_l = chol.nnz_l();
+            s.symbolic_seconds = chol.symbolic_seconds;
+            s.numeric_seconds = chol.numeric_seconds;
+        }
+        s
     }
 
     /// The mesh the model was built from.
@@ -153,14 +171,14 @@ impl FemModel {
         self.dofs.dof(node).is_none()
     }
 
-    /// The sparse factor of K_FF.
-    pub fn factor(&self) -> &SparseCholesky {
-        &self.chol
+    /// The sparse factor of K_FF (made now, or waited for, when deferred).
+    pub fn factor(&self) -> Result<&SparseCholesky, FemError> {
+        self.chol.get()
     }
 
     /// Lower triangle of K_FF.
     pub fn stiffness(&self) -> &LowerCsc {
-        &self.k
+        self.chol.stiffness()
     }
 
     /// Solves `K u = f` for nodal forces `f` (N, one per node; fixed nodes'
@@ -177,8 +195,9 @@ impl FemModel {
                 rhs[d + 2] += f.z;
             }
         }
-        let mut scratch = self.chol.scratch(1)?;
-        self.chol.solve_vec_in_place(&mut rhs, &mut scratch);
+        let chol = self.chol.get()?;
+        let mut scratch = chol.scratch(1)?;
+        chol.solve_vec_in_place(&mut rhs, &mut scratch);
         Ok(self.free_to_nodal(&rhs))
     }
 

@@ -16,7 +16,7 @@
 
 use super::FemError;
 use super::assembly::DofMap;
-use super::factor::SparseCholesky;
+use super::factor::{LazyFactor, SparseCholesky};
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
 
@@ -70,7 +70,7 @@ type Reply = (u64, Result<Vec<NodeColumns>, FemError>);
 /// first request; dropping this closes its channel, and the thread ends after
 /// its current batch (it is not waited for: closing a scene never stalls on a solve).
 pub struct Prefetcher {
-    chol: Arc<SparseCholesky>,
+    chol: Arc<LazyFactor>,
     dofs: DofMap,
     link: Option<(Sender<(u64, Vec<u32>)>, Receiver<Reply>)>,
     open: Vec<OpenBatch>,
@@ -89,7 +89,7 @@ impl std::fmt::Debug for Prefetcher {
 
 impl Prefetcher {
     /// A prefetcher for the factor `chol` (no thread yet).
-    pub fn new(chol: Arc<SparseCholesky>, dofs: DofMap) -> Self {
+    pub fn new(chol: Arc<LazyFactor>, dofs: DofMap) -> Self {
         Self { chol, dofs, link: None, open: Vec::new(), arrived: Vec::new(), next_id: 0, failed: false }
     }
 
@@ -116,7 +116,7 @@ impl Prefetcher {
             let dofs = self.dofs.clone();
             let spawned = std::thread::Builder::new().name("fissure-lazy-columns".into()).spawn(move || {
                 for (id, nodes) in req_rx {
-                    let result = solve_columns(&chol, &dofs, &nodes);
+                    let result = chol.get().and_then(|chol| solve_columns(chol, &dofs, &nodes));
                     if rep_tx.send((id, result)).is_err() {
                         break;
                     }

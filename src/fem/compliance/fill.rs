@@ -1,12 +1,14 @@
-//! Filling the dense compliance batch after batch, on the caller's thread
-//! (a build that waits) or in the background (the first frame comes right
-//! after the factor, [`super::ComputeOptions::background`]).
+//! Filling the dense compliance batch after batch (each read from the cache
+//! file, or solved with the factor), on the caller's thread (a build that
+//! waits) or in the background (the first frame comes right after the
+//! storage is allocated, [`super::ComputeOptions::background`]).
 //!
 //! In: the storage, allocated once and never moved ([`Buf`]); the batches of
 //! columns in column order and the order to solve them in. Out: per free
 //! component, how many of its leading columns are final ([`Fill::ready`]).
 //! Stays true: a batch is solved by one thread, exactly as a build that
-//! waits solves it, so the values never depend on timing; a reader only ever
+//! waits solves it (or read from a file such a build wrote, checked against
+//! its checksum), so the values never depend on timing; a reader only ever
 //! sees a component's final leading columns (a column's entries above the
 //! diagonal are the rows of earlier columns of its component, so a column is
 //! usable once every column before it in its component is), and waits for a
@@ -105,6 +107,9 @@ pub(super) struct Fill {
     complete: AtomicBool,
     cancelled: AtomicBool,
     columns_done: AtomicUsize,
+    /// Batches read from a cache file, and batches solved.
+    loaded: AtomicUsize,
+    computed: AtomicUsize,
     state: Mutex<FillState>,
     changed: Condvar,
 }
@@ -130,6 +135,8 @@ impl Fill {
             complete: AtomicBool::new(complete),
             cancelled: AtomicBool::new(false),
             columns_done: AtomicUsize::new(if complete { n_cols } else { 0 }),
+            loaded: AtomicUsize::new(0),
+            computed: AtomicUsize::new(0),
             state: Mutex::new(FillState { done: vec![false; starts.len()], error: None, seconds: 0.0 }),
             changed: Condvar::new(),
         }
@@ -137,6 +144,31 @@ impl Fill {
 
     fn lock(&self) -> std::sync::MutexGuard<'_, FillState> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Number of batches.
+    pub(super) fn batch_count(&self) -> usize {
+        self.starts.len() - 1
+    }
+
+    /// Counts a batch read from the cache file.
+    pub(super) fn count_loaded(&self) {
+        self.loaded.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Counts a batch solved.
+    pub(super) fn count_computed(&self) {
+        self.computed.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Batches read from the cache file so far.
+    pub(super) fn loaded(&self) -> usize {
+        self.loaded.load(Ordering::Relaxed)
+    }
+
+    /// Batches solved so far.
+    pub(super) fn computed(&self) -> usize {
+        self.computed.load(Ordering::Relaxed)
     }
 
     /// Columns of batch `b`.

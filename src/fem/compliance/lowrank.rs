@@ -261,7 +261,8 @@ impl BlockLowRank {
         let row_dofs: Vec<usize> = row_nodes.iter().map(|&n| model.dofs.dof(n).unwrap_or(0)).collect();
         let widest = (0..nc).map(|c| range(c).len()).max().unwrap_or(0);
         let mut rhs = faer::Mat::<f64>::zeros(n_free, 3 * widest);
-        let mut scratch = model.chol.scratch(3 * widest.max(1))?;
+        let chol = model.chol.get()?;
+        let mut scratch = chol.scratch(3 * widest.max(1))?;
         let n_blocks = block_count(nr, nc);
         let mut ranks: Vec<u32> = Vec::with_capacity(n_blocks);
         let mut offsets: Vec<usize> = Vec::with_capacity(n_blocks + 1);
@@ -278,7 +279,7 @@ impl BlockLowRank {
                     rhs[(d + c, 3 * b + c)] = 1.0;
                 }
             }
-            model.chol.solve_in_place(rhs.as_mut().subcols_mut(0, 3 * nb), &mut scratch);
+            chol.solve_in_place(rhs.as_mut().subcols_mut(0, 3 * nb), &mut scratch);
             let n = 3 * nb;
             for i in j..nr {
                 let rows = range(i);

@@ -22,8 +22,10 @@
 //! Stays true: entries are `K^-1` to round-off (f64), rounded once to f32, or
 //! within `10^-digits` (relative Frobenius, per block) for low rank; ROI x ROI
 //! blocks are exactly symmetric in every storage; a cache file is used only
-//! when its key (blake3 of model fingerprint, factor ordering, ROI, storage) and its checksum
-//! match; otherwise it is rebuilt and rewritten.
+//! when its key (blake3 of model fingerprint, factor ordering, ROI, storage)
+//! matches, and a dense one batch by batch, each batch only when its own
+//! checksum matches (a batch that does not is computed, the file rewritten);
+//! a low-rank one only when the whole file's checksum matches.
 
 mod fill;
 mod lowrank;
@@ -40,7 +42,7 @@ use std::time::Instant;
 
 const NO_ROW: u32 = u32::MAX;
 const CACHE_MAGIC: &[u8; 8] = b"FISSCOMP";
-const CACHE_VERSION: u32 = 7;
+const CACHE_VERSION: u32 = 8;
 /// ROI nodes solved together (3 right-hand sides each).
 const BATCH_NODES: usize = 32;
 /// Bytes the precompute's right-hand sides may take over all its threads.
@@ -101,10 +103,11 @@ pub struct ComputeOptions<'a> {
     /// never straddle two components, so the columns a frame needs first are
     /// the first to be final. `None`: Morton order. Part of the cache key.
     pub reach: Option<&'a [u32]>,
-    /// Dense storage, not from the cache: return as soon as the storage is
-    /// allocated and solve the columns on background threads (one core is
-    /// left to the caller). A read of a column that is not final yet waits
-    /// for it; the values are those of a build that waits, bit for bit.
+    /// Dense storage: return as soon as the storage is allocated (and the
+    /// cache file's batch table checked) and read or solve the columns on
+    /// background threads at a lower priority. A read of a column that is
+    /// not final yet waits for it; the values are those of a build that
+    /// waits, bit for bit.
     pub background: bool,
 }
 
@@ -351,18 +354,50 @@ impl Compliance {
             stats: ComplianceStats::default(),
         };
         let path = cache_dir.map(|d| d.join(format!("compliance-{}.bin", hex(&key[..16]))));
-        if let Some(p) = &path {
-            let t = Instant::now();
-            match this.load(p, storage, model) {
-                Ok(values) => {
-                    this.values = values;
-                    this.stats = this.make_stats(0.0, t.elapsed().as_secs_f64(), true);
-                    // Most recently used first when the directory is pruned.
-                    if let Err(e) = std::fs::File::options().append(true).open(p).and_then(|f| f.set_modified(std::time::SystemTime::now())) {
-                        tracing::debug!("compliance cache {}: could not mark as used ({e})", p.display());
+        let t = Instant::now();
+        if let ComplianceStorage::LowRank { digits } = storage {
+            if let Some(p) = &path {
+                match this.load_low_rank(p, digits, model) {
+                    Ok(values) => {
+                        this.values = values;
+                        this.stats = this.make_stats(0.0, t.elapsed().as_secs_f64(), true);
+                        mark_used(p);
+                        model.start_factor();
+                        progress(n_cols, n_cols);
+                        return Ok(this);
                     }
-                    progress(n_cols, n_cols);
-                    return Ok(this);
+                    Err(reason) => {
+                        if p.exists() {
+                            tracing::warn!("compliance cache {} not used ({reason}); rebuilding", p.display());
+                        }
+                    }
+                }
+            }
+            let layout = this.clusters(model);
+            let b = lowrank::BlockLowRank::build(model, &this.row_nodes, n_cols, layout, digits, progress)?;
+            this.values = Values::LowRank(Arc::new(b));
+            this.stats = this.make_stats(t.elapsed().as_secs_f64(), 0.0, false);
+            if let Some(p) = &path {
+                let header = this.header(storage);
+                let written = match &this.values {
+                    Values::LowRank(b) => {
+                        let meta = b.meta();
+                        let mut sections: Vec<&[u8]> = vec![bytemuck::cast_slice(&meta)];
+                        sections.extend(b.sections());
+                        write_cache(p, &header, &this.row_nodes, &sections)
+                    }
+                    _ => Ok(()),
+                };
+                finish_write(p, written);
+            }
+            return Ok(this);
+        }
+        let mut job = this.prepare_fill(model, storage, reach, background)?;
+        if let Some(p) = &path {
+            match this.open_dense(p, storage, &job.fill) {
+                Ok(source) => {
+                    job.source = Some(source);
+                    mark_used(p);
                 }
                 Err(reason) => {
                     if p.exists() {
@@ -371,58 +406,50 @@ impl Compliance {
                 }
             }
         }
-        let t = Instant::now();
-        if let ComplianceStorage::LowRank { digits } = storage {
-            let layout = this.clusters(model);
-            let b = lowrank::BlockLowRank::build(model, &this.row_nodes, n_cols, layout, digits, progress)?;
-            this.values = Values::LowRank(Arc::new(b));
+        if job.source.is_some() {
+            // Every column a frame reads is in the file: the factor is made
+            // beside the frames, for the lazy columns, interior displacements
+            // and any batch that fails its check.
+            model.start_factor();
         } else {
-            let job = this.prepare_fill(model, storage, reach, background)?;
-            this.values = job.values.clone();
-            if background {
-                let cache = path.clone().map(|p| (p, this.header(storage), this.row_nodes.clone()));
-                let fill = Arc::clone(&job.fill);
-                progress(0, n_cols);
-                match job.spawn(cache) {
-                    Ok(()) => {
-                        this.fill = Some(Arc::new(FillOwner(fill)));
-                        this.stats = this.make_stats(0.0, 0.0, false);
-                        return Ok(this);
-                    }
-                    Err(job) => {
-                        // No thread: fill here, as a build that waits.
-                        tracing::warn!("the compliance columns are computed before the first frame (no background thread)");
-                        job.run(progress)?;
-                    }
-                }
-            } else {
-                progress(0, n_cols);
-                job.run(progress)?;
-            }
+            // Made here, so a matrix that cannot be factored fails the build.
+            model.chol.get()?;
         }
-        this.stats = this.make_stats(t.elapsed().as_secs_f64(), 0.0, false);
-        if let Some(p) = &path {
-            // The cache only saves time next run: a failure to write it loses
-            // nothing computed, so it is a warning, not an error.
-            let header = this.header(storage);
-            let written = match &this.values {
-                Values::LowRank(b) => {
-                    let meta = b.meta();
-                    let mut sections: Vec<&[u8]> = vec![bytemuck::cast_slice(&meta)];
-                    sections.extend(b.sections());
-                    write_cache(p, &header, &this.row_nodes, &sections)
+        this.values = job.values.clone();
+        let fill = Arc::clone(&job.fill);
+        if background {
+            let cache = path.clone().map(|p| (p, this.header(storage), this.row_nodes.clone()));
+            progress(0, n_cols);
+            match job.spawn(cache) {
+                Ok(()) => {
+                    this.fill = Some(Arc::new(FillOwner(fill)));
+                    this.stats = this.make_stats(0.0, 0.0, false);
+                    return Ok(this);
                 }
-                // SAFETY: the filling above ran to its end; nothing writes any more.
-                Values::F64(d) => write_cache(p, &header, &this.row_nodes, &unsafe { dense_sections(d) }),
-                Values::F32(d) => write_cache(p, &header, &this.row_nodes, &unsafe { dense_sections(d) }),
-            };
-            match written {
-                Ok(()) => prune_cache_dir(p, CACHE_DIR_BUDGET_BYTES),
-                Err(e) => {
-                    let _ = std::fs::remove_file(tmp_path(p));
-                    tracing::warn!("{e}; the compliance is used without a cache");
+                Err(job) => {
+                    // No thread: fill here, as a build that waits.
+                    tracing::warn!("the compliance columns are computed before the first frame (no background thread)");
+                    job.run(progress)?;
                 }
             }
+        } else {
+            progress(0, n_cols);
+            job.run(progress)?;
+        }
+        let seconds = t.elapsed().as_secs_f64();
+        let from_cache = fill.computed() == 0 && fill.loaded() > 0;
+        this.stats = if from_cache { this.make_stats(0.0, seconds, true) } else { this.make_stats(seconds, 0.0, false) };
+        if let Some(p) = &path
+            && !from_cache
+        {
+            let header = this.header(storage);
+            // SAFETY: the filling above ran to its end; nothing writes any more.
+            let written = match &this.values {
+                Values::F64(d) => unsafe { write_dense_cache(p, &header, &this.row_nodes, &this.layout, &fill, d) },
+                Values::F32(d) => unsafe { write_dense_cache(p, &header, &this.row_nodes, &this.layout, &fill, d) },
+                Values::LowRank(_) => Ok(()),
+            };
+            finish_write(p, written);
         }
         Ok(this)
     }
@@ -489,13 +516,18 @@ impl Compliance {
         };
         let fill = Arc::new(Fill::new(&self.layout, self.n_cols, &starts));
         let row_dofs: Vec<usize> = self.row_nodes.iter().map(|&n| model.dofs.dof(n).unwrap_or(0)).collect();
-        Ok(FillJob { chol: Arc::clone(&model.chol), n_free, row_dofs, layout: Arc::clone(&self.layout), values, order, fill, threads, background })
+        Ok(FillJob { chol: Arc::clone(&model.chol), n_free, row_dofs, layout: Arc::clone(&self.layout), values, order, fill, threads, background, source: None })
     }
     /// Statistics of the last build or load.
     pub fn stats(&self) -> ComplianceStats {
         let mut s = self.stats;
         if let Some(f) = &self.fill {
-            s.compute_seconds = f.0.seconds();
+            let f = &f.0;
+            if f.is_complete() && f.computed() == 0 && f.loaded() > 0 {
+                (s.from_cache, s.load_seconds) = (true, f.seconds());
+            } else {
+                s.compute_seconds = f.seconds();
+            }
         }
         s
     }
@@ -734,7 +766,6 @@ impl Compliance {
         h
     }
 
-    /// Reads a cache file; any mismatch or corruption is an `Err(reason)`.
     /// Low-rank cluster layout: octree cells of the Morton codes the rows were sorted by.
     fn clusters(&self, model: &FemModel) -> (Vec<u32>, usize) {
         let positions = &model.mesh.positions;
@@ -742,21 +773,15 @@ impl Compliance {
         lowrank::cluster_starts(&morton_codes(roi, positions), &morton_codes(others, positions))
     }
 
-    fn load(&self, path: &Path, storage: ComplianceStorage, model: &FemModel) -> Result<Values, String> {
+    /// Reads a low-rank cache file; any mismatch or corruption is an `Err(reason)`.
+    fn load_low_rank(&self, path: &Path, digits: u8, model: &FemModel) -> Result<Values, String> {
+        let storage = ComplianceStorage::LowRank { digits };
         let (mut file, _) = crate::fsio::open_regular(path, crate::fsio::Cap::COMPLIANCE_CACHE).map_err(|e| e.to_string())?;
-        let len = self.entry_count();
-        let n_lo = self.layout.lo_blocks() * 9;
-        let width = match storage { ComplianceStorage::F32 => 4, _ => 8 };
-        let lo_bytes = match storage { ComplianceStorage::F32 => 2 * n_lo, _ => 0 };
         let want = self.header(storage);
         let size = file.metadata().map_err(|e| e.to_string())?.len() as usize;
         let prefix = want.len() + 4 * self.row_nodes.len();
-        let expected_size = match storage {
-            ComplianceStorage::LowRank { .. } => size.max(prefix + 24 + 32),
-            _ => prefix + width * len + lo_bytes + 32,
-        };
-        if size != expected_size {
-            return Err(format!("size {size} bytes, expected {expected_size}"));
+        if size < prefix + 24 + 32 {
+            return Err(format!("size {size} bytes, expected at least {}", prefix + 24 + 32));
         }
         let mut hasher = blake3::Hasher::new();
         let mut header = vec![0u8; want.len()];
@@ -772,37 +797,72 @@ impl Compliance {
             return Err("row nodes mismatch".into());
         }
         let mut read_hashed = |bytes: &mut [u8]| -> Result<(), String> { read_and_hash(&mut file, bytes, &mut hasher) };
-        let values = match storage {
-            ComplianceStorage::LowRank { digits } => {
-                let mut meta = [0u64; 3];
-                read_hashed(bytemuck::cast_slice_mut(&mut meta))?;
-                let remaining = size - prefix - 24 - 32;
-                let layout = self.clusters(model);
-                let b = lowrank::BlockLowRank::read(digits, self.row_nodes.len(), self.n_cols, layout, meta, remaining, &mut read_hashed)?;
-                Values::LowRank(Arc::new(b))
-            }
-            ComplianceStorage::F64 => {
-                // Zeroed allocation: fresh pages, filled once by the read (no memset pass).
-                let mut v: Vec<f64> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| "out of memory".to_string())?;
-                read_hashed(bytemuck::cast_slice_mut(&mut v))?;
-                advise_huge_pages(&mut v);
-                Values::F64(Arc::new(Dense { v: Buf::new(v), lo: Buf::new(Vec::new()) }))
-            }
-            ComplianceStorage::F32 => {
-                let mut v: Vec<f32> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| "out of memory".to_string())?;
-                read_hashed(bytemuck::cast_slice_mut(&mut v))?;
-                advise_huge_pages(&mut v);
-                let mut lo: Vec<i16> = bytemuck::allocation::try_zeroed_vec(n_lo).map_err(|_| "out of memory".to_string())?;
-                read_hashed(bytemuck::cast_slice_mut(&mut lo))?;
-                Values::F32(Arc::new(Dense { v: Buf::new(v), lo: Buf::new(lo) }))
-            }
-        };
+        let mut meta = [0u64; 3];
+        read_hashed(bytemuck::cast_slice_mut(&mut meta))?;
+        let remaining = size - prefix - 24 - 32;
+        let layout = self.clusters(model);
+        let b = lowrank::BlockLowRank::read(digits, self.row_nodes.len(), self.n_cols, layout, meta, remaining, &mut read_hashed)?;
         let mut sum = [0u8; 32];
         file.read_exact(&mut sum).map_err(|e| e.to_string())?;
         if &sum != hasher.finalize().as_bytes() {
             return Err("checksum mismatch (corrupt file)".into());
         }
-        Ok(values)
+        Ok(Values::LowRank(Arc::new(b)))
+    }
+
+    /// Opens a dense cache file ([`write_dense_cache`]) for `fill`'s batches:
+    /// checks its size, header, rows and batch table (against its checksum
+    /// and `fill`'s batches). Its entries are read later, batch by batch.
+    fn open_dense(&self, path: &Path, storage: ComplianceStorage, fill: &Fill) -> Result<CacheSource, String> {
+        let (mut file, _) = crate::fsio::open_regular(path, crate::fsio::Cap::COMPLIANCE_CACHE).map_err(|e| e.to_string())?;
+        let width = match storage {
+            ComplianceStorage::F32 => 4,
+            _ => 8,
+        };
+        let n_lo = match storage {
+            ComplianceStorage::F32 => self.layout.lo_blocks() * 9,
+            _ => 0,
+        };
+        let n_batches = fill.batch_count();
+        let want = self.header(storage);
+        let table = 8 + 40 * n_batches + 32;
+        let prefix = want.len() + 4 * self.row_nodes.len() + table;
+        let expected = prefix + width * self.entry_count() + 2 * n_lo;
+        let size = file.metadata().map_err(|e| e.to_string())?.len() as usize;
+        if size != expected {
+            return Err(format!("size {size} bytes, expected {expected}"));
+        }
+        let mut head = vec![0u8; prefix];
+        file.read_exact(&mut head).map_err(|e| e.to_string())?;
+        let (header, rest) = head.split_at(want.len());
+        if header != want.as_slice() {
+            return Err("header or key mismatch".into());
+        }
+        let (rows, rest) = rest.split_at(4 * self.row_nodes.len());
+        if rows != bytemuck::cast_slice::<u32, u8>(&self.row_nodes) {
+            return Err("row nodes mismatch".into());
+        }
+        let (table, sum) = rest.split_at(rest.len() - 32);
+        let mut meta = blake3::Hasher::new();
+        meta.update(&head[..prefix - 32]);
+        if meta.finalize().as_bytes() != sum {
+            return Err("checksum mismatch (corrupt batch table)".into());
+        }
+        let u64_at = |k: usize| u64::from_le_bytes(table[8 * k..8 * k + 8].try_into().unwrap_or([0xff; 8]));
+        if u64_at(0) != n_batches as u64 || (0..n_batches).any(|b| u64_at(1 + b) != fill.batch(b).start as u64) {
+            return Err("written for other batches of columns".into());
+        }
+        let sums = table[8 + 8 * n_batches..].chunks_exact(32).map(|c| c.try_into().unwrap_or([0; 32])).collect();
+        let v_at = prefix as u64;
+        Ok(CacheSource {
+            file,
+            path: path.to_path_buf(),
+            sums,
+            v_at,
+            lo_at: v_at + (width * self.entry_count()) as u64,
+            width,
+            failed: std::sync::atomic::AtomicBool::new(false),
+        })
     }
 }
 
@@ -933,7 +993,8 @@ enum Piece<'a> {
 
 /// Everything the threads that fill a dense compliance need ([`Compliance::prepare_fill`]).
 struct FillJob {
-    chol: Arc<super::factor::SparseCholesky>,
+    /// Waited for at the first batch that is solved (none when the cache has every batch).
+    chol: Arc<super::factor::LazyFactor>,
     n_free: usize,
     /// First free DOF of every stored row.
     row_dofs: Vec<usize>,
@@ -945,6 +1006,9 @@ struct FillJob {
     threads: usize,
     /// Filling beside the frames: its threads run at a lower priority.
     background: bool,
+    /// A cache file whose batches are read (each checked against its own
+    /// checksum) instead of solved; a batch that fails its check is solved.
+    source: Option<CacheSource>,
 }
 
 impl FillJob {
@@ -963,8 +1027,8 @@ impl FillJob {
                         lower_thread_priority();
                     }
                     let work = || -> Result<(), FemError> {
-                        let mut rhs = faer::Mat::<f64>::zeros(self.n_free, 3 * BATCH_NODES);
-                        let mut scratch = self.chol.scratch(3 * BATCH_NODES)?;
+                        // The right-hand sides (145 MB a thread on the fine brain) only once a batch is solved.
+                        let mut solver: Option<(faer::Mat<f64>, faer::dyn_stack::MemBuffer)> = None;
                         loop {
                             if self.fill.is_cancelled() {
                                 return Ok(());
@@ -975,8 +1039,19 @@ impl FillJob {
                             // SAFETY: batch b is taken by this thread alone (the
                             // counter hands each out once) and nobody reads its
                             // columns before `finish_batch` publishes them.
-                            let piece = unsafe { self.piece(cols.clone()) };
-                            self.solve_batch(cols.clone(), &mut rhs, &mut scratch, piece);
+                            let mut piece = unsafe { self.piece(cols.clone()) };
+                            if self.read_batch(b, &mut piece) {
+                                self.fill.count_loaded();
+                            } else {
+                                let chol = self.chol.get()?;
+                                if solver.is_none() {
+                                    solver = Some((faer::Mat::<f64>::zeros(self.n_free, 3 * BATCH_NODES), chol.scratch(3 * BATCH_NODES)?));
+                                }
+                                if let Some((rhs, scratch)) = solver.as_mut() {
+                                    self.solve_batch(chol, cols.clone(), rhs, scratch, piece);
+                                }
+                                self.fill.count_computed();
+                            }
                             self.fill.finish_batch(b, t.elapsed().as_secs_f64());
                             if done_tx.send(Ok(cols.len())).is_err() {
                                 return Ok(()); // the caller stopped listening
@@ -1007,8 +1082,43 @@ impl FillJob {
         result
     }
 
+    /// Reads batch `b` from the cache file into `piece` (its storage) when
+    /// there is one and the batch's bytes match their checksum.
+    fn read_batch(&self, b: usize, piece: &mut Piece<'_>) -> bool {
+        let Some(src) = &self.source else { return false };
+        let (v, lo): (&mut [u8], &mut [u8]) = match piece {
+            Piece::F64(v) => (bytemuck::cast_slice_mut(&mut **v), &mut []),
+            Piece::F32(v, lo) => (bytemuck::cast_slice_mut(&mut **v), bytemuck::cast_slice_mut(&mut **lo)),
+        };
+        let cols = self.fill.batch(b);
+        let (col_off, lo_off) = (&self.layout.col_off, &self.layout.lo_off);
+        let v_at = src.v_at + (9 * col_off[cols.start] * src.width) as u64;
+        let lo_at = src.lo_at + (9 * lo_off[cols.start] * 2) as u64;
+        let checked = read_at(&src.file, v, v_at).and_then(|()| read_at(&src.file, lo, lo_at)).map_err(|e| e.to_string()).and_then(|()| {
+            let mut h = blake3::Hasher::new();
+            h.update(v);
+            h.update(lo);
+            if h.finalize().as_bytes() == &src.sums[b] { Ok(()) } else { Err("checksum mismatch (corrupt)".to_string()) }
+        });
+        match checked {
+            Ok(()) => true,
+            Err(reason) => {
+                if !src.failed.swap(true, std::sync::atomic::Ordering::Relaxed) {
+                    tracing::warn!(
+                        "compliance cache {}: columns {}..{} not used ({reason}); they are computed (and any other batch that fails its check) and the file is rewritten",
+                        src.path.display(),
+                        cols.start,
+                        cols.end
+                    );
+                }
+                false
+            }
+        }
+    }
+
     /// Fills in the background; the cache `(path, header, row nodes)` is
-    /// written once every column is final. `Err(self)` when no thread starts.
+    /// written once every column is final, unless every batch came from it.
+    /// `Err(self)` when no thread starts.
     fn spawn(self, cache: Option<(PathBuf, Vec<u8>, Vec<u32>)>) -> Result<(), Self> {
         let job = Arc::new(self);
         let worker = Arc::clone(&job);
@@ -1016,20 +1126,16 @@ impl FillJob {
             match worker.run(&mut |_, _| {}) {
                 Ok(()) => {
                     tracing::info!("compliance: every column final after {:.1} s in the background", worker.fill.seconds());
-                    if let Some((path, header, row_nodes)) = cache {
+                    if let Some((path, header, row_nodes)) = cache
+                        && worker.fill.computed() > 0
+                    {
                         // SAFETY: every batch is final (run returned Ok); nothing writes any more.
-                        let sections = match &worker.values {
-                            Values::F64(d) => unsafe { dense_sections(d) },
-                            Values::F32(d) => unsafe { dense_sections(d) },
+                        let written = match &worker.values {
+                            Values::F64(d) => unsafe { write_dense_cache(&path, &header, &row_nodes, &worker.layout, &worker.fill, d) },
+                            Values::F32(d) => unsafe { write_dense_cache(&path, &header, &row_nodes, &worker.layout, &worker.fill, d) },
                             Values::LowRank(_) => return,
                         };
-                        match write_cache(&path, &header, &row_nodes, &sections) {
-                            Ok(()) => prune_cache_dir(&path, CACHE_DIR_BUDGET_BYTES),
-                            Err(e) => {
-                                let _ = std::fs::remove_file(tmp_path(&path));
-                                tracing::warn!("{e}; the compliance is used without a cache");
-                            }
-                        }
+                        finish_write(&path, written);
                     }
                 }
                 Err(e) if worker.fill.is_cancelled() => tracing::debug!("compliance filling stopped: {e}"),
@@ -1066,7 +1172,14 @@ impl FillJob {
 
     /// Solves columns `cols` (3 right-hand sides a node) and writes their
     /// stored rows into `piece`, the storage of exactly those columns.
-    fn solve_batch(&self, cols: std::ops::Range<usize>, rhs: &mut faer::Mat<f64>, scratch: &mut faer::dyn_stack::MemBuffer, mut piece: Piece<'_>) {
+    fn solve_batch(
+        &self,
+        chol: &super::factor::SparseCholesky,
+        cols: std::ops::Range<usize>,
+        rhs: &mut faer::Mat<f64>,
+        scratch: &mut faer::dyn_stack::MemBuffer,
+        mut piece: Piece<'_>,
+    ) {
         let (j0, nb) = (cols.start, cols.len());
         let row_dofs = &self.row_dofs;
         rhs.fill(0.0);
@@ -1076,7 +1189,7 @@ impl FillJob {
                 rhs[(d + c, 3 * b + c)] = 1.0;
             }
         }
-        self.chol.solve_in_place(rhs.as_mut().subcols_mut(0, 3 * nb), scratch);
+        chol.solve_in_place(rhs.as_mut().subcols_mut(0, 3 * nb), scratch);
         let (base, base_lo) = (self.layout.col_off[j0] * 9, self.layout.lo_off[j0] * 9);
         for b in 0..nb {
             let j = j0 + b;
@@ -1116,24 +1229,132 @@ fn lower_thread_priority() {
     }
 }
 
-/// The bytes of a dense storage as the cache file holds them.
+/// Writes a dense cache file: header, row nodes, the batch table (count,
+/// first columns, one blake3 a batch over its entries then its corrections),
+/// the blake3 of all that, then the entries and the corrections. A reader
+/// checks the table once and each batch as it reads it, so a batch can be
+/// used before the rest of the file is read, and a corrupt batch costs only
+/// its own columns. Into a temporary file renamed at the end.
 ///
 /// # Safety
 /// Every batch is final.
-unsafe fn dense_sections<T: bytemuck::Pod>(d: &Dense<T>) -> Vec<&[u8]> {
+unsafe fn write_dense_cache<T: bytemuck::Pod>(path: &Path, header: &[u8], row_nodes: &[u32], layout: &Layout, fill: &Fill, d: &Dense<T>) -> Result<(), FemError> {
     // SAFETY: the caller's promise.
     let (v, lo) = unsafe { d.all() };
-    let mut sections: Vec<&[u8]> = vec![bytemuck::cast_slice(v)];
-    if !lo.is_empty() {
-        sections.push(bytemuck::cast_slice(lo));
+    let (v, lo): (&[u8], &[u8]) = (bytemuck::cast_slice(v), bytemuck::cast_slice(lo));
+    let width = std::mem::size_of::<T>();
+    let n_batches = fill.batch_count();
+    let mut table: Vec<u8> = Vec::with_capacity(8 + 40 * n_batches + 32);
+    table.extend_from_slice(&(n_batches as u64).to_le_bytes());
+    for b in 0..n_batches {
+        table.extend_from_slice(&(fill.batch(b).start as u64).to_le_bytes());
     }
-    sections
+    for b in 0..n_batches {
+        let cols = fill.batch(b);
+        let mut h = blake3::Hasher::new();
+        h.update(&v[9 * width * layout.col_off[cols.start]..9 * width * layout.col_off[cols.end]]);
+        if !lo.is_empty() {
+            h.update(&lo[18 * layout.lo_off[cols.start]..18 * layout.lo_off[cols.end]]);
+        }
+        table.extend_from_slice(h.finalize().as_bytes());
+    }
+    let mut meta = blake3::Hasher::new();
+    meta.update(header);
+    meta.update(bytemuck::cast_slice(row_nodes));
+    meta.update(&table);
+    table.extend_from_slice(meta.finalize().as_bytes());
+    write_file(path, &[header, bytemuck::cast_slice(row_nodes), &table, v, lo])
 }
 
-/// Writes a cache file: header, row nodes, the storage's sections, then the
-/// blake3 of all of it; into a temporary file renamed at the end, so a
-/// reader never sees half a file.
+/// A dense cache file whose header, rows and batch table matched
+/// ([`Compliance::open_dense`]); its batches are read by [`FillJob::read_batch`].
+#[derive(Debug)]
+struct CacheSource {
+    file: std::fs::File,
+    path: PathBuf,
+    /// Per batch: blake3 of its entries' bytes, then its corrections' bytes.
+    sums: Vec<[u8; 32]>,
+    /// File offsets of the entries and of the corrections.
+    v_at: u64,
+    lo_at: u64,
+    /// Bytes an entry.
+    width: usize,
+    /// Set at the first batch that fails its check (warned once).
+    failed: std::sync::atomic::AtomicBool,
+}
+
+/// Fills `buf` from `file` at byte `at`, without moving a shared cursor (the
+/// filling threads read batches at once).
+fn read_at(file: &std::fs::File, buf: &mut [u8], at: u64) -> std::io::Result<()> {
+    if buf.is_empty() {
+        return Ok(());
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileExt;
+        file.read_exact_at(buf, at)
+    }
+    #[cfg(windows)]
+    {
+        use std::os::windows::fs::FileExt;
+        let (mut done, mut at) = (0, at);
+        while done < buf.len() {
+            match file.seek_read(&mut buf[done..], at)? {
+                0 => return Err(std::io::ErrorKind::UnexpectedEof.into()),
+                n => {
+                    done += n;
+                    at += n as u64;
+                }
+            }
+        }
+        Ok(())
+    }
+    #[cfg(not(any(unix, windows)))]
+    {
+        let _ = (file, at);
+        Err(std::io::Error::new(std::io::ErrorKind::Unsupported, "positioned reads"))
+    }
+}
+
+/// After a cache file was written: prunes the folder; after a failure:
+/// removes the half-written file and warns (the cache only saves time next
+/// run: a failure to write it loses nothing computed, so it is no error).
+fn finish_write(path: &Path, written: Result<(), FemError>) {
+    match written {
+        Ok(()) => prune_cache_dir(path, CACHE_DIR_BUDGET_BYTES),
+        Err(e) => {
+            let _ = std::fs::remove_file(tmp_path(path));
+            tracing::warn!("{e}; the compliance is used without a cache");
+        }
+    }
+}
+
+/// Marks a cache file as just used (most recently used first when the folder is pruned).
+fn mark_used(path: &Path) {
+    if let Err(e) = std::fs::File::options().append(true).open(path).and_then(|f| f.set_modified(std::time::SystemTime::now())) {
+        tracing::debug!("compliance cache {}: could not mark as used ({e})", path.display());
+    }
+}
+
+/// Writes a low-rank cache file: header, row nodes, the storage's sections,
+/// then the blake3 of all of it.
 fn write_cache(path: &Path, header: &[u8], row_nodes: &[u32], sections: &[&[u8]]) -> Result<(), FemError> {
+    let mut hasher = blake3::Hasher::new();
+    hasher.update(header);
+    hasher.update(bytemuck::cast_slice(row_nodes));
+    for bytes in sections {
+        hasher.update(bytes);
+    }
+    let sum = *hasher.finalize().as_bytes();
+    let mut parts: Vec<&[u8]> = vec![header, bytemuck::cast_slice(row_nodes)];
+    parts.extend_from_slice(sections);
+    parts.push(&sum);
+    write_file(path, &parts)
+}
+
+/// Writes `parts` one after the other into a temporary file renamed to
+/// `path` at the end, so a reader never sees half a file.
+fn write_file(path: &Path, parts: &[&[u8]]) -> Result<(), FemError> {
     let err = |e: std::io::Error| FemError::Cache { path: path.to_path_buf(), reason: e.to_string() };
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(err)?;
@@ -1141,13 +1362,9 @@ fn write_cache(path: &Path, header: &[u8], row_nodes: &[u32], sections: &[&[u8]]
     let tmp = tmp_path(path);
     let file = std::fs::File::create(&tmp).map_err(err)?;
     let mut w = std::io::BufWriter::with_capacity(1 << 22, file);
-    let mut hasher = blake3::Hasher::new();
-    for bytes in [header, bytemuck::cast_slice(row_nodes)].into_iter().chain(sections.iter().copied()) {
-        hasher.update(bytes);
+    for bytes in parts {
         w.write_all(bytes).map_err(err)?;
     }
-    let sum = *hasher.finalize().as_bytes();
-    w.write_all(&sum).map_err(err)?;
     w.flush().map_err(err)?;
     drop(w);
     std::fs::rename(&tmp, path).map_err(err)?;
@@ -1562,7 +1779,9 @@ fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage) -> [u8; 
     h.update(&model.fingerprint);
     // The factor's ordering moves the last bits of every column: a replay
     // reading a cache must see the bits a fresh precompute would give.
-    h.update(format!("{:?}", model.chol.ordering).as_bytes());
+    // The ordering asked for (a fixed function of the matrix resolves `Best`),
+    // so the key is known before the factor is made.
+    h.update(format!("{:?}", model.chol.requested).as_bytes());
     h.update(&(roi.len() as u64).to_le_bytes());
     h.update(bytemuck::cast_slice(roi));
     h.update(&storage.code()[..1]);
