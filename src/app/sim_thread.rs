@@ -89,6 +89,9 @@ pub struct SimShared {
     pub build_error: Mutex<Option<String>>,
     /// Set when the first build is done and the loop runs (it reads commands).
     pub running: AtomicBool,
+    /// The simulated time through which the window has handled its scripted
+    /// actions (`None`: none yet); see [`SimOptions::window_script_times`].
+    pub window_script_done: Mutex<Option<f64>>,
 }
 
 /// How far a build is: compliance columns done of the total, and the time left
@@ -135,7 +138,18 @@ pub struct SimOptions {
     pub script: Vec<(f64, ScriptAction)>,
     /// Run as fast as possible instead of in real time (tests).
     pub free_running: bool,
+    /// Times of the window's own scripted actions (keys through the window's
+    /// focus rules, panel focus, views), ascending. The window acts at the
+    /// first frame it draws at or after each time; the loop holds the frame
+    /// at that time until the window says it has (at most
+    /// [`WINDOW_SCRIPT_WAIT`]), so a script moves the blades the same
+    /// whatever the display rate or the machine's load.
+    pub window_script_times: Vec<f64>,
 }
+
+/// The longest the loop waits for the window to handle a scripted action
+/// (a window that stopped drawing must not freeze the simulation).
+pub const WINDOW_SCRIPT_WAIT: Duration = Duration::from_secs(10);
 
 /// Handle to the running simulation thread.
 pub struct SimThread {
@@ -400,6 +414,7 @@ fn run_loop(
     let mut history = History::at_rest(&b.state.poses);
     let mut recorder: Option<Recording> = None;
     let mut script = options.script.into_iter().peekable();
+    let mut window_script = options.window_script_times.into_iter().peekable();
     let mut script_keys = KeyboardController::default();
     script_keys.set_spatula_count(b.scenario.spatulas.len());
     // Per blade: the keys took it over from its trajectory.
@@ -490,6 +505,22 @@ fn run_loop(
         }
         if quit || options.max_frames.is_some_and(|m| b.state.frame >= m) {
             break;
+        }
+        // The window's scripted actions due at this frame's time: wait until it has handled them.
+        while let Some(&due) = window_script.peek() {
+            if due > b.state.time_s + 1e-12 {
+                break;
+            }
+            let waiting = Instant::now();
+            while !lock(&shared.window_script_done).is_some_and(|done| done >= due - 1e-12) {
+                if waiting.elapsed() > WINDOW_SCRIPT_WAIT {
+                    tracing::warn!("the window did not handle its scripted action at t = {due} s within {WINDOW_SCRIPT_WAIT:?}; going on");
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            window_script.next();
+            next = Instant::now();
         }
         let dt = b.pipeline.time_step();
         let t_next = b.state.time_s + dt;

@@ -264,7 +264,12 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
         scenario,
         igtl,
         haptics.clone(),
-        SimOptions { max_frames: options.max_frames, script: sim_script, free_running: false },
+        SimOptions {
+            max_frames: options.max_frames,
+            script: sim_script,
+            free_running: false,
+            window_script_times: window_script.iter().map(|(t, _)| *t).collect(),
+        },
     )
     .map_err(WindowError::Simulation)?;
     let scene = lock(&sim.shared.scene).clone();
@@ -433,10 +438,12 @@ impl App {
             self.camera_set = true;
         }
         // Window-side script actions by simulated time.
+        let mut scripted_through = None;
         while let Some((t, _)) = self.window_script.peek() {
             if *t > self.front.time_s + 1e-12 {
                 break;
             }
+            scripted_through = Some(self.front.time_s);
             let Some((_, action)) = self.window_script.next() else { break };
             match action {
                 ScriptAction::Field(f) => self.set_field(f),
@@ -478,7 +485,12 @@ impl App {
             input.keyboard = self.keyboard.command();
             input.pad = pad;
         }
-        let Some(gpu) = self.gpu.as_mut() else { return };
+        let Some(gpu) = self.gpu.as_mut() else {
+            if let Some(t) = scripted_through {
+                *lock(&shared.window_script_done) = Some(t);
+            }
+            return;
+        };
         // The panel.
         let raw = gpu.egui_state.take_egui_input(&gpu.window);
         let mut data = panel_data_of(&self.front, self.fps_window.2);
@@ -578,6 +590,12 @@ impl App {
                     }
                 }
             }
+        }
+        if let Some(t) = scripted_through {
+            // This frame's scripted actions are in the keys (and the panel's
+            // focus): the simulation, held at `t`, may go on.
+            lock(&shared.input).keyboard = self.keyboard.command();
+            *lock(&shared.window_script_done) = Some(t);
         }
         if load {
             self.send(SimCommand::LoadScenario(PathBuf::from(self.load_path.trim())));
