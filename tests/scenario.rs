@@ -413,3 +413,55 @@ fn display_views_validate() {
         "must be in [5, 120] degrees, got 170",
     );
 }
+
+/// `refine` (local boundary refinement) is read in SI; a non-positive edge,
+/// an empty volume list or an inverted box is refused at its field; the mesh
+/// the scene loads keeps every input node, has no boundary edge longer than
+/// `edge_mm` inside the volume, and stays coarse outside it; and a
+/// refinement past four times the nodes is refused naming `refine`.
+#[test]
+fn refine_validates_and_refines_the_loaded_mesh() {
+    let anchor = "    material: (young_modulus_pa: 3000.0";
+    let volume = "Box(min_mm: (-75.0, 0.0, -25.0), max_mm: (-55.0, 20.0, 0.0))";
+    let text = sylvian_text().replacen(anchor, &format!("    refine: Some((edge_mm: 3.0, within: [{volume}])),\n{anchor}"), 1);
+    let (_dir, _path, set) = load_text(&text);
+    let s = set.expect("a valid refine");
+    let r = s.refine.clone().expect("refine read");
+    assert!((r.edge - 0.003).abs() < 1e-15 && r.within.len() == 1, "mm to m: {r:?}");
+    assert!(r.within[0].contains(&Vec3::new(-0.068, 0.01, -0.0117)), "the Sylvian entry is inside");
+
+    let coarse = fissure::sim::build::load_mesh(&Scenario::load(&config_dir().join("sylvian.ron"), &[]).expect("valid")).expect("phantom");
+    let fine = fissure::sim::build::load_mesh(&s).expect("refined phantom");
+    assert_eq!(fine.positions[..coarse.node_count()], coarse.positions[..], "every input node kept, same index");
+    assert!(fine.node_count() > coarse.node_count() + 50, "{} -> {} nodes", coarse.node_count(), fine.node_count());
+    assert!((fine.volume() - coarse.volume()).abs() < 1e-9 * coarse.volume(), "volume kept");
+    let surface = fine.boundary();
+    let (mut inside, mut longest_outside) = (0, 0.0_f64);
+    for t in &surface.triangles {
+        for (i, j) in [(0, 1), (1, 2), (2, 0)] {
+            let (p, q) = (fine.positions[surface.vertices[t[i] as usize] as usize], fine.positions[surface.vertices[t[j] as usize] as usize]);
+            if r.within[0].contains(&((p + q) * 0.5)) {
+                inside += 1;
+                assert!((p - q).norm() <= 0.003 + 1e-12, "a boundary edge in the box is {} mm", (p - q).norm() * 1e3);
+            } else {
+                longest_outside = longest_outside.max((p - q).norm());
+            }
+        }
+    }
+    assert!(inside > 100 && longest_outside > 0.004, "{inside} edges inside; longest outside {longest_outside} m");
+
+    let with = |refine: &str| format!("    refine: {refine},\n{anchor}");
+    assert_bad(anchor, &with(&format!("Some((edge_mm: 0.0, within: [{volume}]))")), "refine.edge_mm", "must be > 0, got 0");
+    assert_bad(anchor, &with("Some((edge_mm: 1.0, within: []))"), "refine.within", "give at least one volume");
+    assert_bad(
+        anchor,
+        &with("Some((edge_mm: 1.0, within: [Box(min_mm: (0.0, 0.0, 0.0), max_mm: (1.0, -1.0, 1.0))]))"),
+        "refine.within[0].max_mm",
+        "must exceed min_mm",
+    );
+    let everywhere = sylvian_text().replacen(anchor, &with("Some((edge_mm: 0.2, within: [Sphere(center_mm: (0.0, 0.0, 0.0), radius_mm: 500.0)]))"), 1);
+    let (_dir, path, all) = load_text(&everywhere);
+    let err = fissure::sim::build::load_mesh(&all.expect("valid")).expect_err("0.2 mm everywhere is too many nodes");
+    let message = err.to_string();
+    assert!(message.contains(&path.display().to_string()) && message.contains("refine") && message.contains("give a larger edge length"), "{message}");
+}

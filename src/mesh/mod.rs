@@ -9,6 +9,7 @@
 pub mod io;
 pub mod phantom;
 pub mod quality;
+pub mod refine;
 pub mod surface;
 pub mod tetrahedralize;
 pub mod trisurface;

@@ -16,6 +16,15 @@ pub struct ScenarioFile {
     pub name: String,
     /// Where the brain mesh comes from.
     pub mesh: MeshSourceFile,
+    /// Local refinement of the mesh's boundary where the blades work, so a
+    /// blade holds a patch of many vertices: `Some((edge_mm: 1.0, within:
+    /// [Box(min_mm: (..), max_mm: (..))]))`. Every boundary edge whose
+    /// midpoint is in one of the volumes is split (longest-edge bisection,
+    /// conforming; interior edges only as that rule needs) until it is at
+    /// most `edge_mm` long. A function of the scenario alone, so a replay
+    /// sees the mesh the window saw. Default `None`.
+    #[serde(default)]
+    pub refine: Option<RefineFile>,
     /// Linear elastic material of the brain.
     pub material: MaterialFile,
     /// Nodes held fixed (at least one entry; their union is fixed). Checked
@@ -188,6 +197,37 @@ pub enum FixedFile {
     LowestPerComponent {
         /// Height of the fixed slab above each component's lowest point, mm (> 0).
         height_mm: f64,
+    },
+}
+
+/// Local boundary refinement: `(edge_mm: 1.0, within: [Sphere(center_mm: (..), radius_mm: 15.0)])`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RefineFile {
+    /// Longest boundary edge wanted inside `within`, mm (> 0). A refinement
+    /// that would more than quadruple the mesh's nodes is refused.
+    pub edge_mm: f64,
+    /// The volumes whose boundary edges are refined (at least one; their union).
+    pub within: Vec<VolumeFile>,
+}
+
+/// A volume of space: `Box(min_mm: (..), max_mm: (..))` or `Sphere(center_mm: (..), radius_mm: ..)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum VolumeFile {
+    /// An axis-aligned box, min < max.
+    Box {
+        /// Lower corner, mm.
+        min_mm: [f64; 3],
+        /// Upper corner, mm.
+        max_mm: [f64; 3],
+    },
+    /// A sphere.
+    Sphere {
+        /// Centre, mm.
+        center_mm: [f64; 3],
+        /// Radius, mm (> 0).
+        radius_mm: f64,
     },
 }
 

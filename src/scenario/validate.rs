@@ -22,7 +22,7 @@ use nalgebra::{Matrix3, Rotation3, Unit};
 use super::error::{FieldLocations, Location, ScenarioError, ScenarioWarning};
 use super::file::{
     CollisionBackend, ComplianceStorage, Effect, FixedFile, InputFile, LayoutFile, LengthUnit, MeshSourceFile,
-    RegionOfInterestFile, RotationFile, ScenarioFile, SphereFile, SpatulaContact,
+    RegionOfInterestFile, RotationFile, ScenarioFile, SphereFile, SpatulaContact, VolumeFile,
 };
 use super::overrides::Document;
 use super::trajectory::Trajectory;
@@ -110,6 +110,34 @@ pub enum FixedRegion {
     Sphere(Sphere),
     /// Nodes within `height` (m, > 0) above the lowest point (min z) of their connected component.
     LowestPerComponent { height: f64 },
+}
+
+/// A volume of space, SI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Volume {
+    /// An axis-aligned box (min < max componentwise), m.
+    Box { min: Vec3, max: Vec3 },
+    /// A sphere.
+    Sphere(Sphere),
+}
+
+impl Volume {
+    /// True when `p` (m) is inside or on the boundary.
+    pub fn contains(&self, p: &Vec3) -> bool {
+        match self {
+            Volume::Box { min, max } => (0..3).all(|k| p[k] >= min[k] && p[k] <= max[k]),
+            Volume::Sphere(s) => (p - s.center).norm() <= s.radius,
+        }
+    }
+}
+
+/// Local boundary refinement (see [`crate::mesh::refine`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refinement {
+    /// Longest boundary edge wanted inside `within`, m (> 0).
+    pub edge: f64,
+    /// The volumes (non-empty; their union).
+    pub within: Vec<Volume>,
 }
 
 /// Skull spheres (at least one present).
@@ -295,6 +323,8 @@ pub struct Scenario {
     pub source_path: PathBuf,
     /// Mesh source.
     pub mesh: MeshSource,
+    /// Local refinement of the mesh's boundary, when asked for.
+    pub refine: Option<Refinement>,
     /// Material of every region without an override.
     pub material: Material,
     /// Per-region overrides, sorted by region id, ids unique.
@@ -338,8 +368,8 @@ pub struct Scenario {
 }
 
 /// Fields whose positions [`Scenario::locations`] keeps (plus `fixed[i]` and `spatulas[i]`).
-const LOCATED_FIELDS: [&str; 8] =
-    ["mesh", "mesh.path", "fixed", "skull.containing", "skull.excluding", "time_step_s", "trajectory", "spatulas"];
+const LOCATED_FIELDS: [&str; 9] =
+    ["mesh", "mesh.path", "refine", "fixed", "skull.containing", "skull.excluding", "time_step_s", "trajectory", "spatulas"];
 
 struct Checker<'d> {
     doc: &'d Document,
@@ -496,6 +526,34 @@ impl Scenario {
                 MeshSource::Phantom { preset: preset.clone() }
             }
             MeshSourceFile::File { path, units } => MeshSource::File { path: c.existing_file("mesh.path", path)?, units: *units },
+        };
+
+        let refine = match &file.refine {
+            None => None,
+            Some(r) => {
+                let edge = c.positive("refine.edge_mm", r.edge_mm)? * MM;
+                if r.within.is_empty() {
+                    return Err(c.invalid("refine.within", "give at least one volume (or leave `refine` out)"));
+                }
+                let mut within = Vec::with_capacity(r.within.len());
+                for (i, v) in r.within.iter().enumerate() {
+                    let field = format!("refine.within[{i}]");
+                    within.push(match v {
+                        VolumeFile::Box { min_mm, max_mm } => {
+                            let min = c.vec_mm(&format!("{field}.min_mm"), *min_mm)?;
+                            let max = c.vec_mm(&format!("{field}.max_mm"), *max_mm)?;
+                            if (0..3).any(|k| min[k] >= max[k]) {
+                                return Err(c.invalid(&format!("{field}.max_mm"), format!("must exceed min_mm in every component: min {min_mm:?}, max {max_mm:?}")));
+                            }
+                            Volume::Box { min, max }
+                        }
+                        VolumeFile::Sphere { center_mm, radius_mm } => {
+                            Volume::Sphere(c.sphere(&field, &SphereFile { center_mm: *center_mm, radius_mm: *radius_mm })?)
+                        }
+                    });
+                }
+                Some(Refinement { edge, within })
+            }
         };
 
         let material = c.material("material", file.material.young_modulus_pa, file.material.poisson_ratio)?;
@@ -735,6 +793,7 @@ impl Scenario {
             name: file.name,
             source_path: document.path.clone(),
             mesh,
+            refine,
             material,
             region_materials,
             fixed,

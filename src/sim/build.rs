@@ -60,8 +60,36 @@ pub const AUTO_ROI_MARGIN_M: f64 = 0.020;
 /// `SKULL_PREFETCH_GAP_M` of a sphere).
 pub const AUTO_ROI_SKULL_MAX: usize = 64;
 
-/// Loads the scene's mesh in metres.
+/// Loads the scene's mesh in metres, refined where the scenario's `refine` asks.
 pub fn load_mesh(scenario: &Scenario) -> Result<TetMesh, BuildError> {
+    let mesh = load_unrefined(scenario)?;
+    match &scenario.refine {
+        None => Ok(mesh),
+        Some(r) => refine(scenario, r, &mesh),
+    }
+}
+
+/// The scene's boundary refined by `r`; at most four times the nodes.
+fn refine(scenario: &Scenario, r: &crate::scenario::Refinement, mesh: &TetMesh) -> Result<TetMesh, BuildError> {
+    let t = std::time::Instant::now();
+    let limit = (4 * mesh.node_count()).max(mesh.node_count() + 10_000);
+    let inside = |p: &Vec3| r.within.iter().any(|v| v.contains(p));
+    let (refined, stats) = crate::mesh::refine::refine_boundary(mesh, r.edge, inside, limit)
+        .map_err(|e| BuildError::Scenario(scenario.invalid("refine", e.to_string())))?;
+    tracing::info!(
+        "refined the boundary to {:.2} mm edges: {} nodes added ({} on the boundary), {} -> {} tetrahedra, {:.0} ms",
+        r.edge * 1e3,
+        stats.splits,
+        stats.boundary_splits,
+        mesh.tets.len(),
+        refined.tets.len(),
+        t.elapsed().as_secs_f64() * 1e3
+    );
+    Ok(refined)
+}
+
+/// Loads the scene's mesh in metres, as its file or preset has it.
+fn load_unrefined(scenario: &Scenario) -> Result<TetMesh, BuildError> {
     match &scenario.mesh {
         MeshSource::Phantom { preset } => {
             let p: crate::mesh::phantom::Preset = preset
