@@ -223,17 +223,80 @@ struct LazyColumn {
     last_used: u64,
 }
 
-/// Most K^-1 blocks [`ConstrainedSolver`] keeps for its candidates between
-/// frames (72 bytes each: 38 MB); past it they are read again.
-const CANDIDATE_BLOCKS_MAX: usize = 1 << 19;
+/// A compliance above this size (bytes) keeps its candidates' blocks between
+/// frames (a last-level cache is at most a few tens of megabytes).
+const CANDIDATE_BLOCKS_FROM_BYTES: usize = 64 << 20;
 
-/// The K^-1 blocks of one candidate node against the nodes of the W rows,
-/// by slot: `nodes[slot]` is the node whose block `blocks[slot]` holds
-/// (`u32::MAX`: none yet).
+/// The K^-1 blocks of the contact candidates against the nodes of the W
+/// rows, kept between frames (see `ConstrainedSolver::candidate_blocks`): a
+/// row a candidate, a slot a W node, in two flat arrays of `stride` slots a
+/// row, so it allocates only when the candidates or the slots pass their
+/// high-water mark. A row not used this frame or the last is given to
+/// another candidate.
 #[derive(Debug, Default)]
 struct CandidateBlocks {
+    /// Candidate node -> row.
+    index: std::collections::HashMap<u32, u32>,
+    /// Frame each row was last used in.
+    last_used: Vec<u64>,
+    free: Vec<u32>,
+    /// The frame the rows were last sorted out for.
+    frame: u64,
+    /// The solver's `lazy_generation` the kept blocks were read at.
+    generation: u64,
+    stride: usize,
+    /// `nodes[row * stride + slot]`: the W node whose block is kept there (`u32::MAX`: none).
     nodes: Vec<u32>,
     blocks: Vec<Matrix3<f64>>,
+}
+
+impl CandidateBlocks {
+    /// The first index of `node`'s row for a frame with `slots` W nodes,
+    /// the lazy columns at `generation`.
+    fn row(&mut self, node: u32, frame: u64, slots: usize, generation: u64) -> usize {
+        if slots > self.stride || generation != self.generation {
+            // Wider rows, or other lazy columns: start again (a cache; only
+            // the high-water mark grows).
+            self.generation = generation;
+            self.stride = self.stride.max(slots.next_power_of_two().max(16));
+            self.index.clear();
+            self.free.clear();
+            self.last_used.clear();
+            self.nodes.clear();
+            self.blocks.clear();
+        }
+        if frame != self.frame {
+            self.frame = frame;
+            let (last_used, free) = (&self.last_used, &mut self.free);
+            self.index.retain(|_, r| {
+                let keep = last_used[*r as usize] + 1 >= frame;
+                if !keep {
+                    free.push(*r);
+                }
+                keep
+            });
+        }
+        let stride = self.stride;
+        let r = match self.index.get(&node) {
+            Some(&r) => r as usize,
+            None => {
+                let r = match self.free.pop() {
+                    Some(r) => r as usize,
+                    None => {
+                        self.last_used.push(0);
+                        self.nodes.resize(self.last_used.len() * stride, u32::MAX);
+                        self.blocks.resize(self.last_used.len() * stride, Matrix3::zeros());
+                        self.last_used.len() - 1
+                    }
+                };
+                self.nodes[r * stride..(r + 1) * stride].fill(u32::MAX);
+                self.index.insert(node, r as u32);
+                r
+            }
+        };
+        self.last_used[r] = frame;
+        r * stride
+    }
 }
 
 /// Exact constrained solver; holds the model, the compliance and all scratch.
@@ -269,7 +332,16 @@ pub struct ConstrainedSolver {
     /// fissure: 386 candidates x 111 nodes, 12 ms a frame read there). The
     /// compliance and the lazy columns never change, so a kept block is the
     /// block read again, bit for bit.
-    candidate_blocks: std::cell::RefCell<(std::collections::HashMap<u32, CandidateBlocks>, usize)>,
+    candidate_blocks: std::cell::RefCell<CandidateBlocks>,
+    /// Whether [`Self::candidate_blocks`] is used: only for a compliance
+    /// larger than [`CANDIDATE_BLOCKS_FROM_BYTES`], whose blocks miss the
+    /// CPU's caches; a smaller one is read as fast as the kept blocks.
+    keep_candidate_blocks: bool,
+    /// Counts the changes of `lazy`: a block [`Self::kinv`] reads for a
+    /// node with a lazy column is that column's (exact), else the
+    /// compliance's rows (f32 beyond the ROI), so a kept block is good only
+    /// while `lazy` is as it was.
+    lazy_generation: u64,
     rows: Vec<ConstraintRow>,
     /// Candidate index of each sphere row (row - enforced rows).
     row_candidate: Vec<usize>,
@@ -317,6 +389,7 @@ impl ConstrainedSolver {
         }
         let rows = compliance.row_nodes().len();
         let prefetcher = Prefetcher::new(std::sync::Arc::clone(&model.chol), model.dofs.clone());
+        let keep_candidate_blocks = compliance.stats().bytes > CANDIDATE_BLOCKS_FROM_BYTES;
         Ok(Self {
             model,
             compliance,
@@ -335,7 +408,9 @@ impl ConstrainedSolver {
             candidates: Vec::new(),
             prev_active: Vec::new(),
             prev_barrier: Vec::new(),
-            candidate_blocks: std::cell::RefCell::new((std::collections::HashMap::new(), 0)),
+            candidate_blocks: std::cell::RefCell::new(CandidateBlocks::default()),
+            keep_candidate_blocks,
+            lazy_generation: 0,
             rows: Vec::new(),
             row_candidate: Vec::new(),
             factor: ContactFactor::default(),
@@ -997,6 +1072,7 @@ impl ConstrainedSolver {
             match victim {
                 Some(i) => {
                     self.lazy.remove(i);
+                    self.lazy_generation += 1;
                 }
                 None => break,
             }
@@ -1008,6 +1084,7 @@ impl ConstrainedSolver {
         for (node, values) in columns {
             if let Err(at) = self.lazy.binary_search_by_key(&node, |c| c.node) {
                 self.lazy.insert(at, LazyColumn { node, values, last_used: stamp });
+                self.lazy_generation += 1;
             }
         }
     }
@@ -1129,26 +1206,24 @@ impl ConstrainedSolver {
     /// Displacement of one node at the current forces (gravity included).
     fn displacement_of(&self, node: u32) -> Vec3 {
         let mut u = self.model.gravity_displacement(node);
+        if !self.keep_candidate_blocks {
+            for (slot, f) in self.node_force.iter().enumerate() {
+                if *f != Vec3::zeros() {
+                    u += self.kinv(node, self.nodes[slot]) * f;
+                }
+            }
+            return u;
+        }
         let mut kept = self.candidate_blocks.borrow_mut();
-        let (rows, count) = &mut *kept;
-        if *count + self.nodes.len() > CANDIDATE_BLOCKS_MAX {
-            rows.clear();
-            *count = 0;
-        }
-        let row = rows.entry(node).or_default();
-        if row.nodes.len() < self.nodes.len() {
-            *count += self.nodes.len() - row.nodes.len();
-            row.nodes.resize(self.nodes.len(), u32::MAX);
-            row.blocks.resize(self.nodes.len(), Matrix3::zeros());
-        }
+        let base = kept.row(node, self.frame, self.nodes.len(), self.lazy_generation);
         for (slot, f) in self.node_force.iter().enumerate() {
             if *f != Vec3::zeros() {
                 let q = self.nodes[slot];
-                if row.nodes[slot] != q {
-                    row.blocks[slot] = self.kinv(node, q);
-                    row.nodes[slot] = q;
+                if kept.nodes[base + slot] != q {
+                    kept.blocks[base + slot] = self.kinv(node, q);
+                    kept.nodes[base + slot] = q;
                 }
-                u += row.blocks[slot] * f;
+                u += kept.blocks[base + slot] * f;
             }
         }
         u

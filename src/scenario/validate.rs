@@ -446,6 +446,16 @@ impl Checker<'_> {
         Ok(Material { young_modulus, poisson_ratio: nu })
     }
 
+    /// An axis-aligned box `field.min_mm` .. `field.max_mm` in metres, min < max in every component.
+    fn box_mm(&self, field: &str, min_mm: [f64; 3], max_mm: [f64; 3]) -> Result<(Vec3, Vec3), ScenarioError> {
+        let min = self.vec_mm(&format!("{field}.min_mm"), min_mm)?;
+        let max = self.vec_mm(&format!("{field}.max_mm"), max_mm)?;
+        if (0..3).any(|k| min[k] >= max[k]) {
+            return Err(self.invalid(&format!("{field}.max_mm"), format!("must exceed min_mm in every component: min {min_mm:?}, max {max_mm:?}")));
+        }
+        Ok((min, max))
+    }
+
     fn sphere(&self, field: &str, s: &SphereFile) -> Result<Sphere, ScenarioError> {
         let center = self.vec_mm(&format!("{field}.center_mm"), s.center_mm)?;
         let radius = self.positive(&format!("{field}.radius_mm"), s.radius_mm)? * MM;
@@ -540,11 +550,7 @@ impl Scenario {
                     let field = format!("refine.within[{i}]");
                     within.push(match v {
                         VolumeFile::Box { min_mm, max_mm } => {
-                            let min = c.vec_mm(&format!("{field}.min_mm"), *min_mm)?;
-                            let max = c.vec_mm(&format!("{field}.max_mm"), *max_mm)?;
-                            if (0..3).any(|k| min[k] >= max[k]) {
-                                return Err(c.invalid(&format!("{field}.max_mm"), format!("must exceed min_mm in every component: min {min_mm:?}, max {max_mm:?}")));
-                            }
+                            let (min, max) = c.box_mm(&field, *min_mm, *max_mm)?;
                             Volume::Box { min, max }
                         }
                         VolumeFile::Sphere { center_mm, radius_mm } => {
@@ -576,11 +582,7 @@ impl Scenario {
             fixed.push(match f {
                 FixedFile::RegionId(id) => FixedRegion::RegionId(*id),
                 FixedFile::Box { min_mm, max_mm } => {
-                    let min = c.vec_mm(&format!("{field}.min_mm"), *min_mm)?;
-                    let max = c.vec_mm(&format!("{field}.max_mm"), *max_mm)?;
-                    if (0..3).any(|k| min[k] >= max[k]) {
-                        return Err(c.invalid(&format!("{field}.max_mm"), format!("must exceed min_mm in every component: min {min_mm:?}, max {max_mm:?}")));
-                    }
+                    let (min, max) = c.box_mm(&field, *min_mm, *max_mm)?;
                     FixedRegion::Box { min, max }
                 }
                 FixedFile::Sphere { center_mm, radius_mm } => {
