@@ -8,7 +8,7 @@
 #
 #   bash scripts/gpu_devkit.sh            # build and pack
 #   # on the GPU machine, in a copy of the repository with .devkit/ beside it:
-#   REPLAY=1 bash .devkit/run.sh          # writes $OUT/bench.md (OUT defaults to /tmp/fissure-gpu)
+#   REPLAY=1 SYLVIAN=1 bash .devkit/run.sh   # writes $OUT/bench.md (OUT defaults to /tmp/fissure-gpu)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 brains=../shared/data/brain
@@ -52,6 +52,19 @@ if [ -n "${REPLAY:-}" ] && [ -f "$K/brain_pial_coarse.msh" ]; then
         echo "replay $b rc $?"; grep -E "collision|frame time|backend" /tmp/fissure-replay.log | head -4
         cp /tmp/fissure-replay/summary.json "$OUT/summary_$b.json" 2>/dev/null
     done
+fi
+# With SYLVIAN=1: the fine brain's Sylvian opening (the scene the window ships,
+# refined under the blades) with each backend, and one screenshot on the GPU.
+if [ -n "${SYLVIAN:-}" ] && [ -f "$K/brain_pial_q15.msh" ]; then
+    for b in Bvh Gpu Auto; do
+        rm -rf /tmp/fissure-syl
+        "$K/fissure" replay config/real_brain/sylvian.ron --set "mesh=File(path: \"$K/brain_pial_q15.msh\", units: Millimetres)" \
+            --set 'solver.cache_dir=Some("/tmp/fissure-cache")' --set collision.backend=$b --out /tmp/fissure-syl > /tmp/fissure-syl.log 2>&1
+        echo "sylvian $b rc $?"; grep -E "collision|frame time|backend|hash" /tmp/fissure-syl.log | head -6
+        cp /tmp/fissure-syl/summary.json "$OUT/sylvian_$b.json" 2>/dev/null
+    done
+    "$K/fissure" screenshot config/real_brain/sylvian.ron --set "mesh=File(path: \"$K/brain_pial_q15.msh\", units: Millimetres)" \
+        --set 'solver.cache_dir=Some("/tmp/fissure-cache")' --time 4 --view microscope --field pressure -o "$OUT/sylvian_microscope.png" 2>&1 | tail -3
 fi
 EOF
 chmod +x "$kit/run.sh"
