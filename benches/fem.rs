@@ -5,6 +5,9 @@
 //! and `brain_pial_q15.msh`, each skipped when absent). Before the precompute,
 //! each model's `K_FF` is factored with AMD and with nested dissection.
 //!
+//! With 100 and 300 constrained it prints the floor of a frame measured in the
+//! same run ([`floor_ms`]) and the frame p95 as a multiple of it.
+//!
 //! Run: `cargo bench --bench fem` (add `-- brain`, `-- coarse`, `-- q15` or
 //! `-- paper` to run some models).
 //! Storage: env `FEM_BENCH_STORAGE` = `f32` (default) | `f64` | `lowrank<digits>`
@@ -169,6 +172,20 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
             "  mean phase times: gather {:.2} ms, factor+solve W {:.2} ms, candidates {:.2} ms, surface product {:.2} ms (of which gathering rows of new columns {:.2} ms), lazy columns {:.2} ms",
             p[0], p[1], p[2], p[3], p[4], p[5]
         );
+        let nodes: Vec<u32> = m.cons.iter().map(|c| c.node).collect();
+        if let Some(f) = floor_ms(solver.compliance(), &nodes, fresh) {
+            let floor = f.read_new + f.f32_par;
+            println!(
+                "  floor, same run: reading W's new entries {:.2} ms (all of W {:.2} ms), dense Cholesky of W {:.2} ms f64 one thread, {:.2} ms f64 every core ({}), {:.2} ms f32 every core; frame p95 = {:.1}x the floor (new entries + f32 factor = {floor:.2} ms)",
+                f.read_new,
+                f.read_all,
+                f.f64_seq,
+                f.f64_par,
+                if f.par_bitwise { "bitwise the one-thread factor" } else { "differs from the one-thread factor" },
+                f.f32_par,
+                m.p95 / floor
+            );
+        }
         last_frame = (m.cons, m.out);
     }
     // Frame time against the number of constrained vertices (a tenth new each frame): a table and a plot.
@@ -258,6 +275,76 @@ fn ordering_lines(model: &FemModel) {
             solve * 1e3
         );
     }
+}
+
+/// The floor of one exact frame over `nodes` whose last `fresh` are new this
+/// frame, measured in the same run as the frames (issue 21), ms, each the best
+/// of 5: reading the new entries of W (the compliance's 3x3 block of each new
+/// node against every node: what a solver that keeps W must read), reading all
+/// of W (for scale), and one dense Cholesky of W: f64 on one thread (what the
+/// solver runs), f64 on every core (and whether it is bitwise the one-thread
+/// factor), f32 on every core (the cheapest dense factor there is). `None`
+/// when a node has no column.
+struct Floor {
+    read_new: f64,
+    read_all: f64,
+    f64_seq: f64,
+    f64_par: f64,
+    par_bitwise: bool,
+    f32_par: f64,
+}
+
+fn floor_ms(compliance: &Compliance, nodes: &[u32], fresh: usize) -> Option<Floor> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::cholesky::llt::factor::{LltRegularization, cholesky_in_place, cholesky_in_place_scratch};
+    use faer::{MatMut, Par, Spec};
+    let rows: Vec<usize> = nodes.iter().map(|&n| compliance.row_of(n)).collect::<Option<_>>()?;
+    let cols: Vec<usize> = nodes.iter().map(|&n| compliance.col_of(n)).collect::<Option<_>>()?;
+    let n = 3 * nodes.len();
+    let mut w = vec![0.0f64; n * n];
+    let best = |f: &mut dyn FnMut()| {
+        (0..5)
+            .map(|_| {
+                let t = Instant::now();
+                f();
+                t.elapsed().as_secs_f64() * 1e3
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut read = |w: &mut [f64], from: usize| {
+        for (j, &c) in cols.iter().enumerate().skip(from) {
+            for (i, &r) in rows.iter().enumerate() {
+                let b = compliance.block(r, c);
+                for q in 0..3 {
+                    for p in 0..3 {
+                        w[(3 * j + q) * n + 3 * i + p] = b[(p, q)];
+                    }
+                }
+            }
+        }
+    };
+    let read_new = best(&mut || read(&mut w, nodes.len().saturating_sub(fresh)));
+    let read_all = best(&mut || read(&mut w, 0));
+    let factor = |w: &[f64], l: &mut [f64], par: Par, buf: &mut MemBuffer| {
+        l.copy_from_slice(w);
+        let mat = MatMut::from_column_major_slice_mut(l, n, n);
+        let _ = cholesky_in_place(mat, LltRegularization::default(), par, MemStack::new(buf), Spec::default());
+    };
+    let (seq, par) = (Par::Seq, Par::rayon(0));
+    let mut buf = MemBuffer::new(cholesky_in_place_scratch::<f64>(n, par, Spec::default()));
+    let (mut l_seq, mut l_par) = (vec![0.0; n * n], vec![0.0; n * n]);
+    let f64_seq = best(&mut || factor(&w, &mut l_seq, seq, &mut buf));
+    let f64_par = best(&mut || factor(&w, &mut l_par, par, &mut buf));
+    let par_bitwise = (0..n).all(|j| (j..n).all(|i| l_seq[j * n + i].to_bits() == l_par[j * n + i].to_bits()));
+    let w32: Vec<f32> = w.iter().map(|&x| x as f32).collect();
+    let mut l32 = w32.clone();
+    let mut buf32 = MemBuffer::new(cholesky_in_place_scratch::<f32>(n, par, Spec::default()));
+    let f32_par = best(&mut || {
+        l32.copy_from_slice(&w32);
+        let mat = MatMut::from_column_major_slice_mut(&mut l32, n, n);
+        let _ = cholesky_in_place(mat, LltRegularization::default(), par, MemStack::new(&mut buf32), Spec::default());
+    });
+    Some(Floor { read_new, read_all, f64_seq, f64_par, par_bitwise, f32_par })
 }
 
 /// Frame times of a window of `count` constrained vertices sliding over `near`

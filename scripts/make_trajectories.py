@@ -125,17 +125,22 @@ write("assets/trajectories/real_brain_interhemispheric.csv",
 # anterior stem (y = 15 mm) the lateral surface has a cleft about 10 mm tall
 # (z = -11 .. -1 mm) and 12-15 mm deep (lateral surface x = -54 mm, floor
 # x = -40 mm). Two 60 x 8 x 0.5 mm blades, faces up and down, go into it
-# side by side (tips 14 mm past x = -56 mm at 1 s), then spread SPREAD mm each,
-# the upper blade lifting the frontal operculum and the lower one pressing the
-# temporal one, until 3 s, and hold.
-SPREAD = 10.5
+# side by side (tips 14 mm past x = -56 mm at 1 s), then spread apart, the
+# upper blade lifting the frontal operculum SPREAD_FRONTAL mm and the lower one
+# pressing the temporal one SPREAD_TEMPORAL mm, until 3.5 s, and hold. The
+# temporal operculum's upper surface falls away inwards (z = -10 .. -13 mm at
+# the lip, -16 .. -20 mm under the tips), so its blade travels further to hold
+# a patch as wide as the frontal one's: 10.5 mm gave 0.068 N on 18 vertices,
+# 13.5 mm gives 0.11 N on 33. The spread is slow enough (under 1/8 of the
+# blade's thickness a 10 ms frame) that no frame needs sub-steps.
+SPREAD_FRONTAL, SPREAD_TEMPORAL = 10.5, 13.5
 entry, inward, normal = (-56.0, 15.0, -6.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
 rows = []
-for k, side in ((0, 1.0), (1, -1.0)):
-    for t, depth, off in ((0.0, -5.0, 0.4), (1.0, 14.0, 0.4), (3.0, 14.0, 0.4 + SPREAD), (4.0, 14.0, 0.4 + SPREAD)):
+for k, side, spread in ((0, 1.0, SPREAD_FRONTAL), (1, -1.0, SPREAD_TEMPORAL)):
+    for t, depth, off in ((0.0, -5.0, 0.4), (1.0, 14.0, 0.4), (3.5, 14.0, 0.4 + spread), (4.0, 14.0, 0.4 + spread)):
         p, q = blade_pose(entry, inward, normal, 60.0, depth, side * off)
         rows.append(row(t, k, p, q))
 write("assets/trajectories/real_brain_sylvian.csv",
       "Real brain (fsaverage5, ../shared/data/brain): two 60 x 8 x 0.5 mm blades enter the\n"
-      f"left Sylvian fissure's stem at y = 15 mm, z = -6 mm (tips 14 mm deep at 1 s), then spread {SPREAD:g} mm each\n"
-      "(upper blade up, lower blade down) until 3 s and hold.", rows)
+      f"left Sylvian fissure's stem at y = 15 mm, z = -6 mm (tips 14 mm deep at 1 s), then spread\n"
+      f"(upper blade up {SPREAD_FRONTAL:g} mm, lower blade down {SPREAD_TEMPORAL:g} mm) until 3.5 s and hold.", rows)

@@ -19,7 +19,8 @@ struct VsIn {
 };
 
 struct VsOut {
-    @builtin(position) clip: vec4<f32>,
+    // Invariant: the hidden-contact pass must find the surface pass's depth.
+    @builtin(position) @invariant clip: vec4<f32>,
     @location(0) world: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) color: vec4<f32>,
@@ -35,8 +36,20 @@ fn vs_main(v: VsIn) -> VsOut {
     return out;
 }
 
+// The contact patch where something nearer hides it (drawn with depth test
+// "greater", no depth write, alpha blended): lit as the surface is, faded by
+// the vertex alpha (1 where a blade presses, 0 elsewhere) to 0.7 at most.
+@fragment
+fn fs_hidden(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+    return vec4<f32>(shade(in, front), 0.7 * clamp(in.color.a, 0.0, 1.0));
+}
+
 @fragment
 fn fs_main(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+    return vec4<f32>(shade(in, front), 1.0);
+}
+
+fn shade(in: VsOut, front: bool) -> vec3<f32> {
     var n = normalize(in.normal);
     if (!front) {
         n = -n;
@@ -49,6 +62,5 @@ fn fs_main(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f
     let h = normalize(l + v);
     let spec = pow(max(dot(n, h), 0.0), globals.params.z) * globals.params.y;
     let albedo = in.color.rgb;
-    let rgb = albedo * (globals.params.x + 0.5 * key + 0.35 * head) + vec3<f32>(spec);
-    return vec4<f32>(rgb, 1.0);
+    return albedo * (globals.params.x + 0.5 * key + 0.35 * head) + vec3<f32>(spec);
 }

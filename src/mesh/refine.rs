@@ -23,7 +23,7 @@
 
 use super::{MeshError, TetMesh};
 use crate::math::Vec3;
-use std::collections::{BinaryHeap, HashMap, HashSet};
+use std::collections::{BinaryHeap, HashSet};
 
 /// Why a refinement could not be made.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -88,8 +88,11 @@ struct Work {
     positions: Vec<Vec3>,
     tets: Vec<[u32; 4]>,
     regions: Vec<u32>,
-    /// Edge -> the tets around it.
-    around: HashMap<Edge, Vec<u32>>,
+    /// Node -> the tets holding it, in the order each was last made or
+    /// changed (the order the path's choices follow, so it is kept exactly);
+    /// the tets around an edge are its first node's that hold the second (a
+    /// node's list is short: 20-30 on the brains).
+    node_tets: Vec<Vec<u32>>,
     /// Boundary faces (sorted node triples).
     boundary: HashSet<[u32; 3]>,
 }
@@ -104,37 +107,39 @@ impl Work {
         EDGES.iter().map(|&(i, j)| self.key(edge(tet[i], tet[j]))).max().map(|k| k.edge).unwrap_or((0, 0))
     }
 
+    /// The tets around `e` into `out` (empty: no such edge).
+    fn around(&self, e: Edge, out: &mut Vec<u32>) {
+        out.clear();
+        out.extend(self.node_tets[e.0 as usize].iter().copied().filter(|&t| self.tets[t as usize].contains(&e.1)));
+    }
+
+    fn exists(&self, e: Edge) -> bool {
+        self.node_tets[e.0 as usize].iter().any(|&t| self.tets[t as usize].contains(&e.1))
+    }
+
     fn link(&mut self, t: u32) {
-        let tet = self.tets[t as usize];
-        for &(i, j) in &EDGES {
-            self.around.entry(edge(tet[i], tet[j])).or_default().push(t);
+        for n in self.tets[t as usize] {
+            self.node_tets[n as usize].push(t);
         }
     }
 
-    fn unlink(&mut self, t: u32, except: Edge) {
-        let tet = self.tets[t as usize];
-        for &(i, j) in &EDGES {
-            let e = edge(tet[i], tet[j]);
-            if e == except {
-                continue;
-            }
-            if let Some(list) = self.around.get_mut(&e) {
-                list.retain(|&x| x != t);
-            }
+    fn unlink(&mut self, t: u32) {
+        for n in self.tets[t as usize] {
+            self.node_tets[n as usize].retain(|&x| x != t);
         }
     }
 
     /// Splits `e` at its midpoint in every tet around it; returns the new
     /// node and the boundary edges the split made.
-    fn split(&mut self, e: Edge, new_boundary: &mut Vec<Edge>) -> u32 {
+    fn split(&mut self, e: Edge, around: &[u32], new_boundary: &mut Vec<Edge>) -> u32 {
         let (a, b) = e;
         let m = self.positions.len() as u32;
         self.positions.push((self.positions[a as usize] + self.positions[b as usize]) * 0.5);
-        let around = self.around.remove(&e).unwrap_or_default();
+        self.node_tets.push(Vec::new());
         let mut on_boundary = false;
-        for &t in &around {
+        for &t in around {
             let tet = self.tets[t as usize];
-            self.unlink(t, e);
+            self.unlink(t);
             // The two faces of this tet that hold the edge.
             for &c in tet.iter().filter(|&&n| n != a && n != b) {
                 if self.boundary.remove(&face([a, b, c])) {
@@ -161,11 +166,9 @@ impl Work {
         m
     }
 
-    fn is_boundary_edge(&self, e: Edge) -> bool {
-        self.around.get(&e).is_some_and(|ts| {
-            ts.iter().any(|&t| {
-                self.tets[t as usize].iter().any(|&c| c != e.0 && c != e.1 && self.boundary.contains(&face([e.0, e.1, c])))
-            })
+    fn is_boundary_edge(&self, e: Edge, around: &[u32]) -> bool {
+        around.iter().any(|&t| {
+            self.tets[t as usize].iter().any(|&c| c != e.0 && c != e.1 && self.boundary.contains(&face([e.0, e.1, c])))
         })
     }
 }
@@ -188,7 +191,7 @@ pub fn refine_boundary(
         positions: mesh.positions.clone(),
         tets: mesh.tets.clone(),
         regions: mesh.regions.clone(),
-        around: HashMap::with_capacity(mesh.tets.len() * 2),
+        node_tets: vec![Vec::new(); mesh.node_count()],
         boundary: surface.triangles.iter().map(|t| face(t.map(|v| surface.vertices[v as usize]))).collect(),
     };
     for t in 0..work.tets.len() as u32 {
@@ -214,29 +217,31 @@ pub fn refine_boundary(
     let tets_before = work.tets.len();
     let mut new_boundary = Vec::new();
     let mut path: Vec<Edge> = Vec::new();
+    let mut around: Vec<u32> = Vec::new();
     while let Some(Key { edge: target, .. }) = heap.pop() {
-        if !work.around.contains_key(&target) {
+        if !work.exists(target) {
             continue; // split already, as part of another edge's path
         }
         path.clear();
         path.push(target);
         while let Some(&e) = path.last() {
-            let Some(ts) = work.around.get(&e) else {
+            work.around(e, &mut around);
+            if around.is_empty() {
                 path.pop();
                 continue;
-            };
+            }
             // Each pushed edge is longer (in `Key` order) than the one under
             // it, so the path ends.
-            if let Some(longer) = ts.iter().map(|&t| work.longest(t)).find(|&l| l != e) {
+            if let Some(longer) = around.iter().map(|&t| work.longest(t)).find(|&l| l != e) {
                 path.push(longer);
                 continue;
             }
             if work.positions.len() >= max_nodes {
                 return Err(RefineError::TooManyNodes { edge_mm: h * 1e3, nodes: mesh.node_count(), limit: max_nodes });
             }
-            let was_boundary = work.is_boundary_edge(e);
+            let was_boundary = work.is_boundary_edge(e, &around);
             new_boundary.clear();
-            work.split(e, &mut new_boundary);
+            work.split(e, &around, &mut new_boundary);
             stats.splits += 1;
             stats.boundary_splits += usize::from(was_boundary);
             for &nb in &new_boundary {
@@ -256,6 +261,7 @@ pub fn refine_boundary(
 mod tests {
     use super::*;
     use crate::mesh::tests::cube;
+    use std::collections::HashMap;
 
     fn surface_edges(m: &TetMesh) -> Vec<(Vec3, Vec3)> {
         let s = m.boundary();

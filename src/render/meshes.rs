@@ -10,7 +10,7 @@
 
 use super::colormap::NO_DATA;
 use super::gpu_types::Vertex;
-use super::scene::{BRAIN_PINK, Overlays, SkullSphere, SpatulaView, SurfaceView};
+use super::scene::{BRAIN_PINK, FieldKind, Overlays, SkullSphere, SpatulaView, SurfaceView};
 use crate::math::Vec3;
 
 /// Per-vertex area-weighted normals of `triangles` over `positions`, written to
@@ -66,12 +66,38 @@ pub fn surface_vertices(
                 .map_or(NO_DATA, |&v| f.map.color(v, f.range)),
             None => BRAIN_PINK,
         };
+        // Alpha: the vertex's weight in the hidden-contact pass (the surface
+        // pass draws opaque and ignores it): 1 where a blade presses.
+        let pressed = pressed_value(surface, i);
         out.push(Vertex {
             position: rel(p, origin),
             normal: f3(n),
-            color: [rgb[0], rgb[1], rgb[2], 1.0],
+            color: [rgb[0], rgb[1], rgb[2], if pressed { 1.0 } else { 0.0 }],
         });
     }
+}
+
+/// Whether surface vertex `i` carries a contact pressure above zero (only a
+/// pressure field has any).
+fn pressed_value(surface: &SurfaceView, i: usize) -> bool {
+    surface.field.as_ref().is_some_and(|f| {
+        f.kind == FieldKind::ContactPressureMmHg && f.values.get(i).is_some_and(|&v| v > 0.0 && v.is_finite())
+    })
+}
+
+/// The triangles with a pressed vertex (see [`surface_vertices`]' alpha), for
+/// the renderer's hidden-contact pass; empty unless the field is pressure.
+pub fn pressed_triangles(surface: &SurfaceView, out: &mut Vec<[u32; 3]>) {
+    out.clear();
+    if surface.field.as_ref().is_none_or(|f| f.kind != FieldKind::ContactPressureMmHg) {
+        return;
+    }
+    out.extend(
+        surface
+            .triangles
+            .iter()
+            .filter(|t| t.iter().any(|&v| pressed_value(surface, v as usize))),
+    );
 }
 
 /// The six faces of a box in the spatula frame: (outward normal, four corners CCW from outside).
@@ -261,6 +287,29 @@ pub fn overlay_vertices(
 mod tests {
     use super::*;
     use crate::geometry::{Pose, SpatulaShape};
+
+    #[test]
+    fn only_pressed_triangles_show_through_and_only_for_pressure() {
+        use super::super::colormap::ColorMap;
+        use super::super::scene::ScalarField;
+        let p = vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::new(1.0, 1.0, 0.0), Vec3::new(2.0, 1.0, 0.0)];
+        let tris = [[0, 1, 2], [1, 3, 2], [1, 4, 3]];
+        let values = [0.0, 0.0, 12.0, 0.0, f64::NAN];
+        let field = |kind| ScalarField { values: &values, kind, map: ColorMap::Inferno, range: (0.0, 30.0) };
+        let view = |f| SurfaceView { positions: &p, triangles: &tris, field: f };
+        let mut out = Vec::new();
+        pressed_triangles(&view(Some(field(FieldKind::ContactPressureMmHg))), &mut out);
+        assert_eq!(out, vec![[0, 1, 2], [1, 3, 2]], "the triangles around the pressed vertex; NaN is not pressure");
+        let (mut normals, mut verts) = (Vec::new(), Vec::new());
+        surface_vertices(&view(Some(field(FieldKind::ContactPressureMmHg))), &Vec3::zeros(), &mut normals, &mut verts);
+        assert_eq!(verts.iter().map(|v| v.color[3]).collect::<Vec<_>>(), vec![0.0, 0.0, 1.0, 0.0, 0.0]);
+        for other in [None, Some(field(FieldKind::DisplacementMm)), Some(field(FieldKind::Strain))] {
+            pressed_triangles(&view(other), &mut out);
+            assert!(out.is_empty(), "only a pressure field shows through");
+            surface_vertices(&view(other), &Vec3::zeros(), &mut normals, &mut verts);
+            assert!(verts.iter().all(|v| v.color[3] == 0.0));
+        }
+    }
 
     #[test]
     fn normals_are_area_weighted() {

@@ -10,9 +10,12 @@
 //! a wgpu validation error becomes a [`RenderError::Gpu`], never a panic.
 //!
 //! Passes, in order, in one render pass with a depth buffer and 4x MSAA where
-//! the format allows: brain surface (two-sided), blades (opaque), skull spheres
-//! (alpha blended, no depth write), overlays (nodes as squares, pairs as
-//! ribbons; on top, no depth test).
+//! the format allows: brain surface (two-sided), blades (opaque), hidden
+//! contact (with a pressure field: the triangles under pressure drawn again,
+//! translucent, only where something nearer hides them, so the patch under a
+//! blade or behind a lip of tissue shows through it), skull spheres (alpha
+//! blended, no depth write), overlays (nodes as squares, pairs as ribbons; on
+//! top, no depth test).
 
 use super::RenderError;
 use super::gpu_types::{Globals, Vertex};
@@ -100,6 +103,7 @@ struct ToolRanges {
 #[derive(Default)]
 struct Scratch {
     normals: Vec<crate::math::Vec3>,
+    contact: Vec<[u32; 3]>,
     surface: Vec<Vertex>,
     tools: Vec<Vertex>,
     unit_sphere: Vec<crate::math::Vec3>,
@@ -119,8 +123,12 @@ pub struct Renderer {
     blade_pipeline: wgpu::RenderPipeline,
     skull_pipeline: wgpu::RenderPipeline,
     overlay_pipeline: wgpu::RenderPipeline,
+    hidden_contact_pipeline: wgpu::RenderPipeline,
     surface_vertices: GrowBuffer,
     surface_indices: GrowBuffer,
+    /// The triangles under pressure (a pressure field only), for the hidden-contact pass.
+    contact_indices: GrowBuffer,
+    contact_index_count: u32,
     tool_vertices: GrowBuffer,
     index_count: u32,
     uploaded_triangles: Vec<[u32; 3]>,
@@ -285,7 +293,7 @@ impl Renderer {
                 cache: None,
             })
         };
-        use wgpu::CompareFunction::{Always, Less};
+        use wgpu::CompareFunction::{Always, Greater, Less};
         use wgpu::PrimitiveTopology::TriangleList;
         let surface_pipeline = make(
             "surface pipeline",
@@ -317,6 +325,16 @@ impl Renderer {
             Less,
             Some(wgpu::BlendState::ALPHA_BLENDING),
         );
+        let hidden_contact_pipeline = make(
+            "hidden contact pipeline",
+            &surface_shader,
+            "fs_hidden",
+            TriangleList,
+            None,
+            false,
+            Greater,
+            Some(wgpu::BlendState::ALPHA_BLENDING),
+        );
         let overlay_pipeline = make(
             "overlay pipeline",
             &tools_shader,
@@ -332,6 +350,8 @@ impl Renderer {
         let surface_vertices = GrowBuffer::new(&device, "surface vertices", vertex_usage);
         let surface_indices =
             GrowBuffer::new(&device, "surface indices", wgpu::BufferUsages::INDEX);
+        let contact_indices =
+            GrowBuffer::new(&device, "contact indices", wgpu::BufferUsages::INDEX);
         let tool_vertices = GrowBuffer::new(&device, "tool vertices", vertex_usage);
         let scratch = Scratch {
             unit_sphere: meshes::unit_sphere(24, 48),
@@ -349,8 +369,11 @@ impl Renderer {
             blade_pipeline,
             skull_pipeline,
             overlay_pipeline,
+            hidden_contact_pipeline,
             surface_vertices,
             surface_indices,
+            contact_indices,
+            contact_index_count: 0,
             tool_vertices,
             index_count: 0,
             uploaded_triangles: Vec::new(),
@@ -525,6 +548,12 @@ impl Renderer {
         meshes::surface_vertices(surface, &origin, &mut s.normals, &mut s.surface);
         self.surface_vertices
             .write(&self.device, &self.queue, bytemuck::cast_slice(&s.surface));
+        meshes::pressed_triangles(surface, &mut s.contact);
+        if !s.contact.is_empty() {
+            self.contact_indices
+                .write(&self.device, &self.queue, bytemuck::cast_slice(&s.contact));
+        }
+        self.contact_index_count = (s.contact.len() * 3) as u32;
 
         s.tools.clear();
         meshes::blade_vertices(view.spatulas, &origin, &mut s.tools);
@@ -627,8 +656,22 @@ impl Renderer {
         }
         pass.set_vertex_buffer(0, self.tool_vertices.buffer.slice(..));
         let r = self.ranges;
+        if r.blades.1 > r.blades.0 {
+            pass.set_pipeline(&self.blade_pipeline);
+            pass.draw(r.blades.0..r.blades.1, 0..1);
+        }
+        // After everything opaque, so the depth buffer knows what hides the patch.
+        if self.contact_index_count > 0 {
+            pass.set_pipeline(&self.hidden_contact_pipeline);
+            pass.set_vertex_buffer(0, self.surface_vertices.buffer.slice(..));
+            pass.set_index_buffer(
+                self.contact_indices.buffer.slice(..),
+                wgpu::IndexFormat::Uint32,
+            );
+            pass.draw_indexed(0..self.contact_index_count, 0, 0..1);
+            pass.set_vertex_buffer(0, self.tool_vertices.buffer.slice(..));
+        }
         for (pipeline, (start, end)) in [
-            (&self.blade_pipeline, r.blades),
             (&self.skull_pipeline, r.skull),
             (&self.overlay_pipeline, r.overlays),
         ] {
