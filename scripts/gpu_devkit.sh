@@ -9,6 +9,7 @@
 #   bash scripts/gpu_devkit.sh            # build and pack
 #   # on the GPU machine, in a copy of the repository with .devkit/ beside it:
 #   REPLAY=1 SYLVIAN=1 bash .devkit/run.sh   # writes $OUT/bench.md (OUT defaults to /tmp/fissure-gpu)
+#   NO_BENCH=1 SYLVIAN=1 bash .devkit/run.sh # only the fine brain's replays and picture
 set -euo pipefail
 cd "$(dirname "$0")/.."
 brains=../shared/data/brain
@@ -42,8 +43,10 @@ export VK_DRIVER_FILES=${VK_DRIVER_FILES:-/usr/local/nvidia/share/vulkan/icd.d/n
 chmod +x "$K/fissure"
 nvidia-smi -L 2>/dev/null; nproc
 ldd "$K/fissure" | grep "not found"
-time "$K/fissure" bench collision --mesh-dir "$K" --frames "${FR:-60}" --out "$OUT/bench.md" > "$OUT/bench.log" 2>&1; echo "bench rc $?"
-cat "$OUT/bench.log"
+if [ -z "${NO_BENCH:-}" ]; then
+    time "$K/fissure" bench collision --mesh-dir "$K" --frames "${FR:-60}" --out "$OUT/bench.md" > "$OUT/bench.log" 2>&1; echo "bench rc $?"
+    cat "$OUT/bench.log"
+fi
 if [ -n "${REPLAY:-}" ] && [ -f "$K/brain_pial_coarse.msh" ]; then
     for b in Bvh Gpu Auto; do
         rm -rf /tmp/fissure-replay
