@@ -181,12 +181,20 @@ pub fn region_of_interest(
         RegionOfInterest::Auto => {
             let segments: Vec<(Vec3, Vec3, f64)> =
                 poses.iter().flat_map(|set| blade_segments(scenario, set)).map(|(a, b, w)| (a, b, w + AUTO_ROI_MARGIN_M)).collect();
+            // A node within r of a segment is inside the segment's box grown
+            // by r: one box test first skips the nodes far from every blade
+            // (on the fine brain, most of 37k nodes against 400 segments).
+            let (mut lo, mut hi) = (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY));
+            for (a, b, r) in &segments {
+                lo = lo.inf(&(a.inf(b) - Vec3::repeat(*r)));
+                hi = hi.sup(&(a.sup(b) + Vec3::repeat(*r)));
+            }
             let mut roi: Vec<u32> = surface_nodes
                 .iter()
                 .copied()
                 .filter(|&n| {
                     let p = mesh.positions[n as usize];
-                    segments.iter().any(|(a, b, r)| distance_to_segment(&p, a, b) <= *r)
+                    (0..3).all(|i| p[i] >= lo[i] && p[i] <= hi[i]) && segments.iter().any(|(a, b, r)| distance_to_segment(&p, a, b) <= *r)
                 })
                 .collect();
             if let Some(skull) = scenario.skull.filter(|_| scenario.effects.contains(Effect::SkullSpheres)) {
