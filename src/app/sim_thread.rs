@@ -356,6 +356,15 @@ fn started(shared: &SimShared, path: &std::path::Path) {
     *lock(&shared.status) = format!("recording to {}", path.display());
 }
 
+/// Ends a recording (the file is flushed as it is dropped); the status line
+/// names the file, whether the window's key or a script stopped it.
+fn stopped(shared: &SimShared, recording: Option<Recording>) {
+    if let Some(r) = recording {
+        *lock(&shared.status) = format!("recorded {}", r.recorder.path().display());
+    }
+    shared.recording.store(false, Ordering::Relaxed);
+}
+
 /// The strain colour for a scene without the StressField stage: a background
 /// worker, started when the window first asks for strain.
 #[derive(Default)]
@@ -449,12 +458,7 @@ fn run_loop(
                     }
                     Err(e) => recording_failed(shared, format!("cannot record: {e}")),
                 },
-                SimCommand::StopRecording => {
-                    if let Some(r) = recorder.take() {
-                        *lock(&shared.status) = format!("recorded {}", r.recorder.path().display());
-                    }
-                    shared.recording.store(false, Ordering::Relaxed);
-                }
+                SimCommand::StopRecording => stopped(shared, recorder.take()),
                 SimCommand::SetCulling(on) => {
                     let mut s = b.scenario.clone();
                     let mut e = EffectSet::default();
@@ -542,10 +546,7 @@ fn run_loop(
                     }
                     Err(e) => recording_failed(shared, format!("cannot record: {e}")),
                 },
-                ScriptAction::Stop => {
-                    recorder = None;
-                    shared.recording.store(false, Ordering::Relaxed);
-                }
+                ScriptAction::Stop => stopped(shared, recorder.take()),
                 ScriptAction::Quit => quit = true,
                 _ => {}
             }
