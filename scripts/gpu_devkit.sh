@@ -47,25 +47,24 @@ if [ -z "${NO_BENCH:-}" ]; then
     time "$K/fissure" bench collision --mesh-dir "$K" --frames "${FR:-60}" --out "$OUT/bench.md" > "$OUT/bench.log" 2>&1; echo "bench rc $?"
     cat "$OUT/bench.log"
 fi
-if [ -n "${REPLAY:-}" ] && [ -f "$K/brain_pial_coarse.msh" ]; then
+# A scene's replay with each collision backend: per_backend SCENARIO MESH TAG
+# (prints each run's times and backend, keeps each summary as $OUT/TAG_BACKEND.json).
+per_backend() {
     for b in Bvh Gpu Auto; do
         rm -rf /tmp/fissure-replay
-        "$K/fissure" replay config/real_brain/interhemispheric.ron --set "mesh=File(path: \"$K/brain_pial_coarse.msh\", units: Millimetres)" \
+        "$K/fissure" replay "$1" --set "mesh=File(path: \"$K/$2\", units: Millimetres)" \
             --set 'solver.cache_dir=Some("/tmp/fissure-cache")' --set collision.backend=$b --out /tmp/fissure-replay > /tmp/fissure-replay.log 2>&1
-        echo "replay $b rc $?"; grep -E "collision|frame time|backend" /tmp/fissure-replay.log | head -4
-        cp /tmp/fissure-replay/summary.json "$OUT/summary_$b.json" 2>/dev/null
+        echo "$3 $b rc $?"; grep -E "collision|frame time|backend|final state" /tmp/fissure-replay.log | head -6
+        cp /tmp/fissure-replay/summary.json "$OUT/$3_$b.json" 2>/dev/null
     done
+}
+if [ -n "${REPLAY:-}" ] && [ -f "$K/brain_pial_coarse.msh" ]; then
+    per_backend config/real_brain/interhemispheric.ron brain_pial_coarse.msh summary
 fi
 # With SYLVIAN=1: the fine brain's Sylvian opening (the scene the window ships,
 # refined under the blades) with each backend, and one screenshot on the GPU.
 if [ -n "${SYLVIAN:-}" ] && [ -f "$K/brain_pial_q15.msh" ]; then
-    for b in Bvh Gpu Auto; do
-        rm -rf /tmp/fissure-syl
-        "$K/fissure" replay config/real_brain/sylvian.ron --set "mesh=File(path: \"$K/brain_pial_q15.msh\", units: Millimetres)" \
-            --set 'solver.cache_dir=Some("/tmp/fissure-cache")' --set collision.backend=$b --out /tmp/fissure-syl > /tmp/fissure-syl.log 2>&1
-        echo "sylvian $b rc $?"; grep -E "collision|frame time|backend|hash" /tmp/fissure-syl.log | head -6
-        cp /tmp/fissure-syl/summary.json "$OUT/sylvian_$b.json" 2>/dev/null
-    done
+    per_backend config/real_brain/sylvian.ron brain_pial_q15.msh sylvian
     "$K/fissure" screenshot config/real_brain/sylvian.ron --set "mesh=File(path: \"$K/brain_pial_q15.msh\", units: Millimetres)" \
         --set 'solver.cache_dir=Some("/tmp/fissure-cache")' --time 4 --view microscope --field pressure -o "$OUT/sylvian_microscope.png" 2>&1 | tail -3
 fi
