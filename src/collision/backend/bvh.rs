@@ -433,8 +433,13 @@ impl RayCaster for BvhCaster {
         if positions.len() != self.positions.len() {
             return Err(CollisionError::VertexCount { expected: self.positions.len(), got: positions.len() });
         }
-        self.positions.copy_from_slice(positions);
-        self.refit();
+        // An unmoved surface (blades away from the tissue, or a held frame
+        // whose solve gave the same displacements) keeps its boxes: a refit
+        // would only recompute them.
+        if positions != self.positions.as_slice() {
+            self.positions.copy_from_slice(positions);
+            self.refit();
+        }
         Ok(())
     }
 
