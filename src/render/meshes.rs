@@ -85,19 +85,12 @@ fn pressed_value(surface: &SurfaceView, i: usize) -> bool {
     })
 }
 
-/// The triangles with a pressed vertex (see [`surface_vertices`]' alpha), for
-/// the renderer's hidden-contact pass; empty unless the field is pressure.
-pub fn pressed_triangles(surface: &SurfaceView, out: &mut Vec<[u32; 3]>) {
+/// The triangles with a pressed vertex (alpha above 0 in `vertices`, from
+/// [`surface_vertices`]), for the renderer's hidden-contact pass; empty
+/// unless the field is pressure.
+pub fn pressed_triangles(triangles: &[[u32; 3]], vertices: &[Vertex], out: &mut Vec<[u32; 3]>) {
     out.clear();
-    if surface.field.as_ref().is_none_or(|f| f.kind != FieldKind::ContactPressureMmHg) {
-        return;
-    }
-    out.extend(
-        surface
-            .triangles
-            .iter()
-            .filter(|t| t.iter().any(|&v| pressed_value(surface, v as usize))),
-    );
+    out.extend(triangles.iter().filter(|t| t.iter().any(|&v| vertices.get(v as usize).is_some_and(|x| x.color[3] > 0.0))));
 }
 
 /// The six faces of a box in the spatula frame: (outward normal, four corners CCW from outside).
@@ -297,17 +290,15 @@ mod tests {
         let values = [0.0, 0.0, 12.0, 0.0, f64::NAN];
         let field = |kind| ScalarField { values: &values, kind, map: ColorMap::Inferno, range: (0.0, 30.0) };
         let view = |f| SurfaceView { positions: &p, triangles: &tris, field: f };
-        let mut out = Vec::new();
-        pressed_triangles(&view(Some(field(FieldKind::ContactPressureMmHg))), &mut out);
-        assert_eq!(out, vec![[0, 1, 2], [1, 3, 2]], "the triangles around the pressed vertex; NaN is not pressure");
-        let (mut normals, mut verts) = (Vec::new(), Vec::new());
+        let (mut out, mut normals, mut verts) = (Vec::new(), Vec::new(), Vec::new());
         surface_vertices(&view(Some(field(FieldKind::ContactPressureMmHg))), &Vec3::zeros(), &mut normals, &mut verts);
-        assert_eq!(verts.iter().map(|v| v.color[3]).collect::<Vec<_>>(), vec![0.0, 0.0, 1.0, 0.0, 0.0]);
+        assert_eq!(verts.iter().map(|v| v.color[3]).collect::<Vec<_>>(), vec![0.0, 0.0, 1.0, 0.0, 0.0], "NaN is not pressure");
+        pressed_triangles(&tris, &verts, &mut out);
+        assert_eq!(out, vec![[0, 1, 2], [1, 3, 2]], "the triangles around the pressed vertex");
         for other in [None, Some(field(FieldKind::DisplacementMm)), Some(field(FieldKind::Strain))] {
-            pressed_triangles(&view(other), &mut out);
-            assert!(out.is_empty(), "only a pressure field shows through");
             surface_vertices(&view(other), &Vec3::zeros(), &mut normals, &mut verts);
-            assert!(verts.iter().all(|v| v.color[3] == 0.0));
+            pressed_triangles(&tris, &verts, &mut out);
+            assert!(out.is_empty(), "only a pressure field shows through");
         }
     }
 

@@ -548,7 +548,7 @@ impl Renderer {
         meshes::surface_vertices(surface, &origin, &mut s.normals, &mut s.surface);
         self.surface_vertices
             .write(&self.device, &self.queue, bytemuck::cast_slice(&s.surface));
-        meshes::pressed_triangles(surface, &mut s.contact);
+        meshes::pressed_triangles(surface.triangles, &s.surface, &mut s.contact);
         if !s.contact.is_empty() {
             self.contact_indices
                 .write(&self.device, &self.queue, bytemuck::cast_slice(&s.contact));
@@ -645,15 +645,16 @@ impl Renderer {
             multiview_mask: None,
         });
         pass.set_bind_group(0, &self.bind_group, &[]);
-        if self.index_count > 0 {
-            pass.set_pipeline(&self.surface_pipeline);
-            pass.set_vertex_buffer(0, self.surface_vertices.buffer.slice(..));
-            pass.set_index_buffer(
-                self.surface_indices.buffer.slice(..),
-                wgpu::IndexFormat::Uint32,
-            );
-            pass.draw_indexed(0..self.index_count, 0, 0..1);
-        }
+        // Surface triangles (`indices`, `count` indices) with `pipeline`.
+        let surface = |pass: &mut wgpu::RenderPass<'_>, pipeline, indices: &GrowBuffer, count: u32| {
+            if count > 0 {
+                pass.set_pipeline(pipeline);
+                pass.set_vertex_buffer(0, self.surface_vertices.buffer.slice(..));
+                pass.set_index_buffer(indices.buffer.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..count, 0, 0..1);
+            }
+        };
+        surface(&mut pass, &self.surface_pipeline, &self.surface_indices, self.index_count);
         pass.set_vertex_buffer(0, self.tool_vertices.buffer.slice(..));
         let r = self.ranges;
         if r.blades.1 > r.blades.0 {
@@ -662,13 +663,7 @@ impl Renderer {
         }
         // After everything opaque, so the depth buffer knows what hides the patch.
         if self.contact_index_count > 0 {
-            pass.set_pipeline(&self.hidden_contact_pipeline);
-            pass.set_vertex_buffer(0, self.surface_vertices.buffer.slice(..));
-            pass.set_index_buffer(
-                self.contact_indices.buffer.slice(..),
-                wgpu::IndexFormat::Uint32,
-            );
-            pass.draw_indexed(0..self.contact_index_count, 0, 0..1);
+            surface(&mut pass, &self.hidden_contact_pipeline, &self.contact_indices, self.contact_index_count);
             pass.set_vertex_buffer(0, self.tool_vertices.buffer.slice(..));
         }
         for (pipeline, (start, end)) in [
