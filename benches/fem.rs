@@ -311,7 +311,7 @@ fn floor_ms(compliance: &Compliance, nodes: &[u32], fresh: usize) -> Option<Floo
             })
             .fold(f64::INFINITY, f64::min)
     };
-    let mut read = |w: &mut [f64], from: usize| {
+    let read = |w: &mut [f64], from: usize| {
         for (j, &c) in cols.iter().enumerate().skip(from) {
             for (i, &r) in rows.iter().enumerate() {
                 let b = compliance.block(r, c);
