@@ -67,8 +67,11 @@ pub const RELINEARIZE_RELAXATION: f64 = 0.5;
 pub const CONTACT_TOLERANCE: f64 = 1e-9;
 /// Absolute part of the contact gap tolerance, m.
 pub const CONTACT_TOLERANCE_M: f64 = 1e-12;
-/// Active-set iterations in which every pulling hold is demoted at once;
-/// afterwards one at a time.
+/// Active-set iterations in which every pulling hold is demoted at once and
+/// every adhesive face or sphere row released at once; afterwards one at a
+/// time (which ends any cycling). At the end of the fine-brain Sylvian spread
+/// releasing them one at a time took 6-9 iterations a frame, at once 3-4, to
+/// the same active set and the same final state bit for bit.
 pub const BULK_RELEASE_ITERATIONS: usize = 8;
 /// Claim group of a face-plane candidate that is a blade barrier, not a demoted hold.
 const NO_GROUP: usize = usize::MAX;
@@ -175,7 +178,7 @@ pub struct PhaseTimings {
     pub gather: f64,
     /// Dense factorization of W (full or incremental) and the two triangular solves.
     pub factor: f64,
-    /// Evaluating skull candidates (active-set bookkeeping).
+    /// Evaluating the candidates (skull, blade faces) at each iteration's solution.
     pub candidates: f64,
     /// The surface product `u = u0 + K^-1 C^T lambda` over every surface row
     /// (`surface_gather` included).
@@ -229,10 +232,13 @@ const CANDIDATE_BLOCKS_FROM_BYTES: usize = 64 << 20;
 
 /// The K^-1 blocks of the contact candidates against the nodes of the W
 /// rows, kept between frames (see `ConstrainedSolver::candidate_blocks`): a
-/// row a candidate, a slot a W node, in two flat arrays of `stride` slots a
-/// row, so it allocates only when the candidates or the slots pass their
-/// high-water mark. A row not used this frame or the last is given to
-/// another candidate.
+/// row a candidate, a column a W node, in two flat arrays of `stride`
+/// columns a row, so it allocates only when the candidates or the W nodes
+/// pass their high-water mark. A W node keeps its column from frame to frame
+/// whatever its slot in the frame's node list (the held set is reordered for
+/// the factor every frame), so a block is read from the compliance once for
+/// as long as both nodes stay. A row or a column not used this frame or the
+/// last is given to another node.
 #[derive(Debug, Default)]
 struct CandidateBlocks {
     /// Candidate node -> row.
@@ -240,33 +246,41 @@ struct CandidateBlocks {
     /// Frame each row was last used in.
     last_used: Vec<u64>,
     free: Vec<u32>,
-    /// The frame the rows were last sorted out for.
+    /// W node -> column.
+    columns: std::collections::HashMap<u32, u32>,
+    /// Frame each column was last used in.
+    column_used: Vec<u64>,
+    column_free: Vec<u32>,
+    /// The column of each slot of the solver's node list, for the list at `slots_version`.
+    slot_columns: Vec<u32>,
+    slots_version: u64,
+    /// The frame the rows and columns were last sorted out for.
     frame: u64,
     /// The solver's `lazy_generation` the kept blocks were read at.
     generation: u64,
     stride: usize,
-    /// `nodes[row * stride + slot]`: the W node whose block is kept there (`u32::MAX`: none).
+    /// `nodes[row * stride + column]`: the W node whose block is kept there (`u32::MAX`: none).
     nodes: Vec<u32>,
     blocks: Vec<Matrix3<f64>>,
 }
 
 impl CandidateBlocks {
-    /// The first index of `node`'s row for a frame with `slots` W nodes,
-    /// the lazy columns at `generation`.
-    fn row(&mut self, node: u32, frame: u64, slots: usize, generation: u64) -> usize {
-        if slots > self.stride || generation != self.generation {
-            // Wider rows, or other lazy columns: start again (a cache; only
-            // the high-water mark grows).
+    /// Ready for `frame`, the lazy columns at `generation` and the W nodes
+    /// `slots` (the node list at `version`): frees the rows and columns not
+    /// used in this frame or the last, and gives every slot a column.
+    fn prepare(&mut self, frame: u64, generation: u64, slots: &[u32], version: u64) {
+        if generation != self.generation {
+            // Other lazy columns: start again (a cache).
             self.generation = generation;
-            self.stride = self.stride.max(slots.next_power_of_two().max(16));
-            self.index.clear();
-            self.free.clear();
-            self.last_used.clear();
-            self.nodes.clear();
-            self.blocks.clear();
+            self.clear_rows();
+            self.columns.clear();
+            self.column_used.clear();
+            self.column_free.clear();
+            self.slots_version = u64::MAX;
         }
         if frame != self.frame {
             self.frame = frame;
+            self.slots_version = u64::MAX;
             let (last_used, free) = (&self.last_used, &mut self.free);
             self.index.retain(|_, r| {
                 let keep = last_used[*r as usize] + 1 >= frame;
@@ -275,7 +289,57 @@ impl CandidateBlocks {
                 }
                 keep
             });
+            let (used, free) = (&self.column_used, &mut self.column_free);
+            self.columns.retain(|_, c| {
+                let keep = used[*c as usize] + 1 >= frame;
+                if !keep {
+                    free.push(*c);
+                }
+                keep
+            });
+            // Hand out the lowest free columns first: the rows stay short.
+            self.column_free.sort_unstable_by(|a, b| b.cmp(a));
         }
+        if version == self.slots_version {
+            return;
+        }
+        self.slots_version = version;
+        self.slot_columns.clear();
+        for &q in slots {
+            let c = match self.columns.get(&q) {
+                Some(&c) => c,
+                None => {
+                    let c = match self.column_free.pop() {
+                        Some(c) => c,
+                        None => {
+                            self.column_used.push(0);
+                            (self.column_used.len() - 1) as u32
+                        }
+                    };
+                    self.columns.insert(q, c);
+                    c
+                }
+            };
+            self.column_used[c as usize] = frame;
+            self.slot_columns.push(c);
+        }
+        if self.column_used.len() > self.stride {
+            // More columns than a row holds: wider rows (only the high-water mark grows).
+            self.stride = self.column_used.len().next_power_of_two().max(16);
+            self.clear_rows();
+        }
+    }
+
+    fn clear_rows(&mut self) {
+        self.index.clear();
+        self.free.clear();
+        self.last_used.clear();
+        self.nodes.clear();
+        self.blocks.clear();
+    }
+
+    /// The first index of `node`'s row (after [`Self::prepare`] for this frame).
+    fn row(&mut self, node: u32) -> usize {
         let stride = self.stride;
         let r = match self.index.get(&node) {
             Some(&r) => r as usize,
@@ -294,7 +358,7 @@ impl CandidateBlocks {
                 r
             }
         };
-        self.last_used[r] = frame;
+        self.last_used[r] = self.frame;
         r * stride
     }
 }
@@ -324,19 +388,22 @@ pub struct ConstrainedSolver {
     prev_active: Vec<(u32, u16, bool)>,
     /// Blade barrier rows active at the end of the last frame (node, owner), ascending: this frame starts from them.
     prev_barrier: Vec<(u32, u16)>,
-    /// Per candidate node, the K^-1 blocks [`Self::displacement_of`] read,
-    /// by slot of the W rows' nodes: a candidate is evaluated against every
-    /// held node at every iteration of every frame, the slots stay put while
-    /// the held set does, and a block read from the compliance is a cache
-    /// miss into a matrix of up to a gigabyte (a blade barrier on a refined
-    /// fissure: 386 candidates x 111 nodes, 12 ms a frame read there). The
-    /// compliance and the lazy columns never change, so a kept block is the
-    /// block read again, bit for bit.
+    /// Per candidate node, the K^-1 blocks against the W rows' nodes that
+    /// [`Self::displacement_of`] and the face and sphere rows of W read, by a
+    /// column each W node keeps while it stays in W: a candidate is
+    /// evaluated against every held node at every iteration of every frame,
+    /// and a block read from the compliance is a cache miss into a matrix of
+    /// up to a gigabyte. The compliance and the lazy columns never change, so
+    /// a kept block is the block read again, bit for bit. (Kept by slot, as
+    /// before, the held set's reordering each frame re-read 20-30k blocks a
+    /// frame at the end of the fine-brain Sylvian spread; by node, 0.2-0.7k.)
     candidate_blocks: std::cell::RefCell<CandidateBlocks>,
     /// Whether [`Self::candidate_blocks`] is used: only for a compliance
     /// larger than [`CANDIDATE_BLOCKS_FROM_BYTES`], whose blocks miss the
     /// CPU's caches; a smaller one is read as fast as the kept blocks.
     keep_candidate_blocks: bool,
+    /// Counts the changes of `nodes` (the kept blocks' columns follow it).
+    nodes_version: u64,
     /// Counts the changes of `lazy`: a block [`Self::kinv`] reads for a
     /// node with a lazy column is that column's (exact), else the
     /// compliance's rows (f32 beyond the ROI), so a kept block is good only
@@ -410,6 +477,7 @@ impl ConstrainedSolver {
             prev_barrier: Vec::new(),
             candidate_blocks: std::cell::RefCell::new(CandidateBlocks::default()),
             keep_candidate_blocks,
+            nodes_version: 0,
             lazy_generation: 0,
             rows: Vec::new(),
             row_candidate: Vec::new(),
@@ -608,6 +676,7 @@ impl ConstrainedSolver {
                 break;
             }
             // Evaluate every candidate at the current solution.
+            let evaluated = std::time::Instant::now();
             let mut worst_inactive: f64 = 0.0;
             let mut worst_active: f64 = 0.0;
             let mut any_add = false;
@@ -616,6 +685,10 @@ impl ConstrainedSolver {
                 if self.engaged_sorted.binary_search(&c.node).is_ok() {
                     // Held by a tool this iteration: the enforced displacement wins.
                     self.candidates[ci].active = false;
+                    continue;
+                }
+                if c.active && c.plane.is_some() {
+                    // Held on its face plane by its row: nothing to check.
                     continue;
                 }
                 let u = self.displacement_of(c.node);
@@ -642,6 +715,7 @@ impl ConstrainedSolver {
                     worst_active = worst_active.max(violation.abs());
                 }
             }
+            self.timings.candidates += evaluated.elapsed().as_secs_f64();
             if any_add {
                 if iterations >= max_iterations {
                     return Err(self.not_converged(iterations, worst_inactive));
@@ -660,14 +734,23 @@ impl ConstrainedSolver {
             let enforced_rows = 3 * self.enforced_nodes;
             let scale = self.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()));
             let mut most: Option<(usize, f64)> = None;
+            let mut released = false;
             for (k, &ci) in self.row_candidate.iter().enumerate() {
                 let l = self.lambda[enforced_rows + k];
-                if l < -1e-12 * scale && most.is_none_or(|(_, m)| l < m) {
-                    most = Some((ci, l));
+                if l < -1e-12 * scale {
+                    if iterations <= BULK_RELEASE_ITERATIONS {
+                        self.candidates[ci].active = false;
+                        released = true;
+                    } else if most.is_none_or(|(_, m)| l < m) {
+                        most = Some((ci, l));
+                    }
                 }
             }
             if let Some((ci, _)) = most {
                 self.candidates[ci].active = false;
+                released = true;
+            }
+            if released {
                 if iterations >= max_iterations {
                     return Err(self.not_converged(iterations, worst_active));
                 }
@@ -815,6 +898,7 @@ impl ConstrainedSolver {
         }
         self.nodes.clear();
         self.nodes.extend_from_slice(&self.perm_nodes);
+        self.nodes_version += 1;
         self.enforced_nodes = self.nodes.len();
         let t = std::time::Instant::now();
         let mut factor = std::mem::take(&mut self.factor);
@@ -937,6 +1021,7 @@ impl ConstrainedSolver {
     fn build_rows(&mut self) {
         self.rows.clear();
         self.nodes.truncate(self.enforced_nodes);
+        self.nodes_version += 1;
         for k in 0..self.enforced_nodes {
             let g = self.enforced_targets[k];
             self.rows.push(ConstraintRow { slot: k, dir: Vec3::x(), target: g.x });
@@ -1170,22 +1255,42 @@ impl ConstrainedSolver {
         self.w_es.resize(e * s, 0.0);
         self.w_ss.clear();
         self.w_ss.resize(s * s, 0.0);
+        let (mut w_es, mut w_ss) = (std::mem::take(&mut self.w_es), std::mem::take(&mut self.w_ss));
+        let mut kept = self.keep_candidate_blocks.then(|| self.candidate_blocks.borrow_mut());
+        if let Some(kept) = kept.as_mut() {
+            kept.prepare(self.frame, self.lazy_generation, &self.nodes, self.nodes_version);
+        }
         for t in 0..s {
             let ri = self.rows[e + t];
             let pi = self.nodes[ri.slot];
+            // A sphere or face row's node is a candidate: its blocks against
+            // the W nodes are kept (K^-1[q, p] is K^-1[p, q] transposed, bit
+            // for bit, unless both have lazy columns: then each reads its own).
+            let mut row = kept.as_mut().map(|k| (k.row(pi), self.lazy.binary_search_by_key(&pi, |c| c.node).is_ok()));
             for l in 0..self.enforced_nodes {
-                let v = self.kinv(self.nodes[l], pi) * ri.dir;
+                let q = self.nodes[l];
+                let block = match (kept.as_mut(), row) {
+                    (Some(k), Some((base, false))) => self.kept_block(k, base, pi, l).transpose(),
+                    _ => self.kinv(q, pi),
+                };
+                let v = block * ri.dir;
                 for c in 0..3 {
-                    self.w_es[t * e + 3 * l + c] = v[c];
+                    w_es[t * e + 3 * l + c] = v[c];
                 }
             }
             for u in 0..=t {
                 let rj = self.rows[e + u];
-                let value = ri.dir.dot(&(self.kinv(pi, self.nodes[rj.slot]) * rj.dir));
-                self.w_ss[u * s + t] = value;
-                self.w_ss[t * s + u] = value;
+                let block = match (kept.as_mut(), row.as_mut()) {
+                    (Some(k), Some((base, _))) => self.kept_block(k, *base, pi, rj.slot),
+                    _ => self.kinv(pi, self.nodes[rj.slot]),
+                };
+                let value = ri.dir.dot(&(block * rj.dir));
+                w_ss[u * s + t] = value;
+                w_ss[t * s + u] = value;
             }
         }
+        drop(kept);
+        (self.w_es, self.w_ss) = (w_es, w_ss);
         self.timings.gather += t.elapsed().as_secs_f64();
         let t = std::time::Instant::now();
         self.factor.set_sphere_rows(s, &self.w_es, &self.w_ss);
@@ -1215,18 +1320,27 @@ impl ConstrainedSolver {
             return u;
         }
         let mut kept = self.candidate_blocks.borrow_mut();
-        let base = kept.row(node, self.frame, self.nodes.len(), self.lazy_generation);
+        kept.prepare(self.frame, self.lazy_generation, &self.nodes, self.nodes_version);
+        let base = kept.row(node);
         for (slot, f) in self.node_force.iter().enumerate() {
             if *f != Vec3::zeros() {
-                let q = self.nodes[slot];
-                if kept.nodes[base + slot] != q {
-                    kept.blocks[base + slot] = self.kinv(node, q);
-                    kept.nodes[base + slot] = q;
-                }
-                u += kept.blocks[base + slot] * f;
+                u += self.kept_block(&mut kept, base, node, slot) * f;
             }
         }
         u
+    }
+
+    /// `K^-1[p, nodes[slot]]` through the kept blocks: `base` is `p`'s row
+    /// (after [`CandidateBlocks::prepare`] for the current node list).
+    #[inline]
+    fn kept_block(&self, kept: &mut CandidateBlocks, base: usize, p: u32, slot: usize) -> Matrix3<f64> {
+        let q = self.nodes[slot];
+        let i = base + kept.slot_columns[slot] as usize;
+        if kept.nodes[i] != q {
+            kept.blocks[i] = self.kinv(p, q);
+            kept.nodes[i] = q;
+        }
+        kept.blocks[i]
     }
 
     /// u_rows = u0 + K^-1[rows, nodes] F.

@@ -316,13 +316,17 @@ impl ContactFactor {
         }
         self.w_ss.clear();
         self.w_ss.extend_from_slice(&w_ss[..s * s]);
-        // S = W_SS - Y^T Y; the diagonal of W_SS is the reference of the dependent-row test
+        // S = W_SS - Y^T Y (symmetric: each dot once, the same sum for both
+        // halves); the diagonal of W_SS is the reference of the dependent-row test
         for a in 0..s {
-            for b in 0..s {
-                let ya = &self.w_es[a * n..a * n + n];
+            let ya = &self.w_es[a * n..a * n + n];
+            for b in 0..=a {
                 let yb = &self.w_es[b * n..b * n + n];
                 let dot: f64 = ya.iter().zip(yb).map(|(x, y)| x * y).sum();
                 self.w_ss[b * s + a] -= dot;
+                if b != a {
+                    self.w_ss[a * s + b] -= dot;
+                }
             }
         }
         self.sphere_diag.clear();

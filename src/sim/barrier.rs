@@ -168,6 +168,64 @@ pub fn travel(shape: &SpatulaShape, before: &Pose, after: &Pose) -> f64 {
     m
 }
 
+/// Whether a blade moving from `before` to `after`, through every pose the
+/// sub-steps interpolate between them, stays further than `margin` from each
+/// surface triangle (`triangles` over `positions`). Conservative: the motion
+/// is cut into pieces along which no point of the blade moves more than
+/// `margin` (`|dt| + angle x r`, `r` the blade's farthest corner from its
+/// frame's origin); a piece is clear when each triangle's bounding sphere lies
+/// further than that move plus `margin` from the blade box at the piece's
+/// start. A motion of more than [`MAX_SWEEP_PIECES`] pieces is not clear.
+pub fn sweep_clear(shape: &SpatulaShape, before: &Pose, after: &Pose, triangles: &[[u32; 3]], positions: &[Vec3], margin: f64) -> bool {
+    let moved = largest_point_move(shape, before, after);
+    let pieces = (moved / margin).ceil().max(1.0);
+    if !(pieces.is_finite() && pieces <= MAX_SWEEP_PIECES as f64 && margin > 0.0) {
+        return false;
+    }
+    let pieces = pieces as u32;
+    (0..pieces).all(|k| {
+        let a = before.interpolate(after, k as f64 / pieces as f64);
+        let b = if k + 1 == pieces { *after } else { before.interpolate(after, (k + 1) as f64 / pieces as f64) };
+        piece_clear(shape, &a, largest_point_move(shape, &a, &b) + margin, triangles, positions)
+    })
+}
+
+/// At most this many pieces in [`sweep_clear`] (as many as a frame's sub-steps).
+pub const MAX_SWEEP_PIECES: u32 = 256;
+
+/// A bound on how far any point of the blade moves from `before` to `after`
+/// along the interpolated path: `|dt| + angle x r`.
+fn largest_point_move(shape: &SpatulaShape, before: &Pose, after: &Pose) -> f64 {
+    let dot = before.rotation.quaternion().coords.dot(&after.rotation.quaternion().coords).abs().min(1.0);
+    let r = Vec3::new(shape.length, 0.5 * shape.width, 0.5 * shape.thickness).norm();
+    (after.position - before.position).norm() + 2.0 * dot.acos() * r
+}
+
+/// Every triangle's bounding sphere further than `reach` from the blade box at `pose`.
+fn piece_clear(shape: &SpatulaShape, pose: &Pose, reach: f64, triangles: &[[u32; 3]], positions: &[Vec3]) -> bool {
+    if !reach.is_finite() {
+        return false;
+    }
+    let half = Vec3::new(0.5 * shape.length, 0.5 * shape.width, 0.5 * shape.thickness);
+    // The box in world space, grown by `reach`: a cheap first test.
+    let centre = pose.position + pose.rotation * Vec3::new(half.x, 0.0, 0.0);
+    let axes = pose.rotation.to_rotation_matrix();
+    let extent = Vec3::from_fn(|i, _| (0..3).map(|k| axes[(i, k)].abs() * half[k]).sum::<f64>() + reach);
+    let (lo, hi) = (centre - extent, centre + extent);
+    triangles.iter().all(|t| {
+        let [a, b, c] = t.map(|v| positions[v as usize]);
+        let (tlo, thi) = (a.inf(&b).inf(&c), a.sup(&b).sup(&c));
+        if (0..3).any(|i| thi[i] < lo[i] || tlo[i] > hi[i]) {
+            return true;
+        }
+        let m = (a + b + c) / 3.0;
+        let radius = (a - m).norm().max((b - m).norm()).max((c - m).norm());
+        let q = local(pose, &m) - Vec3::new(half.x, 0.0, 0.0);
+        let outside = Vec3::from_fn(|i, _| (q[i].abs() - half[i]).max(0.0));
+        outside.norm() > reach + radius
+    })
+}
+
 impl BarrierStage {
     /// A stage for a surface of `surface_vertices` vertices.
     pub fn new(surface_vertices: usize) -> Self {
@@ -355,6 +413,39 @@ mod tests {
         let surface = SurfaceState { triangles: &[], start, rest: start, nodes: &nodes };
         stage.push_rows_from(blades, targets, None, surface, &mut out);
         out
+    }
+
+    /// One small triangle (1 mm a side) around `centre` (m), in the z = centre.z plane.
+    fn triangle_at(centre: Vec3) -> Vec<Vec3> {
+        [Vec3::new(-5e-4, -5e-4, 0.0), Vec3::new(5e-4, -5e-4, 0.0), Vec3::new(0.0, 5e-4, 0.0)].iter().map(|d| centre + d).collect()
+    }
+
+    #[test]
+    fn a_sweep_is_clear_only_when_no_pose_in_between_comes_near_a_triangle() {
+        let shape = blade();
+        let tri = [[0u32, 1, 2]];
+        let clear = |before: Pose, after: Pose, centre: Vec3, margin: f64| sweep_clear(&shape, &before, &after, &tri, &triangle_at(centre), margin);
+        // The blade (40 mm long) slides 60 mm along x, 10 mm above the z = 0 plane.
+        let (a, b) = (at(0.01), Pose { position: Vec3::new(0.06, 0.0, 0.01), ..at(0.01) });
+        assert!(clear(a, b, Vec3::new(0.05, 0.05, 0.01), 1e-3), "50 mm beside the path");
+        assert!(clear(a, b, Vec3::new(0.05, 0.0, 0.0), 1e-3), "10 mm under the path");
+        assert!(!clear(a, b, Vec3::new(0.05, 0.0, 0.01), 1e-3), "on the path, between the two end poses");
+        assert!(!clear(a, b, Vec3::new(0.05, 0.0, 0.008), 1e-3), "1.5 mm under the path");
+        // Still: clear unless the triangle lies within the margin.
+        assert!(clear(a, a, Vec3::new(0.02, 0.0, 0.0), 1e-3), "10 mm under a blade that stays");
+        assert!(!clear(a, a, Vec3::new(0.02, 0.0, 0.0), 0.0095), "the margin reaches the triangle's edge");
+        // A turn of 90 degrees about z: the tip sweeps a quarter circle of 40 mm
+        // radius, through a triangle neither end pose comes near.
+        let turned = Pose { rotation: Quat::from_axis_angle(&Vec3::z_axis(), std::f64::consts::FRAC_PI_2), ..a };
+        let on_arc = Vec3::new(0.04 * 0.25_f64.cos(), 0.04 * 0.25_f64.sin(), 0.01);
+        assert!(!clear(a, turned, on_arc, 1e-3), "the tip's arc");
+        assert!(clear(a, turned, Vec3::new(-0.1, -0.1, 0.01), 1e-3), "behind the handle, far");
+        // Not a pose, or a move of more than the pieces allowed: never clear.
+        let nan = Pose { position: Vec3::new(f64::NAN, 0.0, 0.0), ..a };
+        assert!(!clear(a, nan, Vec3::new(1.0, 1.0, 1.0), 1e-3));
+        let far = Pose { position: Vec3::new(1.0, 0.0, 0.01), ..a };
+        assert!(clear(a, far, Vec3::new(0.5, 0.0, -0.05), 1e-2), "a metre in 100 pieces, 60 mm above the triangle");
+        assert!(!clear(a, far, Vec3::new(0.5, 0.0, -0.05), 1e-3), "a metre is more than 256 pieces of a millimetre");
     }
 
     #[test]

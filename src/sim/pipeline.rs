@@ -383,6 +383,8 @@ impl Pipeline {
         if input.poses.len() != state.poses.len() {
             return Err(StepError::PoseCount { frame, count: input.poses.len(), expected: state.poses.len() });
         }
+        // The last sub-step ended with no row in W and no blade inside the tissue.
+        let free = self.solution.rows == 0 && self.report.spatulas.iter().all(|s| s.candidate_pairs == 0);
         let r = &mut self.report;
         r.times = Default::default();
         r.rejected_poses = 0;
@@ -402,8 +404,13 @@ impl Pipeline {
         for s in r.spatulas.iter_mut() {
             *s = SpatulaReport::default();
         }
-        let substeps = substep_count(&self.shapes, &self.frame_start_poses, &self.target_poses, self.substep_travel);
-        r.substeps = substeps;
+        let mut substeps = substep_count(&self.shapes, &self.frame_start_poses, &self.target_poses, self.substep_travel);
+        if substeps > 1 && free && self.sweeps_clear(&state.surface_positions) {
+            // Nothing near the blades' path and nothing held: every sub-step
+            // would find no contact and solve to the same free state.
+            substeps = 1;
+        }
+        self.report.substeps = substeps;
         for k in 1..=substeps {
             self.previous_poses.clone_from(&state.poses);
             if k == substeps {
@@ -482,6 +489,16 @@ impl Pipeline {
         r.frame = frame;
         r.time_s = state.time_s;
         Ok(&self.report)
+    }
+
+    /// Whether every blade's path this frame stays clear of the surface by
+    /// more than the reach of the collision's rays and of the barrier rows
+    /// ([`super::barrier::sweep_clear`]).
+    fn sweeps_clear(&self, positions: &[Vec3]) -> bool {
+        self.shapes.iter().zip(&self.frame_start_poses).zip(&self.target_poses).all(|((shape, before), after)| {
+            let margin = super::barrier::BARRIER_BAND_M + 2.0 * shape.thickness;
+            super::barrier::sweep_clear(shape, before, after, &self.surface.triangles, positions, margin)
+        })
     }
 
     /// One sub-step at the poses in `state`: collision, skull rows, the exact
