@@ -154,6 +154,27 @@ fn end_face(shape: &SpatulaShape, pose: &Pose, q: &Vec3, band: f64) -> Option<(V
     Some((pose.rotation * n_local, pose.position + pose.rotation * p_local))
 }
 
+/// The world axis-aligned bounds of the box `lo..hi` of the blade frame at
+/// `pose`, grown by `grow` (m).
+pub fn world_bounds(pose: &Pose, lo: &Vec3, hi: &Vec3, grow: f64) -> (Vec3, Vec3) {
+    let centre = pose.position + pose.rotation * ((lo + hi) * 0.5);
+    let half = (hi - lo) * 0.5;
+    let axes = pose.rotation.to_rotation_matrix();
+    let extent = Vec3::from_fn(|i, _| (0..3).map(|k| axes[(i, k)].abs() * half[k]).sum::<f64>() + grow);
+    (centre - extent, centre + extent)
+}
+
+/// Whether `p` lies outside the bounds `(lo, hi)`.
+#[inline]
+pub fn outside_bounds(p: &Vec3, (lo, hi): &(Vec3, Vec3)) -> bool {
+    (0..3).any(|i| p[i] < lo[i] || p[i] > hi[i])
+}
+
+/// Slack of the world-bounds prefilters (m): far above the rounding of a
+/// pose transform, far below anything a rule measures, so a prefilter never
+/// drops a vertex the exact test in the blade frame would keep.
+const BOUNDS_SLACK_M: f64 = 1e-9;
+
 /// Largest move (m) of a blade footprint corner from `before` to `after`.
 pub fn travel(shape: &SpatulaShape, before: &Pose, after: &Pose) -> f64 {
     let mut m: f64 = 0.0;
@@ -208,10 +229,7 @@ fn piece_clear(shape: &SpatulaShape, pose: &Pose, reach: f64, triangles: &[[u32;
     }
     let half = Vec3::new(0.5 * shape.length, 0.5 * shape.width, 0.5 * shape.thickness);
     // The box in world space, grown by `reach`: a cheap first test.
-    let centre = pose.position + pose.rotation * Vec3::new(half.x, 0.0, 0.0);
-    let axes = pose.rotation.to_rotation_matrix();
-    let extent = Vec3::from_fn(|i, _| (0..3).map(|k| axes[(i, k)].abs() * half[k]).sum::<f64>() + reach);
-    let (lo, hi) = (centre - extent, centre + extent);
+    let (lo, hi) = world_bounds(pose, &Vec3::new(0.0, -half.y, -half.z), &Vec3::new(shape.length, half.y, half.z), reach);
     triangles.iter().all(|t| {
         let [a, b, c] = t.map(|v| positions[v as usize]);
         let (tlo, thi) = (a.inf(&b).inf(&c), a.sup(&b).sup(&c));
@@ -282,9 +300,13 @@ impl BarrierStage {
             let band = BARRIER_BAND_M + travel(shape, pb, pa);
             let bit = 1u32 << (s as u32).min(31);
             let axis = pa.rotation * Vec3::z();
+            // Rules 1 and 4 reach no vertex outside the footprint grown by the
+            // band beyond the tip and the side edges, and by the band off the faces.
+            let reach = Vec3::new(shape.length + band, 0.5 * shape.width + band, half + band);
+            let bounds = world_bounds(pa, &Vec3::new(0.0, -reach.y, -reach.z), &reach, BOUNDS_SLACK_M);
             // Rule 1: over the footprint.
             for (v, p) in surface.start.iter().enumerate() {
-                if self.claimed[v] & bit != 0 {
+                if self.claimed[v] & bit != 0 || outside_bounds(p, &bounds) {
                     continue;
                 }
                 let q1 = local(pa, p);

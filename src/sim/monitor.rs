@@ -26,6 +26,9 @@ pub struct MonitorCounts {
 /// rounding; deeper than this is counted.
 pub const PENETRATION_TOLERANCE_M: f64 = 1e-7;
 
+/// Slack of the footprint's first test (m).
+const FOOTPRINT_SLACK_M: f64 = 1e-9;
+
 /// Local coordinates of `p` in the spatula frame of `pose`.
 #[inline]
 fn local(pose: &Pose, p: &Vec3) -> Vec3 {
@@ -49,7 +52,18 @@ pub fn measure(
     let mut counts = MonitorCounts::default();
     for ((shape, pb), pa) in shapes.iter().zip(poses_before).zip(poses_after) {
         let half = 0.5 * shape.thickness;
+        // The blade frame's x and y axes as rows, for a cheap first test of
+        // the footprint with some slack (far above a transform's rounding):
+        // the exact test below decides.
+        let axes = pa.rotation.to_rotation_matrix();
+        let (ex, ey) = (axes.matrix().column(0).into_owned(), axes.matrix().column(1).into_owned());
+        let (x_max, y_max) = (shape.length + FOOTPRINT_SLACK_M, 0.5 * shape.width + FOOTPRINT_SLACK_M);
         for (p0, p1) in before.iter().zip(after) {
+            let d = p1 - pa.position;
+            let (x, y) = (ex.dot(&d), ey.dot(&d));
+            if x < -FOOTPRINT_SLACK_M || x > x_max || y.abs() > y_max {
+                continue;
+            }
             let q1 = local(pa, p1);
             if !in_footprint(shape, &q1) {
                 continue;
