@@ -67,11 +67,8 @@ pub const RELINEARIZE_RELAXATION: f64 = 0.5;
 pub const CONTACT_TOLERANCE: f64 = 1e-9;
 /// Absolute part of the contact gap tolerance, m.
 pub const CONTACT_TOLERANCE_M: f64 = 1e-12;
-/// Active-set iterations in which every pulling hold is demoted at once and
-/// every adhesive face or sphere row released at once; afterwards one at a
-/// time (which ends any cycling). At the end of the fine-brain Sylvian spread
-/// releasing them one at a time took 6-9 iterations a frame, at once 3-4, to
-/// the same active set and the same final state bit for bit.
+/// Active-set iterations in which every pulling hold is demoted at once;
+/// afterwards one at a time.
 pub const BULK_RELEASE_ITERATIONS: usize = 8;
 /// Claim group of a face-plane candidate that is a blade barrier, not a demoted hold.
 const NO_GROUP: usize = usize::MAX;
@@ -734,23 +731,14 @@ impl ConstrainedSolver {
             let enforced_rows = 3 * self.enforced_nodes;
             let scale = self.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()));
             let mut most: Option<(usize, f64)> = None;
-            let mut released = false;
             for (k, &ci) in self.row_candidate.iter().enumerate() {
                 let l = self.lambda[enforced_rows + k];
-                if l < -1e-12 * scale {
-                    if iterations <= BULK_RELEASE_ITERATIONS {
-                        self.candidates[ci].active = false;
-                        released = true;
-                    } else if most.is_none_or(|(_, m)| l < m) {
-                        most = Some((ci, l));
-                    }
+                if l < -1e-12 * scale && most.is_none_or(|(_, m)| l < m) {
+                    most = Some((ci, l));
                 }
             }
             if let Some((ci, _)) = most {
                 self.candidates[ci].active = false;
-                released = true;
-            }
-            if released {
                 if iterations >= max_iterations {
                     return Err(self.not_converged(iterations, worst_active));
                 }
