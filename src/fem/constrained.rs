@@ -261,6 +261,18 @@ struct CandidateBlocks {
     blocks: Vec<Matrix3<f64>>,
 }
 
+/// Frees the entries of `index` (node -> slot) whose slot was last used
+/// before the frame before `frame`.
+fn hand_on_unused(index: &mut std::collections::HashMap<u32, u32>, last_used: &[u64], free: &mut Vec<u32>, frame: u64) {
+    index.retain(|_, k| {
+        let keep = last_used[*k as usize] + 1 >= frame;
+        if !keep {
+            free.push(*k);
+        }
+        keep
+    });
+}
+
 impl CandidateBlocks {
     /// Ready for `frame`, the lazy columns at `generation` and the W nodes
     /// `slots` (the node list at `version`): frees the rows and columns not
@@ -278,22 +290,8 @@ impl CandidateBlocks {
         if frame != self.frame {
             self.frame = frame;
             self.slots_version = u64::MAX;
-            let (last_used, free) = (&self.last_used, &mut self.free);
-            self.index.retain(|_, r| {
-                let keep = last_used[*r as usize] + 1 >= frame;
-                if !keep {
-                    free.push(*r);
-                }
-                keep
-            });
-            let (used, free) = (&self.column_used, &mut self.column_free);
-            self.columns.retain(|_, c| {
-                let keep = used[*c as usize] + 1 >= frame;
-                if !keep {
-                    free.push(*c);
-                }
-                keep
-            });
+            hand_on_unused(&mut self.index, &self.last_used, &mut self.free, frame);
+            hand_on_unused(&mut self.columns, &self.column_used, &mut self.column_free, frame);
             // Hand out the lowest free columns first: the rows stay short.
             self.column_free.sort_unstable_by(|a, b| b.cmp(a));
         }
