@@ -144,3 +144,17 @@ write("assets/trajectories/real_brain_sylvian.csv",
       "Real brain (fsaverage5, ../shared/data/brain): two 60 x 8 x 0.5 mm blades enter the\n"
       f"left Sylvian fissure's stem at y = 15 mm, z = -6 mm (tips 14 mm deep at 1 s), then spread\n"
       f"(upper blade up {SPREAD_FRONTAL:g} mm, lower blade down {SPREAD_TEMPORAL:g} mm) until 3.5 s and hold.", rows)
+# The same scene pressing wider, for issue 21's frame bar (>= 50 constrained
+# vertices a blade): the lower blade down 16.5 mm, both spreads until 4.0 s
+# (slow enough for one step a frame), held to 4.5 s; replay it with
+# `--set duration_s=4.5`. 52 / 56 contact vertices at the end.
+SPREAD_TEMPORAL_WIDE = 16.5
+rows = []
+for k, side, spread in ((0, 1.0, SPREAD_FRONTAL), (1, -1.0, SPREAD_TEMPORAL_WIDE)):
+    for t, depth, off in ((0.0, -5.0, 0.4), (1.0, 14.0, 0.4), (4.0, 14.0, 0.4 + spread), (4.5, 14.0, 0.4 + spread)):
+        p, q = blade_pose(entry, inward, normal, 60.0, depth, side * off)
+        rows.append(row(t, k, p, q))
+write("assets/trajectories/real_brain_sylvian_wide.csv",
+      "Real brain (fsaverage5, ../shared/data/brain): the Sylvian scene's blades pressing wider\n"
+      f"(upper blade up {SPREAD_FRONTAL:g} mm, lower blade down {SPREAD_TEMPORAL_WIDE:g} mm, tips 14 mm deep at 1 s) until 4.0 s,\n"
+      "held to 4.5 s (replay with --set duration_s=4.5).", rows)
