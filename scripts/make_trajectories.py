@@ -135,11 +135,19 @@ write("assets/trajectories/real_brain_interhemispheric.csv",
 # blade's thickness a 10 ms frame) that no frame needs sub-steps.
 SPREAD_FRONTAL, SPREAD_TEMPORAL = 10.5, 13.5
 entry, inward, normal = (-56.0, 15.0, -6.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
-rows = []
-for k, side, spread in ((0, 1.0, SPREAD_FRONTAL), (1, -1.0, SPREAD_TEMPORAL)):
-    for t, depth, off in ((0.0, -5.0, 0.4), (1.0, 14.0, 0.4), (3.5, 14.0, 0.4 + spread), (4.0, 14.0, 0.4 + spread)):
-        p, q = blade_pose(entry, inward, normal, 60.0, depth, side * off)
-        rows.append(row(t, k, p, q))
+
+
+def sylvian_rows(spread_temporal, spread_end, hold_end):
+    """Both blades in at 1 s, spread (frontal SPREAD_FRONTAL up, temporal down) until spread_end, held to hold_end."""
+    rows = []
+    for k, side, spread in ((0, 1.0, SPREAD_FRONTAL), (1, -1.0, spread_temporal)):
+        for t, depth, off in ((0.0, -5.0, 0.4), (1.0, 14.0, 0.4), (spread_end, 14.0, 0.4 + spread), (hold_end, 14.0, 0.4 + spread)):
+            p, q = blade_pose(entry, inward, normal, 60.0, depth, side * off)
+            rows.append(row(t, k, p, q))
+    return rows
+
+
+rows = sylvian_rows(SPREAD_TEMPORAL, 3.5, 4.0)
 write("assets/trajectories/real_brain_sylvian.csv",
       "Real brain (fsaverage5, ../shared/data/brain): two 60 x 8 x 0.5 mm blades enter the\n"
       f"left Sylvian fissure's stem at y = 15 mm, z = -6 mm (tips 14 mm deep at 1 s), then spread\n"
@@ -149,11 +157,7 @@ write("assets/trajectories/real_brain_sylvian.csv",
 # (slow enough for one step a frame), held to 4.5 s; replay it with
 # `--set duration_s=4.5`. 52 / 56 contact vertices at the end.
 SPREAD_TEMPORAL_WIDE = 16.5
-rows = []
-for k, side, spread in ((0, 1.0, SPREAD_FRONTAL), (1, -1.0, SPREAD_TEMPORAL_WIDE)):
-    for t, depth, off in ((0.0, -5.0, 0.4), (1.0, 14.0, 0.4), (4.0, 14.0, 0.4 + spread), (4.5, 14.0, 0.4 + spread)):
-        p, q = blade_pose(entry, inward, normal, 60.0, depth, side * off)
-        rows.append(row(t, k, p, q))
+rows = sylvian_rows(SPREAD_TEMPORAL_WIDE, 4.0, 4.5)
 write("assets/trajectories/real_brain_sylvian_wide.csv",
       "Real brain (fsaverage5, ../shared/data/brain): the Sylvian scene's blades pressing wider\n"
       f"(upper blade up {SPREAD_FRONTAL:g} mm, lower blade down {SPREAD_TEMPORAL_WIDE:g} mm, tips 14 mm deep at 1 s) until 4.0 s,\n"
