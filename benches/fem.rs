@@ -22,6 +22,7 @@ use fissure::fem::{
     RegionMaterials, element_stress,
 };
 use fissure::fem::factor::SparseCholesky;
+use fissure::fem::fixtures;
 use fissure::fem::ordering::FillOrdering;
 use fissure::math::Vec3;
 use fissure::mesh::TetMesh;
@@ -33,32 +34,6 @@ fn peak_rss_mb() -> f64 {
 }
 
 /// Fixes the lowest `depth` metres of every connected component.
-fn fix_bottom_of_each_component(mesh: &TetMesh, depth: f64) -> Vec<bool> {
-    let n = mesh.node_count();
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn find(p: &mut [usize], mut x: usize) -> usize {
-        while p[x] != x {
-            p[x] = p[p[x]];
-            x = p[x];
-        }
-        x
-    }
-    for t in &mesh.tets {
-        for k in 1..4 {
-            let (a, b) = (find(&mut parent, t[0] as usize), find(&mut parent, t[k] as usize));
-            if a != b {
-                parent[a.max(b)] = a.min(b);
-            }
-        }
-    }
-    let mut min_z = vec![f64::INFINITY; n];
-    for v in 0..n {
-        let r = find(&mut parent, v);
-        min_z[r] = min_z[r].min(mesh.positions[v].z);
-    }
-    (0..n).map(|v| mesh.positions[v].z <= min_z[find(&mut parent, v)] + depth).collect()
-}
-
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
@@ -84,7 +59,7 @@ fn rel_error(a: &[Vec3], b: &[Vec3]) -> f64 {
 fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Path) {
     let storage = storage_from_env();
     println!("== {name}: {} nodes, {} tets", mesh.node_count(), mesh.tets.len());
-    let fixed = fix_bottom_of_each_component(mesh, 0.010);
+    let fixed = fixtures::fix_bottom_of_each_component(mesh, 0.010);
     let materials = RegionMaterials::uniform(Material { young_modulus: 3.0e3, poisson_ratio: 0.45 });
     let t = Instant::now();
     let model = match FemModel::new(mesh, &materials, &fixed, &FemOptions::default()) {
@@ -175,6 +150,22 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
         let nodes: Vec<u32> = m.cons.iter().map(|c| c.node).collect();
         if let Some(f) = floor_ms(solver.compliance(), &nodes, fresh) {
             let floor = f.read_new + f.f32_par;
+            // The surface update reads every stored row of each constrained
+            // node's column once: at best at this machine's streaming rate.
+            let cs = solver.compliance().stats();
+            let entry_bytes = if cs.rows * cs.cols > 0 { cs.bytes as f64 / (9.0 * cs.rows as f64 * cs.cols as f64) } else { 0.0 };
+            let product_bytes = 9.0 * cs.rows as f64 * nodes.len() as f64 * entry_bytes;
+            let rate = stream_bytes_per_s();
+            let product_floor = product_bytes / rate * 1e3;
+            println!(
+                "  product floor, same run: the constrained columns ({:.1} MB) read once at {:.1} GB/s (this machine streaming a 256 MB buffer) = {product_floor:.2} ms; mean product {:.2} ms = {:.1}x it; frame p95 = {:.1}x (W floor + product floor = {:.2} ms)",
+                product_bytes / 1e6,
+                rate / 1e9,
+                m.phases[3],
+                m.phases[3] / product_floor,
+                m.p95 / (floor + product_floor),
+                floor + product_floor
+            );
             println!(
                 "  floor, same run: reading W's new entries {:.2} ms (all of W {:.2} ms), dense Cholesky of W {:.2} ms f64 one thread, {:.2} ms f64 every core ({}), {:.2} ms f32 every core; frame p95 = {:.1}x the floor (new entries + f32 factor = {floor:.2} ms)",
                 f.read_new,
@@ -214,7 +205,7 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
         // Error of this storage: the same frame with an exact f64 compliance over its constrained nodes only.
         let (cons, out) = &last_frame;
         let nodes: Vec<u32> = cons.iter().map(|c| c.node).collect();
-        let fixed = fix_bottom_of_each_component(mesh, 0.010);
+        let fixed = fixtures::fix_bottom_of_each_component(mesh, 0.010);
         let materials = RegionMaterials::uniform(Material { young_modulus: 3.0e3, poisson_ratio: 0.45 });
         let exact = FemModel::new(mesh, &materials, &fixed, &FemOptions::default())
             .and_then(|m| Compliance::compute(&m, &nodes, ComplianceStorage::F64, None, &mut |_, _| {}).map(|c| (m, c)))
@@ -265,10 +256,11 @@ fn ordering_lines(model: &FemModel) {
             solve = solve.min(t.elapsed().as_secs_f64());
         }
         let (nnz, numeric) = (chol.nnz_l() as f64, chol.numeric_seconds);
+        let exact = chol.exact_nnz_l(k).map_or(f64::NAN, |e| e as f64 / 1e6);
         let ratio = base.map(|(n, s)| format!(" ({:.2}x AMD's entries, {:.2}x AMD's solve)", nnz / n, solve / s)).unwrap_or_default();
         base.get_or_insert((nnz, solve));
         println!(
-            "ordering {ordering:?}: nnz(L) {:.2} M, analysis {:.2} s, numeric {:.2} s, 96-column solve {:.1} ms, factor total {total:.2} s{ratio}",
+            "ordering {ordering:?}: nnz(L) {:.2} M stored ({exact:.2} M counted exactly), analysis {:.2} s, numeric {:.2} s, 96-column solve {:.1} ms, factor total {total:.2} s{ratio}",
             nnz / 1e6,
             chol.symbolic_seconds,
             numeric,
@@ -345,6 +337,25 @@ fn floor_ms(compliance: &Compliance, nodes: &[u32], fresh: usize) -> Option<Floo
         let _ = cholesky_in_place(mat, LltRegularization::default(), par, MemStack::new(&mut buf32), Spec::default());
     });
     Some(Floor { read_new, read_all, f64_seq, f64_par, par_bitwise, f32_par })
+}
+
+/// Bytes a second this machine reads a 256 MB buffer (summed with 8
+/// independent accumulators so the adds keep up), best of 3.
+fn stream_bytes_per_s() -> f64 {
+    let buffer = vec![1.0f32; 64 << 20];
+    let mut best = f64::INFINITY;
+    for _ in 0..3 {
+        let t = Instant::now();
+        let mut acc = [0.0f32; 8];
+        for chunk in buffer.chunks_exact(8) {
+            for (a, x) in acc.iter_mut().zip(chunk) {
+                *a += x;
+            }
+        }
+        std::hint::black_box(acc);
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    (buffer.len() * 4) as f64 / best
 }
 
 /// Frame times of a window of `count` constrained vertices sliding over `near`

@@ -12,8 +12,11 @@ use super::assembly::{DofMap, LowerCsc};
 use super::ordering::{FillOrdering, nested_dissection};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
-use faer::sparse::linalg::cholesky::{CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky};
-use faer::{Conj, MatMut, Par, Side, Spec};
+use faer::dyn_stack::StackReq;
+use faer::sparse::linalg::cholesky::supernodal::{SupernodalLltRef, SymbolicSupernodalCholesky};
+use faer::sparse::linalg::cholesky::{CholeskySymbolicParams, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering, factorize_symbolic_cholesky};
+use faer::reborrow::{Reborrow, ReborrowMut};
+use faer::{Accum, Conj, MatMut, MatRef, Par, Side, Spec};
 use std::time::Instant;
 
 /// Supernode amalgamation (faer's rule: merge two adjacent supernodes of `n`
@@ -114,16 +117,135 @@ impl SparseCholesky {
         self.values.len()
     }
 
+    /// Entries of L counted exactly (the column counts of the same ordering,
+    /// without the explicit zeros that relaxed supernodes store): the figure
+    /// CHOLMOD reports as `lnz`, to compare orderings across libraries.
+    /// `k` is the matrix this factor was made from.
+    pub fn exact_nnz_l(&self, k: &LowerCsc) -> Result<usize, FemError> {
+        use faer::sparse::linalg::SupernodalThreshold;
+        let mut params = CholeskySymbolicParams::default();
+        params.supernodal_flop_ratio_threshold = SupernodalThreshold::FORCE_SIMPLICIAL;
+        let ordering = match self.symbolic.perm() {
+            Some(p) => SymmetricOrdering::Custom(p),
+            None => SymmetricOrdering::Identity,
+        };
+        let simplicial = factorize_symbolic_cholesky(k.as_faer().symbolic(), Side::Lower, ordering, params)
+            .map_err(|e| FemError::Factorization { reason: format!("symbolic analysis: {e:?}") })?;
+        Ok(simplicial.len_val())
+    }
+
     /// Scratch a solve with `ncols` right-hand sides needs.
     pub fn scratch(&self, ncols: usize) -> Result<MemBuffer, FemError> {
-        let req = self.symbolic.solve_in_place_scratch::<f64>(ncols, Par::Seq);
-        MemBuffer::try_new(req).map_err(|_| FemError::OutOfMemory { what: "solve scratch", bytes: 0 })
+        let req = self.symbolic.solve_in_place_scratch::<f64>(ncols, Par::Seq).or(self.row_major_scratch(ncols));
+        MemBuffer::try_new(req).map_err(|_| FemError::OutOfMemory { what: "solve scratch", bytes: req.size_bytes() })
     }
 
     /// Solves `K_FF X = B` in place (`rhs` is dim x k, column major).
+    /// With [`ROW_MAJOR_MIN_RHS`] or more columns and a supernodal factor the
+    /// solve runs on a row-major copy ([`Self::solve_row_major`]); the answer
+    /// is bit for bit faer's.
     pub fn solve_in_place(&self, rhs: MatMut<'_, f64>, scratch: &mut MemBuffer) {
+        if rhs.ncols() >= ROW_MAJOR_MIN_RHS
+            && let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw()
+        {
+            self.solve_row_major(symbolic, rhs, MemStack::new(scratch));
+            return;
+        }
         let llt = LltRef::new(&self.symbolic, &self.values);
         llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(scratch));
+    }
+
+    /// Scratch of [`Self::solve_row_major`] for `k` columns: the permuted
+    /// right-hand sides (row major), one supernode's diagonal rows of them and
+    /// its rows below the diagonal block (both column major).
+    fn row_major_scratch(&self, k: usize) -> StackReq {
+        let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw() else { return StackReq::EMPTY };
+        let (widest, deepest) = supernode_extent(symbolic);
+        StackReq::new::<f64>(self.dim() * k).and(StackReq::new::<f64>(widest * k)).and(StackReq::new::<f64>(deepest * k))
+    }
+
+    /// faer's supernodal solve (`SupernodalLltRef::solve_in_place_with_conj`)
+    /// with the right-hand sides held row major. What changes is memory: an
+    /// update from a supernode's rows below its diagonal block touches one row
+    /// of all `k` right-hand sides, a single run, where column major it
+    /// touches `k` entries a column apart. With 96 columns (the precompute's
+    /// batch) faer's scatter, gather and permutation were a third of its
+    /// solve on the coarse real brain (perf); this solve takes 0.75x its time
+    /// (`scripts/cholmod_compare.sh`, docs/design-notes.md).
+    /// The arithmetic is faer's, in faer's order: the same triangular solves
+    /// on a column-major copy of the supernode's rows; the same product below
+    /// the diagonal block (into a row-major block: the product kernel sums
+    /// each entry in the same order whatever the layout); each entry of it
+    /// subtracted once. So the answer is faer's bit for bit; the test
+    /// `row_major_solve_is_faers_bit_for_bit` checks it where it runs, and
+    /// the shipped scenes' final states are unchanged.
+    fn solve_row_major(&self, symbolic: &SymbolicSupernodalCholesky<usize>, mut rhs: MatMut<'_, f64>, stack: &mut MemStack) {
+        let (n, k) = (rhs.nrows(), rhs.ncols());
+        let llt = SupernodalLltRef::new(symbolic, &self.values);
+        let (widest, deepest) = supernode_extent(symbolic);
+        let (mut x, stack) = stack.make_with::<f64>(n * k, |_| 0.0);
+        let x: &mut [f64] = &mut x;
+        let (mut top, stack) = stack.make_with::<f64>(widest * k, |_| 0.0);
+        let top: &mut [f64] = &mut top;
+        let (mut below, _) = stack.make_with::<f64>(deepest * k, |_| 0.0);
+        let below: &mut [f64] = &mut below;
+        // x[inv[old], j] = rhs[old, j]: a block of rhs's rows at a time, so
+        // both sides are read and written in runs
+        let inv = self.symbolic.perm().map(|p| p.arrays().1);
+        let new_row = |old: usize| inv.map_or(old, |v| v[old]);
+        for first in (0..n).step_by(ROW_BLOCK) {
+            let last = (first + ROW_BLOCK).min(n);
+            for j in 0..k {
+                let col = rhs.rb().col(j);
+                for old in first..last {
+                    x[new_row(old) * k + j] = col[old];
+                }
+            }
+        }
+        for s in 0..symbolic.n_supernodes() {
+            let node = llt.supernode(s);
+            let (start, pattern, ls) = (node.start(), node.pattern(), node.val());
+            let size = ls.ncols();
+            let (ls_top, ls_bot) = ls.split_at_row(size);
+            let mut x_top = MatMut::from_column_major_slice_mut(&mut top[..size * k], size, k);
+            rows_to_columns(x, k, start, x_top.rb_mut());
+            faer::linalg::triangular_solve::solve_lower_triangular_in_place_with_conj(ls_top, Conj::No, x_top.rb_mut(), Par::Seq);
+            let mut update = MatMut::from_row_major_slice_mut(&mut below[..pattern.len() * k], pattern.len(), k);
+            faer::linalg::matmul::matmul_with_conj(update.rb_mut(), Accum::Replace, ls_bot, Conj::No, x_top.rb(), Conj::No, 1.0, Par::Seq);
+            columns_to_rows(x_top.rb(), x, k, start);
+            for (idx, &i) in pattern.iter().enumerate() {
+                let row = &mut x[i * k..][..k];
+                for (v, u) in row.iter_mut().zip(&below[idx * k..][..k]) {
+                    *v -= u;
+                }
+            }
+        }
+        for s in (0..symbolic.n_supernodes()).rev() {
+            let node = llt.supernode(s);
+            let (start, pattern, ls) = (node.start(), node.pattern(), node.val());
+            let size = ls.ncols();
+            let (ls_top, ls_bot) = ls.split_at_row(size);
+            let depth = pattern.len();
+            for (idx, &i) in pattern.iter().enumerate() {
+                below[idx * k..][..k].copy_from_slice(&x[i * k..][..k]);
+            }
+            let gathered = MatRef::from_row_major_slice(&below[..depth * k], depth, k);
+            let mut x_top = MatMut::from_column_major_slice_mut(&mut top[..size * k], size, k);
+            rows_to_columns(x, k, start, x_top.rb_mut());
+            faer::linalg::matmul::matmul_with_conj(x_top.rb_mut(), Accum::Add, ls_bot.transpose(), Conj::Yes, gathered, Conj::No, -1.0, Par::Seq);
+            faer::linalg::triangular_solve::solve_upper_triangular_in_place_with_conj(ls_top.transpose(), Conj::Yes, x_top.rb_mut(), Par::Seq);
+            columns_to_rows(x_top.rb(), x, k, start);
+        }
+        // rhs[old, j] = x[inv[old], j]
+        for first in (0..n).step_by(ROW_BLOCK) {
+            let last = (first + ROW_BLOCK).min(n);
+            for j in 0..k {
+                let mut col = rhs.rb_mut().col_mut(j);
+                for old in first..last {
+                    col[old] = x[new_row(old) * k + j];
+                }
+            }
+        }
     }
 
     /// Solves for one right-hand side stored in a slice.
@@ -131,6 +253,40 @@ impl SparseCholesky {
         let n = rhs.len();
         let m = faer::MatMut::from_column_major_slice_mut(rhs, n, 1);
         self.solve_in_place(m, scratch);
+    }
+}
+
+/// Right-hand sides from which [`SparseCholesky::solve_in_place`] runs row
+/// major (a single column gains nothing from it).
+pub const ROW_MAJOR_MIN_RHS: usize = 8;
+
+/// Rows moved between layouts a block at a time (the block of a 96-column
+/// row-major matrix stays in the core's cache).
+const ROW_BLOCK: usize = 32;
+
+/// The most columns and the most rows below the diagonal block of any supernode.
+fn supernode_extent(symbolic: &SymbolicSupernodalCholesky<usize>) -> (usize, usize) {
+    let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
+    (0..symbolic.n_supernodes()).fold((0, 0), |(w, d), s| (w.max(end[s] - begin[s]), d.max(symbolic.supernode(s).pattern().len())))
+}
+
+/// `dst` (column major, `dst.nrows()` rows) = rows `start..` of the row-major `x` with `k` columns.
+fn rows_to_columns(x: &[f64], k: usize, start: usize, mut dst: MatMut<'_, f64>) {
+    for r in 0..dst.nrows() {
+        let row = &x[(start + r) * k..][..k];
+        for (j, v) in row.iter().enumerate() {
+            dst[(r, j)] = *v;
+        }
+    }
+}
+
+/// Rows `start..` of the row-major `x` with `k` columns = `src`.
+fn columns_to_rows(src: MatRef<'_, f64>, x: &mut [f64], k: usize, start: usize) {
+    for r in 0..src.nrows() {
+        let row = &mut x[(start + r) * k..][..k];
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = src[(r, j)];
+        }
     }
 }
 
@@ -196,6 +352,59 @@ impl LazyFactor {
         });
         if let Err(e) = spawned {
             tracing::warn!("factor thread did not start ({e}); the first solve makes the factor");
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fem::assembly::assemble_lower;
+    use crate::fem::fixtures;
+
+    /// The row-major solve against faer's own supernodal solve on the same
+    /// factor: every entry the same bits, with each ordering and with column
+    /// counts below, at and above the switch (and the precompute's 96).
+    #[test]
+    fn row_major_solve_is_faers_bit_for_bit() {
+        let mesh = fixtures::box_mesh(&fixtures::linspace(0.0, 0.06, 13), &fixtures::linspace(0.0, 0.05, 11), &fixtures::linspace(0.0, 0.04, 9)).unwrap();
+        let fixed: Vec<bool> = mesh.positions.iter().map(|p| p.z <= 1e-12).collect();
+        let dofs = DofMap::new(&mesh, &fixed);
+        let lame = vec![(1.0e3, 1.0e4); mesh.regions.len()];
+        let k = assemble_lower(&mesh, &lame, &dofs);
+        for ordering in [FillOrdering::Amd, FillOrdering::NestedDissection] {
+            let chol = SparseCholesky::new(&k, &dofs, ordering).unwrap();
+            assert!(matches!(chol.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)), "{ordering:?}: the test needs a supernodal factor");
+            for ncols in [1, ROW_MAJOR_MIN_RHS - 1, ROW_MAJOR_MIN_RHS, 33, 96] {
+                let b = faer::Mat::<f64>::from_fn(k.dim, ncols, |i, j| ((i * 31 + j * 17) % 23) as f64 - 11.0 + 1e-3 * j as f64);
+                let mut ours = b.clone();
+                let mut scratch = chol.scratch(ncols).unwrap();
+                chol.solve_in_place(ours.as_mut(), &mut scratch);
+                let mut faers = b.clone();
+                let llt = LltRef::new(&chol.symbolic, &chol.values);
+                llt.solve_in_place_with_conj(Conj::No, faers.as_mut(), Par::Seq, MemStack::new(&mut scratch));
+                for j in 0..ncols {
+                    for i in 0..k.dim {
+                        assert_eq!(ours[(i, j)].to_bits(), faers[(i, j)].to_bits(), "{ordering:?}, {ncols} columns: entry ({i}, {j})");
+                    }
+                }
+                // and it solves: K x = b to rounding
+                let mut worst = 0.0f64;
+                for j in 0..ncols {
+                    let mut r: Vec<f64> = (0..k.dim).map(|i| -b[(i, j)]).collect();
+                    for c in 0..k.dim {
+                        for p in k.col_ptr[c]..k.col_ptr[c + 1] {
+                            let (i, v) = (k.row_idx[p], k.values[p]);
+                            r[i] += v * ours[(c, j)];
+                            if i != c {
+                                r[c] += v * ours[(i, j)];
+                            }
+                        }
+                    }
+                    worst = worst.max(r.iter().fold(0.0f64, |m, x| m.max(x.abs())));
+                }
+                assert!(worst < 1e-8, "{ordering:?}, {ncols} columns: residual {worst:e}");
+            }
         }
     }
 }

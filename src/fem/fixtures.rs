@@ -106,6 +106,35 @@ pub fn select_nodes(mesh: &TetMesh, pred: impl Fn(&Vec3) -> bool) -> Vec<u32> {
     (0..mesh.node_count() as u32).filter(|&n| pred(&mesh.positions[n as usize])).collect()
 }
 
+/// Clamps each connected piece of `mesh` at its bottom: the nodes within
+/// `depth` (m) of the piece's lowest z (the benchmarks' boundary condition on
+/// a brain whose hemispheres are stored apart).
+pub fn fix_bottom_of_each_component(mesh: &TetMesh, depth: f64) -> Vec<bool> {
+    let n = mesh.node_count();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn find(p: &mut [usize], mut x: usize) -> usize {
+        while p[x] != x {
+            p[x] = p[p[x]];
+            x = p[x];
+        }
+        x
+    }
+    for t in &mesh.tets {
+        for k in 1..4 {
+            let (a, b) = (find(&mut parent, t[0] as usize), find(&mut parent, t[k] as usize));
+            if a != b {
+                parent[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let mut min_z = vec![f64::INFINITY; n];
+    for v in 0..n {
+        let r = find(&mut parent, v);
+        min_z[r] = min_z[r].min(mesh.positions[v].z);
+    }
+    (0..n).map(|v| mesh.positions[v].z <= min_z[find(&mut parent, v)] + depth).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
