@@ -1,0 +1,156 @@
+//! The K^-1 blocks of the contact candidates against the W nodes, kept
+//! between frames ([`CandidateBlocks`]): what the active-set loop reads most
+//! on a wide contact of a large model, read from the compliance once for as
+//! long as both nodes stay.
+
+use super::*;
+
+/// A compliance above this size (bytes) keeps its candidates' blocks between
+/// frames (a last-level cache is at most a few tens of megabytes).
+pub(super) const CANDIDATE_BLOCKS_FROM_BYTES: usize = 64 << 20;
+
+/// The K^-1 blocks of the contact candidates against the nodes of the W
+/// rows, kept between frames (see `ConstrainedSolver::candidate_blocks`): a
+/// row a candidate, a column a W node, in two flat arrays of `stride`
+/// columns a row, so it allocates only when the candidates or the W nodes
+/// pass their high-water mark. A W node keeps its column from frame to frame
+/// whatever its slot in the frame's node list (the held set is reordered for
+/// the factor every frame), so a block is read from the compliance once for
+/// as long as both nodes stay. A row or a column not used this frame or the
+/// last is given to another node.
+#[derive(Debug, Default)]
+pub(super) struct CandidateBlocks {
+    /// Candidate node -> row.
+    index: std::collections::HashMap<u32, u32>,
+    /// Frame each row was last used in.
+    last_used: Vec<u64>,
+    free: Vec<u32>,
+    /// W node -> column.
+    columns: std::collections::HashMap<u32, u32>,
+    /// Frame each column was last used in.
+    column_used: Vec<u64>,
+    column_free: Vec<u32>,
+    /// The column of each slot of the solver's node list, for the list at `slots_version`.
+    slot_columns: Vec<u32>,
+    slots_version: u64,
+    /// The frame the rows and columns were last sorted out for.
+    frame: u64,
+    /// The solver's `lazy_generation` the kept blocks were read at.
+    generation: u64,
+    stride: usize,
+    /// `nodes[row * stride + column]`: the W node whose block is kept there (`u32::MAX`: none).
+    nodes: Vec<u32>,
+    blocks: Vec<Matrix3<f64>>,
+}
+
+/// Frees the entries of `index` (node -> slot) whose slot was last used
+/// before the frame before `frame`.
+pub(super) fn hand_on_unused(index: &mut std::collections::HashMap<u32, u32>, last_used: &[u64], free: &mut Vec<u32>, frame: u64) {
+    index.retain(|_, k| {
+        let keep = last_used[*k as usize] + 1 >= frame;
+        if !keep {
+            free.push(*k);
+        }
+        keep
+    });
+}
+
+impl CandidateBlocks {
+    /// Ready for `frame`, the lazy columns at `generation` and the W nodes
+    /// `slots` (the node list at `version`): frees the rows and columns not
+    /// used in this frame or the last, and gives every slot a column.
+    pub(super) fn prepare(&mut self, frame: u64, generation: u64, slots: &[u32], version: u64) {
+        if generation != self.generation {
+            // Other lazy columns: start again (a cache).
+            self.generation = generation;
+            self.clear_rows();
+            self.columns.clear();
+            self.column_used.clear();
+            self.column_free.clear();
+            self.slots_version = u64::MAX;
+        }
+        if frame != self.frame {
+            self.frame = frame;
+            self.slots_version = u64::MAX;
+            hand_on_unused(&mut self.index, &self.last_used, &mut self.free, frame);
+            hand_on_unused(&mut self.columns, &self.column_used, &mut self.column_free, frame);
+            // Hand out the lowest free columns first: the rows stay short.
+            self.column_free.sort_unstable_by(|a, b| b.cmp(a));
+        }
+        if version == self.slots_version {
+            return;
+        }
+        self.slots_version = version;
+        self.slot_columns.clear();
+        for &q in slots {
+            let c = match self.columns.get(&q) {
+                Some(&c) => c,
+                None => {
+                    let c = match self.column_free.pop() {
+                        Some(c) => c,
+                        None => {
+                            self.column_used.push(0);
+                            (self.column_used.len() - 1) as u32
+                        }
+                    };
+                    self.columns.insert(q, c);
+                    c
+                }
+            };
+            self.column_used[c as usize] = frame;
+            self.slot_columns.push(c);
+        }
+        if self.column_used.len() > self.stride {
+            // More columns than a row holds: wider rows (only the high-water mark grows).
+            self.stride = self.column_used.len().next_power_of_two().max(16);
+            self.clear_rows();
+        }
+    }
+
+    pub(super) fn clear_rows(&mut self) {
+        self.index.clear();
+        self.free.clear();
+        self.last_used.clear();
+        self.nodes.clear();
+        self.blocks.clear();
+    }
+
+    /// The first index of `node`'s row (after [`Self::prepare`] for this frame).
+    pub(super) fn row(&mut self, node: u32) -> usize {
+        let stride = self.stride;
+        let r = match self.index.get(&node) {
+            Some(&r) => r as usize,
+            None => {
+                let r = match self.free.pop() {
+                    Some(r) => r as usize,
+                    None => {
+                        self.last_used.push(0);
+                        self.nodes.resize(self.last_used.len() * stride, u32::MAX);
+                        self.blocks.resize(self.last_used.len() * stride, Matrix3::zeros());
+                        self.last_used.len() - 1
+                    }
+                };
+                self.nodes[r * stride..(r + 1) * stride].fill(u32::MAX);
+                self.index.insert(node, r as u32);
+                r
+            }
+        };
+        self.last_used[r] = self.frame;
+        r * stride
+    }
+}
+
+impl ConstrainedSolver {
+    /// `K^-1[p, nodes[slot]]` through the kept blocks: `base` is `p`'s row
+    /// (after [`CandidateBlocks::prepare`] for the current node list).
+    #[inline]
+    pub(super) fn kept_block(&self, kept: &mut CandidateBlocks, base: usize, p: u32, slot: usize) -> Matrix3<f64> {
+        let q = self.nodes[slot];
+        let i = base + kept.slot_columns[slot] as usize;
+        if kept.nodes[i] != q {
+            kept.blocks[i] = self.kinv(p, q);
+            kept.nodes[i] = q;
+        }
+        kept.blocks[i]
+    }
+}
