@@ -170,8 +170,9 @@ impl SparseCholesky {
     /// of all `k` right-hand sides, a single run, where column major it
     /// touches `k` entries a column apart. With 96 columns (the precompute's
     /// batch) faer's scatter, gather and permutation were a third of its
-    /// solve on the coarse real brain (perf); this solve takes 0.75x its time
-    /// (`scripts/cholmod_compare.sh`, docs/design-notes.md).
+    /// solve on the coarse real brain (perf); this solve takes 0.74x its time
+    /// there (eight 96-column solves, 4.55 s against 6.12 s; the precompute
+    /// 0.85-0.89x on the fine brain: docs/design-notes.md).
     /// The arithmetic is faer's, in faer's order: the same triangular solves
     /// on a column-major copy of the supernode's rows; the same product below
     /// the diagonal block (into a row-major block: the product kernel sums
