@@ -33,7 +33,6 @@ fn peak_rss_mb() -> f64 {
     fissure::fem::meminfo::peak_resident_bytes().map_or(f64::NAN, |b| b as f64 / (1024.0 * 1024.0))
 }
 
-/// Fixes the lowest `depth` metres of every connected component.
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
@@ -162,10 +161,11 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
             // rows a column stores: those of its own body (K^-1 between the
             // bodies K does not couple, such as the hemispheres, is zero and not stored)
             let c = solver.compliance();
+            let rows = c.stats().rows;
             let stored_rows: usize = nodes
                 .iter()
                 .filter_map(|&n| c.col_of(n))
-                .map(|col| (0..c.stats().rows).filter(|&r| c.block(r, col) != fissure::math::Matrix3::zeros()).count())
+                .map(|col| (0..rows).filter(|&r| c.block(r, col) != fissure::math::Matrix3::zeros()).count())
                 .sum();
             let product_bytes = 9.0 * stored_rows as f64 * entry_bytes;
             let rate = *STREAM_RATE.get_or_init(stream_bytes_per_s);

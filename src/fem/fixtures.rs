@@ -110,29 +110,15 @@ pub fn select_nodes(mesh: &TetMesh, pred: impl Fn(&Vec3) -> bool) -> Vec<u32> {
 /// `depth` (m) of the piece's lowest z (the benchmarks' boundary condition on
 /// a brain whose hemispheres are stored apart).
 pub fn fix_bottom_of_each_component(mesh: &TetMesh, depth: f64) -> Vec<bool> {
-    let n = mesh.node_count();
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn find(p: &mut [usize], mut x: usize) -> usize {
-        while p[x] != x {
-            p[x] = p[p[x]];
-            x = p[x];
-        }
-        x
-    }
-    for t in &mesh.tets {
-        for k in 1..4 {
-            let (a, b) = (find(&mut parent, t[0] as usize), find(&mut parent, t[k] as usize));
-            if a != b {
-                parent[a.max(b)] = a.min(b);
-            }
+    let comps = crate::mesh::quality::components(mesh);
+    let mut min_z = vec![f64::INFINITY; comps.count];
+    for (p, &c) in mesh.positions.iter().zip(&comps.node_component) {
+        if let Some(m) = min_z.get_mut(c as usize) {
+            *m = m.min(p.z);
         }
     }
-    let mut min_z = vec![f64::INFINITY; n];
-    for v in 0..n {
-        let r = find(&mut parent, v);
-        min_z[r] = min_z[r].min(mesh.positions[v].z);
-    }
-    (0..n).map(|v| mesh.positions[v].z <= min_z[find(&mut parent, v)] + depth).collect()
+    // a node no tet uses is its own piece: clamped
+    mesh.positions.iter().zip(&comps.node_component).map(|(p, &c)| min_z.get(c as usize).is_none_or(|m| p.z <= m + depth)).collect()
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! The solver's K^-1 columns outside the region of interest ("lazy"
-//! columns: one sparse solve a node, kept up to [`LAZY_CAPACITY`], least
-//! recently used first out), their prefetch in background batches, and the
+//! columns: sparse solves, a batch of nodes at a time; about
+//! [`LAZY_CAPACITY`] kept, the least recently used out first), their prefetch
+//! in background batches, and the
 //! block read that picks a ROI column or a lazy one ([`ConstrainedSolver::kinv`]).
 
 use super::*;
