@@ -14,6 +14,16 @@
 //! (e.g. `lowrank8`). After the frames, the last 300-constrained frame is solved
 //! again with an f64 compliance whose ROI is exactly its constrained nodes (a
 //! fresh model), and the relative displacement / reaction errors are printed.
+//!
+//! `cargo bench --bench fem -- audit` (add `paper`, `coarse`, ... to pick the
+//! models) measures instead each per-frame optimisation of fem/ that
+//! `fem::tuning` can switch off, on and off in the same run, alternating,
+//! three rounds (the medians), on three frame sequences: a held set of 300
+//! constrained vertices, a set growing by 30 a frame to 300, and the window
+//! of 300 sliding by 30 a frame above; and the row-major sparse solve (one
+//! 96-column solve, on and off). The scene-level switches run in
+//! `scripts/fem_audit.sh`.
+//!
 //! A plain `main` (harness = false) with explicit percentiles: the one-shot
 //! phases take seconds and cannot be repeated criterion-style.
 
@@ -55,7 +65,7 @@ fn rel_error(a: &[Vec3], b: &[Vec3]) -> f64 {
     diff / b.iter().fold(0.0_f64, |m, x| m.max(x.norm())).max(f64::MIN_POSITIVE)
 }
 
-fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Path) {
+fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Path, audit_only: bool) {
     let storage = storage_from_env();
     println!("== {name}: {} nodes, {} tets", mesh.node_count(), mesh.tets.len());
     let fixed = fixtures::fix_bottom_of_each_component(mesh, 0.010);
@@ -80,7 +90,11 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
         s.numeric_seconds,
         t.elapsed().as_secs_f64()
     );
-    ordering_lines(&model);
+    if audit_only {
+        row_major_audit(&model);
+    } else {
+        ordering_lines(&model);
+    }
     let surface = model.surface().vertices.clone();
     let roi: Vec<u32> = surface.iter().copied().filter(|&n| roi_pred(&mesh.positions[n as usize]) && !model.is_fixed(n)).collect();
     println!("surface vertices {}, ROI vertices {}", surface.len(), roi.len());
@@ -125,6 +139,10 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
     near.truncate(2400.min(near.len()));
     near.sort_by(|a, b| mesh.positions[*a as usize].x.total_cmp(&mesh.positions[*b as usize].x).then(a.cmp(b)));
     let mut solver = ConstrainedSolver::new(model, compliance).expect("solver");
+    if audit_only {
+        frame_audit(&mut solver, &near);
+        return;
+    }
     let mut last_frame: (Vec<Constraint>, FrameSolution) = (Vec::new(), FrameSolution::default());
     for (count, fresh) in [(100usize, 10usize), (300, 30)] {
         let Some(m) = measure(&mut solver, &near, count, fresh, 60) else {
@@ -394,13 +412,24 @@ fn measure(solver: &mut ConstrainedSolver, near: &[u32], count: usize, fresh: us
         return None;
     }
     let frames = ((near.len() - count) / fresh).min(max_frames);
+    let sets: Vec<&[u32]> = (0..frames).map(|k| &near[k * fresh..k * fresh + count]).collect();
+    measure_sets(solver, &sets)
+}
+
+/// Frame times over the held sets `sets` (one a frame, each node pushed
+/// 2 mm down); the first frame is left out of the statistics.
+fn measure_sets(solver: &mut ConstrainedSolver, sets: &[&[u32]]) -> Option<Measure> {
+    let frames = sets.len();
+    if frames < 2 {
+        return None;
+    }
     let mut times = Vec::new();
     let mut phases = [0.0f64; 6];
     let mut out = FrameSolution::default();
     let mut cons: Vec<Constraint> = Vec::new();
     for k in 0..frames {
         cons.clear();
-        cons.extend(near[k * fresh..k * fresh + count].iter().map(|&n| Constraint {
+        cons.extend(sets[k].iter().map(|&n| Constraint {
             node: n,
             owner: 0,
             kind: ConstraintKind::Enforced { displacement: Vec3::new(0.0, 0.0, -0.002) },
@@ -505,9 +534,101 @@ fn write_sweep(name: &str, sweep: &[(usize, Measure)], dir: &Path) -> Result<Pat
     Ok(png)
 }
 
+/// Median of three or more values.
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// `-- audit`: each per-frame optimisation that `fem::tuning` switches, on
+/// and off in this run (alternating which goes first, three rounds), on
+/// three sequences of 300 constrained vertices; the medians.
+fn frame_audit(solver: &mut ConstrainedSolver, near: &[u32]) {
+    use fissure::fem::tuning::{Optimisation, set_enabled};
+    let count = 300.min(near.len() / 2);
+    let step = count / 10;
+    let held: Vec<&[u32]> = (0..30).map(|_| &near[..count]).collect();
+    let growing: Vec<&[u32]> = (0..30).map(|k| &near[..(step * (k + 1)).min(count)]).collect();
+    let sliding: Vec<&[u32]> = (0..((near.len() - count) / step).min(30)).map(|k| &near[k * step..k * step + count]).collect();
+    let sequences = [("held", held), ("growing", growing), ("sliding", sliding)];
+    println!("audit: {count} constrained vertices; frame p50 / p95 and the phase the switch touches, ms, median of three rounds, on -> off");
+    for (o, phase) in [
+        (Optimisation::WFactorReuse, 1usize),
+        (Optimisation::KeptProductRows, 3),
+        (Optimisation::FusedColumns, 3),
+        (Optimisation::RowChunks, 3),
+        (Optimisation::Avx2Product, 3),
+    ] {
+        for (seq_name, sets) in &sequences {
+            let mut on = (Vec::new(), Vec::new(), Vec::new());
+            let mut off = (Vec::new(), Vec::new(), Vec::new());
+            for round in 0..3 {
+                for first_on in [round % 2 == 0, round % 2 != 0] {
+                    set_enabled(o, first_on);
+                    let Some(m) = measure_sets(solver, sets) else { continue };
+                    let to = if first_on { &mut on } else { &mut off };
+                    to.0.push(m.p50);
+                    to.1.push(m.p95);
+                    to.2.push(m.phases[phase]);
+                }
+            }
+            set_enabled(o, true);
+            if on.0.len() < 3 || off.0.len() < 3 {
+                continue;
+            }
+            let phase_name = ["gather", "factor+solve W", "candidates", "surface product", "product gather", "lazy"][phase];
+            let (p50, p95, ph) = (median(on.0), median(on.1), median(on.2));
+            let (q50, q95, qh) = (median(off.0), median(off.1), median(off.2));
+            println!(
+                "audit {:<18} {seq_name:<8}: frame p50 {p50:.2} -> {q50:.2}, p95 {p95:.2} -> {q95:.2}; {phase_name} {ph:.2} -> {qh:.2} ({:.2}x faster with it)",
+                o.name(),
+                qh / ph
+            );
+        }
+    }
+}
+
+/// `-- audit`: one 96-column solve of the model's factor with the row-major
+/// solve and with faer's, alternating, best of three each.
+fn row_major_audit(model: &FemModel) {
+    use fissure::fem::tuning::{Optimisation, set_enabled};
+    let k = model.stiffness();
+    let chol = match SparseCholesky::new(k, model.dofs(), FillOrdering::Best) {
+        Ok(c) => c,
+        Err(e) => {
+            println!("audit row-major-solve: factor failed: {e}");
+            return;
+        }
+    };
+    let mut rhs = faer::Mat::<f64>::zeros(k.dim, 96);
+    let mut scratch = chol.scratch(96).expect("scratch");
+    let mut best = [f64::INFINITY; 2];
+    for rep in 0..6 {
+        let on = rep % 2 == (rep / 2) % 2;
+        set_enabled(Optimisation::RowMajorSolve, on);
+        rhs.fill(0.0);
+        for c in 0..96 {
+            rhs[((c * 7919 + rep) % k.dim, c)] = 1.0;
+        }
+        let t = Instant::now();
+        chol.solve_in_place(rhs.as_mut(), &mut scratch);
+        let s = t.elapsed().as_secs_f64() * 1e3;
+        best[usize::from(!on)] = best[usize::from(!on)].min(s);
+    }
+    set_enabled(Optimisation::RowMajorSolve, true);
+    println!(
+        "audit row-major-solve      one 96-column solve: {:.1} -> {:.1} ms ({:.2}x faster with it; best of three each)",
+        best[0],
+        best[1],
+        best[1] / best[0]
+    );
+}
+
 fn main() {
     STREAM_RATE.get_or_init(stream_bytes_per_s);
-    let filter: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    let audit_only = args.iter().any(|a| a == "audit");
+    let filter: Vec<String> = args.into_iter().filter(|a| a != "audit").collect();
     let want = |n: &str| filter.is_empty() || filter.iter().any(|f| n.contains(f.as_str()));
     let cache: PathBuf = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/target/fem-bench-cache"));
     if want("paper-12k") {
@@ -517,7 +638,7 @@ fn main() {
                 println!("phantom generated in {:.1} s", t.elapsed().as_secs_f64());
                 let (lo, hi) = p.mesh.bounding_box();
                 let zmid = 0.5 * (lo.z + hi.z);
-                run("paper-12k", &p.mesh, &move |x: &Vec3| x.z > zmid, &cache.join("paper"));
+                run("paper-12k", &p.mesh, &move |x: &Vec3| x.z > zmid, &cache.join("paper"), audit_only);
             }
             Err(e) => println!("paper-12k phantom unavailable: {e}"),
         }
@@ -537,7 +658,7 @@ fn main() {
                 let (_, hi) = mesh.bounding_box();
                 // ROI: the upper medial region around the inter-hemispheric fissure (|x| < 20 mm, top 40 mm)
                 let roi = move |x: &Vec3| x.x.abs() < 0.020 && x.z > hi.z - 0.040;
-                run(name, &mesh, &roi, &cache.join(name));
+                run(name, &mesh, &roi, &cache.join(name), audit_only);
             }
             Err(e) => println!("brain mesh {} failed to load: {e}", path.display()),
         }

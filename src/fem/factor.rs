@@ -146,6 +146,7 @@ impl SparseCholesky {
     /// is bit for bit faer's.
     pub fn solve_in_place(&self, rhs: MatMut<'_, f64>, scratch: &mut MemBuffer) {
         if rhs.ncols() >= ROW_MAJOR_MIN_RHS
+            && super::tuning::enabled(super::tuning::Optimisation::RowMajorSolve)
             && let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw()
         {
             self.solve_row_major(symbolic, rhs, MemStack::new(scratch));

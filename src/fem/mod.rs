@@ -28,6 +28,7 @@ pub mod prefetch;
 pub mod reference;
 pub mod fixtures;
 pub mod stress;
+pub mod tuning;
 pub mod wfactor;
 
 pub use compliance::{Compliance, ComplianceStats, ComplianceStorage, ComputeOptions, ProductWorkspace};

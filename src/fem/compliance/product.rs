@@ -37,7 +37,8 @@ impl Compliance {
             return;
         }
         let layout = &self.layout;
-        let chunk = workspace.chunk();
+        // (a chunk is never longer than the rows: off, one chunk holds them all)
+        let chunk = workspace.chunk().min(u.len()).max(1);
         match &self.values {
             Values::F64(d) => {
                 let region = |k: usize| {
@@ -119,7 +120,13 @@ impl ProductWorkspace {
     }
 
     fn chunk(&self) -> usize {
-        if self.chunk_rows == 0 { ROW_CHUNK } else { self.chunk_rows }
+        if self.chunk_rows != 0 {
+            self.chunk_rows
+        } else if crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::RowChunks) {
+            ROW_CHUNK
+        } else {
+            usize::MAX
+        }
     }
 
     /// Seconds the last [`Compliance::accumulate`] spent gathering those rows.
@@ -181,6 +188,9 @@ impl<T: Copy> RowStore<T> {
     where
         T: 'a,
     {
+        if !crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::KeptProductRows) {
+            self.clear();
+        }
         self.next_cols.clear();
         self.next_rows.clear();
         let mut gathered = 0;
@@ -274,7 +284,8 @@ const FUSED_COLUMNS: usize = 8;
 #[inline(always)]
 fn add_columns<'a, T: Entry + 'a>(out: &mut [f64], count: usize, run: impl Fn(usize) -> &'a [T], pattern: impl Fn(usize) -> [f64; 9]) {
     let mut i = 0;
-    while i + FUSED_COLUMNS <= count {
+    let fused = crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::FusedColumns);
+    while fused && i + FUSED_COLUMNS <= count {
         let runs: [&[T]; FUSED_COLUMNS] = std::array::from_fn(|k| run(i + k));
         let pats: [[f64; 9]; FUSED_COLUMNS] = std::array::from_fn(|k| pattern(i + k));
         add_scaled_runs::<T, FUSED_COLUMNS>(out, runs, pats);
@@ -436,7 +447,7 @@ impl<R, T> Copy for Product<'_, R, T> {}
 /// AVX-512 build measured no faster: the kernel waits on memory.)
 fn accumulate_impl<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
+    if std::arch::is_x86_feature_detected!("avx2") && crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::Avx2Product) {
         // SAFETY: the CPU supports AVX2 (checked just above).
         unsafe { accumulate_avx2(p, u, acc, chunk) };
         return;

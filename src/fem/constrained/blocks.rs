@@ -9,6 +9,11 @@ use super::*;
 /// frames (a last-level cache is at most a few tens of megabytes).
 pub(super) const CANDIDATE_BLOCKS_FROM_BYTES: usize = 64 << 20;
 
+/// Whether a solver on `compliance` keeps its candidates' blocks.
+pub(super) fn wanted(compliance: &Compliance) -> bool {
+    compliance.stats().bytes > CANDIDATE_BLOCKS_FROM_BYTES && crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::CandidateBlocks)
+}
+
 /// The K^-1 blocks of the contact candidates against the nodes of the W
 /// rows, kept between frames (see `ConstrainedSolver::candidate_blocks`): a
 /// row a candidate, a column a W node, in two flat arrays of `stride`

@@ -149,7 +149,7 @@ impl ConstrainedSolver {
     /// when a frame needs one of its nodes; results never depend on timing
     /// (see [`super::prefetch`]). Returns the number of nodes requested.
     pub fn prefetch(&mut self, nodes: &[u32]) -> usize {
-        if !self.can_prefetch() {
+        if !self.can_prefetch() || !crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::Prefetch) {
             return 0;
         }
         let mut batch: Vec<u32> = Vec::new();

@@ -54,7 +54,7 @@
 mod blocks;
 mod columns;
 
-use blocks::{CANDIDATE_BLOCKS_FROM_BYTES, CandidateBlocks};
+use blocks::CandidateBlocks;
 use super::FemError;
 use super::compliance::{Compliance, ProductWorkspace};
 use super::wfactor::ContactFactor;
@@ -324,7 +324,7 @@ impl ConstrainedSolver {
         }
         let rows = compliance.row_nodes().len();
         let prefetcher = Prefetcher::new(std::sync::Arc::clone(&model.chol), model.dofs.clone());
-        let keep_candidate_blocks = compliance.stats().bytes > CANDIDATE_BLOCKS_FROM_BYTES;
+        let keep_candidate_blocks = blocks::wanted(&compliance);
         Ok(Self {
             model,
             compliance,
@@ -497,6 +497,7 @@ impl ConstrainedSolver {
         self.frame += 1;
         self.timings = PhaseTimings::default();
         self.validate(constraints)?;
+        self.keep_candidate_blocks = blocks::wanted(&self.compliance);
         let t = std::time::Instant::now();
         self.join_due_batches();
         self.timings.lazy += t.elapsed().as_secs_f64();
@@ -761,6 +762,9 @@ impl ConstrainedSolver {
         self.enforced_nodes = self.nodes.len();
         let t = std::time::Instant::now();
         let mut factor = std::mem::take(&mut self.factor);
+        if !crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::WFactorReuse) {
+            factor.reset();
+        }
         factor.update_enforced(&self.perm_nodes, &|p, q| self.kinv(p, q));
         self.factor = factor;
         self.timings.factor += t.elapsed().as_secs_f64();

@@ -1,0 +1,127 @@
+//! One switch a measured optimisation of fem/, so that each one's gain can be
+//! measured again on today's code and machine (docs/design-notes.md, "What
+//! each fem/ optimisation buys"; `cargo bench --bench fem -- audit` and
+//! `scripts/fem_audit.sh`).
+//!
+//! In: `FISSURE_FEM_OFF=name,name` (read once; names in [`Optimisation::ALL`],
+//! `all` turns every one off), or [`set_enabled`] from a bench. Out:
+//! [`enabled`]. Off runs the plain path the optimisation replaced. Answers
+//! stay the same bit for bit unless the switch's doc says otherwise; a
+//! diagnostic, not a setting: scenes cannot name these.
+
+use std::sync::Once;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+/// A measured optimisation of fem/ that can be switched off.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Optimisation {
+    /// The AVX2 build of the surface product's kernel (`compliance/product.rs`;
+    /// off: the portable build, which rounds the same).
+    Avx2Product,
+    /// Eight columns at a time in the surface product's kernel
+    /// (`compliance/product.rs`; off: one at a time, adding in the same order).
+    FusedColumns,
+    /// The surface product in chunks of 512 rows whose partial sums stay in
+    /// the CPU's cache (`compliance/product.rs`; off: a component's rows in
+    /// one pass, each row's sums unchanged).
+    RowChunks,
+    /// The gathered rows of the forced columns kept from one frame to the next
+    /// (`compliance/product.rs`; off: gathered again every frame).
+    KeptProductRows,
+    /// The contact matrix W's factor kept across frames and updated
+    /// (`wfactor.rs`; off: factored in full every time; the answers differ
+    /// in the last bits, as an incremental factor does from a full one).
+    WFactorReuse,
+    /// The contact candidates' K^-1 blocks kept between frames
+    /// (`constrained/blocks.rs`, for a compliance over 64 MB; off: read from
+    /// the compliance every time).
+    CandidateBlocks,
+    /// The row-major multi-column sparse solve (`factor.rs`; off: faer's
+    /// column-major supernodal solve).
+    RowMajorSolve,
+    /// Lazy K^-1 columns solved ahead on a background thread (`prefetch.rs`;
+    /// off: each is solved in the frame that first needs it, alone or with
+    /// that frame's others, so its last bits can differ).
+    Prefetch,
+    /// Huge pages under a computed compliance (`compliance/mod.rs`).
+    HugePages,
+}
+
+impl Optimisation {
+    /// Every switch with its name in `FISSURE_FEM_OFF`.
+    pub const ALL: [(Optimisation, &'static str); 9] = [
+        (Optimisation::Avx2Product, "avx2-product"),
+        (Optimisation::FusedColumns, "fused-columns"),
+        (Optimisation::RowChunks, "row-chunks"),
+        (Optimisation::KeptProductRows, "kept-product-rows"),
+        (Optimisation::WFactorReuse, "w-factor-reuse"),
+        (Optimisation::CandidateBlocks, "candidate-blocks"),
+        (Optimisation::RowMajorSolve, "row-major-solve"),
+        (Optimisation::Prefetch, "prefetch"),
+        (Optimisation::HugePages, "huge-pages"),
+    ];
+
+    /// Its name in `FISSURE_FEM_OFF`.
+    pub fn name(self) -> &'static str {
+        Self::ALL.iter().find(|(o, _)| *o == self).map(|(_, n)| *n).unwrap_or("?")
+    }
+
+    fn bit(self) -> u32 {
+        1 << Self::ALL.iter().position(|(o, _)| *o == self).unwrap_or(31)
+    }
+}
+
+static OFF: AtomicU32 = AtomicU32::new(0);
+static FROM_ENV: Once = Once::new();
+
+fn off_mask() -> u32 {
+    FROM_ENV.call_once(|| {
+        let Ok(list) = std::env::var("FISSURE_FEM_OFF") else { return };
+        let mut mask = 0;
+        for name in list.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            match Optimisation::ALL.iter().find(|(_, n)| *n == name) {
+                Some((o, _)) => mask |= o.bit(),
+                None if name == "all" => mask = u32::MAX,
+                None => tracing::warn!(
+                    "FISSURE_FEM_OFF: unknown optimisation {name:?} (known: {}, all); ignored",
+                    Optimisation::ALL.iter().map(|(_, n)| *n).collect::<Vec<_>>().join(", ")
+                ),
+            }
+        }
+        if mask != 0 {
+            tracing::warn!("FISSURE_FEM_OFF={list}: measured optimisations switched off (a diagnostic)");
+        }
+        OFF.fetch_or(mask, Ordering::Relaxed);
+    });
+    OFF.load(Ordering::Relaxed)
+}
+
+/// Whether `o` is on (the default).
+pub fn enabled(o: Optimisation) -> bool {
+    off_mask() & o.bit() == 0
+}
+
+/// Switches `o` on or off for the whole process (benches).
+pub fn set_enabled(o: Optimisation, on: bool) {
+    off_mask();
+    if on {
+        OFF.fetch_and(!o.bit(), Ordering::Relaxed);
+    } else {
+        OFF.fetch_or(o.bit(), Ordering::Relaxed);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_switch_has_its_own_bit_and_name() {
+        let mut bits = 0;
+        for (o, name) in Optimisation::ALL {
+            assert_eq!(bits & o.bit(), 0, "{name} shares a bit");
+            bits |= o.bit();
+            assert_eq!(o.name(), name);
+        }
+    }
+}
