@@ -140,7 +140,7 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
     near.sort_by(|a, b| mesh.positions[*a as usize].x.total_cmp(&mesh.positions[*b as usize].x).then(a.cmp(b)));
     let mut solver = ConstrainedSolver::new(model, compliance).expect("solver");
     if audit_only {
-        frame_audit(&mut solver, &near);
+        frame_audit(name, &mut solver, &near, &cache.parent().unwrap_or(cache).join("audit"));
         return;
     }
     let mut last_frame: (Vec<Constraint>, FrameSolution) = (Vec::new(), FrameSolution::default());
@@ -543,15 +543,16 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// `-- audit`: each per-frame optimisation that `fem::tuning` switches, on
 /// and off in this run (alternating which goes first, three rounds), on
 /// three sequences of 300 constrained vertices; the medians.
-fn frame_audit(solver: &mut ConstrainedSolver, near: &[u32]) {
+fn frame_audit(name: &str, solver: &mut ConstrainedSolver, near: &[u32], dir: &Path) {
     use fissure::fem::tuning::{Optimisation, set_enabled};
     let count = 300.min(near.len() / 2);
     let step = count / 10;
     let held: Vec<&[u32]> = (0..30).map(|_| &near[..count]).collect();
     let growing: Vec<&[u32]> = (0..30).map(|k| &near[..(step * (k + 1)).min(count)]).collect();
     let sliding: Vec<&[u32]> = (0..((near.len() - count) / step).min(30)).map(|k| &near[k * step..k * step + count]).collect();
-    let sequences = [("held", held), ("growing", growing), ("sliding", sliding)];
+    let sequences: [(&'static str, Vec<&[u32]>); 3] = [("held", held), ("growing", growing), ("sliding", sliding)];
     println!("audit: {count} constrained vertices; frame p50 / p95 and the phase the switch touches, ms, median of three rounds, on -> off");
+    let mut bars: Vec<AuditBar> = Vec::new();
     for (o, phase) in [
         (Optimisation::WFactorReuse, 1usize),
         (Optimisation::KeptProductRows, 3),
@@ -584,8 +585,108 @@ fn frame_audit(solver: &mut ConstrainedSolver, near: &[u32]) {
                 o.name(),
                 qh / ph
             );
+            bars.push(AuditBar { switch: o.name(), sequence: seq_name, phase: phase_name, on: ph, off: qh, p95_on: p95, p95_off: q95 });
         }
     }
+    match write_audit(name, count, &bars, dir) {
+        Ok(png) => println!("audit plot: {}", png.display()),
+        Err(e) => println!("audit plot not written: {e}"),
+    }
+}
+
+/// One line of the frame audit: the phase the switch touches (mean ms, the
+/// median of three rounds) and the frame p95 with it on and off.
+struct AuditBar {
+    switch: &'static str,
+    sequence: &'static str,
+    phase: &'static str,
+    on: f64,
+    off: f64,
+    p95_on: f64,
+    p95_off: f64,
+}
+
+/// Writes `DIR/NAME_audit.csv` and `.png`: for each switch and frame
+/// sequence, how many times faster the phase it touches runs with it (log
+/// scale). Returns the PNG's path.
+fn write_audit(name: &str, count: usize, bars: &[AuditBar], dir: &Path) -> Result<PathBuf, String> {
+    use plotters::prelude::*;
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let mut csv = String::from("optimisation,sequence,phase,phase_on_ms,phase_off_ms,speedup,frame_p95_on_ms,frame_p95_off_ms\n");
+    for b in bars {
+        csv += &format!("{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4}\n", b.switch, b.sequence, b.phase, b.on, b.off, b.off / b.on, b.p95_on, b.p95_off);
+    }
+    let csv_path = dir.join(format!("{name}_audit.csv"));
+    std::fs::write(&csv_path, csv).map_err(|e| format!("{}: {e}", csv_path.display()))?;
+    let png = dir.join(format!("{name}_audit.png"));
+    let root = BitMapBackend::new(&png, (1000, 600)).into_drawing_area();
+    let err = |e: &dyn std::fmt::Display| e.to_string();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let mut switches: Vec<&str> = Vec::new();
+    for b in bars {
+        if !switches.contains(&b.switch) {
+            switches.push(b.switch);
+        }
+    }
+    let sequences = ["held", "growing", "sliding"];
+    let colors = [RGBColor(31, 119, 180), RGBColor(44, 160, 44), RGBColor(214, 39, 40)];
+    let y_max = bars.iter().map(|b| b.off / b.on).fold(2.0_f64, f64::max) * 1.5;
+    let y_min = bars.iter().map(|b| b.off / b.on).fold(0.7_f64, f64::min) * 0.9;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(format!("{name}: what each per-frame optimisation buys ({count} constrained vertices)"), ("sans-serif", 22))
+        .margin(16)
+        .x_label_area_size(48)
+        .y_label_area_size(72)
+        .build_cartesian_2d(0.0..switches.len() as f64, (y_min..y_max).log_scale())
+        .map_err(|e| err(&e))?;
+    let labels = switches.clone();
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(switches.len() * 2 + 1)
+        .x_label_formatter(&|x| {
+            let i = x.floor() as usize;
+            if (x - i as f64 - 0.5).abs() < 0.26 { labels.get(i).map(|s| s.to_string()).unwrap_or_default() } else { String::new() }
+        })
+        .y_desc("the phase it touches: time off / time on (x faster with it)")
+        .y_label_formatter(&|y| format!("{y:.1}x"))
+        .label_style(("sans-serif", 15))
+        .draw()
+        .map_err(|e| err(&e))?;
+    for (k, (seq, color)) in sequences.iter().zip(colors).enumerate() {
+        let rects: Vec<_> = bars
+            .iter()
+            .filter(|b| b.sequence == *seq)
+            .filter_map(|b| {
+                let i = switches.iter().position(|s| *s == b.switch)? as f64;
+                let x0 = i + 0.15 + 0.23 * k as f64;
+                Some(Rectangle::new([(x0, y_min), (x0 + 0.21, b.off / b.on)], color.filled()))
+            })
+            .collect();
+        chart
+            .draw_series(rects)
+            .map_err(|e| err(&e))?
+            .label(format!("300 constrained vertices {seq}"))
+            .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 18, y + 6)], color.filled()));
+    }
+    let one = RGBColor(90, 90, 90);
+    chart
+        .draw_series(LineSeries::new(vec![(0.0, 1.0), (switches.len() as f64, 1.0)], one.stroke_width(2)))
+        .map_err(|e| err(&e))?
+        .label("1x: no gain (below: slower with it)")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], one.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 16))
+        .draw()
+        .map_err(|e| err(&e))?;
+    root.present().map_err(|e| err(&e))?;
+    drop(chart);
+    drop(root);
+    Ok(png)
 }
 
 /// `-- audit`: one 96-column solve of the model's factor with the row-major

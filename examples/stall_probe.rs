@@ -1,5 +1,8 @@
 //! Frames of a replay that take long, and why (lazy solves, phases):
 //! `cargo run --release --example stall_probe -- config/sylvian.ron [ms] [PATH=VALUE..]`.
+//! With `PACE=1` each frame starts no earlier than its time step after the
+//! one before, as in the window (a headless replay otherwise runs several
+//! times faster than real time, and work on other threads piles up).
 use fissure::scenario::Scenario;
 use fissure::sim::replay::PoseSource;
 use fissure::sim::{BuildOptions, FrameInput, Pipeline};
@@ -18,8 +21,16 @@ fn main() {
     let mut input = FrameInput::default();
     let dt = scenario.time_step;
     let mut times = Vec::new();
+    let pace = std::env::var_os("PACE").is_some_and(|v| v == "1");
+    let start = Instant::now();
     for k in 0..scenario.step_count() {
         source.poses_at((k + 1) as f64 * dt, &mut input);
+        if pace {
+            let due = std::time::Duration::from_secs_f64(k as f64 * dt);
+            if let Some(wait) = due.checked_sub(start.elapsed()) {
+                std::thread::sleep(wait);
+            }
+        }
         let t = Instant::now();
         let rep = pipeline.step(&mut state, &input).expect("step").clone();
         let ms = t.elapsed().as_secs_f64() * 1e3;

@@ -119,8 +119,7 @@ fn an_interrupted_replay_keeps_its_rows_and_says_so() {
 }
 
 /// A region of interest that covers only where the blade comes down: the
-/// slide leaves it, so columns are prefetched on the background thread and
-/// solved on demand. Two replays agree to the bit. Against the all-surface
+/// slide leaves it, so the frames solve lazy columns. Two replays agree to the bit. Against the all-surface
 /// ROI every frame agrees to round-off until the first frame whose contact
 /// set differs: a claim is a discrete decision (a ray against a triangle), so
 /// round-off between two differently built compliances can flip a borderline

@@ -24,7 +24,6 @@ pub mod factor;
 pub mod meminfo;
 pub mod model;
 pub mod ordering;
-pub mod prefetch;
 pub mod reference;
 pub mod fixtures;
 pub mod stress;

@@ -39,17 +39,13 @@ pub enum Optimisation {
     /// The row-major multi-column sparse solve (`factor.rs`; off: faer's
     /// column-major supernodal solve).
     RowMajorSolve,
-    /// Lazy K^-1 columns solved ahead on a background thread (`prefetch.rs`;
-    /// off: each is solved in the frame that first needs it, alone or with
-    /// that frame's others, so its last bits can differ).
-    Prefetch,
     /// Huge pages under a computed compliance (`compliance/mod.rs`).
     HugePages,
 }
 
 impl Optimisation {
     /// Every switch with its name in `FISSURE_FEM_OFF`.
-    pub const ALL: [(Optimisation, &'static str); 9] = [
+    pub const ALL: [(Optimisation, &'static str); 8] = [
         (Optimisation::Avx2Product, "avx2-product"),
         (Optimisation::FusedColumns, "fused-columns"),
         (Optimisation::RowChunks, "row-chunks"),
@@ -57,7 +53,6 @@ impl Optimisation {
         (Optimisation::WFactorReuse, "w-factor-reuse"),
         (Optimisation::CandidateBlocks, "candidate-blocks"),
         (Optimisation::RowMajorSolve, "row-major-solve"),
-        (Optimisation::Prefetch, "prefetch"),
         (Optimisation::HugePages, "huge-pages"),
     ];
 

@@ -55,9 +55,8 @@ pub enum BuildError {
 pub const AUTO_ROI_MARGIN_M: f64 = 0.020;
 
 /// At most this many skull candidates at rest join the automatic region of
-/// interest, least gap first (each costs a column of every surface row; the
-/// rest get their columns in the background when they come within
-/// `SKULL_PREFETCH_GAP_M` of a sphere).
+/// interest, least gap first (each costs a column of every surface row; a
+/// contact beyond them gets its lazy column in the frame that needs it).
 pub const AUTO_ROI_SKULL_MAX: usize = 64;
 
 /// Loads the scene's mesh in metres, refined where the scenario's `refine` asks.

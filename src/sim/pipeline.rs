@@ -115,15 +115,6 @@ pub fn skull_gap(skull: &Skull, p: &Vec3) -> f64 {
     inside.into_iter().chain(outside).fold(f64::INFINITY, f64::min)
 }
 
-/// Surface vertices outside the ROI within this distance of violating a skull
-/// sphere get their compliance columns solved in the background (m). Tighter
-/// than the candidate band: most candidates never engage, and each guess costs
-/// the worker a sparse solve (in the default scene 6 vertices, against 26 in the band).
-pub const SKULL_PREFETCH_GAP_M: f64 = 0.001;
-/// Surface vertices outside the ROI within this distance of a blade's edge get
-/// their compliance columns solved in the background (m).
-pub const PREFETCH_MARGIN_M: f64 = 0.010;
-
 impl SkullStage {
     pub fn new(skull: Skull, surface_nodes: &[u32]) -> Self {
         Self { skull, nodes: surface_nodes.to_vec() }
@@ -175,11 +166,6 @@ pub struct Pipeline {
     barrier: Option<super::barrier::BarrierStage>,
     /// Tets whose four nodes are on the surface (inverted check without an interior solve).
     surface_tets: Vec<u32>,
-    /// Surface vertices outside the compliance's ROI (only with collision):
-    /// those near a blade get their columns solved in the background.
-    outside_roi: Vec<u32>,
-    prefetch_near: Vec<(f64, u32)>,
-    prefetch_nodes: Vec<u32>,
     // scratch
     constraints: Vec<Constraint>,
     solution: FrameSolution,
@@ -220,21 +206,7 @@ impl Pipeline {
         let n = scenario.spatulas.len();
         let unilateral = scenario.solver.spatula_contact == crate::scenario::SpatulaContact::Unilateral;
         let barrier = (unilateral && collision.is_some()).then(|| super::barrier::BarrierStage::new(surface.vertices.len()));
-        // Contacts come from the blades and the skull spheres: without either, no lazy column is ever needed.
-        let outside_roi = if collision.is_some() || skull.is_some() {
-            (0..surface.vertices.len() as u32)
-                .filter(|&v| {
-                    let node = surface.vertices[v as usize];
-                    !solver.is_roi_column(node) && !solver.model().is_fixed(node)
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
         Ok(Self {
-            outside_roi,
-            prefetch_near: Vec::new(),
-            prefetch_nodes: Vec::new(),
             name: scenario.name.clone(),
             unilateral,
             substep_travel: scenario.solver.substep_travel,
@@ -567,14 +539,6 @@ impl Pipeline {
         }
         r.max_displacement_m = self.solution.max_displacement;
         r.skull_contacts = self.solution.active_sphere_contacts as u32;
-        prefetch_lazy_columns(
-            &mut self.solver,
-            &self.outside_roi,
-            &self.surface.vertices,
-            (&self.shapes, self.skull.as_ref().map(SkullStage::skull)),
-            state,
-            (&mut self.prefetch_near, &mut self.prefetch_nodes),
-        );
         r.times.add(StageId::Solve, t.elapsed().as_secs_f64());
 
         // Tunnelling / penetration monitor, over this sub-step's motion.
@@ -670,51 +634,3 @@ fn count_inverted_all(mesh: &TetMesh, u: &[Vec3]) -> u32 {
         .count() as u32
 }
 
-/// Asks the solver for the compliance columns of surface vertices outside the
-/// ROI (`outside`, surface vertex indices) that a contact may soon need, most
-/// urgent first: vertices within [`SKULL_PREFETCH_GAP_M`] of violating a
-/// skull sphere, least gap first, then vertices within `width/2 + PREFETCH_MARGIN_M`
-/// of a blade's centre line, nearest first. A contact there in the next frames
-/// then costs no sparse solve in the frame. Nothing when the ROI covers the
-/// surface or no batch can be requested now.
-fn prefetch_lazy_columns(
-    solver: &mut ConstrainedSolver,
-    outside: &[u32],
-    surface_nodes: &[u32],
-    (shapes, skull): (&[SpatulaShape], Option<&Skull>),
-    state: &SimState,
-    (near, nodes): (&mut Vec<(f64, u32)>, &mut Vec<u32>),
-) {
-    if outside.is_empty() || !solver.can_prefetch() {
-        return;
-    }
-    nodes.clear();
-    if let Some(skull) = skull {
-        near.clear();
-        for &v in outside {
-            let gap = skull_gap(skull, &state.surface_positions[v as usize]);
-            if gap < SKULL_PREFETCH_GAP_M {
-                near.push((gap, surface_nodes[v as usize]));
-            }
-        }
-        near.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-        nodes.extend(near.iter().map(|x| x.1));
-    }
-    near.clear();
-    for (pose, shape) in state.poses.iter().zip(shapes) {
-        let a = pose.transform_point(&Vec3::zeros());
-        let b = pose.transform_point(&Vec3::new(shape.length, 0.0, 0.0));
-        let reach = 0.5 * shape.width + PREFETCH_MARGIN_M;
-        for &v in outside {
-            let d = super::build::distance_to_segment(&state.surface_positions[v as usize], &a, &b);
-            if d <= reach {
-                near.push((d, surface_nodes[v as usize]));
-            }
-        }
-    }
-    near.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-    nodes.extend(near.iter().map(|x| x.1));
-    if !nodes.is_empty() {
-        solver.prefetch(nodes);
-    }
-}

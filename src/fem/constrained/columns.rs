@@ -1,10 +1,11 @@
 //! The solver's K^-1 columns outside the region of interest ("lazy"
 //! columns: sparse solves, a batch of nodes at a time; about
-//! [`LAZY_CAPACITY`] kept, the least recently used out first), their prefetch
-//! in background batches, and the
-//! block read that picks a ROI column or a lazy one ([`ConstrainedSolver::kinv`]).
+//! [`LAZY_CAPACITY`] kept, the least recently used out first; solved in the
+//! frame that first needs them) and the block read that picks a ROI column or a lazy one ([`ConstrainedSolver::kinv`]).
 
 use super::*;
+use crate::fem::assembly::DofMap;
+use crate::fem::factor::SparseCholesky;
 
 impl ConstrainedSolver {
     /// K^-1 block between two nodes (both free; lazy columns ensured). A node
@@ -54,27 +55,17 @@ impl ConstrainedSolver {
         }
         let frame = self.frame;
         let mut missing: Vec<u32> = Vec::new();
-        loop {
-            missing.clear();
-            for &n in nodes {
-                if self.compliance.col_of(n).is_some() || self.model.is_fixed(n) {
-                    continue;
-                }
-                match self.lazy.binary_search_by_key(&n, |c| c.node) {
-                    Ok(i) => self.lazy[i].last_used = frame,
-                    Err(_) => {
-                        if !missing.contains(&n) {
-                            missing.push(n);
-                        }
+        for &n in nodes {
+            if self.compliance.col_of(n).is_some() || self.model.is_fixed(n) {
+                continue;
+            }
+            match self.lazy.binary_search_by_key(&n, |c| c.node) {
+                Ok(i) => self.lazy[i].last_used = frame,
+                Err(_) => {
+                    if !missing.contains(&n) {
+                        missing.push(n);
                     }
                 }
-            }
-            // A node of an open background batch: join that batch (in request order) first.
-            let open = self.prefetcher.open().iter().find(|b| missing.iter().any(|n| b.nodes.binary_search(n).is_ok())).map(|b| b.id);
-            // Each join removes an open batch, so this ends.
-            match open {
-                Some(id) => self.join_batch(id),
-                None => break,
             }
         }
         if missing.is_empty() {
@@ -82,7 +73,7 @@ impl ConstrainedSolver {
         }
         missing.sort_unstable();
         self.make_room(missing.len(), frame);
-        let columns = crate::fem::prefetch::solve_columns(self.model.chol.get()?, &self.model.dofs, &missing)?;
+        let columns = solve_columns(self.model.chol.get()?, &self.model.dofs, &missing)?;
         self.lazy_computed += columns.len();
         self.insert_columns(columns, frame);
         Ok(())
@@ -110,73 +101,13 @@ impl ConstrainedSolver {
     }
 
     /// Adds solved columns (nodes not yet cached), stamped as last used at `stamp`.
-    pub(super) fn insert_columns(&mut self, columns: Vec<crate::fem::prefetch::NodeColumns>, stamp: u64) {
+    pub(super) fn insert_columns(&mut self, columns: Vec<NodeColumns>, stamp: u64) {
         for (node, values) in columns {
             if let Err(at) = self.lazy.binary_search_by_key(&node, |c| c.node) {
                 self.lazy.insert(at, LazyColumn { node, values, last_used: stamp });
                 self.lazy_generation += 1;
             }
         }
-    }
-
-    /// Joins background batch `id`: its columns enter the cache as far as
-    /// columns unused since before the last frame make room (a guess never
-    /// evicts a column a contact used last frame), stamped one frame old, so
-    /// a column a frame needs wins over a guess.
-    pub(super) fn join_batch(&mut self, id: u64) {
-        if let Some(columns) = self.prefetcher.join(id) {
-            let fresh: Vec<_> = columns.into_iter().filter(|(n, _)| self.lazy.binary_search_by_key(n, |c| c.node).is_err()).collect();
-            let last = self.frame.saturating_sub(1);
-            self.make_room(fresh.len(), last);
-            let room = LAZY_CAPACITY.saturating_sub(self.lazy.len());
-            self.insert_columns(fresh.into_iter().take(room).collect(), last);
-        }
-    }
-
-    /// Joins every background batch whose join frame has come.
-    pub(super) fn join_due_batches(&mut self) {
-        while let Some(id) = self.prefetcher.open().iter().find(|b| b.join_frame <= self.frame).map(|b| b.id) {
-            self.join_batch(id);
-        }
-    }
-
-    /// Asks the background thread for the K^-1 columns of `nodes` (in the given
-    /// order of priority, e.g. nearest to a spatula first) so that a contact
-    /// there later needs no sparse solve in the frame. Nodes that are ROI
-    /// columns, fixed, cached or already requested are skipped; at most
-    /// [`PREFETCH_BATCH`] nodes a call and [`PREFETCH_OPEN`] batches in flight.
-    /// The batch is joined [`PREFETCH_JOIN_FRAMES`] frames later, or earlier
-    /// when a frame needs one of its nodes; results never depend on timing
-    /// (see [`super::prefetch`]). Returns the number of nodes requested.
-    pub fn prefetch(&mut self, nodes: &[u32]) -> usize {
-        if !self.can_prefetch() || !crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::Prefetch) {
-            return 0;
-        }
-        let mut batch: Vec<u32> = Vec::new();
-        for &n in nodes {
-            if batch.len() == PREFETCH_BATCH {
-                break;
-            }
-            if (n as usize) >= self.model.mesh.node_count()
-                || self.compliance.col_of(n).is_some()
-                || self.model.is_fixed(n)
-                || batch.contains(&n)
-                || self.lazy.binary_search_by_key(&n, |c| c.node).is_ok()
-                || self.prefetcher.is_open(n)
-            {
-                continue;
-            }
-            batch.push(n);
-        }
-        batch.sort_unstable();
-        let count = batch.len();
-        if self.prefetcher.request(batch, self.frame + PREFETCH_JOIN_FRAMES) { count } else { 0 }
-    }
-
-    /// False while [`PREFETCH_OPEN`] batches are in flight (a request now
-    /// would be ignored, so a caller can skip choosing its nodes).
-    pub fn can_prefetch(&self) -> bool {
-        self.prefetcher.open().len() < PREFETCH_OPEN
     }
 
     /// True when `node` is a column of the precomputed compliance (inside the ROI).
@@ -188,4 +119,40 @@ impl ConstrainedSolver {
     pub fn cached_lazy_nodes(&self) -> impl Iterator<Item = u32> + '_ {
         self.lazy.iter().map(|c| c.node)
     }
+}
+
+/// Columns of one node: 3 x free DOFs, column major.
+pub(super) type NodeColumns = (u32, Vec<f64>);
+
+/// Solves the 3 columns of each node in one sparse solve (a solve's last
+/// bits depend on which right-hand sides share it: a frame solves exactly
+/// the nodes it is missing, ascending, so replays agree to the bit) with `3 * nodes.len()`
+/// right-hand sides. Fixed nodes get zero columns.
+pub(super) fn solve_columns(chol: &SparseCholesky, dofs: &DofMap, nodes: &[u32]) -> Result<Vec<NodeColumns>, FemError> {
+    let n_free = dofs.dof_count();
+    let m = nodes.len();
+    if m == 0 {
+        return Ok(Vec::new());
+    }
+    let mut rhs = faer::Mat::<f64>::zeros(n_free, 3 * m);
+    for (b, &n) in nodes.iter().enumerate() {
+        if let Some(d) = dofs.dof(n) {
+            for c in 0..3 {
+                rhs[(d + c, 3 * b + c)] = 1.0;
+            }
+        }
+    }
+    let mut scratch = chol.scratch(3 * m)?;
+    chol.solve_in_place(rhs.as_mut(), &mut scratch);
+    Ok(nodes
+        .iter()
+        .enumerate()
+        .map(|(b, &n)| {
+            let mut values = Vec::with_capacity(3 * n_free);
+            for c in 0..3 {
+                values.extend((0..n_free).map(|i| rhs[(i, 3 * b + c)]));
+            }
+            (n, values)
+        })
+        .collect())
 }

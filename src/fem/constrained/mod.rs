@@ -49,7 +49,7 @@
 //! (except lazily computed columns); fixed iteration order everywhere.
 //!
 //! The frame is here; the candidates' K^-1 blocks kept between frames in
-//! `blocks`; the K^-1 columns outside the ROI (lazy, prefetched) in `columns`.
+//! `blocks`; the K^-1 columns outside the ROI (lazy) in `columns`.
 
 mod blocks;
 mod columns;
@@ -59,7 +59,6 @@ use super::FemError;
 use super::compliance::{Compliance, ProductWorkspace};
 use super::wfactor::ContactFactor;
 use super::model::FemModel;
-use super::prefetch::Prefetcher;
 use crate::math::{Matrix3, Vec3, is_finite3};
 
 /// Relative tolerance of a sphere constraint (times its radius).
@@ -81,13 +80,6 @@ pub const BULK_RELEASE_ITERATIONS: usize = 8;
 const NO_GROUP: usize = usize::MAX;
 /// Lazily computed columns kept between frames (each is 3 x free DOFs f64).
 pub const LAZY_CAPACITY: usize = 128;
-/// Nodes in one background batch of lazy columns ([`ConstrainedSolver::prefetch`]).
-pub const PREFETCH_BATCH: usize = 16;
-/// Background batches in flight at most (further requests wait).
-pub const PREFETCH_OPEN: usize = 2;
-/// Frames after its request at which a background batch is joined (the frame
-/// waits for it then if the worker is late).
-pub const PREFETCH_JOIN_FRAMES: u64 = 15;
 
 /// What a constraint asks of its node.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -239,8 +231,6 @@ pub struct ConstrainedSolver {
     /// Replaces the active-set loop's iteration cap (tests of the capped path).
     iteration_cap: Option<usize>,
     lazy: Vec<LazyColumn>,
-    /// Background solves of lazy columns (see [`Self::prefetch`]).
-    prefetcher: Prefetcher,
     // --- per frame scratch ---
     order: Vec<(u32, usize)>,
     /// Distinct constrained nodes of the frame (enforced first, then active spheres).
@@ -323,7 +313,6 @@ impl ConstrainedSolver {
             return Err(FemError::InvalidOption { field: "compliance", value: f64::NAN, reason: "was computed for another model" });
         }
         let rows = compliance.row_nodes().len();
-        let prefetcher = Prefetcher::new(std::sync::Arc::clone(&model.chol), model.dofs.clone());
         let keep_candidate_blocks = blocks::wanted(&compliance);
         Ok(Self {
             model,
@@ -331,7 +320,6 @@ impl ConstrainedSolver {
             frame: 0,
             iteration_cap: None,
             lazy: Vec::new(),
-            prefetcher,
             order: Vec::new(),
             nodes: Vec::new(),
             claim_ptr: Vec::new(),
@@ -498,9 +486,6 @@ impl ConstrainedSolver {
         self.timings = PhaseTimings::default();
         self.validate(constraints)?;
         self.keep_candidate_blocks = blocks::wanted(&self.compliance);
-        let t = std::time::Instant::now();
-        self.join_due_batches();
-        self.timings.lazy += t.elapsed().as_secs_f64();
         self.group_claims(constraints);
         self.collect_candidates(constraints);
         self.touch_candidate_columns();
