@@ -9,9 +9,10 @@ use super::*;
 /// frames (a last-level cache is at most a few tens of megabytes).
 pub(super) const CANDIDATE_BLOCKS_FROM_BYTES: usize = 64 << 20;
 
-/// Whether a solver on `compliance` keeps its candidates' blocks.
-pub(super) fn wanted(compliance: &Compliance) -> bool {
-    compliance.stats().bytes > CANDIDATE_BLOCKS_FROM_BYTES && crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::CandidateBlocks)
+/// Whether a solver on a compliance that is `large` (over
+/// [`CANDIDATE_BLOCKS_FROM_BYTES`]) keeps its candidates' blocks this frame.
+pub(super) fn wanted(large: bool) -> bool {
+    large && crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::CandidateBlocks)
 }
 
 /// The K^-1 blocks of the contact candidates against the nodes of the W

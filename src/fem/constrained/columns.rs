@@ -1,7 +1,8 @@
 //! The solver's K^-1 columns outside the region of interest ("lazy"
-//! columns: sparse solves, a batch of nodes at a time; about
-//! [`LAZY_CAPACITY`] kept, the least recently used out first; solved in the
-//! frame that first needs them) and the block read that picks a ROI column or a lazy one ([`ConstrainedSolver::kinv`]).
+//! columns: solved in the frame that first needs them, that frame's missing
+//! nodes in one batch; about [`LAZY_CAPACITY`] kept, the least recently used
+//! out first) and the block read that picks a ROI column or a lazy one
+//! ([`ConstrainedSolver::kinv`]).
 
 use super::*;
 use crate::fem::assembly::DofMap;
@@ -124,10 +125,10 @@ impl ConstrainedSolver {
 /// Columns of one node: 3 x free DOFs, column major.
 pub(super) type NodeColumns = (u32, Vec<f64>);
 
-/// Solves the 3 columns of each node in one sparse solve (a solve's last
-/// bits depend on which right-hand sides share it: a frame solves exactly
-/// the nodes it is missing, ascending, so replays agree to the bit) with `3 * nodes.len()`
-/// right-hand sides. Fixed nodes get zero columns.
+/// Solves the 3 columns of each node in one sparse solve with
+/// `3 * nodes.len()` right-hand sides; fixed nodes get zero columns. A
+/// solve's last bits depend on which right-hand sides share it, so a frame
+/// solves exactly the nodes it is missing, ascending: replays agree to the bit.
 pub(super) fn solve_columns(chol: &SparseCholesky, dofs: &DofMap, nodes: &[u32]) -> Result<Vec<NodeColumns>, FemError> {
     let n_free = dofs.dof_count();
     let m = nodes.len();

@@ -54,7 +54,7 @@
 mod blocks;
 mod columns;
 
-use blocks::CandidateBlocks;
+use blocks::{CANDIDATE_BLOCKS_FROM_BYTES, CandidateBlocks};
 use super::FemError;
 use super::compliance::{Compliance, ProductWorkspace};
 use super::wfactor::ContactFactor;
@@ -256,9 +256,12 @@ pub struct ConstrainedSolver {
     /// before, the held set's reordering each frame re-read 20-30k blocks a
     /// frame at the end of the fine-brain Sylvian spread; by node, 0.2-0.7k.)
     candidate_blocks: std::cell::RefCell<CandidateBlocks>,
-    /// Whether [`Self::candidate_blocks`] is used: only for a compliance
-    /// larger than [`CANDIDATE_BLOCKS_FROM_BYTES`], whose blocks miss the
-    /// CPU's caches; a smaller one is read as fast as the kept blocks.
+    /// The compliance is larger than [`CANDIDATE_BLOCKS_FROM_BYTES`]: its
+    /// blocks miss the CPU's caches (a smaller one is read as fast as the
+    /// kept blocks). Fixed at construction.
+    large_compliance: bool,
+    /// Whether [`Self::candidate_blocks`] is used this frame: a large
+    /// compliance, and the optimisation not switched off (`fem::tuning`).
     keep_candidate_blocks: bool,
     /// Counts the changes of `nodes` (the kept blocks' columns follow it).
     nodes_version: u64,
@@ -313,7 +316,7 @@ impl ConstrainedSolver {
             return Err(FemError::InvalidOption { field: "compliance", value: f64::NAN, reason: "was computed for another model" });
         }
         let rows = compliance.row_nodes().len();
-        let keep_candidate_blocks = blocks::wanted(&compliance);
+        let large_compliance = compliance.stats().bytes > CANDIDATE_BLOCKS_FROM_BYTES;
         Ok(Self {
             model,
             compliance,
@@ -332,7 +335,8 @@ impl ConstrainedSolver {
             prev_active: Vec::new(),
             prev_barrier: Vec::new(),
             candidate_blocks: std::cell::RefCell::new(CandidateBlocks::default()),
-            keep_candidate_blocks,
+            large_compliance,
+            keep_candidate_blocks: blocks::wanted(large_compliance),
             nodes_version: 0,
             lazy_generation: 0,
             rows: Vec::new(),
@@ -485,7 +489,7 @@ impl ConstrainedSolver {
         self.frame += 1;
         self.timings = PhaseTimings::default();
         self.validate(constraints)?;
-        self.keep_candidate_blocks = blocks::wanted(&self.compliance);
+        self.keep_candidate_blocks = blocks::wanted(self.large_compliance);
         self.group_claims(constraints);
         self.collect_candidates(constraints);
         self.touch_candidate_columns();
