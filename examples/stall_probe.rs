@@ -3,6 +3,7 @@
 //! With `PACE=1` each frame starts no earlier than its time step after the
 //! one before, as in the window (a headless replay otherwise runs several
 //! times faster than real time, and work on other threads piles up).
+//! `TRAJ=path.csv` replays that trajectory instead of the scene's own.
 use fissure::scenario::Scenario;
 use fissure::sim::replay::PoseSource;
 use fissure::sim::{BuildOptions, FrameInput, Pipeline};
@@ -15,7 +16,8 @@ fn main() {
     let slow: f64 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(3.0);
     let overrides: Vec<String> = args.iter().skip(3).cloned().collect();
     let scenario = Scenario::load(Path::new(path), &overrides).expect("scenario");
-    let source = PoseSource::for_scenario(&scenario, None).expect("trajectory");
+    let traj = std::env::var_os("TRAJ").map(std::path::PathBuf::from);
+    let source = PoseSource::for_scenario(&scenario, traj.as_deref()).expect("trajectory");
     let (mut pipeline, mut state) =
         Pipeline::build(&scenario, BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None, ..BuildOptions::default() }).expect("build");
     let mut input = FrameInput::default();
@@ -39,8 +41,9 @@ fn main() {
         let p = pipeline.solver().timings();
         if ms > slow {
             println!(
-                "frame {k}: {ms:.2} ms, rows {}, lazy solves {}, skull {}, gather {:.2} factor {:.2} cand {:.2} surface {:.2} lazy {:.2} ms, solve stage {:.2} collision {:.2}",
+                "frame {k}: {ms:.2} ms, rows {}, iterations {}, lazy solves {}, skull {}, gather {:.2} factor {:.2} cand {:.2} surface {:.2} lazy {:.2} ms, solve stage {:.2} collision {:.2}",
                 s.rows,
+                s.iterations,
                 s.lazy_solves,
                 s.active_sphere_contacts,
                 p.gather * 1e3,
@@ -53,6 +56,7 @@ fn main() {
             );
         }
     }
+    eprintln!("refits {} nodes {}", fissure::collision::backend::bvh::REFITS.load(std::sync::atomic::Ordering::Relaxed), fissure::collision::backend::bvh::NODES.load(std::sync::atomic::Ordering::Relaxed));
     times.sort_by(|a, b| a.total_cmp(b));
     let n = times.len();
     println!("{n} frames: p50 {:.2}, p95 {:.2}, max {:.2} ms", times[n / 2], times[n * 95 / 100], times[n - 1]);

@@ -164,8 +164,9 @@ pub struct Pipeline {
     substep_travel: Option<f64>,
     /// Blade barrier rows for unclaimed vertices near a blade (unilateral contact only).
     barrier: Option<super::barrier::BarrierStage>,
-    /// Tets whose four nodes are on the surface (inverted check without an interior solve).
-    surface_tets: Vec<u32>,
+    /// Tets whose four nodes are on the surface, as surface vertex indices
+    /// (inverted check without an interior solve), sorted for locality.
+    surface_tets: Vec<[u32; 4]>,
     // scratch
     constraints: Vec<Constraint>,
     solution: FrameSolution,
@@ -196,13 +197,13 @@ impl Pipeline {
         collision: Option<CollisionStage>,
         skull: Option<SkullStage>,
     ) -> Result<Self, super::build::BuildError> {
-        let surface_tets = mesh
+        let mut surface_tets: Vec<[u32; 4]> = mesh
             .tets
             .iter()
-            .enumerate()
-            .filter(|(_, t)| t.iter().all(|&n| surface.node_to_vertex[n as usize] != crate::mesh::surface::NOT_ON_SURFACE))
-            .map(|(k, _)| k as u32)
+            .filter(|t| t.iter().all(|&n| surface.node_to_vertex[n as usize] != crate::mesh::surface::NOT_ON_SURFACE))
+            .map(|t| t.map(|n| surface.node_to_vertex[n as usize]))
             .collect();
+        surface_tets.sort_unstable_by_key(|t| t[0]);
         let n = scenario.spatulas.len();
         let unilateral = scenario.solver.spatula_contact == crate::scenario::SpatulaContact::Unilateral;
         let barrier = (unilateral && collision.is_some()).then(|| super::barrier::BarrierStage::new(surface.vertices.len()));
@@ -452,7 +453,7 @@ impl Pipeline {
             r.inverted_scope_all = true;
             r.times.set(StageId::Stress, t.elapsed().as_secs_f64());
         } else {
-            r.inverted_elements = count_inverted_surface_tets(&self.mesh, &self.surface, &self.surface_tets, &state.surface_displacement);
+            r.inverted_elements = count_inverted_surface_tets(&self.rest, &self.surface_tets, &state.surface_displacement);
             r.inverted_scope_all = false;
         }
 
@@ -609,19 +610,22 @@ impl Pipeline {
     }
 }
 
-fn count_inverted_surface_tets(mesh: &TetMesh, surface: &BoundarySurface, tets: &[u32], surface_displacement: &[Vec3]) -> u32 {
-    let mut count = 0;
-    for &t in tets {
-        let tet = mesh.tets[t as usize];
-        let p = tet.map(|n| {
-            let v = surface.node_to_vertex[n as usize] as usize;
-            mesh.positions[n as usize] + surface_displacement[v]
-        });
-        if signed_volume(&p[0], &p[1], &p[2], &p[3]) <= 0.0 {
-            count += 1;
-        }
+/// Fewest surface tets worth splitting over rayon's pool.
+const PARALLEL_MIN_SURFACE_TETS: usize = 8192;
+
+/// Tets of `tets` (surface vertex indices) with a non-positive volume at
+/// `rest + surface_displacement`: the same sums as at the mesh's nodes (`rest`
+/// is the mesh positions gathered per vertex), so the same count.
+fn count_inverted_surface_tets(rest: &[Vec3], tets: &[[u32; 4]], surface_displacement: &[Vec3]) -> u32 {
+    let inverted = |t: &[u32; 4]| {
+        let p = t.map(|v| rest[v as usize] + surface_displacement[v as usize]);
+        signed_volume(&p[0], &p[1], &p[2], &p[3]) <= 0.0
+    };
+    if tets.len() < PARALLEL_MIN_SURFACE_TETS {
+        return tets.iter().filter(|t| inverted(t)).count() as u32;
     }
-    count
+    use rayon::prelude::*;
+    tets.par_chunks(PARALLEL_MIN_SURFACE_TETS / 2).map(|c| c.iter().filter(|t| inverted(t)).count() as u32).sum()
 }
 
 fn count_inverted_all(mesh: &TetMesh, u: &[Vec3]) -> u32 {
@@ -634,3 +638,38 @@ fn count_inverted_all(mesh: &TetMesh, u: &[Vec3]) -> u32 {
         .count() as u32
 }
 
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The split count (rayon's pool over chunks) is the plain count, on both
+    /// sides of the threshold, with some tets inverted and some flat.
+    #[test]
+    fn surface_tets_inverted_count_is_the_plain_count() {
+        let mut s = 0x9e3779b97f4a7c15u64;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let n = 5000;
+        let rest: Vec<Vec3> = (0..n).map(|_| Vec3::new(next(), next(), next())).collect();
+        let u: Vec<Vec3> = (0..n).map(|k| if k % 11 == 0 { Vec3::zeros() } else { Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 0.3 }).collect();
+        for count in [100, PARALLEL_MIN_SURFACE_TETS + 1234] {
+            let mut tets: Vec<[u32; 4]> = (0..count).map(|_| std::array::from_fn(|_| (next() * n as f64) as u32)).collect();
+            // A flat one (a repeated vertex): volume exactly 0, counted.
+            tets[0] = [1, 1, 2, 3];
+            let plain = tets
+                .iter()
+                .filter(|t| {
+                    let p = t.map(|v| rest[v as usize] + u[v as usize]);
+                    signed_volume(&p[0], &p[1], &p[2], &p[3]) <= 0.0
+                })
+                .count() as u32;
+            assert!(plain > 10 && plain < count as u32, "the case must mix both signs ({plain} of {count})");
+            assert_eq!(count_inverted_surface_tets(&rest, &tets, &u), plain, "{count} tets");
+        }
+    }
+}
