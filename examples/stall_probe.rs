@@ -23,6 +23,8 @@ fn main() {
     let mut input = FrameInput::default();
     let dt = scenario.time_step;
     let mut times = Vec::new();
+    let mut phases = [0.0f64; 4];
+    let mut screened = 0;
     let pace = std::env::var_os("PACE").is_some_and(|v| v == "1");
     let start = Instant::now();
     for k in 0..scenario.step_count() {
@@ -39,6 +41,10 @@ fn main() {
         times.push(ms);
         let s = pipeline.last_solution();
         let p = pipeline.solver().timings();
+        screened += p.screened;
+        for (acc, t) in phases.iter_mut().zip([p.gather, p.factor, p.candidates, p.surface]) {
+            *acc += t * 1e3;
+        }
         if ms > slow {
             println!(
                 "frame {k}: {ms:.2} ms, rows {}, iterations {}, lazy solves {}, skull {}, gather {:.2} factor {:.2} cand {:.2} surface {:.2} lazy {:.2} ms, solve stage {:.2} collision {:.2}",
@@ -56,8 +62,13 @@ fn main() {
             );
         }
     }
-    eprintln!("refits {} nodes {}", fissure::collision::backend::bvh::REFITS.load(std::sync::atomic::Ordering::Relaxed), fissure::collision::backend::bvh::NODES.load(std::sync::atomic::Ordering::Relaxed));
+    let early = times.len().min(80);
+    println!("frames 0..{early}: mean {:.2} ms", times[..early].iter().sum::<f64>() / early.max(1) as f64);
     times.sort_by(|a, b| a.total_cmp(b));
     let n = times.len();
+    println!(
+        "phases over all frames: gather {:.0} factor {:.0} candidates {:.0} ({screened} evaluations screened out) surface {:.0} ms",
+        phases[0], phases[1], phases[2], phases[3]
+    );
     println!("{n} frames: p50 {:.2}, p95 {:.2}, max {:.2} ms", times[n / 2], times[n * 95 / 100], times[n - 1]);
 }

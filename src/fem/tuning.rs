@@ -41,11 +41,15 @@ pub enum Optimisation {
     RowMajorSolve,
     /// Huge pages under a computed compliance (`compliance/mod.rs`).
     HugePages,
+    /// The active-set loop skips the inactive candidates that cannot have
+    /// reached their constraint since they were last evaluated
+    /// (`constrained/screen.rs`; off: every candidate at every iteration).
+    CandidateScreen,
 }
 
 impl Optimisation {
     /// Every switch with its name in `FISSURE_FEM_OFF`, in declaration order.
-    pub const ALL: [(Optimisation, &'static str); 8] = [
+    pub const ALL: [(Optimisation, &'static str); 9] = [
         (Optimisation::Avx2Product, "avx2-product"),
         (Optimisation::FusedColumns, "fused-columns"),
         (Optimisation::RowChunks, "row-chunks"),
@@ -54,6 +58,7 @@ impl Optimisation {
         (Optimisation::CandidateBlocks, "candidate-blocks"),
         (Optimisation::RowMajorSolve, "row-major-solve"),
         (Optimisation::HugePages, "huge-pages"),
+        (Optimisation::CandidateScreen, "candidate-screen"),
     ];
 
     /// Its name in `FISSURE_FEM_OFF`.

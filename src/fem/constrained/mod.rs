@@ -53,6 +53,7 @@
 
 mod blocks;
 mod columns;
+mod screen;
 
 use blocks::{CANDIDATE_BLOCKS_FROM_BYTES, CandidateBlocks};
 use super::FemError;
@@ -167,7 +168,7 @@ pub struct FrameSolution {
     pub lazy_solves: usize,
 }
 
-/// Seconds spent in the phases of the last [`ConstrainedSolver::step`].
+/// Seconds spent in the phases of the last [`ConstrainedSolver::step`] (and one count).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PhaseTimings {
     /// Gathering W from the compliance (all active-set iterations).
@@ -176,6 +177,8 @@ pub struct PhaseTimings {
     pub factor: f64,
     /// Evaluating the candidates (skull, blade faces) at each iteration's solution.
     pub candidates: f64,
+    /// Candidate evaluations the screen skipped (`constrained/screen.rs`), a count.
+    pub screened: usize,
     /// The surface product `u = u0 + K^-1 C^T lambda` over every surface row
     /// (`surface_gather` included).
     pub surface: f64,
@@ -307,6 +310,8 @@ pub struct ConstrainedSolver {
     timings: PhaseTimings,
     /// Scratch of the surface product (partial sums, gathered rows of forced columns).
     product: ProductWorkspace,
+    /// Which inactive candidates need no evaluation ([`screen::Screen`]).
+    screen: screen::Screen,
 }
 
 impl ConstrainedSolver {
@@ -365,6 +370,7 @@ impl ConstrainedSolver {
             last_forces: Vec::new(),
             timings: PhaseTimings::default(),
             product: ProductWorkspace::default(),
+            screen: screen::Screen::default(),
         })
     }
 
@@ -522,6 +528,8 @@ impl ConstrainedSolver {
             return Err(self.not_converged(0, 0.0));
         }
         let mut iterations = 0;
+        let screening = crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::CandidateScreen);
+        self.screen.begin_frame();
         loop {
             iterations += 1;
             self.build_rows();
@@ -533,8 +541,15 @@ impl ConstrainedSolver {
             if self.candidates.is_empty() && self.group_normals.iter().all(Option::is_none) {
                 break;
             }
-            // Evaluate every candidate at the current solution.
+            // Evaluate every candidate at the current solution (but those
+            // the screen shows cannot have reached their constraint).
             let evaluated = std::time::Instant::now();
+            if screening {
+                for k in 0..self.nodes.len() {
+                    self.screen_root(self.nodes[k]);
+                }
+                self.screen.advance(&self.nodes, &self.node_force);
+            }
             let mut worst_inactive: f64 = 0.0;
             let mut worst_active: f64 = 0.0;
             let mut any_add = false;
@@ -543,20 +558,29 @@ impl ConstrainedSolver {
                 if self.engaged_sorted.binary_search(&c.node).is_ok() {
                     // Held by a tool this iteration: the enforced displacement wins.
                     self.candidates[ci].active = false;
+                    self.screen.forget(ci);
                     continue;
                 }
                 if c.active && c.plane.is_some() {
                     // Held on its face plane by its row: nothing to check.
                     continue;
                 }
+                if screening && !c.active && self.screen_root(c.node).is_some_and(|r| self.screen.can_skip(ci, r)) {
+                    self.timings.screened += 1;
+                    continue;
+                }
                 let u = self.displacement_of(c.node);
                 if let Some((n, b, _)) = c.plane {
                     // Face plane: exact row, nothing to re-linearize.
                     let violation = b - n.dot(&u);
-                    if !c.active && violation > CONTACT_TOLERANCE_M + CONTACT_TOLERANCE * b.abs() {
+                    let tol = CONTACT_TOLERANCE_M + CONTACT_TOLERANCE * b.abs();
+                    if !c.active && violation > tol {
                         any_add = true;
                         worst_inactive = worst_inactive.max(violation);
                         self.candidates[ci].active = true;
+                        self.screen.forget(ci);
+                    } else if !c.active {
+                        self.screen.record(ci, tol - violation);
                     }
                     continue;
                 }
@@ -569,7 +593,10 @@ impl ConstrainedSolver {
                     worst_inactive = worst_inactive.max(violation);
                     self.candidates[ci].active = true;
                     self.candidates[ci].at = x;
-                } else if c.active && violation.abs() > tol {
+                    self.screen.forget(ci);
+                } else if !c.active {
+                    self.screen.record(ci, tol - violation);
+                } else if violation.abs() > tol {
                     worst_active = worst_active.max(violation.abs());
                 }
             }
@@ -600,6 +627,7 @@ impl ConstrainedSolver {
             }
             if let Some((ci, _)) = most {
                 self.candidates[ci].active = false;
+                self.screen.forget(ci);
                 if iterations >= max_iterations {
                     return Err(self.not_converged(iterations, worst_active));
                 }
@@ -976,6 +1004,23 @@ impl ConstrainedSolver {
         for (row, l) in self.rows.iter().zip(&self.lambda) {
             self.node_force[row.slot] += row.dir * *l;
         }
+    }
+
+    /// `sqrt(|K^-1[node, node]|_F)` for the screen, when the node has a
+    /// column (ROI or lazy) to read it from; kept once read.
+    fn screen_root(&mut self, node: u32) -> Option<f64> {
+        if let Some(r) = self.screen.root(node) {
+            return Some(r);
+        }
+        let column = self.compliance.col_of(node).is_some() || self.lazy.binary_search_by_key(&node, |c| c.node).is_ok();
+        if !column || self.model.dofs.dof(node).is_none() {
+            return None;
+        }
+        let r = self.kinv(node, node).norm().sqrt();
+        r.is_finite().then(|| {
+            self.screen.set_root(node, r);
+            r
+        })
     }
 
     /// Displacement of one node at the current forces (gravity included).
