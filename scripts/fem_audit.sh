@@ -8,7 +8,10 @@
 #     when ../shared/data/brain has it);
 #  2. huge pages under the compliance: the same bench's held and sliding
 #     product lines with FISSURE_FEM_OFF=huge-pages (paper-12k);
-#  3. the scene-level switches (candidate blocks, W factor reuse)
+#  3. the scene-level switches (candidate blocks, W factor reuse, the
+#     candidate screen; the screen's wide-press figures come from
+#     `TRAJ=assets/trajectories/real_brain_sylvian_wide.csv cargo run --release
+#     --example stall_probe -- config/real_brain/sylvian.ron 100 duration_s=4.5`)
 #     on whole replays, ROUNDS rounds (default 2) alternating: the default
 #     scene and, when ../shared has it, the fine-brain Sylvian opening from
 #     its cache (the first replay of a scene writes the cache and is not
@@ -51,7 +54,7 @@ replay() { # OFF SCENE -> "p50 p95 solve-p95 hash"
 echo "== 3. scene-level switches: whole replays, $rounds rounds alternating; frame p50 / p95, solve p95 (ms), final state"
 for scene in "${scenes[@]}"; do
     replay "" "$scene" >/dev/null # writes the compliance cache; not counted
-    for off in candidate-blocks w-factor-reuse; do
+    for off in candidate-blocks w-factor-reuse candidate-screen; do
         on_runs=(); off_runs=()
         for ((r = 0; r < rounds; r++)); do
             if ((r % 2 == 0)); then
