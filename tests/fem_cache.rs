@@ -7,7 +7,7 @@ mod common;
 use common::*;
 use fissure::fem::{
     Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, Material,
-    contact_patches, PA_PER_MMHG,
+    ContactScratch, contact_patches, PA_PER_MMHG,
 };
 use fissure::math::Vec3;
 
@@ -96,7 +96,7 @@ fn contact_pressure_per_spatula() {
     solver.step(&cons, &mut out).unwrap();
     let surface = solver.model().surface();
     let positions = surface.gather_positions(&mesh.positions);
-    let (mut scratch, mut patches) = (Vec::new(), Vec::new());
+    let (mut scratch, mut patches) = (ContactScratch::for_surface(surface), Vec::new());
     contact_patches(surface, &positions, &cons, &out.reactions, &mut scratch, &mut patches);
     assert_eq!(patches.len(), 1);
     let p = patches[0];

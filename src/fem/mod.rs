@@ -32,7 +32,7 @@ pub mod wfactor;
 
 pub use compliance::{Compliance, ComplianceStats, ComplianceStorage, ComputeOptions, ProductWorkspace};
 pub use constrained::{ConstrainedSolver, Constraint, ConstraintKind, ConstraintRow, FrameSolution};
-pub use contact::{ContactPatch, PA_PER_MMHG, RETRACTION_DANGER_PA, contact_patches};
+pub use contact::{ContactPatch, ContactScratch, PA_PER_MMHG, RETRACTION_DANGER_PA, contact_patches};
 pub use element::{Material, RegionMaterials};
 pub use error::FemError;
 pub use model::{BodyForce, FemModel, FemOptions, FemStats};

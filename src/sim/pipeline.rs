@@ -171,7 +171,7 @@ pub struct Pipeline {
     constraints: Vec<Constraint>,
     solution: FrameSolution,
     patches: Vec<ContactPatch>,
-    vertex_owner: Vec<u32>,
+    contact_scratch: crate::fem::ContactScratch,
     /// Surface positions at the start of the current sub-step.
     previous_positions: Vec<Vec3>,
     /// Poses at the start of the current sub-step.
@@ -233,7 +233,7 @@ impl Pipeline {
             constraints: Vec::new(),
             solution: FrameSolution::default(),
             patches: Vec::new(),
-            vertex_owner: Vec::new(),
+            contact_scratch: crate::fem::ContactScratch::default(),
             report: FrameReport { spatulas: vec![SpatulaReport::default(); n], ..Default::default() },
         })
     }
@@ -421,7 +421,7 @@ impl Pipeline {
                     &state.surface_positions,
                     &self.constraints,
                     &self.solution.reactions,
-                    &mut self.vertex_owner,
+                    &mut self.contact_scratch,
                     &mut self.patches,
                 );
                 for p in &self.patches {
