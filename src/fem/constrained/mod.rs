@@ -312,6 +312,9 @@ pub struct ConstrainedSolver {
     product: ProductWorkspace,
     /// Which inactive candidates need no evaluation ([`screen::Screen`]).
     screen: screen::Screen,
+    /// The compliance row of each surface vertex (`u32::MAX`: none, a fixed
+    /// vertex), read in order when the frame's surface displacement is written.
+    vertex_rows: Vec<u32>,
 }
 
 impl ConstrainedSolver {
@@ -322,6 +325,7 @@ impl ConstrainedSolver {
         }
         let rows = compliance.row_nodes().len();
         let large_compliance = compliance.stats().bytes > CANDIDATE_BLOCKS_FROM_BYTES;
+        let vertex_rows = model.surface.vertices.iter().map(|&n| compliance.row_of(n).map_or(u32::MAX, |r| r as u32)).collect();
         Ok(Self {
             model,
             compliance,
@@ -371,6 +375,7 @@ impl ConstrainedSolver {
             timings: PhaseTimings::default(),
             product: ProductWorkspace::default(),
             screen: screen::Screen::default(),
+            vertex_rows,
         })
     }
 
@@ -1080,13 +1085,14 @@ impl ConstrainedSolver {
     }
 
     fn write_solution(&mut self, constraints: &[Constraint], out: &mut FrameSolution, iterations: usize, lazy_solves: usize) {
-        let surface = &self.model.surface;
         out.displacement_surface.clear();
-        out.displacement_surface.extend(surface.vertices.iter().map(|&n| match self.compliance.row_of(n) {
-            Some(r) => self.prev_u_rows[r],
+        out.displacement_surface.extend(self.vertex_rows.iter().map(|&r| match self.prev_u_rows.get(r as usize) {
+            Some(u) => *u,
             None => Vec3::zeros(),
         }));
-        out.max_displacement = out.displacement_surface.iter().fold(0.0_f64, |m, u| m.max(u.norm()));
+        // sqrt is monotonic and correctly rounded: the largest norm is the
+        // root of the largest squared norm, bit for bit.
+        out.max_displacement = out.displacement_surface.iter().fold(0.0_f64, |m, u| m.max(u.norm_squared())).sqrt();
         out.reactions.clear();
         out.reactions.resize(constraints.len(), Vec3::zeros());
         for k in 0..self.enforced_nodes {
