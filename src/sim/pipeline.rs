@@ -197,13 +197,8 @@ impl Pipeline {
         collision: Option<CollisionStage>,
         skull: Option<SkullStage>,
     ) -> Result<Self, super::build::BuildError> {
-        let mut surface_tets: Vec<[u32; 4]> = mesh
-            .tets
-            .iter()
-            .filter(|t| t.iter().all(|&n| surface.node_to_vertex[n as usize] != crate::mesh::surface::NOT_ON_SURFACE))
-            .map(|t| t.map(|n| surface.node_to_vertex[n as usize]))
-            .collect();
-        surface_tets.sort_unstable_by_key(|t| t[0]);
+        let surface_tets = surface_tets(&mesh, &surface);
+        let contact_scratch = crate::fem::ContactScratch::for_surface(&surface);
         let n = scenario.spatulas.len();
         let unilateral = scenario.solver.spatula_contact == crate::scenario::SpatulaContact::Unilateral;
         let barrier = (unilateral && collision.is_some()).then(|| super::barrier::BarrierStage::new(surface.vertices.len()));
@@ -233,7 +228,7 @@ impl Pipeline {
             constraints: Vec::new(),
             solution: FrameSolution::default(),
             patches: Vec::new(),
-            contact_scratch: crate::fem::ContactScratch::default(),
+            contact_scratch,
             report: FrameReport { spatulas: vec![SpatulaReport::default(); n], ..Default::default() },
         })
     }
@@ -610,22 +605,29 @@ impl Pipeline {
     }
 }
 
-/// Fewest surface tets worth splitting over rayon's pool.
-const PARALLEL_MIN_SURFACE_TETS: usize = 8192;
+/// The tets whose four nodes are on `surface`, as surface vertex indices,
+/// sorted by their first vertex (a frame reads them in memory order).
+fn surface_tets(mesh: &TetMesh, surface: &BoundarySurface) -> Vec<[u32; 4]> {
+    let mut tets: Vec<[u32; 4]> = mesh
+        .tets
+        .iter()
+        .filter(|t| t.iter().all(|&n| surface.node_to_vertex[n as usize] != crate::mesh::surface::NOT_ON_SURFACE))
+        .map(|t| t.map(|n| surface.node_to_vertex[n as usize]))
+        .collect();
+    tets.sort_unstable_by_key(|t| t[0]);
+    tets
+}
 
 /// Tets of `tets` (surface vertex indices) with a non-positive volume at
 /// `rest + surface_displacement`: the same sums as at the mesh's nodes (`rest`
 /// is the mesh positions gathered per vertex), so the same count.
 fn count_inverted_surface_tets(rest: &[Vec3], tets: &[[u32; 4]], surface_displacement: &[Vec3]) -> u32 {
-    let inverted = |t: &[u32; 4]| {
-        let p = t.map(|v| rest[v as usize] + surface_displacement[v as usize]);
-        signed_volume(&p[0], &p[1], &p[2], &p[3]) <= 0.0
-    };
-    if tets.len() < PARALLEL_MIN_SURFACE_TETS {
-        return tets.iter().filter(|t| inverted(t)).count() as u32;
-    }
-    use rayon::prelude::*;
-    tets.par_chunks(PARALLEL_MIN_SURFACE_TETS / 2).map(|c| c.iter().filter(|t| inverted(t)).count() as u32).sum()
+    tets.iter()
+        .filter(|t| {
+            let p = t.map(|v| rest[v as usize] + surface_displacement[v as usize]);
+            signed_volume(&p[0], &p[1], &p[2], &p[3]) <= 0.0
+        })
+        .count() as u32
 }
 
 fn count_inverted_all(mesh: &TetMesh, u: &[Vec3]) -> u32 {
@@ -643,10 +645,15 @@ fn count_inverted_all(mesh: &TetMesh, u: &[Vec3]) -> u32 {
 mod tests {
     use super::*;
 
-    /// The split count (rayon's pool over chunks) is the plain count, on both
-    /// sides of the threshold, with some tets inverted and some flat.
+    /// The count by surface vertex equals the count at the mesh's nodes
+    /// (the surface's own displacement per node), with some tets inverted.
     #[test]
-    fn surface_tets_inverted_count_is_the_plain_count() {
+    fn surface_tets_inverted_count_is_the_count_at_the_nodes() {
+        let mesh = crate::mesh::tests::cube();
+        let surface = mesh.boundary();
+        let tets = surface_tets(&mesh, &surface);
+        assert_eq!(tets.len(), mesh.tets.len(), "every node of the cube is on its surface");
+        let rest = surface.gather_positions(&mesh.positions);
         let mut s = 0x9e3779b97f4a7c15u64;
         let mut next = move || {
             s ^= s << 13;
@@ -654,22 +661,20 @@ mod tests {
             s ^= s << 17;
             (s >> 11) as f64 / (1u64 << 53) as f64
         };
-        let n = 5000;
-        let rest: Vec<Vec3> = (0..n).map(|_| Vec3::new(next(), next(), next())).collect();
-        let u: Vec<Vec3> = (0..n).map(|k| if k % 11 == 0 { Vec3::zeros() } else { Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 0.3 }).collect();
-        for count in [100, PARALLEL_MIN_SURFACE_TETS + 1234] {
-            let mut tets: Vec<[u32; 4]> = (0..count).map(|_| std::array::from_fn(|_| (next() * n as f64) as u32)).collect();
-            // A flat one (a repeated vertex): volume exactly 0, counted.
-            tets[0] = [1, 1, 2, 3];
-            let plain = tets
+        let mut mixed = false;
+        for _ in 0..50 {
+            let u: Vec<Vec3> = (0..rest.len()).map(|_| Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 1.5).collect();
+            let at_nodes = mesh
+                .tets
                 .iter()
                 .filter(|t| {
-                    let p = t.map(|v| rest[v as usize] + u[v as usize]);
+                    let p = t.map(|n| mesh.positions[n as usize] + u[surface.node_to_vertex[n as usize] as usize]);
                     signed_volume(&p[0], &p[1], &p[2], &p[3]) <= 0.0
                 })
                 .count() as u32;
-            assert!(plain > 10 && plain < count as u32, "the case must mix both signs ({plain} of {count})");
-            assert_eq!(count_inverted_surface_tets(&rest, &tets, &u), plain, "{count} tets");
+            mixed |= at_nodes > 0 && (at_nodes as usize) < tets.len();
+            assert_eq!(count_inverted_surface_tets(&rest, &tets, &u), at_nodes);
         }
+        assert!(mixed, "some draws must invert some tets and not others");
     }
 }

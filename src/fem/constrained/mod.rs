@@ -325,6 +325,7 @@ impl ConstrainedSolver {
         }
         let rows = compliance.row_nodes().len();
         let large_compliance = compliance.stats().bytes > CANDIDATE_BLOCKS_FROM_BYTES;
+        let node_count = model.mesh.node_count();
         let vertex_rows = model.surface.vertices.iter().map(|&n| compliance.row_of(n).map_or(u32::MAX, |r| r as u32)).collect();
         Ok(Self {
             model,
@@ -374,7 +375,7 @@ impl ConstrainedSolver {
             last_forces: Vec::new(),
             timings: PhaseTimings::default(),
             product: ProductWorkspace::default(),
-            screen: screen::Screen::default(),
+            screen: screen::Screen::new(node_count),
             vertex_rows,
         })
     }

@@ -21,8 +21,6 @@
 //! A wide contact evaluates 200-300 candidates, each against every W node,
 //! at each of up to a dozen iterations; most of them lie well inside.
 
-use std::collections::HashMap;
-
 use crate::math::Vec3;
 
 /// Factor on the summed bound: covers the stored compliance being K^-1
@@ -37,8 +35,9 @@ const ABS_SLACK_M: f64 = 1e-12;
 /// candidate the sum at its last evaluation and the margin it then had.
 #[derive(Debug, Default)]
 pub(super) struct Screen {
-    /// `sqrt(|K^-1[n, n]|_F)` per node (the compliance never changes).
-    roots: HashMap<u32, f64>,
+    /// `sqrt(|K^-1[n, n]|_F)` per mesh node, NaN until read (the compliance
+    /// never changes); sized once, so a frame allocates nothing for it.
+    roots: Vec<f64>,
     /// Forces (node, F) at the last solve, ascending by node.
     prev: Vec<(u32, Vec3)>,
     cur: Vec<(u32, Vec3)>,
@@ -52,6 +51,11 @@ pub(super) struct Screen {
 }
 
 impl Screen {
+    /// A screen for a mesh of `nodes` nodes.
+    pub(super) fn new(nodes: usize) -> Self {
+        Self { roots: vec![f64::NAN; nodes], ..Self::default() }
+    }
+
     /// Starts a frame (no candidate has a margin yet).
     pub(super) fn begin_frame(&mut self) {
         self.prev.clear();
@@ -62,12 +66,14 @@ impl Screen {
 
     /// The cached root of `node`, if known.
     pub(super) fn root(&self, node: u32) -> Option<f64> {
-        self.roots.get(&node).copied()
+        self.roots.get(node as usize).copied().filter(|r| !r.is_nan())
     }
 
     /// Keeps `root` for `node`.
     pub(super) fn set_root(&mut self, node: u32, root: f64) {
-        self.roots.insert(node, root);
+        if let Some(r) = self.roots.get_mut(node as usize) {
+            *r = root;
+        }
     }
 
     /// The forces of a new solve (`nodes[k]` carries `forces[k]`): adds
@@ -80,7 +86,7 @@ impl Screen {
         self.cur.sort_unstable_by_key(|x| x.0);
         let (mut i, mut j) = (0, 0);
         let mut sum = 0.0;
-        let (a, b, roots) = (&self.cur, &self.prev, &self.roots);
+        let (a, b) = (&self.cur, &self.prev);
         while i < a.len() || j < b.len() {
             let (node, change) = match (a.get(i), b.get(j)) {
                 (Some(x), Some(y)) if x.0 == y.0 => {
@@ -104,7 +110,7 @@ impl Screen {
             };
             let size = change.norm();
             if size != 0.0 {
-                sum += roots.get(&node).copied().unwrap_or(f64::INFINITY) * size;
+                sum += self.root(node).unwrap_or(f64::INFINITY) * size;
             }
         }
         self.drift += SAFETY * sum;
@@ -147,7 +153,7 @@ mod tests {
 
     #[test]
     fn the_drift_sums_each_nodes_change_weighted_by_its_root() {
-        let mut s = Screen::default();
+        let mut s = Screen::new(10);
         s.begin_frame();
         for n in 1..4 {
             s.set_root(n, n as f64);
@@ -162,7 +168,7 @@ mod tests {
 
     #[test]
     fn a_candidate_is_skipped_only_while_the_bound_stays_inside_its_margin() {
-        let mut s = Screen::default();
+        let mut s = Screen::new(10);
         s.begin_frame();
         assert!(!s.can_skip(0, 1.0), "never evaluated: evaluate it");
         s.record(0, 1.0);
