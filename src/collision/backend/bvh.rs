@@ -47,6 +47,10 @@ const PARALLEL_MIN_LINES: usize = 64;
 const LINES_PER_TASK: usize = 32;
 /// Fewest tree nodes worth refitting over threads.
 const PARALLEL_MIN_NODES: usize = 4096;
+/// The refit recomputes only the boxes over moved vertices while at most one
+/// vertex in this many moved; above that, every box (the full sweep, split over
+/// threads, costs less than marking most of the tree).
+const SELECTIVE_REFIT_FRACTION: usize = 4;
 
 thread_local! {
     /// Traversal stack of a worker thread, reused across frames.
@@ -118,6 +122,8 @@ pub struct BvhCaster {
     dirty: Vec<u64>,
     /// The last refit grew every box in place: the next one recomputes all of them.
     refit_all: bool,
+    /// Scratch: the vertices that moved since the last refit.
+    moved: Vec<u32>,
 }
 
 #[inline(always)]
@@ -220,6 +226,7 @@ impl BvhCaster {
             vertex_leaves,
             dirty: vec![0; words],
             refit_all: false,
+            moved: Vec::new(),
         };
         s.refit();
         s
@@ -536,20 +543,24 @@ impl RayCaster for BvhCaster {
         // tissue away from the blades, a tenth of the surface moves): each
         // moved vertex marks its leaves and their ancestors, and the refit
         // recomputes those boxes alone, giving every box the bits of a full refit.
+        // When most of the surface moves, the full sweep (on two threads) is cheaper.
+        self.moved.clear();
         for v in 0..positions.len() {
             let (p, q) = (&positions[v], &self.positions[v]);
             if p.x.to_bits() != q.x.to_bits() || p.y.to_bits() != q.y.to_bits() || p.z.to_bits() != q.z.to_bits() {
                 self.positions[v] = *p;
-                if !self.refit_all {
-                    for i in self.vertex_leaf_start[v]..self.vertex_leaf_start[v + 1] {
-                        self.mark_dirty(self.vertex_leaves[i as usize]);
-                    }
-                }
+                self.moved.push(v as u32);
             }
         }
-        if self.refit_all {
+        if self.refit_all || self.moved.len() * SELECTIVE_REFIT_FRACTION > positions.len() {
             self.refit();
         } else {
+            for k in 0..self.moved.len() {
+                let v = self.moved[k] as usize;
+                for i in self.vertex_leaf_start[v]..self.vertex_leaf_start[v + 1] {
+                    self.mark_dirty(self.vertex_leaves[i as usize]);
+                }
+            }
             self.refit_marked();
         }
         Ok(())
@@ -676,7 +687,7 @@ mod tests {
                     2 => v % 97 == 5,
                     3 => false,
                     5 => true,
-                    _ => rest[v].x < -0.3,
+                    _ => rest[v].x < -0.6,
                 };
                 if pick {
                     *p += Vec3::new(rng(&mut s) - 0.5, rng(&mut s) - 0.5, rng(&mut s) - 0.5) * 0.05;
