@@ -117,13 +117,16 @@ pub struct BvhCaster {
     /// `vertex_leaves[vertex_leaf_start[v]..vertex_leaf_start[v + 1]]`.
     vertex_leaf_start: Vec<u32>,
     vertex_leaves: Vec<u32>,
-    /// Nodes whose box the next refit recomputes, one bit a node; a marked
-    /// node's ancestors are marked too.
+    /// Marking scratch, one bit a node (a marked node's ancestors are marked
+    /// too); zero between calls.
     dirty: Vec<u64>,
     /// The last refit grew every box in place: the next one recomputes all of them.
     refit_all: bool,
     /// Scratch: the vertices that moved since the last refit.
     moved: Vec<u32>,
+    /// The nodes over `marked_for`'s vertices, descending (children first).
+    marked: Vec<u32>,
+    marked_for: Vec<u32>,
 }
 
 #[inline(always)]
@@ -227,6 +230,8 @@ impl BvhCaster {
             dirty: vec![0; words],
             refit_all: false,
             moved: Vec::new(),
+            marked: Vec::new(),
+            marked_for: Vec::new(),
         };
         s.refit();
         s
@@ -245,36 +250,55 @@ impl BvhCaster {
         }
     }
 
-    /// Recomputes only the marked boxes, children before parents (descending
+    /// Recomputes only the boxes in `marked`, children before parents (descending
     /// node index), each exactly as [`Self::refit`] would: a box depends only
     /// on its leaf's vertices or its children's boxes, so an unmarked node's
     /// box is already what a full refit would give it. Then the margin rule of
     /// the full refit.
     fn refit_marked(&mut self) {
         let (positions, leaf_vertices, m) = (&self.positions, &self.leaf_vertices, self.margin);
+        for &k in &self.marked {
+            let n = self.nodes[k as usize];
+            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            if n.count > 0 {
+                (lo, hi) = leaf_box(&n, positions, leaf_vertices, m);
+            } else {
+                let c = n.first as usize;
+                let (a, b) = (&self.nodes[c], &self.nodes[c + 1]);
+                for i in 0..3 {
+                    lo[i] = min(a.lo[i], b.lo[i]);
+                    hi[i] = max(a.hi[i], b.hi[i]);
+                }
+            }
+            self.nodes[k as usize].lo = lo;
+            self.nodes[k as usize].hi = hi;
+        }
+        self.grow_margin();
+    }
+
+    /// Sets `marked` to the leaves of the vertices in `moved` and their
+    /// ancestors, descending. A blade pressing the same tissue moves the same
+    /// vertices sub-step after sub-step: the list of the last set is kept.
+    fn mark_moved(&mut self) {
+        if self.moved == self.marked_for {
+            return;
+        }
+        for k in 0..self.moved.len() {
+            let v = self.moved[k] as usize;
+            for i in self.vertex_leaf_start[v]..self.vertex_leaf_start[v + 1] {
+                self.mark_dirty(self.vertex_leaves[i as usize]);
+            }
+        }
+        self.marked.clear();
         for w in (0..self.dirty.len()).rev() {
             let mut bits = std::mem::take(&mut self.dirty[w]);
             while bits != 0 {
-                let b = 63 - bits.leading_zeros() as usize;
+                let b = 63 - bits.leading_zeros();
                 bits &= !(1u64 << b);
-                let k = w * 64 + b;
-                let n = self.nodes[k];
-                let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-                if n.count > 0 {
-                    (lo, hi) = leaf_box(&n, positions, leaf_vertices, m);
-                } else {
-                    let c = n.first as usize;
-                    let (a, b) = (&self.nodes[c], &self.nodes[c + 1]);
-                    for i in 0..3 {
-                        lo[i] = min(a.lo[i], b.lo[i]);
-                        hi[i] = max(a.hi[i], b.hi[i]);
-                    }
-                }
-                self.nodes[k].lo = lo;
-                self.nodes[k].hi = hi;
+                self.marked.push(w as u32 * 64 + b);
             }
         }
-        self.grow_margin();
+        self.marked_for.clone_from(&self.moved);
     }
 
     /// Recomputes every box bottom-up from `self.positions`, grown by the margin, in
@@ -321,7 +345,6 @@ impl BvhCaster {
         } else {
             sweep(&mut self.nodes, 0);
         }
-        self.dirty.fill(0);
         self.refit_all = false;
         self.grow_margin();
     }
@@ -555,12 +578,7 @@ impl RayCaster for BvhCaster {
         if self.refit_all || self.moved.len() * SELECTIVE_REFIT_FRACTION > positions.len() {
             self.refit();
         } else {
-            for k in 0..self.moved.len() {
-                let v = self.moved[k] as usize;
-                for i in self.vertex_leaf_start[v]..self.vertex_leaf_start[v + 1] {
-                    self.mark_dirty(self.vertex_leaves[i as usize]);
-                }
-            }
+            self.mark_moved();
             self.refit_marked();
         }
         Ok(())
