@@ -568,10 +568,9 @@ impl RayCaster for BvhCaster {
         // recomputes those boxes alone, giving every box the bits of a full refit.
         // When most of the surface moves, the full sweep (on two threads) is cheaper.
         self.moved.clear();
-        for v in 0..positions.len() {
-            let (p, q) = (&positions[v], &self.positions[v]);
+        for (v, (p, q)) in positions.iter().zip(self.positions.iter_mut()).enumerate() {
             if p.x.to_bits() != q.x.to_bits() || p.y.to_bits() != q.y.to_bits() || p.z.to_bits() != q.z.to_bits() {
-                self.positions[v] = *p;
+                *q = *p;
                 self.moved.push(v as u32);
             }
         }
