@@ -68,25 +68,7 @@ impl ContactScratch {
 
     fn build(&mut self, surface: &BoundarySurface) {
         let n = surface.vertices.len();
-        self.start.clear();
-        self.start.resize(n + 1, 0);
-        for tri in &surface.triangles {
-            for &v in tri {
-                self.start[v as usize + 1] += 1;
-            }
-        }
-        for v in 0..n {
-            self.start[v + 1] += self.start[v];
-        }
-        self.around.clear();
-        self.around.resize(self.start[n] as usize, 0);
-        let mut next = self.start[..n].to_vec();
-        for (t, tri) in surface.triangles.iter().enumerate() {
-            for &v in tri {
-                self.around[next[v as usize] as usize] = t as u32;
-                next[v as usize] += 1;
-            }
-        }
+        (self.start, self.around) = crate::mesh::triangles_around_vertices(n, &surface.triangles);
         self.built_for = Some((n, surface.triangles.len()));
         self.owner.clear();
         self.owner.resize(n, NONE);

@@ -19,6 +19,34 @@ pub use trisurface::TriSurface;
 
 use crate::math::{Vec3, is_finite3};
 
+/// Items grouped by key as compressed rows: key `k`'s items are
+/// `items[start[k]..start[k + 1]]`, in the order `entries` yields them (it is
+/// called twice: to count, then to fill). Every key must be below `keys`.
+/// Used for the triangles around each surface vertex and the BVH leaves over
+/// each vertex.
+pub fn group_by_key<I: Iterator<Item = (u32, u32)>>(keys: usize, entries: impl Fn() -> I) -> (Vec<u32>, Vec<u32>) {
+    let mut start = vec![0u32; keys + 1];
+    for (k, _) in entries() {
+        start[k as usize + 1] += 1;
+    }
+    for k in 0..keys {
+        start[k + 1] += start[k];
+    }
+    let mut next = start[..keys].to_vec();
+    let mut items = vec![0u32; start[keys] as usize];
+    for (k, item) in entries() {
+        items[next[k as usize] as usize] = item;
+        next[k as usize] += 1;
+    }
+    (start, items)
+}
+
+/// The triangles around each vertex of `vertex_count`, ascending: vertex `v`'s
+/// are `around[start[v]..start[v + 1]]` (the returned pair is `(start, around)`).
+pub fn triangles_around_vertices(vertex_count: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
+    group_by_key(vertex_count, || triangles.iter().enumerate().flat_map(|(t, tri)| tri.iter().map(move |&v| (v, t as u32))))
+}
+
 /// Errors in building or validating a mesh. File parsers wrap these with the path.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum MeshError {
@@ -151,6 +179,16 @@ impl TetMesh {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+
+    #[test]
+    fn grouping_by_key_keeps_each_keys_items_in_order_and_leaves_empty_keys_empty() {
+        let entries = [(2u32, 10u32), (0, 11), (2, 12), (3, 13), (0, 14)];
+        let (start, items) = group_by_key(5, || entries.iter().copied());
+        assert_eq!(start, vec![0, 2, 2, 4, 5, 5]);
+        assert_eq!(items, vec![11, 14, 10, 12, 13]);
+        let (start, around) = triangles_around_vertices(4, &[[0, 1, 2], [0, 2, 3]]);
+        assert_eq!((start, around), (vec![0, 2, 3, 5, 6], vec![0, 1, 0, 0, 1, 1]));
+    }
 
     /// A unit cube split into 6 positively oriented tets (Kuhn triangulation).
     pub fn cube() -> TetMesh {

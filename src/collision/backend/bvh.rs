@@ -198,22 +198,11 @@ impl BvhCaster {
             parent[n.first as usize] = k as u32;
             parent[n.first as usize + 1] = k as u32;
         }
-        // vertex -> leaves, by counting then filling (leaves ascending per vertex)
-        let mut vertex_leaf_start = vec![0u32; positions.len() + 1];
-        for &v in &leaf_vertices {
-            vertex_leaf_start[v as usize + 1] += 1;
-        }
-        for v in 0..positions.len() {
-            vertex_leaf_start[v + 1] += vertex_leaf_start[v];
-        }
-        let mut fill = vertex_leaf_start.clone();
-        let mut vertex_leaves = vec![0u32; leaf_vertices.len()];
-        for (k, n) in nodes.iter().enumerate().filter(|(_, n)| n.count > 0) {
-            for &v in &leaf_vertices[n.vfirst as usize..(n.vfirst + n.vcount) as usize] {
-                vertex_leaves[fill[v as usize] as usize] = k as u32;
-                fill[v as usize] += 1;
-            }
-        }
+        let (vertex_leaf_start, vertex_leaves) = crate::mesh::group_by_key(positions.len(), || {
+            nodes.iter().enumerate().filter(|(_, n)| n.count > 0).flat_map(|(k, n)| {
+                leaf_vertices[n.vfirst as usize..(n.vfirst + n.vcount) as usize].iter().map(move |&v| (v, k as u32))
+            })
+        });
         let words = nodes.len().div_ceil(64);
         let mut s = Self {
             positions: positions.to_vec(),
@@ -258,18 +247,8 @@ impl BvhCaster {
     fn refit_marked(&mut self) {
         let (positions, leaf_vertices, m) = (&self.positions, &self.leaf_vertices, self.margin);
         for &k in &self.marked {
-            let n = self.nodes[k as usize];
-            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-            if n.count > 0 {
-                (lo, hi) = leaf_box(&n, positions, leaf_vertices, m);
-            } else {
-                let c = n.first as usize;
-                let (a, b) = (&self.nodes[c], &self.nodes[c + 1]);
-                for i in 0..3 {
-                    lo[i] = min(a.lo[i], b.lo[i]);
-                    hi[i] = max(a.hi[i], b.hi[i]);
-                }
-            }
+            let nodes = &self.nodes;
+            let (lo, hi) = fitted_box(&nodes[k as usize], |c| nodes[c], positions, leaf_vertices, m);
             self.nodes[k as usize].lo = lo;
             self.nodes[k as usize].hi = hi;
         }
@@ -311,18 +290,7 @@ impl BvhCaster {
         // the run must lie in the run.
         let sweep = |nodes: &mut [Node], base: usize| {
             for k in (0..nodes.len()).rev() {
-                let n = nodes[k];
-                let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-                if n.count > 0 {
-                    (lo, hi) = leaf_box(&n, positions, leaf_vertices, m);
-                } else {
-                    let c = n.first as usize - base;
-                    let (a, b) = (&nodes[c], &nodes[c + 1]);
-                    for i in 0..3 {
-                        lo[i] = min(a.lo[i], b.lo[i]);
-                        hi[i] = max(a.hi[i], b.hi[i]);
-                    }
-                }
+                let (lo, hi) = fitted_box(&nodes[k], |c| nodes[c - base], positions, leaf_vertices, m);
                 nodes[k].lo = lo;
                 nodes[k].hi = hi;
             }
@@ -337,11 +305,7 @@ impl BvhCaster {
             let mut top_and_children = |k: usize| sweep_one(top, k, &*left, &*right, x, positions, leaf_vertices, m);
             top_and_children(2);
             top_and_children(1);
-            let (a, b) = (top[1], top[2]);
-            for i in 0..3 {
-                top[0].lo[i] = min(a.lo[i], b.lo[i]);
-                top[0].hi[i] = max(a.hi[i], b.hi[i]);
-            }
+            (top[0].lo, top[0].hi) = union_box(&top[1], &top[2]);
         } else {
             sweep(&mut self.nodes, 0);
         }
@@ -501,20 +465,33 @@ impl BvhCaster {
 /// `left` (global 3..x) or `right` (global x..), or from its triangles if it is a leaf.
 #[allow(clippy::too_many_arguments)]
 fn sweep_one(top: &mut [Node], k: usize, left: &[Node], right: &[Node], x: usize, positions: &[Vec3], leaf_vertices: &[u32], m: f64) {
-    let n = top[k];
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    if n.count > 0 {
-        (lo, hi) = leaf_box(&n, positions, leaf_vertices, m);
-    } else {
-        let c = n.first as usize;
-        let (a, b) = if c >= x { (&right[c - x], &right[c + 1 - x]) } else { (&left[c - 3], &left[c + 1 - 3]) };
-        for i in 0..3 {
-            lo[i] = min(a.lo[i], b.lo[i]);
-            hi[i] = max(a.hi[i], b.hi[i]);
-        }
-    }
+    let child = |c: usize| if c >= x { right[c - x] } else { left[c - 3] };
+    let (lo, hi) = fitted_box(&top[k], child, positions, leaf_vertices, m);
     top[k].lo = lo;
     top[k].hi = hi;
+}
+
+/// The box of node `n`: its leaf's vertices grown by the margin `m`, or the
+/// union of its children's boxes (`child(i)` is node `i`). Every refit path
+/// computes boxes here, so they agree bit for bit.
+#[inline(always)]
+fn fitted_box(n: &Node, child: impl Fn(usize) -> Node, positions: &[Vec3], leaf_vertices: &[u32], m: f64) -> ([f64; 3], [f64; 3]) {
+    if n.count > 0 {
+        return leaf_box(n, positions, leaf_vertices, m);
+    }
+    let c = n.first as usize;
+    union_box(&child(c), &child(c + 1))
+}
+
+/// The smallest box holding boxes `a` and `b`.
+#[inline(always)]
+fn union_box(a: &Node, b: &Node) -> ([f64; 3], [f64; 3]) {
+    let (mut lo, mut hi) = ([0.0; 3], [0.0; 3]);
+    for i in 0..3 {
+        lo[i] = min(a.lo[i], b.lo[i]);
+        hi[i] = max(a.hi[i], b.hi[i]);
+    }
+    (lo, hi)
 }
 
 /// Box of a leaf's triangle vertices, grown by the margin `m`.
@@ -556,23 +533,22 @@ impl RayCaster for BvhCaster {
         if positions.len() != self.positions.len() {
             return Err(CollisionError::VertexCount { expected: self.positions.len(), got: positions.len() });
         }
-        // An unmoved surface (blades away from the tissue, or a held frame
-        // whose solve gave the same displacements) keeps its boxes: a refit
-        // would only recompute them.
-        if positions == self.positions.as_slice() {
-            return Ok(());
-        }
-        // Only the boxes over moved vertices change (on a scene holding the
-        // tissue away from the blades, a tenth of the surface moves): each
-        // moved vertex marks its leaves and their ancestors, and the refit
-        // recomputes those boxes alone, giving every box the bits of a full refit.
-        // When most of the surface moves, the full sweep (on two threads) is cheaper.
+        // Only the boxes over moved vertices (compared bit for bit) change: an
+        // unmoved surface (blades away from the tissue, a held frame) keeps
+        // every box, and on a scene holding the tissue away from the blades a
+        // tenth of the surface moves. Each moved vertex marks its leaves and
+        // their ancestors, and the refit recomputes those boxes alone, giving
+        // every box the bits of a full refit. When most of the surface moves,
+        // the full sweep (on two threads) is cheaper.
         self.moved.clear();
         for (v, (p, q)) in positions.iter().zip(self.positions.iter_mut()).enumerate() {
             if p.x.to_bits() != q.x.to_bits() || p.y.to_bits() != q.y.to_bits() || p.z.to_bits() != q.z.to_bits() {
                 *q = *p;
                 self.moved.push(v as u32);
             }
+        }
+        if self.moved.is_empty() {
+            return Ok(());
         }
         if self.refit_all || self.moved.len() * SELECTIVE_REFIT_FRACTION > positions.len() {
             self.refit();

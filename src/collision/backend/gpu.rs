@@ -407,23 +407,7 @@ impl GpuCaster {
         });
 
         // Triangles around each vertex, for the f64 decision's neighbourhood.
-        let mut fan_start = vec![0u32; positions.len() + 1];
-        for t in triangles {
-            for &v in t {
-                fan_start[v as usize + 1] += 1;
-            }
-        }
-        for v in 0..positions.len() {
-            fan_start[v + 1] += fan_start[v];
-        }
-        let mut fill = fan_start.clone();
-        let mut fan = vec![0u32; fan_start[positions.len()] as usize];
-        for (k, t) in triangles.iter().enumerate() {
-            for &v in t {
-                fan[fill[v as usize] as usize] = k as u32;
-                fill[v as usize] += 1;
-            }
-        }
+        let (fan_start, fan) = crate::mesh::triangles_around_vertices(positions.len(), triangles);
 
         let mut caster = Self {
             device,
