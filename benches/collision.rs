@@ -1,6 +1,6 @@
 //! Collision stage timings per backend, in one run (our Fig. 13): paper-12k at 150 /
-//! 500 / 2000 nodes a face and both real brains at 500 / 2000 (skipped when
-//! ../shared is absent), p50 / p95 a frame of a retraction-like motion, with the GPU
+//! 500 / 2000 nodes a face and both shipped real brains (`assets/brain/`) at 500 /
+//! 2000, p50 / p95 a frame of a retraction-like motion, with the GPU
 //! backend's breakdown (upload, wait, f64 decisions, and refit / traversal from
 //! timestamp queries). The same code as `fissure bench collision`, which runs from
 //! the release binary alone (a GPU machine has no Rust toolchain).
@@ -16,7 +16,7 @@ fn main() {
         return;
     }
     let frames = std::env::var("FISSURE_BENCH_FRAMES").ok().and_then(|v| v.parse().ok()).unwrap_or(40);
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/brain");
+    let dir = fissure::mesh::brain::shipped_dir();
     let surfaces = bench::standard_surfaces(&dir, None, &mut |n| eprintln!("{n}")).expect("bench surfaces");
     let cases: Vec<(&BenchSurface, u32)> = surfaces.iter().flat_map(|(s, n)| n.iter().map(move |&k| (s, k))).collect();
     println!("{}", bench::TABLE_HEADER);

@@ -1,8 +1,8 @@
 //! FEM stage benchmark: assembly, factorization, compliance precompute and
 //! reload, per-frame constrained solve (100 / 300 constrained vertices, 10 / 30
 //! new a frame), interior solve, memory peak. For `paper-12k` (the phantom
-//! generator) and both real brains (`../shared/data/brain/brain_pial_coarse.msh`
-//! and `brain_pial_q15.msh`, each skipped when absent). Before the precompute,
+//! generator) and both shipped real brains (`assets/brain/brain_pial_coarse.msh.gz`
+//! and `brain_pial_q15.msh.gz`). Before the precompute,
 //! each model's `K_FF` is factored with AMD and with nested dissection.
 //!
 //! With 100 and 300 constrained it prints the floor of a frame measured in the
@@ -301,7 +301,8 @@ fn ordering_lines(model: &FemModel) {
 }
 
 /// The floor of one exact frame over `nodes` whose last `fresh` are new this
-/// frame, measured in the same run as the frames (issue 21), ms, each the best
+/// frame, measured in the same run as the frames (so the two meet the same
+/// machine load), ms, each the best
 /// of 5: reading the new entries of W (the compliance's 3x3 block of each new
 /// node against every node: what a solver that keeps W must read), reading all
 /// of W (for scale), and one dense Cholesky of W: f64 on one thread (what the
@@ -458,8 +459,8 @@ fn measure_sets(solver: &mut ConstrainedSolver, sets: &[&[u32]]) -> Option<Measu
 }
 
 /// Writes `DIR/NAME_constrained_sweep.csv` and `.png`: frame p50 and p95, mean W and
-/// mean product time against the constrained vertices, with issue #4's 3 ms
-/// bar. Returns the PNG's path.
+/// mean product time against the constrained vertices, with the bar (frame p95
+/// 3 ms at 300 constrained vertices). Returns the PNG's path.
 fn write_sweep(name: &str, sweep: &[(usize, Measure)], dir: &Path) -> Result<PathBuf, String> {
     use plotters::prelude::*;
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
@@ -511,7 +512,7 @@ fn write_sweep(name: &str, sweep: &[(usize, Measure)], dir: &Path) -> Result<Pat
     chart
         .draw_series(LineSeries::new(vec![(0.0, 3.0), (x_max, 3.0)], bar.stroke_width(2)))
         .map_err(|e| err(&e))?
-        .label("issue #4 bar: p95 3 ms at 300 vertices")
+        .label("bar: p95 3 ms at 300 vertices")
         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], bar.stroke_width(2)));
     // Context: the largest contact set of the default scene's replay (`fissure replay config/sylvian.ron`).
     let scene = RGBColor(148, 103, 189);
@@ -748,11 +749,7 @@ fn main() {
         if !want(name) {
             continue;
         }
-        let path = PathBuf::from(format!("{}/../shared/data/brain/{name}.msh", env!("CARGO_MANIFEST_DIR")));
-        if !path.exists() {
-            println!("real brain mesh absent ({}), skipped", path.display());
-            continue;
-        }
+        let path = fissure::mesh::brain::shipped(name);
         match fissure::mesh::io::load_tet_mesh(&path) {
             Ok(mut mesh) => {
                 mesh.scale(1e-3); // the file is in mm

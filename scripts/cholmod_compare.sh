@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Our sparse Cholesky beside CHOLMOD's on the same matrix (issue 21's
-# "factor and solve <= 1.0x CHOLMOD's time, nnz(L) within 10 % of METIS's"):
-# the stiffness K_FF of each real brain in ../shared/data/brain (as the fem
+# Our sparse Cholesky beside CHOLMOD's on the same matrix (the bars: factor
+# and solve <= 1.0x CHOLMOD's time, nnz(L) within 10 % of CHOLMOD with METIS):
+# the stiffness K_FF of each shipped real brain in assets/brain (as the fem
 # bench builds it), factored by fissure (examples/factor_compare.rs) and by
 # CHOLMOD (scripts/cholmod_compare.c), each with METIS and with AMD, one
 # thread, alternating ROUNDS times (default 3) so both see the same machine.
@@ -22,17 +22,11 @@ cc -O2 scripts/cholmod_compare.c -I/usr/include/suitesparse -lcholmod -lm -o "$w
 cargo build --release --quiet --example factor_compare
 meshes=("$@")
 if [ ${#meshes[@]} -eq 0 ]; then
-    for m in ../shared/data/brain/brain_pial_coarse.msh ../shared/data/brain/brain_pial_q15.msh; do
-        [ -f "$m" ] && meshes+=("$m")
-    done
-fi
-if [ ${#meshes[@]} -eq 0 ]; then
-    echo "cholmod_compare: no mesh given and ../shared/data/brain is absent" >&2
-    exit 1
+    meshes=(assets/brain/brain_pial_coarse.msh.gz assets/brain/brain_pial_q15.msh.gz)
 fi
 echo "BLAS: $(readlink -f /usr/lib/x86_64-linux-gnu/libblas.so.3 2>/dev/null || echo unknown); CPU: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
 for mesh in "${meshes[@]}"; do
-    name=$(basename "$mesh" .msh)
+    name=$(basename "$mesh"); name=${name%.gz}; name=${name%.msh}
     echo "== $name"
     for round in $(seq 1 "$rounds"); do
         echo "-- round $round"

@@ -1,11 +1,10 @@
 #!/usr/bin/env bash
 # What each optimisation of fem/ buys, measured again on today's code and
-# machine (issue 21's audit; docs/design-notes.md "What each fem/
-# optimisation buys"). Every one can be switched off (`fem::tuning`,
+# machine (docs/design-notes.md says what each optimisation of fem/ buys). Every one can be switched off (`fem::tuning`,
 # FISSURE_FEM_OFF=name); on and off run alternately on the same machine.
 #  1. the per-frame switches and the row-major solve, in the fem bench:
-#     `cargo bench --bench fem -- audit paper` (and the coarse real brain
-#     when ../shared/data/brain has it);
+#     `cargo bench --bench fem -- audit paper coarse` (paper-12k and the
+#     coarse real brain);
 #  2. huge pages under the compliance: the same bench's held and sliding
 #     product lines with FISSURE_FEM_OFF=huge-pages (paper-12k);
 #  3. the scene-level switches (candidate blocks, W factor reuse, the
@@ -13,7 +12,7 @@
 #     `TRAJ=assets/trajectories/real_brain_sylvian_wide.csv cargo run --release
 #     --example stall_probe -- config/real_brain/sylvian.ron 100 duration_s=4.5`)
 #     on whole replays, ROUNDS rounds (default 2) alternating: the default
-#     scene and, when ../shared has it, the fine-brain Sylvian opening from
+#     scene and the fine-brain Sylvian opening from
 #     its cache (the first replay of a scene writes the cache and is not
 #     counted).
 # Not part of the tests (about 20 minutes on 2 cores).
@@ -22,8 +21,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 rounds="${ROUNDS:-2}"
 parts="${PARTS:-1 2 3}"
-models=(paper)
-[ -f ../shared/data/brain/brain_pial_coarse.msh ] && models+=(coarse)
+models=(paper coarse)
 
 if [[ " $parts " == *" 1 "* ]]; then
     echo "== 1. per-frame switches (cargo bench --bench fem -- audit ${models[*]})"
@@ -39,8 +37,7 @@ fi
 cargo build --release --quiet
 scenes=("$@")
 if [ ${#scenes[@]} -eq 0 ]; then
-    scenes=(config/sylvian.ron)
-    [ -f ../shared/data/brain/brain_pial_q15.msh ] && scenes+=(config/real_brain/sylvian.ron)
+    scenes=(config/sylvian.ron config/real_brain/sylvian.ron)
 fi
 replay() { # OFF SCENE -> "p50 p95 solve-p95 hash"
     local out

@@ -2,9 +2,9 @@
 # Packs what a GPU machine without a Rust toolchain needs to run the collision
 # benchmark and a real-brain replay per backend (how the README's H100 table was
 # made): the stripped release binary, the shared libraries it and NVIDIA's Vulkan
-# driver load (copied from this machine; x86-64 Linux with glibc >= this one's),
-# the two real brains, and run.sh. The folder is .devkit/ (git ignores it);
-# about 46 MB.
+# driver load (copied from this machine; x86-64 Linux with glibc >= this one's)
+# and run.sh. The folder is .devkit/ (git ignores it); about 40 MB. The real
+# brains travel with the repository (assets/brain/).
 #
 #   bash scripts/gpu_devkit.sh            # build and pack
 #   # on the GPU machine, in a copy of the repository with .devkit/ beside it:
@@ -12,7 +12,6 @@
 #   NO_BENCH=1 SYLVIAN=1 bash .devkit/run.sh # only the fine brain's replays and picture
 set -euo pipefail
 cd "$(dirname "$0")/.."
-brains=../shared/data/brain
 kit=.devkit
 cargo build --release
 rm -rf "$kit" && mkdir -p "$kit/lib"
@@ -30,9 +29,6 @@ for name in libvulkan.so.1 libGLdispatch.so.0 libGLX.so.0 libGL.so.1 libEGL.so.1
     libs="$libs $path"
 done
 for l in $libs; do cp -L "$l" "$kit/lib/"; done
-for m in brain_pial_coarse.msh brain_pial_q15.msh; do
-    if [ -f "$brains/$m" ]; then cp "$brains/$m" "$kit/"; else echo "note: $brains/$m not found; its bench cases will be skipped"; fi
-done
 cat > "$kit/run.sh" <<'EOF'
 #!/usr/bin/env bash
 # The collision bench on every backend in one run (so their ratio is fair), then
@@ -44,28 +40,28 @@ chmod +x "$K/fissure"
 nvidia-smi -L 2>/dev/null; nproc
 ldd "$K/fissure" | grep "not found"
 if [ -z "${NO_BENCH:-}" ]; then
-    time "$K/fissure" bench collision --mesh-dir "$K" --frames "${FR:-60}" --out "$OUT/bench.md" > "$OUT/bench.log" 2>&1; echo "bench rc $?"
+    time "$K/fissure" bench collision --mesh-dir "$R/assets/brain" --frames "${FR:-60}" --out "$OUT/bench.md" > "$OUT/bench.log" 2>&1; echo "bench rc $?"
     cat "$OUT/bench.log"
 fi
-# A scene's replay with each collision backend: per_backend SCENARIO MESH TAG
+# A scene's replay with each collision backend: per_backend SCENARIO TAG
 # (prints each run's times and backend, keeps each summary as $OUT/TAG_BACKEND.json).
 per_backend() {
     for b in Bvh Gpu Auto; do
         rm -rf /tmp/fissure-replay
-        "$K/fissure" replay "$1" --set "mesh=File(path: \"$K/$2\", units: Millimetres)" \
+        "$K/fissure" replay "$1" \
             --set 'solver.cache_dir=Some("/tmp/fissure-cache")' --set collision.backend=$b --out /tmp/fissure-replay > /tmp/fissure-replay.log 2>&1
-        echo "$3 $b rc $?"; grep -E "collision|frame time|backend|final state" /tmp/fissure-replay.log | head -6
-        cp /tmp/fissure-replay/summary.json "$OUT/$3_$b.json" 2>/dev/null
+        echo "$2 $b rc $?"; grep -E "collision|frame time|backend|final state" /tmp/fissure-replay.log | head -6
+        cp /tmp/fissure-replay/summary.json "$OUT/$2_$b.json" 2>/dev/null
     done
 }
-if [ -n "${REPLAY:-}" ] && [ -f "$K/brain_pial_coarse.msh" ]; then
-    per_backend config/real_brain/interhemispheric.ron brain_pial_coarse.msh summary
+if [ -n "${REPLAY:-}" ]; then
+    per_backend config/real_brain/interhemispheric.ron summary
 fi
 # With SYLVIAN=1: the fine brain's Sylvian opening (the scene the window ships,
 # refined under the blades) with each backend, and one screenshot on the GPU.
-if [ -n "${SYLVIAN:-}" ] && [ -f "$K/brain_pial_q15.msh" ]; then
-    per_backend config/real_brain/sylvian.ron brain_pial_q15.msh sylvian
-    "$K/fissure" screenshot config/real_brain/sylvian.ron --set "mesh=File(path: \"$K/brain_pial_q15.msh\", units: Millimetres)" \
+if [ -n "${SYLVIAN:-}" ]; then
+    per_backend config/real_brain/sylvian.ron sylvian
+    "$K/fissure" screenshot config/real_brain/sylvian.ron \
         --set 'solver.cache_dir=Some("/tmp/fissure-cache")' --time 4 --view microscope --field pressure -o "$OUT/sylvian_microscope.png" 2>&1 | tail -3
 fi
 EOF

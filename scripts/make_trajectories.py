@@ -106,7 +106,7 @@ write("assets/trajectories/paper_fig12_u_shape.csv",
       "until its tip is 14 mm below the rim, then rotates 50 degrees about the point 7 mm above its\n"
       "tip, so its tip presses one wall with one face and its upper part the other wall with the other face.", rows)
 
-# The real brain (../shared/data/brain/brain_pial_coarse.msh, fsaverage5 RAS millimetres):
+# The real brain (assets/brain/brain_pial_coarse.msh.gz, fsaverage5 RAS millimetres):
 # two 0.5 mm blades go down the inter-hemispheric gap at y = -30 mm side by side, the
 # tips 25 mm below the top of the brain (z = 75 -> 50 mm), then spread 5 mm apart each,
 # retracting the two hemispheres.
@@ -117,7 +117,7 @@ for k, side in ((0, -1.0), (1, 1.0)):
         p, q = blade_pose(entry, inward, normal, 60.0, depth, side * off)
         rows.append(row(t, k, p, q))
 write("assets/trajectories/real_brain_interhemispheric.csv",
-      "Real brain (fsaverage5, ../shared/data/brain): two 60 x 8 x 0.5 mm blades enter the\n"
+      "Real brain (fsaverage5, assets/brain): two 60 x 8 x 0.5 mm blades enter the\n"
       "inter-hemispheric gap at y = -30 mm (tips 25 mm deep at 1 s), then spread 5 mm each\n"
       "towards their hemisphere until 3 s and hold.", rows)
 
@@ -149,16 +149,16 @@ def sylvian_rows(spread_temporal, spread_end, hold_end):
 
 rows = sylvian_rows(SPREAD_TEMPORAL, 3.5, 4.0)
 write("assets/trajectories/real_brain_sylvian.csv",
-      "Real brain (fsaverage5, ../shared/data/brain): two 60 x 8 x 0.5 mm blades enter the\n"
+      "Real brain (fsaverage5, assets/brain): two 60 x 8 x 0.5 mm blades enter the\n"
       f"left Sylvian fissure's stem at y = 15 mm, z = -6 mm (tips 14 mm deep at 1 s), then spread\n"
       f"(upper blade up {SPREAD_FRONTAL:g} mm, lower blade down {SPREAD_TEMPORAL:g} mm) until 3.5 s and hold.", rows)
-# The same scene pressing wider, for issue 21's frame bar (>= 50 constrained
+# The same scene pressing wider, for the fem frame bar (>= 50 constrained
 # vertices a blade): the lower blade down 16.5 mm, both spreads until 4.0 s
 # (slow enough for one step a frame), held to 4.5 s; replay it with
 # `--set duration_s=4.5`. 52 / 56 contact vertices at the end.
 SPREAD_TEMPORAL_WIDE = 16.5
 rows = sylvian_rows(SPREAD_TEMPORAL_WIDE, 4.0, 4.5)
 write("assets/trajectories/real_brain_sylvian_wide.csv",
-      "Real brain (fsaverage5, ../shared/data/brain): the Sylvian scene's blades pressing wider\n"
+      "Real brain (fsaverage5, assets/brain): the Sylvian scene's blades pressing wider\n"
       f"(upper blade up {SPREAD_FRONTAL:g} mm, lower blade down {SPREAD_TEMPORAL_WIDE:g} mm, tips 14 mm deep at 1 s) until 4.0 s,\n"
       "held to 4.5 s (replay with --set duration_s=4.5).", rows)

@@ -2,7 +2,7 @@
 # Regenerates the committed study reports and the README's study section:
 #   docs/study/quick/  `fissure study --preset quick` (report.md and its plots; the README copies its summary)
 #   docs/study/ci/     `fissure study --preset ci` (the test suite re-runs it and compares its accuracy columns)
-#   docs/study/brain/  `fissure study --preset brain` (the real brains, when ../shared/data/brain has them)
+#   docs/study/brain/  `fissure study --preset brain` (the shipped real brains, assets/brain/)
 # The reference runs are kept in target/study-cache between regenerations by the same build (their times are
 # then those of the run that made them; any code change, hence a new binary, runs them again).
 # Release build; takes several minutes on 2 cores. Run it when a change moves the study's numbers
@@ -10,10 +10,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --quiet
-presets="quick ci"
-if [ -f ../shared/data/brain/brain_pial_coarse.msh ] && [ -f ../shared/data/brain/brain_pial_q15.msh ]; then
-    presets="$presets brain"
-fi
+presets="${PRESETS:-quick ci brain}"
 for preset in $presets; do
     out="$(mktemp -d)"
     target/release/fissure study --preset "$preset" --out "$out" --cache-dir target/study-cache

@@ -100,7 +100,7 @@ pub struct WriteError {
 }
 
 /// `1536` -> `1.5 KiB (1536 bytes)`.
-fn bytes(n: u64) -> String {
+pub(crate) fn bytes(n: u64) -> String {
     let units = [("GiB", GIB), ("MiB", MIB), ("KiB", 1 << 10)];
     match units.iter().find(|(_, u)| n >= *u) {
         Some((name, u)) => format!("{:.1} {name} ({n} bytes)", n as f64 / *u as f64),

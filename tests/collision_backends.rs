@@ -258,29 +258,18 @@ fn auto_times_both_backends_then_keeps_one_with_the_same_answers() {
     println!("{}", said[0]);
 }
 
-/// The real brain surface (OBJ, millimetres) in metres, through the project's own reader.
-fn read_obj(path: &str) -> Option<(Vec<[u32; 3]>, Vec<Vec3>)> {
-    let mut s = fissure::mesh::io::load_surface(std::path::Path::new(path)).ok()?;
-    s.scale(MM);
-    Some((s.triangles, s.positions))
-}
-
 #[test]
 fn reference_and_bvh_agree_on_the_real_brain() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/brain/brain_pial_coarse_surface.obj");
-    let Some((t, p)) = read_obj(path) else {
-        println!("skip: real brain surface not found at {path}");
-        return;
-    };
+    let (t, p) = read_msh_surface(&fissure::mesh::brain::shipped(fissure::mesh::brain::COARSE));
     assert_eq!(t.len(), 40_960, "the coarse brain surface has 40,960 triangles");
     let pairs = cpu_parity(&t, &p, 4, 99);
     println!("real brain: {pairs} candidate pairs over 4 random frames");
 }
 
 /// The boundary surface of a real brain tet mesh (millimetres) in metres.
-fn read_msh_surface(path: &str) -> Option<(Vec<[u32; 3]>, Vec<Vec3>)> {
-    let s = fissure::collision::bench::BenchSurface::tet_mesh_mm(std::path::Path::new(path), "brain").ok()?;
-    Some((s.triangles, s.positions))
+fn read_msh_surface(path: &std::path::Path) -> (Vec<[u32; 3]>, Vec<Vec3>) {
+    let s = fissure::collision::bench::BenchSurface::tet_mesh_mm(path, "brain").unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    (s.triangles, s.positions)
 }
 
 /// Two spatulas with 2000 nodes a face (100 x 20 grid).
@@ -291,12 +280,9 @@ fn dense_specs() -> Vec<SpatulaSpec> {
 
 #[test]
 fn gpu_agrees_with_bvh_on_the_real_brains_at_2000_nodes_a_face() {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/brain/");
-    for (name, surface) in [("coarse", read_obj(&format!("{dir}brain_pial_coarse_surface.obj"))), ("q15", read_msh_surface(&format!("{dir}brain_pial_q15.msh")))] {
-        let Some((t, p)) = surface else {
-            println!("skip: real brain {name} not found under {dir}");
-            continue;
-        };
+    use fissure::mesh::brain;
+    for (name, stem) in [("coarse", brain::COARSE), ("q15", brain::FINE)] {
+        let (t, p) = read_msh_surface(&brain::shipped(stem));
         let Some(mut g) = gpu_stage(&t, &p, &dense_specs(), BackendKind::Gpu) else { return };
         let pairs = stage_parity(&mut g, &t, &p, &dense_specs(), 2, 99);
         println!("real brain {name} ({} triangles): {pairs} candidate pairs, gpu = bvh bit for bit", t.len());

@@ -182,14 +182,14 @@ fn sliver_layer_press_is_exact_and_matches_the_direct_solve() {
 
 #[test]
 fn real_brain_slivers_press_is_exact_and_finite() {
-    let Some(path) = common::real_brain("brain_pial_coarse.msh") else { return };
+    let path = common::real_brain(fissure::mesh::brain::COARSE);
     let t0 = std::time::Instant::now();
     let mesh = fissure::mesh::io::load_tet_mesh(&path).expect("coarse brain loads");
     let q = QualityReport::of(&mesh);
     println!("real brain: {} nodes, min mean ratio {:.4}, loaded in {:.1} s", mesh.node_count(), q.min_mean_ratio, t0.elapsed().as_secs_f64());
     // Press the lateral-most point of the right hemisphere (largest x) with a blade whose face 1 points -x.
     let top = mesh.positions.iter().copied().fold(Vec3::new(f64::MIN, 0.0, 0.0), |a, p| if p.x > a.x { p } else { a });
-    // Keep the mesh in mm in the file: the scene helper writes it and says Millimetres.
+    // Keep the mesh in mm in the file: the scene builder writes it and says Millimetres.
     let dir = tempfile::tempdir().unwrap();
     // Blade x along world +y, local z along world +x (face 1 outward normal -x): a cyclic permutation.
     let q3 = [0.5, 0.5, 0.5, 0.5];

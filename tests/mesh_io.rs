@@ -85,6 +85,61 @@ fn every_writable_format_round_trips_bitwise() {
 }
 
 #[test]
+fn gzipped_files_round_trip_bitwise_and_read_as_the_plain_ones() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mesh = block(3);
+    for ext in ["vtu", "msh", "vtk", "node", "ele"] {
+        let plain = dir.path().join(format!("p.{ext}"));
+        let packed = dir.path().join(format!("z.{ext}.gz"));
+        io::save_tet_mesh(&plain, &mesh, &FieldData::none()).unwrap_or_else(|e| panic!("save {ext}: {e}"));
+        io::save_tet_mesh(&packed, &mesh, &FieldData::none()).unwrap_or_else(|e| panic!("save {ext}.gz: {e}"));
+        let gz_file = if ext == "ele" { dir.path().join("z.node.gz") } else { packed.clone() };
+        let head = std::fs::read(&gz_file).expect("read gz");
+        assert_eq!(&head[..2], &[0x1f, 0x8b], "{ext}.gz starts with the gzip magic");
+        let a = io::load_tet_mesh(&plain).unwrap_or_else(|e| panic!("load {ext}: {e}"));
+        let b = io::load_tet_mesh(&packed).unwrap_or_else(|e| panic!("load {ext}.gz: {e}"));
+        assert_same_mesh(&a, &b, ext);
+        assert_same_mesh(&mesh, &b, ext);
+    }
+    // The same mesh gives the same compressed bytes (no time stamp in the header).
+    let again = dir.path().join("again.msh.gz");
+    io::save_tet_mesh(&again, &mesh, &FieldData::none()).expect("save");
+    assert_eq!(std::fs::read(&again).unwrap(), std::fs::read(dir.path().join("z.msh.gz")).unwrap());
+    // Surfaces too.
+    let surface = TriSurface { positions: mesh.positions.clone(), triangles: vec![[0, 1, 2], [1, 3, 2]] };
+    for ext in ["obj", "stl"] {
+        let path = dir.path().join(format!("s.{ext}.GZ"));
+        io::save_surface(&path, &surface).unwrap_or_else(|e| panic!("save {ext}: {e}"));
+        let back = io::load_surface(&path).unwrap_or_else(|e| panic!("load {ext}: {e}"));
+        assert_eq!(back.triangles, surface.triangles, "{ext}");
+    }
+}
+
+#[test]
+fn a_broken_gzip_file_is_an_error_naming_it() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let good = dir.path().join("good.msh.gz");
+    io::save_tet_mesh(&good, &block(2), &FieldData::none()).expect("save");
+    let bytes = std::fs::read(&good).unwrap();
+    // Truncated in the middle of the stream, then not gzip at all.
+    let cut = dir.path().join("cut.msh.gz");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let plain = dir.path().join("plain.msh.gz");
+    std::fs::write(&plain, "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n").unwrap();
+    for path in [cut, plain] {
+        let e = io::load_tet_mesh(&path).expect_err("a broken .gz must fail");
+        assert!(matches!(e.kind, K::Gzip(_)), "{e}");
+        let message = e.to_string();
+        assert!(message.contains(path.file_name().unwrap().to_str().unwrap()) && message.contains("gzip"), "{message}");
+    }
+    // A plain mesh's extension with .gz missing is read as plain text, and a
+    // gzip'd file named without .gz is not mistaken for text silently.
+    let unnamed = dir.path().join("unnamed.msh");
+    std::fs::write(&unnamed, &bytes).unwrap();
+    assert!(io::load_tet_mesh(&unnamed).is_err());
+}
+
+#[test]
 fn vtu_is_the_paraview_layout() {
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("a.vtu");

@@ -1,26 +1,23 @@
-//! The real brain meshes in `../shared/data/brain` load with the counts its
-//! README states. Skipped, with a message, when that folder is absent.
-//! Load times are printed (run with `--release -- --nocapture`), never asserted.
+//! The shipped real brain meshes (`assets/brain/`, gzip'd Gmsh) load with the
+//! counts its NOTICE.md states. Load times are printed (run with `--release --
+//! --nocapture`), never asserted.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
+use fissure::mesh::brain;
 use fissure::mesh::io;
 use fissure::mesh::quality::{QualityReport, components};
 
-fn data(name: &str) -> Option<PathBuf> {
-    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/brain")).join(name);
-    if path.exists() {
-        Some(path)
-    } else {
-        println!("skipped: {} is absent (the real brain meshes live beside the project)", path.display());
-        None
-    }
+fn data(stem: &str) -> PathBuf {
+    let path = brain::shipped(stem);
+    assert!(path.is_file(), "{} is missing from the checkout", path.display());
+    path
 }
 
 #[test]
 fn coarse_brain_has_the_readme_counts() {
-    let Some(path) = data("brain_pial_coarse.msh") else { return };
+    let path = data(brain::COARSE);
     let start = Instant::now();
     let mesh = io::load_tet_mesh(&path).unwrap_or_else(|e| panic!("{e}"));
     println!("loaded {} in {:.3} s", path.display(), start.elapsed().as_secs_f64());
@@ -48,7 +45,7 @@ fn coarse_brain_has_the_readme_counts() {
 
 #[test]
 fn refined_brain_has_the_readme_counts() {
-    let Some(path) = data("brain_pial_q15.msh") else { return };
+    let path = data(brain::FINE);
     let start = Instant::now();
     let mesh = io::load_tet_mesh(&path).unwrap_or_else(|e| panic!("{e}"));
     println!("loaded {} in {:.3} s", path.display(), start.elapsed().as_secs_f64());
@@ -62,11 +59,21 @@ fn refined_brain_has_the_readme_counts() {
 }
 
 #[test]
-fn brain_surface_obj_has_two_objects_merged() {
-    let Some(path) = data("brain_pial_coarse_surface.obj") else { return };
+fn coarse_brain_surface_round_trips_through_obj_and_gzip() {
+    // The closed surface of the coarse mesh: 20,484 vertices, 40,960 triangles,
+    // the fsaverage5 pial surfaces of both hemispheres. Written as gzip'd OBJ
+    // and read back, it keeps its counts and every coordinate's bits.
+    let mesh = io::load_tet_mesh(&data(brain::COARSE)).unwrap_or_else(|e| panic!("{e}"));
+    let boundary = mesh.boundary();
+    let surface = fissure::mesh::TriSurface { positions: boundary.gather_positions(&mesh.positions), triangles: boundary.triangles.clone() };
+    assert_eq!(surface.positions.len(), 20_484);
+    assert_eq!(surface.triangles.len(), 40_960);
+    let dir = tempfile::tempdir().expect("tmp");
+    let path = dir.path().join("pial.obj.gz");
+    io::save_surface(&path, &surface).unwrap_or_else(|e| panic!("{e}"));
     let start = Instant::now();
-    let s = io::load_surface(&path).unwrap_or_else(|e| panic!("{e}"));
+    let back = io::load_surface(&path).unwrap_or_else(|e| panic!("{e}"));
     println!("loaded {} in {:.3} s", path.display(), start.elapsed().as_secs_f64());
-    assert_eq!(s.positions.len(), 20_484);
-    assert_eq!(s.triangles.len(), 40_960);
+    assert_eq!(back.triangles, surface.triangles);
+    assert_eq!(back.positions, surface.positions, "shortest round-trip f64 text reads back to the same bits");
 }

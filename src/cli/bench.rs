@@ -7,10 +7,11 @@ use fissure::collision::bench::{self, BenchSurface};
 
 #[derive(Debug, clap::Args)]
 pub struct CollisionArgs {
-    /// Folder with brain_pial_coarse.msh and brain_pial_q15.msh (millimetres); the
-    /// real-brain cases are skipped, with a note, when a file is missing.
-    #[arg(long, default_value = "../shared/data/brain")]
-    pub mesh_dir: PathBuf,
+    /// Folder with brain_pial_coarse and brain_pial_q15 (`.msh.gz` or `.msh`,
+    /// millimetres) [default: the shipped assets/brain]; the real-brain cases
+    /// are skipped, with a note, when a file is missing.
+    #[arg(long)]
+    pub mesh_dir: Option<PathBuf>,
     /// Timed frames per case (after the warm-up).
     #[arg(long, default_value_t = 40)]
     pub frames: usize,
@@ -27,7 +28,8 @@ pub struct CollisionArgs {
 
 pub fn collision(args: &CollisionArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.frames > 0, "--frames must be at least 1");
-    let surfaces = bench::standard_surfaces(&args.mesh_dir, args.only.as_deref(), &mut |n| println!("note: {n}")).map_err(anyhow::Error::msg)?;
+    let mesh_dir = args.mesh_dir.clone().unwrap_or_else(fissure::mesh::brain::shipped_dir);
+    let surfaces = bench::standard_surfaces(&mesh_dir, args.only.as_deref(), &mut |n| println!("note: {n}")).map_err(anyhow::Error::msg)?;
     anyhow::ensure!(!surfaces.is_empty(), "no case matches --only {:?}", args.only);
     let cases: Vec<(&BenchSurface, u32)> = surfaces.iter().flat_map(|(s, n)| n.iter().map(move |&k| (s, k))).collect();
     println!("collision stage, {} timed frames a case after {} warm-up; {} CPU threads in rayon's pool", args.frames, args.warmup, rayon::current_num_threads());

@@ -47,7 +47,7 @@ impl BenchSurface {
 }
 
 /// The standard cases: paper-12k at 150 / 500 / 2000 nodes a face, and the real
-/// brains in `mesh_dir` (`brain_pial_coarse.msh`, `brain_pial_q15.msh`) at 500 /
+/// brains in `mesh_dir` (`brain_pial_coarse` and `brain_pial_q15`, `.msh.gz` or `.msh`) at 500 /
 /// 2000; only surfaces whose name contains `only`, when given. A brain file that
 /// is missing is skipped with a note; one that does not load is an error.
 pub fn standard_surfaces(mesh_dir: &std::path::Path, only: Option<&str>, note: &mut dyn FnMut(String)) -> Result<Vec<(BenchSurface, Vec<u32>)>, String> {
@@ -56,15 +56,14 @@ pub fn standard_surfaces(mesh_dir: &std::path::Path, only: Option<&str>, note: &
     if wanted("paper-12k") {
         surfaces.push((BenchSurface::paper12k()?, vec![150, 500, 2000]));
     }
-    for (file, name) in [("brain_pial_coarse.msh", "brain-coarse"), ("brain_pial_q15.msh", "brain-q15")] {
-        let path = mesh_dir.join(file);
+    for (stem, name) in [(crate::mesh::brain::COARSE, "brain-coarse"), (crate::mesh::brain::FINE, "brain-q15")] {
         if !wanted(name) {
             continue;
         }
-        if !path.exists() {
-            note(format!("{} not found; the {name} cases are skipped", path.display()));
+        let Some(path) = crate::mesh::brain::find_in(mesh_dir, stem) else {
+            note(format!("neither {stem}.msh.gz nor {stem}.msh is in {}; the {name} cases are skipped", mesh_dir.display()));
             continue;
-        }
+        };
         surfaces.push((BenchSurface::tet_mesh_mm(&path, name).map_err(|e| format!("{}: {e}", path.display()))?, vec![500, 2000]));
     }
     Ok(surfaces)

@@ -6,6 +6,7 @@
 //! and its [`BoundarySurface`] with outward-oriented triangles.
 //! Stays true: indices are in range, coordinates are finite, volumes are > 0.
 
+pub mod brain;
 pub mod io;
 pub mod phantom;
 pub mod quality;

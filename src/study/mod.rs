@@ -24,6 +24,7 @@ pub mod output;
 pub mod plan;
 pub mod plot;
 pub mod runner;
+pub mod runs_plot;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -103,7 +104,7 @@ pub enum StudyError {
     #[error("mesh {}: {message}", path.display())]
     Mesh { path: PathBuf, message: String },
     #[error(
-        "the brain preset needs a mesh family: put brain_pial_coarse.msh and brain_pial_q15.msh in {}, or pass --mesh COARSE.msh --mesh FINE.msh (millimetres)",
+        "the brain preset needs a mesh family: brain_pial_coarse.msh.gz and brain_pial_q15.msh.gz are missing from {} (they ship with fissure: restore them from the repository), or pass --mesh COARSE.msh --mesh FINE.msh (millimetres)",
         dir.display()
     )]
     NoBrainMeshes { dir: PathBuf },
@@ -221,7 +222,7 @@ pub fn run_study_until(
     let mesh_files = match (options.meshes.is_empty(), options.preset) {
         (false, _) => options.meshes.clone(),
         (true, StudyPreset::Brain) => plan::real_brain_family().ok_or_else(|| StudyError::NoBrainMeshes {
-            dir: Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/brain")).to_path_buf(),
+            dir: crate::mesh::brain::shipped_dir(),
         })?,
         (true, _) => Vec::new(),
     };

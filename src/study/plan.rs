@@ -95,7 +95,7 @@ impl MeshChoice {
         match self {
             MeshChoice::Scene => "scene".into(),
             MeshChoice::Phantom(p) => p.clone(),
-            MeshChoice::File { path, .. } => path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "file".into()),
+            MeshChoice::File { path, .. } => crate::mesh::brain::label(path),
         }
     }
 }
@@ -467,12 +467,11 @@ pub fn backend_name(b: CollisionBackend) -> &'static str {
     }
 }
 
-/// The real brains beside the checkout (`../shared/data/brain/`), coarsest
-/// first, when both are present.
+/// The shipped real brains (`assets/brain/`), coarsest first, when both are present.
 pub fn real_brain_family() -> Option<Vec<PathBuf>> {
-    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/brain"));
-    let family: Vec<PathBuf> = ["brain_pial_coarse.msh", "brain_pial_q15.msh"].iter().map(|f| dir.join(f)).collect();
-    family.iter().all(|p| p.exists()).then_some(family)
+    use crate::mesh::brain;
+    let dir = brain::shipped_dir();
+    [brain::COARSE, brain::FINE].iter().map(|stem| brain::find_in(&dir, stem)).collect()
 }
 
 /// Lowest height of each connected component fixed on a mesh file (the real

@@ -1,4 +1,4 @@
-//! Shared helpers for the integration tests: small structured meshes and scenario text.
+//! Shared code for the integration tests: small structured meshes and scenario text.
 #![allow(dead_code)]
 
 pub mod scenes;
@@ -39,14 +39,10 @@ pub fn write_mesh(dir: &Path, name: &str, mesh: &TetMesh) -> PathBuf {
     path
 }
 
-/// The path of a real brain mesh, or None (with a message) when `../shared` is absent.
-pub fn real_brain(file: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/brain").join(file);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipping: {} is absent (no ../shared beside the checkout)", p.display());
-        None
-    }
+/// The path of a shipped real brain mesh (`fissure::mesh::brain::COARSE` or `FINE`).
+pub fn real_brain(stem: &str) -> PathBuf {
+    let p = fissure::mesh::brain::shipped(stem);
+    assert!(p.is_file(), "{} is missing from the checkout", p.display());
+    p
 }
 pub mod xvfb;

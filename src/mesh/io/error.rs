@@ -67,6 +67,12 @@ pub enum MeshFileErrorKind {
     NonFiniteField { name: String, index: usize },
     #[error("XML: {0}")]
     Xml(String),
+    /// A `.gz` file whose compressed stream is broken or truncated.
+    #[error("not a valid gzip file ({0})")]
+    Gzip(String),
+    /// A `.gz` file whose content is larger than the cap for its kind.
+    #[error("decompresses to more than the {} limit for {what}", crate::fsio::bytes(*cap))]
+    Inflated { cap: u64, what: &'static str },
 }
 
 impl MeshFileError {

@@ -3,7 +3,9 @@
 //! In: a path. Tet meshes: Gmsh `.msh` (2.2 and 4.1, ASCII and binary), VTK
 //! legacy `.vtk` (ASCII and binary), VTK XML `.vtu` (ASCII, inline base64,
 //! appended raw or base64; uncompressed), TetGen `.node`/`.ele`. Surfaces: OBJ
-//! and STL (ASCII and binary). Out: a validated [`TetMesh`] or a
+//! and STL (ASCII and binary). Any of them may be gzip-compressed, named with
+//! `.gz` after its own extension (`brain.msh.gz`): read and written through
+//! the same readers and writers. Out: a validated [`TetMesh`] or a
 //! [`TriSurface`], coordinates AS IN THE FILE (the scenario scales mm -> m).
 //! Export: `.vtu` (point and cell data, ParaView opens it), `.msh` (Gmsh 2.2
 //! ASCII), `.vtk` (legacy ASCII), surfaces to `.obj` / `.stl`, and `.pvd` time
@@ -114,7 +116,7 @@ pub enum TetFormat {
 }
 
 impl TetFormat {
-    const EXPECTED: &'static str = ".msh, .vtk, .vtu, .node or .ele";
+    const EXPECTED: &'static str = ".msh, .vtk, .vtu, .node or .ele (each may end in .gz)";
 
     /// The format named by `path`'s extension (case-insensitive).
     pub fn from_path(path: &Path) -> Result<Self, MeshFileError> {
@@ -131,24 +133,71 @@ impl TetFormat {
     }
 }
 
+/// The format's extension, lower case, looking through a trailing `.gz`
+/// (`brain.msh.gz` -> `msh`).
 fn extension(path: &Path) -> String {
-    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
+    let outer = |p: &Path| p.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    if is_gzip(path) { path.file_stem().map(|stem| outer(Path::new(stem))).unwrap_or_default() } else { outer(path) }
 }
 
-/// Reads a mesh or surface file: a regular file within `cap`, else an error naming it.
+/// Whether `path` names a gzip-compressed file (`.gz`, any case).
+fn is_gzip(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gz"))
+}
+
+/// `path` with its format extension replaced by `ext`, keeping a trailing `.gz`
+/// (the TetGen sibling of `mesh.ele.gz` is `mesh.node.gz`).
+fn sibling(path: &Path, ext: &str) -> std::path::PathBuf {
+    if is_gzip(path) {
+        let inner = path.with_extension("");
+        inner.with_extension(format!("{ext}.gz"))
+    } else {
+        path.with_extension(ext)
+    }
+}
+
+/// Reads a mesh or surface file: a regular file within `cap`, else an error
+/// naming it; a `.gz` file is decompressed, its content within `cap` too (a
+/// small file that inflates without end is refused, not read into memory).
 fn read_capped(path: &Path, cap: Cap) -> Result<Vec<u8>, MeshFileError> {
-    fsio::read_regular(path, cap).map_err(|e| match e {
+    let bytes = fsio::read_regular(path, cap).map_err(|e| match e {
         fsio::ReadError::Refused { refusal, .. } => MeshFileError::new(path, MeshFileErrorKind::Refused(refusal)),
         fsio::ReadError::Io { source, .. } => MeshFileError::io(path, source),
-    })
+    })?;
+    if is_gzip(path) { gunzip(path, &bytes, cap) } else { Ok(bytes) }
+}
+
+/// The content of the gzip stream `bytes` (every member, as `gzip -d` reads them).
+fn gunzip(path: &Path, bytes: &[u8], cap: Cap) -> Result<Vec<u8>, MeshFileError> {
+    use std::io::Read;
+    let mut out = Vec::with_capacity(bytes.len().saturating_mul(4));
+    flate2::read::MultiGzDecoder::new(bytes)
+        .take(cap.bytes.saturating_add(1))
+        .read_to_end(&mut out)
+        .map_err(|e| MeshFileError::new(path, MeshFileErrorKind::Gzip(e.to_string())))?;
+    if out.len() as u64 > cap.bytes {
+        return Err(MeshFileError::new(path, MeshFileErrorKind::Inflated { cap: cap.bytes, what: cap.what }));
+    }
+    Ok(out)
 }
 
 fn read(path: &Path) -> Result<Vec<u8>, MeshFileError> {
     read_capped(path, Cap::MESH)
 }
 
-/// Writes a whole output file (temporary name, then rename: never a partial file).
+/// Writes a whole output file (temporary name, then rename: never a partial
+/// file), gzip-compressed when `path` ends in `.gz` (no time stamp in the
+/// header, so the same mesh gives the same bytes).
 fn write(path: &Path, bytes: &[u8]) -> Result<(), MeshFileError> {
+    let compressed;
+    let bytes = if is_gzip(path) {
+        use std::io::Write;
+        let mut encoder = flate2::GzBuilder::new().mtime(0).write(Vec::new(), flate2::Compression::best());
+        compressed = encoder.write_all(bytes).and_then(|()| encoder.finish()).map_err(|e| MeshFileError::io(path, e))?;
+        &compressed[..]
+    } else {
+        bytes
+    };
     fsio::write_atomic(path, bytes).map_err(|e| MeshFileError::io(path, e.source))
 }
 
@@ -160,8 +209,8 @@ pub fn load_tet_mesh(path: &Path) -> Result<TetMesh, MeshFileError> {
         TetFormat::VtkLegacy => vtk::parse(path, &read(path)?),
         TetFormat::Vtu => vtu::parse(path, &read(path)?),
         TetFormat::TetGen => {
-            let node_path = path.with_extension("node");
-            let ele_path = path.with_extension("ele");
+            let node_path = sibling(path, "node");
+            let ele_path = sibling(path, "ele");
             tetgen::parse(&node_path, &read(&node_path)?, &ele_path, &read(&ele_path)?)
         }
     }
@@ -231,8 +280,8 @@ pub fn save_tet_mesh(path: &Path, mesh: &TetMesh, fields: &FieldData) -> Result<
                 ));
             }
             let (node, ele) = tetgen::write(mesh);
-            write(&path.with_extension("node"), node.as_bytes())?;
-            write(&path.with_extension("ele"), ele.as_bytes())
+            write(&sibling(path, "node"), node.as_bytes())?;
+            write(&sibling(path, "ele"), ele.as_bytes())
         }
     }
 }
@@ -263,4 +312,34 @@ pub fn save_surface(path: &Path, surface: &TriSurface) -> Result<(), MeshFileErr
 /// s, file name relative to the `.pvd`). Times must be finite.
 pub fn write_pvd(path: &Path, entries: &[(f64, String)]) -> Result<(), MeshFileError> {
     write(path, vtu::write_pvd(path, entries)?.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_format_is_named_through_a_trailing_gz() {
+        assert_eq!(extension(Path::new("a/brain.msh.gz")), "msh");
+        assert_eq!(extension(Path::new("brain.VTU.GZ")), "vtu");
+        assert_eq!(extension(Path::new("brain.msh")), "msh");
+        assert_eq!(extension(Path::new("brain.gz")), "");
+        assert_eq!(sibling(Path::new("d/m.ele.gz"), "node"), Path::new("d/m.node.gz"));
+        assert_eq!(sibling(Path::new("d/m.ele"), "node"), Path::new("d/m.node"));
+    }
+
+    #[test]
+    fn a_stream_that_inflates_past_the_cap_is_refused() {
+        use std::io::Write;
+        let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+        encoder.write_all(&vec![b'0'; 1 << 20]).unwrap();
+        let bomb = encoder.finish().unwrap();
+        assert!(bomb.len() < 4096, "a MiB of zeros packs small ({} bytes)", bomb.len());
+        let cap = Cap { bytes: 1000, what: "a mesh file" };
+        let e = gunzip(Path::new("bomb.msh.gz"), &bomb, cap).expect_err("over the cap");
+        assert!(matches!(e.kind, MeshFileErrorKind::Inflated { .. }), "{e}");
+        assert!(e.to_string().starts_with("bomb.msh.gz: decompresses to more than"), "{e}");
+        let fits = Cap { bytes: 1 << 20, what: "a mesh file" };
+        assert_eq!(gunzip(Path::new("ok.gz"), &bomb, fits).unwrap().len(), 1 << 20);
+    }
 }
