@@ -49,8 +49,8 @@ fn install_logging() {
 /// The window on a software renderer (Mesa's llvmpipe, where no GPU is) must
 /// leave the simulation a core: llvmpipe rasterizes on every core by default,
 /// and on two cores the simulation's step p95 was 5.9-6.4 ms at 1280x800 under
-/// Xvfb against 1.5-1.9 ms with one llvmpipe thread (README, "The window's
-/// frame time"). Sets
+/// Xvfb against 1.5-1.9 ms with one llvmpipe thread (docs/performance.md,
+/// "The window's frame time"). Sets
 /// `LP_NUM_THREADS` to cores - 1 for a windowed run unless the user set it; a
 /// real GPU's driver never reads it.
 fn leave_a_core_for_the_simulation(args: &cli::Cli) {
@@ -69,7 +69,23 @@ fn leave_a_core_for_the_simulation(args: &cli::Cli) {
     unsafe { std::env::set_var("LP_NUM_THREADS", cores.saturating_sub(1).max(1).to_string()) };
 }
 
+/// Output piped into a reader that stops early (`fissure mesh info M --json |
+/// head`) ends the program quietly, as it ends any Unix tool, instead of a
+/// panic in `println!`. Rust ignores SIGPIPE by default; the default action is
+/// restored for the process. Sockets are not affected: the standard library
+/// sends on a `TcpStream` with `MSG_NOSIGNAL`, so a tracker that drops its
+/// connection still comes back as an error the OpenIGTLink server handles.
+fn quiet_on_closed_pipes() {
+    #[cfg(target_os = "linux")]
+    // SAFETY: called first thing in `main`, before any other thread exists;
+    // resetting a signal's disposition to its default has no other effect.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
+    quiet_on_closed_pipes();
     let args = cli::Cli::parse();
     leave_a_core_for_the_simulation(&args);
     install_logging();

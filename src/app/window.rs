@@ -44,7 +44,7 @@ use winit::window::{Window, WindowId};
 /// Why the window could not run.
 #[derive(Debug, thiserror::Error)]
 pub enum WindowError {
-    #[error("no display to open a window on ({0})")]
+    #[error("no display ({0})")]
     NoDisplay(String),
     #[error("no usable GPU adapter for the window ({0})")]
     NoAdapter(String),
@@ -193,10 +193,36 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
+/// What is missing for a window, in the user's words, when it can be told
+/// before the windowing system is asked: on Linux and the BSDs, neither
+/// `DISPLAY` (X11) nor `WAYLAND_DISPLAY` is set.
+fn missing_display() -> Option<String> {
+    let unix_desktop = cfg!(all(unix, not(target_os = "macos"), not(target_os = "ios"), not(target_os = "android")));
+    let unset = |name: &str| std::env::var_os(name).is_none_or(|v| v.is_empty());
+    (unix_desktop && unset("DISPLAY") && unset("WAYLAND_DISPLAY")).then(|| "DISPLAY and WAYLAND_DISPLAY are unset".to_string())
+}
+
+/// The windowing system's error without the source location it prefixes
+/// (`os error at <crate>/src/....rs:765: `): what failed, not where in a dependency.
+fn display_error(e: &dyn std::fmt::Display) -> String {
+    let text = e.to_string();
+    let Some(start) = text.find("os error at ") else { return text };
+    let rest = &text[start + "os error at ".len()..];
+    // The location ends at ".rs:<line>: ".
+    let cut = rest.find(".rs:").and_then(|i| rest[i + 4..].find(": ").map(|j| i + 4 + j + 2));
+    match cut {
+        Some(end) => format!("{}{}", &text[..start], &rest[end..]),
+        None => text,
+    }
+}
+
 /// Runs the window on `scenario` until closed; see the module docs.
 pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSummary, WindowError> {
     let rumble_on = options.rumble;
-    let event_loop = EventLoop::new().map_err(|e| WindowError::NoDisplay(e.to_string()))?;
+    if let Some(missing) = missing_display() {
+        return Err(WindowError::NoDisplay(missing));
+    }
+    let event_loop = EventLoop::new().map_err(|e| WindowError::NoDisplay(display_error(&e)))?;
     event_loop.set_control_flow(ControlFlow::Poll);
 
     // OpenIGTLink server when any spatula is bound to it.
@@ -764,7 +790,7 @@ impl ApplicationHandler for App {
         let window = match event_loop.create_window(attributes) {
             Ok(w) => Arc::new(w),
             Err(e) => {
-                self.error = Some(WindowError::NoDisplay(e.to_string()));
+                self.error = Some(WindowError::NoDisplay(display_error(&e)));
                 event_loop.exit();
                 return;
             }
@@ -880,6 +906,14 @@ impl ApplicationHandler for App {
 mod tests {
     use super::*;
     use std::path::Path;
+
+    #[test]
+    fn a_display_error_reads_without_the_dependency_source_location() {
+        let winit = "os error at /root/.cargo/registry/src/index.crates.io-1949cf8c6b5b557f/winit-0.30.13/src/platform_impl/linux/mod.rs:765: neither WAYLAND_DISPLAY nor WAYLAND_SOCKET nor DISPLAY is set.";
+        assert_eq!(display_error(&winit), "neither WAYLAND_DISPLAY nor WAYLAND_SOCKET nor DISPLAY is set.");
+        assert_eq!(display_error(&"failed to open display :99"), "failed to open display :99");
+        assert_eq!(display_error(&"os error at nowhere"), "os error at nowhere");
+    }
 
     /// `--record-dir` wins over the scenario's `outputs.record_dir`, which
     /// wins over the user's data directory (never the working directory

@@ -154,7 +154,7 @@ pub fn run(scenario: Option<&Path>, set: &[String], headless_only: bool, args: &
             Ok(())
         }
         Err(e @ (WindowError::NoDisplay(_) | WindowError::NoAdapter(_))) => {
-            eprintln!("fissure: {e}; running {} headless instead", path.display());
+            eprintln!("fissure: {e}; running {} headless instead (the same scene without a window; its timings follow)", path.display());
             headless(&path, set)
         }
         Err(e) => Err(e).context("running the window"),

@@ -92,6 +92,23 @@ pub struct BladeTravel {
     pub time_s: f64,
 }
 
+/// A blade that starts inside the tissue.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BladeInside {
+    /// Spatula index.
+    pub spatula: usize,
+    /// The pose is the played trajectory's at time 0 (else the scenario's initial pose).
+    pub from_trajectory: bool,
+    /// Depth below the tissue's surface of the blade's deepest sample point, m.
+    pub depth: f64,
+    /// Where that point is, world, m.
+    pub deepest: Vec3,
+    /// How many of the blade's sample points lie inside, of `samples`.
+    pub inside: usize,
+    /// Sample points over the blade's mid-plane.
+    pub samples: usize,
+}
+
 /// Everything checked before a build, and what the checks found.
 pub struct Preflight {
     /// The mesh and its fixed nodes.
@@ -100,6 +117,8 @@ pub struct Preflight {
     pub poses: PoseSource,
     /// The largest travel a step of each spatula that moves (empty without a trajectory).
     pub travel: Vec<BladeTravel>,
+    /// The blades whose first pose lies inside the tissue (each warned about).
+    pub inside_at_start: Vec<BladeInside>,
     /// The scenario's warnings, then the played motion's.
     pub warnings: Vec<ScenarioWarning>,
 }
@@ -154,7 +173,141 @@ pub fn preflight_with_mesh(scenario: &Scenario, mesh: TetMesh, trajectory: Optio
             ));
         }
     }
-    Ok(Preflight { mesh, poses, travel, warnings })
+    let inside_at_start = blades_inside_at_start(scenario, &mesh.mesh, &poses);
+    for b in &inside_at_start {
+        let name = &scenario.spatulas[b.spatula].name;
+        let p = b.deepest / MM;
+        let (field, when) = match (&played, b.from_trajectory) {
+            (Some(t), true) => ("trajectory".to_string(), format!("at the first pose of the trajectory {}", t.display())),
+            _ => (format!("spatulas[{}]", b.spatula), "at its initial pose".to_string()),
+        };
+        warnings.push(scenario.warning(
+            &field,
+            format!(
+                "spatula {} (\"{name}\") starts inside the tissue {when}: {} of its blade's {} sample points are inside, the \
+                 deepest {:.2} mm below the surface at ({:.1}, {:.1}, {:.1}) mm. The first frame pulls the tissue around it onto the \
+                 blade's faces: vertices pulled through and a failed integrity check are likely. Start the blade outside the tissue \
+                 and let the trajectory bring it in",
+                b.spatula, b.inside, b.samples, b.depth / MM, p.x, p.y, p.z
+            ),
+        ));
+    }
+    Ok(Preflight { mesh, poses, travel, inside_at_start, warnings })
+}
+
+/// Sample points over a blade's mid-plane in its own frame: a grid of
+/// `ALONG` x `ACROSS` from the handle end to the tip and edge to edge.
+fn blade_samples(shape: &SpatulaShape) -> Vec<Vec3> {
+    const ALONG: usize = 13;
+    const ACROSS: usize = 5;
+    let mut out = Vec::with_capacity(ALONG * ACROSS);
+    for i in 0..ALONG {
+        for j in 0..ACROSS {
+            let x = shape.length * i as f64 / (ALONG - 1) as f64;
+            let y = shape.width * (j as f64 / (ACROSS - 1) as f64 - 0.5);
+            out.push(Vec3::new(x, y, 0.0));
+        }
+    }
+    out
+}
+
+/// The blades whose first pose (the initial pose, or the played trajectory's
+/// pose at time 0) puts part of the blade inside the mesh: a sample point is
+/// inside when the boundary's winding number about it exceeds one half (the
+/// boundary is closed and oriented outwards), and its depth is its distance
+/// to the nearest boundary triangle.
+pub fn blades_inside_at_start(scenario: &Scenario, mesh: &TetMesh, poses: &PoseSource) -> Vec<BladeInside> {
+    let surface = mesh.boundary();
+    let positions = surface.gather_positions(&mesh.positions);
+    let (lo, hi) = crate::mesh::bounding_box(&mesh.positions);
+    let mut first = FrameInput::default();
+    poses.poses_at(0.0, &mut first);
+    let mut found = Vec::new();
+    for (s, spatula) in scenario.spatulas.iter().enumerate() {
+        let samples = blade_samples(&spatula.shape);
+        let mut candidates = vec![(spatula.initial_pose, false)];
+        if let Some(Some(p)) = first.poses.get(s).filter(|_| poses.trajectory_end().is_some()) {
+            candidates.push((*p, true));
+        }
+        let mut worst: Option<BladeInside> = None;
+        for (pose, from_trajectory) in candidates {
+            let world: Vec<Vec3> = samples.iter().map(|q| pose.transform_point(q)).collect();
+            let inside: Vec<Vec3> = world
+                .iter()
+                .copied()
+                .filter(|p| (0..3).all(|k| p[k] >= lo[k] && p[k] <= hi[k]))
+                .filter(|p| winding_number(&surface.triangles, &positions, p) > 0.5)
+                .collect();
+            let deepest = inside
+                .iter()
+                .map(|p| (distance_to_surface(&surface.triangles, &positions, p), *p))
+                .fold(None::<(f64, Vec3)>, |best, c| if best.is_none_or(|b| c.0 > b.0) { Some(c) } else { best });
+            if let Some((depth, point)) = deepest
+                && worst.is_none_or(|w| depth > w.depth)
+            {
+                worst = Some(BladeInside { spatula: s, from_trajectory, depth, deepest: point, inside: inside.len(), samples: samples.len() });
+            }
+        }
+        found.extend(worst);
+    }
+    found
+}
+
+/// The generalised winding number of a closed triangle surface about `p`:
+/// 1 inside, 0 outside (the sum of the triangles' solid angles over 4 pi,
+/// Van Oosterom and Strackee's formula).
+fn winding_number(triangles: &[[u32; 3]], positions: &[Vec3], p: &Vec3) -> f64 {
+    let mut total = 0.0;
+    for t in triangles {
+        let (a, b, c) = (positions[t[0] as usize] - p, positions[t[1] as usize] - p, positions[t[2] as usize] - p);
+        let (la, lb, lc) = (a.norm(), b.norm(), c.norm());
+        let numerator = a.dot(&b.cross(&c));
+        let denominator = la * lb * lc + a.dot(&b) * lc + a.dot(&c) * lb + b.dot(&c) * la;
+        total += 2.0 * numerator.atan2(denominator);
+    }
+    total / (4.0 * std::f64::consts::PI)
+}
+
+/// Distance from `p` to the nearest triangle of the surface.
+fn distance_to_surface(triangles: &[[u32; 3]], positions: &[Vec3], p: &Vec3) -> f64 {
+    triangles
+        .iter()
+        .map(|t| (closest_on_triangle(p, &positions[t[0] as usize], &positions[t[1] as usize], &positions[t[2] as usize]) - p).norm_squared())
+        .fold(f64::INFINITY, f64::min)
+        .sqrt()
+}
+
+/// The point of triangle `abc` nearest `p` (Ericson, Real-Time Collision Detection, 5.1.5).
+fn closest_on_triangle(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Vec3 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return *a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return *b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return *c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
 }
 
 fn mesh_field(scenario: &Scenario) -> &'static str {
