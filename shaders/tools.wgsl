@@ -1,4 +1,4 @@
-// Tools and helpers: metallic blades (fs_lit, opaque), translucent skull
+// Tools and overlays: metallic blades (fs_lit, opaque), translucent skull
 // spheres (fs_lit with the vertex alpha, blended), overlay squares and pair
 // ribbons (fs_unlit). Same vertex format and globals as surface.wgsl.
 

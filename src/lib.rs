@@ -3,7 +3,7 @@
 //! Data flows input -> spatula poses -> collision (rays, His-flag culling) ->
 //! enforced displacements -> skull constraints -> FEM (exact constrained solve)
 //! -> deformed surface, reaction forces -> renderer / replay metrics.
-//! See `DESIGN.md` for the map. The simulation core (`mesh`, `geometry`,
+//! See `ARCHITECTURE.md` for the map. The simulation core (`mesh`, `geometry`,
 //! `collision`, `fem`, `sim`, `scenario`) never imports `render`, `ui` or `input`;
 //! files a user names are read, and final outputs written, through [`fsio`].
 

@@ -1,5 +1,5 @@
 //! The compliance disk cache: reload equals compute, corrupt or mismatched
-//! files are rebuilt (never trusted), and contact pressure helpers.
+//! files are rebuilt (never trusted), and the contact pressure functions.
 
 #[path = "fem_common/mod.rs"]
 mod common;

@@ -111,7 +111,7 @@ fn assert_paper(preset: Preset, nodes: usize, tets: usize, surface: usize) {
     let c = check(preset);
     assert!(within(c.nodes, nodes, 0.15), "{preset}: {} nodes, paper {nodes} (±15%)", c.nodes);
     assert!(within(c.tets, tets, 0.15), "{preset}: {} tets, paper {tets} (±15%)", c.tets);
-    assert!(within(c.surface, surface, 0.15), "{preset}: {} surface triangles, paper {surface} (±15%, issue #2)", c.surface);
+    assert!(within(c.surface, surface, 0.15), "{preset}: {} surface triangles, paper {surface} (±15%, the paper's count)", c.surface);
 }
 
 #[test]
@@ -128,7 +128,7 @@ fn paper_12k_matches_the_papers_counts() {
 fn small_and_blocks_are_about_5000_tets_under_1500_triangles() {
     for preset in [Preset::Small, Preset::VValley, Preset::UShape] {
         let c = check(preset);
-        // Issue #2: about 5,000 tets, taken as 4,250..5,750.
+        // The small presets' target: about 5,000 tets, taken as 4,250..5,750.
         assert!((4_250..=5_750).contains(&c.tets), "{preset}: {} tets, expected about 5,000 (4,250..5,750)", c.tets);
         assert!(c.surface < 1_500, "{preset}: {} surface triangles, expected under 1,500", c.surface);
     }

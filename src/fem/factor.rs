@@ -4,7 +4,7 @@
 //! In: the lower triangle of `K_FF` ([`LowerCsc`]). Out: a [`SparseCholesky`]
 //! that solves `K_FF X = B` in place for any number of right-hand sides.
 //! Stays true: symbolic analysis happens once, the numeric factor once per
-//! material set; solves run on one core (`Par::Seq`, see DESIGN.md) and allocate
+//! material set; solves run on one core (`Par::Seq`: on this class of 2-core machine two threads made sparse solves slower, and the other core runs background work or rendering) and allocate
 //! only the scratch sized for their column count.
 
 use super::FemError;

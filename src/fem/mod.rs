@@ -7,8 +7,8 @@
 //! interior displacements and per-tet stress.
 //! Stays true: `K_FF` is factored once ([`FemModel`]); the surface compliance
 //! is precomputed once ([`Compliance`], cached on disk); a frame is a gather,
-//! a small dense Cholesky and one dense product (see DESIGN.md, "The FEM,
-//! precisely"). Phases, one file each: `element` (tet stiffness) ->
+//! a small dense Cholesky and one dense product (see ARCHITECTURE.md,
+//! "One frame"). Phases, one file each: `element` (tet stiffness) ->
 //! `assembly` -> `factor` -> `model` -> `compliance` -> `constrained`
 //! (+ `dense`, skull rows inside) -> `stress`, `contact`.
 

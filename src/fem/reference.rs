@@ -3,7 +3,7 @@
 //! In: a mesh, per-tet Lamé parameters, prescribed values per global DOF
 //! (`3 * node + component`, m) and optional nodal forces (N). Out: all nodal
 //! displacements and the reaction (N) at every prescribed DOF.
-//! This is the accuracy reference of DESIGN.md for the fast path (and the
+//! This is the accuracy reference for the fast path (and the
 //! vehicle of the closed-form verification tests, which need roller conditions
 //! the node-level `fixed` set cannot express). Not for per-frame use.
 //! Stays true: exact up to round-off; a singular system is a typed error.

@@ -246,8 +246,8 @@ mod tests {
         assert_eq!(action_of(KeyCode::KeyZ, false), None);
     }
 
-    /// The issue: Tab moved the focus into the panel and the keys stopped
-    /// driving the blades. Tab and Esc always end with the keys on the scene.
+    /// Tab never moves the focus into the panel (the keys would stop
+    /// driving the blades): Tab and Esc always end with the keys on the scene.
     #[test]
     fn tab_and_esc_never_leave_the_keys_in_the_panel() {
         assert_eq!(route(KeyCode::Tab, false, true, false), KeyRoute::Scene(KeyAction::Blade(Key::Tab)), "Tab on the scene picks the next blade");

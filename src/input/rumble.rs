@@ -82,7 +82,7 @@ const GAIN_STEP: f32 = 0.01;
 pub struct Rumble {
     effect: Option<(GamepadId, gilrs::ff::Effect)>,
     gain: f32,
-    /// Pads whose force feedback failed: not tried again this session.
+    /// Pads whose force feedback failed: not tried again until fissure restarts.
     failed: Vec<(GamepadId, String)>,
 }
 

@@ -142,7 +142,7 @@ mod tests {
             assert!(l < last, "luminance must fall with pressure: {k} mmHg gave {l} after {last}");
             last = l;
         }
-        // The issue: 6-12 mmHg was invisible on the old white->red 0-40 scale.
+        // 6-12 mmHg must be visible (it was not on a white->red 0-40 scale).
         let blue = m.color_srgb8(8.0, (0.0, 30.0))[2];
         assert!(blue < 140, "8 mmHg of 30 must be clearly yellow (blue channel {blue})");
     }

@@ -518,7 +518,7 @@ mod tests {
     }
 
     /// The panel names blades as the scene does, marks the active one and
-    /// says where the keys go (the issue: "Spatula left/right", no focus cue).
+    /// says where the keys go (not "Spatula left/right" with no cue of the key focus).
     #[test]
     fn panel_uses_the_scene_names_marks_the_active_blade_and_the_key_focus() {
         let names = ["frontal".to_string(), "temporal".to_string(), "third".to_string()];

@@ -1,4 +1,4 @@
-//! Shared helpers of the `fem_*` integration tests: small structured meshes,
+//! Shared code of the `fem_*` integration tests: small structured meshes,
 //! materials, and relative error measures.
 #![allow(dead_code)]
 
