@@ -1,6 +1,6 @@
 //! `fissure solve` run as a user would: the uniaxial patch test through the
 //! binary (exact linear field read back from the written `.vtu`, reactions
-//! summing to E A strain), Gmsh node tags with a mm mesh, the README's example,
+//! summing to E A strain), Gmsh node tags with a mm mesh, the example in docs/usage.md,
 //! and every bad input refused with a non-zero exit naming the file at fault.
 
 use std::fmt::Write as _;
@@ -209,7 +209,7 @@ fn gmsh_node_tags_and_a_millimetre_mesh_give_the_same_field() {
 }
 
 #[test]
-fn the_readme_example_runs() {
+fn the_usage_example_runs() {
     let dir = tempfile::tempdir().expect("tmp");
     let mesh = dir.path().join("p.msh");
     let made = fissure(&["mesh", "phantom", "--preset", "small", "-o", s(&mesh)]);
@@ -219,11 +219,11 @@ fn the_readme_example_runs() {
         "solve", s(&mesh), "--young-modulus-pa", "3000", "--poisson-ratio", "0.45", "--fixed", "assets/solve/phantom_small_fixed.json",
         "--enforced", "assets/solve/phantom_small_enforced.json", "-o", s(&out),
     ]);
-    assert!(run.status.success(), "the README example must run: {}", text(&run.stderr));
-    let readme = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).expect("README");
+    assert!(run.status.success(), "the example in docs/usage.md must run: {}", text(&run.stderr));
+    let usage = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/usage.md")).expect("docs/usage.md");
     assert!(
-        readme.contains("fissure solve /tmp/p.msh --young-modulus-pa 3000 --poisson-ratio 0.45 --fixed assets/solve/phantom_small_fixed.json"),
-        "the README shows this command"
+        usage.contains("fissure solve /tmp/p.msh --young-modulus-pa 3000 --poisson-ratio 0.45 --fixed assets/solve/phantom_small_fixed.json"),
+        "docs/usage.md shows this command"
     );
     let (_, fields) = io::load_vtu_with_fields(&out).expect("reads back");
     let u = vector(&fields, "displacement_m");

@@ -7,7 +7,7 @@
 //! (it picks one with 1, 2, … or Tab); a pure function of its inputs and the
 //! blade's take-over flag, so tests drive it without a window.
 //!
-//! Rules (the README's "Who moves a blade"):
+//! Rules (docs/usage.md, "Who moves a blade"):
 //! - `Keyboard`: the keys, while the blade is the active one.
 //! - `Gamepad`: the pad (while LB / RB has it selected) and the keys (while it
 //!   is the active one) both move it: their velocities add.
