@@ -465,3 +465,30 @@ fn refine_validates_and_refines_the_loaded_mesh() {
     let message = err.to_string();
     assert!(message.contains(&path.display().to_string()) && message.contains("refine") && message.contains("give a larger edge length"), "{message}");
 }
+
+#[test]
+fn the_pose_filter_defaults_to_the_tracker_and_refuses_non_physical_parameters() {
+    let path = config_dir().join("sylvian.ron");
+    let load = |set: &[&str]| Scenario::load(&path, &set.iter().map(|s| s.to_string()).collect::<Vec<_>>());
+    // The shipped default scene: keyboard and gamepad, no filter.
+    let s = load(&[]).expect("default scene");
+    assert!(s.spatulas.iter().all(|sp| sp.filter.is_none()));
+    // A tracker gets the One Euro filter with its defaults, unless the scene says Off.
+    let s = load(&["spatulas[0].input=OpenIgtLink(device: \"S1\")"]).expect("tracker");
+    let f = s.spatulas[0].filter.expect("Auto gives a tracker the filter");
+    assert_eq!((f.min_cutoff_hz, f.beta_per_m, f.d_cutoff_hz), (1.0, 50.0, 1.0), "0.05 Hz per mm/s is 50 Hz per m/s");
+    let s = load(&["spatulas[0].input=OpenIgtLink(device: \"S1\")", "spatulas[0].filter=Off"]).expect("off");
+    assert!(s.spatulas[0].filter.is_none());
+    let s = load(&["spatulas[1].filter=OneEuro(min_cutoff_hz: 2.5)"]).expect("explicit");
+    assert_eq!(s.spatulas[1].filter.map(|f| (f.min_cutoff_hz, f.beta_per_m)), Some((2.5, 50.0)));
+    for (set, field) in [
+        ("spatulas[0].filter=OneEuro(min_cutoff_hz: 0.0)", "spatulas[0].filter.min_cutoff_hz"),
+        ("spatulas[1].filter=OneEuro(beta_hz_per_mm_s: -1.0)", "spatulas[1].filter.beta_hz_per_mm_s"),
+        ("spatulas[0].filter=OneEuro(d_cutoff_hz: 1e400)", "spatulas[0].filter.d_cutoff_hz"),
+    ] {
+        let e = load(&[set]).expect_err(set).to_string();
+        assert!(e.contains(field), "{set}: {e}");
+    }
+    let e = load(&["spatulas[0].filter=Kalman"]).expect_err("unknown filter").to_string();
+    assert!(e.contains("filter"), "{e}");
+}

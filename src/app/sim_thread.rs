@@ -613,15 +613,19 @@ fn run_loop(
                 for (peak, s) in exit.peak_force_n.iter_mut().zip(&report.spatulas) {
                     *peak = peak.max(s.force.norm());
                 }
-                history.rows.push((b.state.time_s, b.state.poses.clone()));
+                // The input as it came (before the scenario's pose filter, which
+                // a replay of the recording applies again in the same frames),
+                // or the pose the blade kept where the input was refused.
+                let raw: Vec<Pose> = input.poses.iter().zip(&b.state.poses).map(|(i, s)| i.filter(Pose::is_valid).unwrap_or(*s)).collect();
                 if let Some(r) = recorder.as_mut() {
                     let t = b.state.time_s - r.origin_s;
-                    if let Some(e) = b.state.poses.iter().enumerate().find_map(|(k, p)| r.recorder.record(t, k, p).err()) {
+                    if let Some(e) = raw.iter().enumerate().find_map(|(k, p)| r.recorder.record(t, k, p).err()) {
                         let path = r.recorder.path().display().to_string();
                         recording_failed(shared, format!("recording stopped: {e} (the rows before are kept in {path})"));
                         recorder = None;
                     }
                 }
+                history.rows.push((b.state.time_s, raw));
                 if let Some(h) = &haptics {
                     let model = HapticModel::of_frame(&b.pipeline, &b.state.poses, &report, &mut scratch);
                     h.publish(Arc::new(model));

@@ -101,6 +101,10 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
         } else {
             println!("  {}: peak force {:.3} N (contact pressure not simulated: add ContactPressure to effects)", s.name, s.peak_force_n);
         }
+        println!(
+            "  {}: force change from one frame to the next at most {:.4} N, p95 {:.4} N",
+            s.name, s.max_force_jump_n, s.p95_force_jump_n
+        );
     }
     println!("  max displacement {:.2} mm, tissue pulled through a blade: {} vertices (max in a frame)", summary.max_displacement_mm, summary.max_crossed_vertices);
     if let Some(b) = &summary.collision_backend {

@@ -1,7 +1,7 @@
 //! The scenario file as written: serde types in human units (`_mm`, `_pa`, `_s`,
 //! `_deg` in the names), every struct with `deny_unknown_fields`.
 //!
-//! In: RON text (see `config/*.ron` and the README for every field). Out: a
+//! In: RON text (see `config/*.ron` and docs/usage.md for every field). Out: a
 //! [`ScenarioFile`] that has the right shape but is not yet checked for ranges
 //! or consistency: [`crate::scenario::Scenario::validate`] does that and converts
 //! to SI. Optional fields have the defaults documented on each.
@@ -59,7 +59,7 @@ pub struct ScenarioFile {
     pub time_step_s: f64,
     /// Length of a headless run, s (> 0).
     pub duration_s: f64,
-    /// A recorded pose track (CSV, see the README), relative to this file's
+    /// A recorded pose track (CSV, see docs/usage.md), relative to this file's
     /// folder: it must exist, parse, and have no rows for a spatula index the
     /// scene lacks. Default `None`.
     #[serde(default)]
@@ -267,6 +267,58 @@ pub struct SpatulaFile {
     pub pose: PoseFile,
     /// What moves it.
     pub input: InputFile,
+    /// Smoothing of the poses its input sends (default `Auto`).
+    #[serde(default)]
+    pub filter: FilterFile,
+}
+
+/// Smoothing of a spatula's input poses before the simulation plays them.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum FilterFile {
+    /// The One Euro filter with its defaults for an OpenIGTLink tracker
+    /// (absolute poses from a noisy pointing device: an optical tracker
+    /// jitters by some 0.1-0.5 mm); none for the keyboard, the gamepad (they
+    /// send velocities, integrated from the pose the blade holds, which a
+    /// filter behind them would slow down) or a trajectory.
+    #[default]
+    Auto,
+    /// The poses as they come.
+    Off,
+    /// `OneEuro(min_cutoff_hz: 1.0, beta_hz_per_mm_s: 0.05, d_cutoff_hz: 1.0)`:
+    /// a low-pass whose cut-off is `min_cutoff_hz` for a still blade and rises
+    /// by `beta_hz_per_mm_s` for each mm/s of the blade tip's speed, which is
+    /// itself smoothed with `d_cutoff_hz` (Casiez et al., CHI 2012). Lower
+    /// `min_cutoff_hz` steadies a still blade more and lags more; higher
+    /// `beta_hz_per_mm_s` lags less in fast moves and lets more jitter through.
+    OneEuro {
+        /// Cut-off for a still blade, Hz (> 0; default 1).
+        #[serde(default = "default_min_cutoff_hz")]
+        min_cutoff_hz: f64,
+        /// Added cut-off per mm/s of tip speed, Hz (>= 0; default 0.05).
+        #[serde(default = "default_beta_hz_per_mm_s")]
+        beta_hz_per_mm_s: f64,
+        /// Cut-off of the speed estimate, Hz (> 0; default 1).
+        #[serde(default = "default_d_cutoff_hz")]
+        d_cutoff_hz: f64,
+    },
+}
+
+fn default_min_cutoff_hz() -> f64 {
+    1.0
+}
+fn default_beta_hz_per_mm_s() -> f64 {
+    0.05
+}
+fn default_d_cutoff_hz() -> f64 {
+    1.0
+}
+
+impl FilterFile {
+    /// The One Euro filter's defaults (what `Auto` gives a tracker or a gamepad).
+    pub fn one_euro_defaults() -> Self {
+        FilterFile::OneEuro { min_cutoff_hz: default_min_cutoff_hz(), beta_hz_per_mm_s: default_beta_hz_per_mm_s(), d_cutoff_hz: default_d_cutoff_hz() }
+    }
 }
 
 /// Blade dimensions: `(length_mm: 60.0, width_mm: 8.0, thickness_mm: 0.5)`.

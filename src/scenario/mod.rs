@@ -1,7 +1,7 @@
 //! Scenarios: what a simulation is, read from a RON file in two steps.
 //!
 //! In: a `.ron` file (human units: `_mm`, `_pa`, `_s`, `_deg` in the field
-//! names; see `config/*.ron` and the README), and `--set PATH=VALUE` overrides.
+//! names; see `config/*.ron` and docs/usage.md), and `--set PATH=VALUE` overrides.
 //! Step 1 ([`file`]): serde into [`ScenarioFile`] with `deny_unknown_fields`
 //! (after the overrides are spliced into the text, [`overrides`]). Step 2
 //! ([`validate`]): ranges and cross-field rules, conversion to SI, into a
@@ -26,7 +26,7 @@ pub use overrides::Document;
 pub use trajectory::{Sample, Trajectory, TrajectoryError, TrajectoryRecorder};
 pub use validate::{
     Display, EffectSet, FixedRegion, InputBinding, IntegrityLimits, Material, MeshSource, Outputs, RegionMaterial, RegionOfInterest,
-    NamedView, Refinement, Scenario, Skull, SolverOptions, SpatulaConfig, Sphere, Views, Volume,
+    NamedView, OneEuro, Refinement, Scenario, Skull, SolverOptions, SpatulaConfig, Sphere, Views, Volume,
 };
 
 impl Scenario {

@@ -21,7 +21,7 @@ use nalgebra::{Matrix3, Rotation3, Unit};
 
 use super::error::{FieldLocations, Location, ScenarioError, ScenarioWarning};
 use super::file::{
-    CollisionBackend, ComplianceStorage, Effect, FixedFile, InputFile, LayoutFile, LengthUnit, MeshSourceFile,
+    CollisionBackend, ComplianceStorage, Effect, FilterFile, FixedFile, InputFile, LayoutFile, LengthUnit, MeshSourceFile,
     RegionOfInterestFile, RotationFile, ScenarioFile, SphereFile, SpatulaContact, VolumeFile,
 };
 use super::overrides::Document;
@@ -177,6 +177,19 @@ pub struct SpatulaConfig {
     pub initial_pose: Pose,
     /// What moves it.
     pub input: InputBinding,
+    /// The smoothing of its input poses (`None`: the poses as they come).
+    pub filter: Option<OneEuro>,
+}
+
+/// The One Euro filter's parameters, SI (see [`crate::scenario::file::FilterFile`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OneEuro {
+    /// Cut-off for a still blade, Hz (> 0).
+    pub min_cutoff_hz: f64,
+    /// Added cut-off per m/s of the blade tip's speed, Hz / (m/s) = 1/m (>= 0).
+    pub beta_per_m: f64,
+    /// Cut-off of the speed estimate, Hz (> 0).
+    pub d_cutoff_hz: f64,
 }
 
 /// The set of effects a scene asked for; iteration in [`Effect::ALL`] order.
@@ -709,7 +722,27 @@ impl Scenario {
                     InputBinding::Trajectory
                 }
             };
-            spatulas.push(SpatulaConfig { name: s.name.clone(), shape, layout, initial_pose, input });
+            let filter_file = match (&s.filter, &input) {
+                (FilterFile::Auto, InputBinding::OpenIgtLink { .. }) => FilterFile::one_euro_defaults(),
+                (FilterFile::Auto, _) => FilterFile::Off,
+                (other, _) => other.clone(),
+            };
+            let filter = match filter_file {
+                FilterFile::OneEuro { min_cutoff_hz, beta_hz_per_mm_s, d_cutoff_hz } => {
+                    let ff = format!("{field}.filter");
+                    let beta = c.finite(&format!("{ff}.beta_hz_per_mm_s"), beta_hz_per_mm_s)?;
+                    if beta < 0.0 {
+                        return Err(c.invalid(&format!("{ff}.beta_hz_per_mm_s"), format!("must be >= 0, got {beta}")));
+                    }
+                    Some(OneEuro {
+                        min_cutoff_hz: c.positive(&format!("{ff}.min_cutoff_hz"), min_cutoff_hz)?,
+                        beta_per_m: beta * 1e3,
+                        d_cutoff_hz: c.positive(&format!("{ff}.d_cutoff_hz"), d_cutoff_hz)?,
+                    })
+                }
+                FilterFile::Auto | FilterFile::Off => None,
+            };
+            spatulas.push(SpatulaConfig { name: s.name.clone(), shape, layout, initial_pose, input, filter });
         }
 
         let mut effects = EffectSet::default();

@@ -7,6 +7,7 @@
 //! function of the reports (bitwise deterministic replays give identical bytes);
 //! timing columns end in `_ms`.
 
+use crate::math::Vec3;
 use super::report::{FrameReport, PASCALS_PER_MMHG, RETRACTION_DANGER_MMHG, StageId};
 use serde::Serialize;
 use std::fs::File;
@@ -38,6 +39,8 @@ pub struct MetricsWriter {
     path: PathBuf,
     stages: Vec<StageId>,
     spatulas: usize,
+    /// Each spatula's force in the previous row (zero before the first).
+    previous_force: Vec<Vec3>,
     line: String,
 }
 
@@ -46,12 +49,12 @@ impl MetricsWriter {
     /// `spatula_names` name the per-spatula columns.
     pub fn create(path: &Path, stages: &[StageId], spatula_names: &[String]) -> Result<Self, OutputError> {
         let file = File::create(path).map_err(|e| OutputError::new(path, e))?;
-        let mut w = Self { out: file, committed: 0, path: path.to_path_buf(), stages: stages.to_vec(), spatulas: spatula_names.len(), line: String::new() };
+        let mut w = Self { out: file, committed: 0, path: path.to_path_buf(), stages: stages.to_vec(), spatulas: spatula_names.len(), previous_force: vec![Vec3::zeros(); spatula_names.len()], line: String::new() };
         let mut header = vec!["frame".to_string(), "time_s".to_string()];
         header.extend(stages.iter().map(|s| format!("{}_ms", s.name())));
         header.push("frame_ms".into());
         for name in spatula_names {
-            for col in ["candidate_pairs", "culled_pairs", "feasible_pairs", "constrained_vertices", "force_n", "force_x_n", "force_y_n", "force_z_n", "contact_area_mm2", "contact_vertices", "mean_pressure_mmhg"] {
+            for col in ["candidate_pairs", "culled_pairs", "feasible_pairs", "constrained_vertices", "force_n", "force_x_n", "force_y_n", "force_z_n", "contact_area_mm2", "contact_vertices", "mean_pressure_mmhg", "force_jump_n"] {
                 header.push(format!("{name}_{col}"));
             }
         }
@@ -95,9 +98,11 @@ impl MetricsWriter {
         let _ = write!(l, ",{:.4}", r.times.total() * 1e3);
         for k in 0..self.spatulas {
             let s = r.spatulas.get(k).copied().unwrap_or_default();
+            let jump = (s.force - self.previous_force[k]).norm();
+            self.previous_force[k] = s.force;
             let _ = write!(
                 l,
-                ",{},{},{},{},{},{},{},{},{},{},{}",
+                ",{},{},{},{},{},{},{},{},{},{},{},{}",
                 s.candidate_pairs,
                 s.culled_pairs,
                 s.feasible_pairs,
@@ -108,7 +113,8 @@ impl MetricsWriter {
                 s.force.z,
                 s.contact_area_m2 * 1e6,
                 s.contact_vertices,
-                s.mean_pressure_mmhg()
+                s.mean_pressure_mmhg(),
+                jump
             );
         }
         let _ = write!(
@@ -147,9 +153,13 @@ impl Percentiles {
         }
         let mut v = seconds.to_vec();
         v.sort_by(|a, b| a.total_cmp(b));
-        let rank = |p: f64| v[((p * v.len() as f64).ceil() as usize).clamp(1, v.len()) - 1] * 1e3;
-        Self { p50_ms: rank(0.5), p95_ms: rank(0.95), max_ms: v[v.len() - 1] * 1e3 }
+        Self { p50_ms: nearest_rank(&v, 0.5) * 1e3, p95_ms: nearest_rank(&v, 0.95) * 1e3, max_ms: v[v.len() - 1] * 1e3 }
     }
+}
+
+/// The nearest-rank `p` quantile of a sorted, non-empty sample.
+fn nearest_rank(sorted: &[f64], p: f64) -> f64 {
+    sorted[((p * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len()) - 1]
 }
 
 /// Per-spatula summary numbers.
@@ -162,6 +172,11 @@ pub struct SpatulaSummary {
     pub time_above_20mmhg_s: f64,
     /// Integral of (pressure - 20 mmHg) over the time above it, mmHg*s.
     pub pressure_time_above_20mmhg_mmhg_s: f64,
+    /// Largest change of the force vector from one frame to the next, N
+    /// (what a hand on a haptic device feels as a jolt).
+    pub max_force_jump_n: f64,
+    /// 95th percentile (nearest rank) of those changes over the frames, N.
+    pub p95_force_jump_n: f64,
 }
 
 /// `summary.json`.
@@ -223,6 +238,9 @@ pub struct SummaryBuilder {
     frame_seconds: Vec<f64>,
     summary: Summary,
     last_time: f64,
+    /// Each spatula's force in the previous frame and its frame-to-frame changes so far.
+    previous_force: Vec<Vec3>,
+    force_jumps: Vec<Vec<f64>>,
 }
 
 impl SummaryBuilder {
@@ -235,6 +253,8 @@ impl SummaryBuilder {
                 spatulas: spatula_names.iter().map(|n| SpatulaSummary { name: n.clone(), ..Default::default() }).collect(),
                 ..Default::default()
             },
+            previous_force: vec![Vec3::zeros(); spatula_names.len()],
+            force_jumps: vec![Vec::new(); spatula_names.len()],
             ..Default::default()
         }
     }
@@ -264,7 +284,11 @@ impl SummaryBuilder {
         }
         self.frame_seconds.push(r.times.total());
         let danger_pa = RETRACTION_DANGER_MMHG * PASCALS_PER_MMHG;
-        for (acc, s) in self.summary.spatulas.iter_mut().zip(&r.spatulas) {
+        for (k, (acc, s)) in self.summary.spatulas.iter_mut().zip(&r.spatulas).enumerate() {
+            let jump = (s.force - self.previous_force[k]).norm();
+            self.previous_force[k] = s.force;
+            self.force_jumps[k].push(jump);
+            acc.max_force_jump_n = acc.max_force_jump_n.max(jump);
             acc.peak_force_n = acc.peak_force_n.max(s.force.norm());
             acc.peak_pressure_mmhg = acc.peak_pressure_mmhg.max(s.mean_pressure_mmhg());
             if s.mean_pressure_pa > danger_pa {
@@ -294,6 +318,12 @@ impl SummaryBuilder {
     pub fn finish(mut self, final_state_hash: String, interrupted: bool) -> Summary {
         self.summary.stages = self.stages.iter().zip(&self.stage_seconds).map(|(s, v)| (*s, Percentiles::of(v))).collect();
         self.summary.frame = Percentiles::of(&self.frame_seconds);
+        for (acc, jumps) in self.summary.spatulas.iter_mut().zip(&mut self.force_jumps) {
+            if !jumps.is_empty() {
+                jumps.sort_by(|a, b| a.total_cmp(b));
+                acc.p95_force_jump_n = nearest_rank(jumps, 0.95);
+            }
+        }
         self.summary.simulated_s = self.last_time;
         self.summary.final_state_hash = final_state_hash;
         self.summary.interrupted = interrupted;
@@ -343,6 +373,35 @@ mod tests {
         assert!((s.spatulas[0].time_above_20mmhg_s - 0.1).abs() < 1e-12);
         assert!((s.spatulas[0].pressure_time_above_20mmhg_mmhg_s - 1.0).abs() < 1e-9);
         assert!((s.spatulas[0].peak_pressure_mmhg - 30.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn force_jumps_are_the_changes_of_the_force_vector_between_frames() {
+        let mut b = SummaryBuilder::new("t", &[], &["a".into()]);
+        let mut r = FrameReport { spatulas: vec![Default::default()], ..Default::default() };
+        // 0 -> 1 N along x (jump 1), -> 1 N along y (jump sqrt 2), held (jump 0).
+        for force in [Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)] {
+            r.spatulas[0].force = force;
+            b.add(&r, 0.01);
+        }
+        let s = b.finish(String::new(), false);
+        assert_eq!(s.spatulas[0].max_force_jump_n, 2f64.sqrt());
+        assert_eq!(s.spatulas[0].p95_force_jump_n, 2f64.sqrt(), "nearest rank of three: the largest");
+        // metrics.csv carries the same change on each row.
+        let dir = std::env::temp_dir().join(format!("fissure-jumps-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("metrics.csv");
+        let mut w = MetricsWriter::create(&path, &[], &["a".into()]).unwrap();
+        for force in [Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)] {
+            r.spatulas[0].force = force;
+            w.write(&r).unwrap();
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        std::fs::remove_dir_all(&dir).ok();
+        let rows: Vec<Vec<&str>> = text.lines().map(|l| l.split(',').collect()).collect();
+        let col = rows[0].iter().position(|h| *h == "a_force_jump_n").expect("a force-jump column");
+        assert_eq!(rows[1][col].parse::<f64>().unwrap(), 1.0);
+        assert_eq!(rows[2][col].parse::<f64>().unwrap(), 2f64.sqrt());
     }
 
     #[test]

@@ -9,6 +9,7 @@ pub mod build;
 pub mod metrics;
 pub mod monitor;
 pub mod pipeline;
+pub mod pose_filter;
 pub mod preflight;
 pub mod replay;
 pub mod report;

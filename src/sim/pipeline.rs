@@ -179,6 +179,9 @@ pub struct Pipeline {
     /// Poses at the start of the frame and the frame's target poses.
     frame_start_poses: Vec<Pose>,
     target_poses: Vec<Pose>,
+    /// Each spatula's input smoothing (the scenario's `filter`), applied to
+    /// the frame's input before sub-steps are counted.
+    pose_filters: Vec<Option<super::pose_filter::PoseFilter>>,
     /// The rows of the last sub-step that converged, and the collision history
     /// before the current one: what an iteration cap puts back.
     feasible_constraints: Vec<Constraint>,
@@ -215,6 +218,7 @@ impl Pipeline {
             previous_poses: scenario.spatulas.iter().map(|s| s.initial_pose).collect(),
             frame_start_poses: Vec::new(),
             target_poses: Vec::new(),
+            pose_filters: scenario.spatulas.iter().map(|s| s.filter.map(|f| super::pose_filter::PoseFilter::new(f, &s.shape))).collect(),
             feasible_constraints: Vec::new(),
             saved_history: Default::default(),
             saved_claims: Vec::new(),
@@ -362,11 +366,18 @@ impl Pipeline {
         r.max_penetration_m = 0.0;
         self.frame_start_poses.clone_from(&state.poses);
         self.target_poses.clone_from(&state.poses);
-        for (slot, new) in self.target_poses.iter_mut().zip(&input.poses) {
-            match new {
-                Some(p) if p.is_valid() => *slot = *p,
-                Some(_) => r.rejected_poses += 1,
-                None => {}
+        for ((slot, new), filter) in self.target_poses.iter_mut().zip(&input.poses).zip(&mut self.pose_filters) {
+            let accepted = match new {
+                Some(p) if p.is_valid() => Some(*p),
+                Some(_) => {
+                    r.rejected_poses += 1;
+                    None
+                }
+                None => None,
+            };
+            match filter {
+                Some(f) => *slot = f.apply(frame, self.time_step, accepted, slot),
+                None => *slot = accepted.unwrap_or(*slot),
             }
         }
         for s in r.spatulas.iter_mut() {
