@@ -9,6 +9,7 @@ mod bench;
 mod check;
 mod frames;
 mod mesh;
+mod plot;
 mod replay;
 mod run;
 mod study;
@@ -94,9 +95,12 @@ pub enum Command {
         #[arg(long)]
         strict: bool,
     },
+    /// Plot replay runs against time: force, mean contact pressure (with the 20 mmHg
+    /// line) and contact vertices per blade; several runs overlay, a colour a run.
+    Plot(plot::PlotArgs),
     /// Measure what accuracy costs in time: sweeps, results.csv, report.md and plots.
     Study {
-        /// quick (minutes, paper-9k: the README's table), full (paper-12k, three phantom resolutions), ci (a short plan the tests re-run against docs/study/ci/report.md) or brain (the real brains, coarse against q15: ../shared/data/brain/ or --mesh).
+        /// quick (minutes, paper-9k: the README's table), full (paper-12k, three phantom resolutions), ci (a short plan the tests re-run against docs/study/ci/report.md) or brain (the real brains, coarse against q15: the shipped assets/brain/ or --mesh).
         #[arg(long, value_enum, default_value = "quick")]
         preset: StudyPresetArg,
         /// The study scene (default: config/study_fissure.ron).
@@ -215,6 +219,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Replay { scenario, set, trajectory, out, vtk, frames, strict }) => {
             replay::run(replay::ReplayArgs { scenario: &scenario, set: &set, trajectory, out, vtk, frames, strict }).map(|_| ())
         }
+        Some(Command::Plot(args)) => plot::run(&args),
         Some(Command::Study { preset, scene, out, knobs, meshes, cache_dir }) => {
             let preset = match preset {
                 StudyPresetArg::Quick => fissure::study::StudyPreset::Quick,

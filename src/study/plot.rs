@@ -27,7 +27,8 @@ pub const SIZE: (u32, u32) = (1100, 720);
 /// Pixel size of the panel-per-knob figure.
 pub const KNOBS_SIZE: (u32, u32) = (1400, 1500);
 
-const FONT: &str = "sans-serif";
+/// The font family of every plot (plotters' `ttf` feature finds it through fontconfig).
+pub(crate) const FONT: &str = "sans-serif";
 
 fn knob_color(k: Option<Knob>) -> RGBColor {
     match k {
@@ -98,7 +99,8 @@ fn log_range(values: impl Iterator<Item = f64>, default: (f64, f64)) -> (f64, f6
     if lo.is_finite() && hi > 0.0 { (lo / 2.0, hi * 2.0) } else { default }
 }
 
-type Res = Result<(), String>;
+/// What a drawing step returns: plotters' error, in words.
+pub(crate) type Res = Result<(), String>;
 
 /// Tick text on a log axis: only mantissas 1, 2 and 5 are labelled, compactly.
 fn log_tick(v: &f64) -> String {
@@ -113,7 +115,8 @@ fn log_tick(v: &f64) -> String {
     if (1e-3..1e5).contains(v) { format!("{}", (v * 1e4).round() / 1e4) } else { format!("{v:.0e}") }
 }
 
-fn err<E: std::fmt::Display>(e: E) -> String {
+/// Any plotters error, in words.
+pub(crate) fn err<E: std::fmt::Display>(e: E) -> String {
     e.to_string()
 }
 
@@ -469,24 +472,38 @@ fn draw<DB: DrawingBackend>(plot: Plot, root: &DrawingArea<DB, Shift>, results: 
     }
 }
 
+/// `draw` on an RGB bitmap of `size` pixels in memory, encoded as PNG
+/// (nothing touches a file: the caller writes the bytes whole).
+pub(crate) fn png_bytes<F>(size: (u32, u32), draw: F) -> Result<Vec<u8>, String>
+where
+    F: FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Res,
+{
+    let mut rgb = vec![0u8; size.0 as usize * size.1 as usize * 3];
+    draw(&BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area())?;
+    let image = image::RgbImage::from_raw(size.0, size.1, rgb).ok_or("the bitmap has the wrong size")?;
+    let mut encoded = std::io::Cursor::new(Vec::new());
+    image.write_to(&mut encoded, image::ImageFormat::Png).map_err(err)?;
+    Ok(encoded.into_inner())
+}
+
+/// `draw` on an SVG document of `size` pixels, as text.
+pub(crate) fn svg_text<F>(size: (u32, u32), draw: F) -> Result<String, String>
+where
+    F: FnOnce(&DrawingArea<SVGBackend<'_>, Shift>) -> Res,
+{
+    let mut text = String::new();
+    draw(&SVGBackend::with_string(&mut text, size).into_drawing_area())?;
+    Ok(text)
+}
+
 fn both(out_dir: &Path, stem: &str, results: &StudyResults, plot: Plot) -> Result<Vec<PathBuf>, StudyError> {
     let png = out_dir.join(format!("{stem}.png"));
     let svg = out_dir.join(format!("{stem}.svg"));
     let size = plot.size();
     // Drawn in memory, then each file written whole (never a partial plot on a full disk).
-    let mut rgb = vec![0u8; size.0 as usize * size.1 as usize * 3];
-    let drawn = draw(plot, &BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area(), results);
-    drawn.map_err(|message| StudyError::Plot { path: png.clone(), message })?;
-    let image = image::RgbImage::from_raw(size.0, size.1, rgb)
-        .ok_or_else(|| StudyError::Plot { path: png.clone(), message: "the bitmap has the wrong size".into() })?;
-    let mut encoded = std::io::Cursor::new(Vec::new());
-    image
-        .write_to(&mut encoded, image::ImageFormat::Png)
-        .map_err(|e| StudyError::Plot { path: png.clone(), message: e.to_string() })?;
-    crate::fsio::write_atomic(&png, encoded.get_ref()).map_err(|e| StudyError::Output { path: e.path, source: e.source })?;
-    let mut text = String::new();
-    let drawn = draw(plot, &SVGBackend::with_string(&mut text, size).into_drawing_area(), results);
-    drawn.map_err(|message| StudyError::Plot { path: svg.clone(), message })?;
+    let encoded = png_bytes(size, |root| draw(plot, root, results)).map_err(|message| StudyError::Plot { path: png.clone(), message })?;
+    crate::fsio::write_atomic(&png, &encoded).map_err(|e| StudyError::Output { path: e.path, source: e.source })?;
+    let text = svg_text(size, |root| draw(plot, root, results)).map_err(|message| StudyError::Plot { path: svg.clone(), message })?;
     crate::fsio::write_atomic(&svg, text.as_bytes()).map_err(|e| StudyError::Output { path: e.path, source: e.source })?;
     Ok(vec![png, svg])
 }
