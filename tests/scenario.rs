@@ -426,11 +426,11 @@ fn refine_validates_and_refines_the_loaded_mesh() {
     let text = sylvian_text().replacen(anchor, &format!("    refine: Some((edge_mm: 3.0, within: [{volume}])),\n{anchor}"), 1);
     let (_dir, _path, set) = load_text(&text);
     let s = set.expect("a valid refine");
-    let r = s.refine.clone().expect("refine read");
+    let fissure::scenario::RefineChoice::Given(r) = s.refine.clone() else { panic!("refine read: {:?}", s.refine) };
     assert!((r.edge - 0.003).abs() < 1e-15 && r.within.len() == 1, "mm to m: {r:?}");
     assert!(r.within[0].contains(&Vec3::new(-0.068, 0.01, -0.0117)), "the Sylvian entry is inside");
 
-    let coarse = fissure::sim::build::load_mesh(&Scenario::load(&config_dir().join("sylvian.ron"), &[]).expect("valid")).expect("phantom");
+    let coarse = fissure::sim::build::load_mesh(&Scenario::load(&config_dir().join("sylvian.ron"), &["refine=None".into()]).expect("valid")).expect("phantom");
     let fine = fissure::sim::build::load_mesh(&s).expect("refined phantom");
     assert_eq!(fine.positions[..coarse.node_count()], coarse.positions[..], "every input node kept, same index");
     assert!(fine.node_count() > coarse.node_count() + 50, "{} -> {} nodes", coarse.node_count(), fine.node_count());
@@ -491,4 +491,50 @@ fn the_pose_filter_defaults_to_the_tracker_and_refuses_non_physical_parameters()
     }
     let e = load(&["spatulas[0].filter=Kalman"]).expect_err("unknown filter").to_string();
     assert!(e.contains("filter"), "{e}");
+}
+
+/// `refine: Auto`: where the blades reach along the scenario's
+/// trajectory, every boundary edge is at most a quarter of the narrowest
+/// blade's width; away from them the mesh is as it was; the refined mesh is
+/// the same from one load to the next, and `refine: None` leaves the mesh
+/// untouched. A scene with no trajectory and no region-of-interest sphere is
+/// not refined.
+#[test]
+fn refine_auto_refines_where_the_trajectory_takes_the_blades() {
+    use fissure::sim::build::{AUTO_REFINE_EDGES_ACROSS, auto_edge, load_mesh};
+    let path = config_dir().join("sylvian.ron");
+    assert_eq!(Scenario::load(&path, &[]).expect("default scene").refine, fissure::scenario::RefineChoice::Off, "no refinement unless asked");
+    let auto = Scenario::load(&path, &["refine=Auto".into()]).expect("Auto");
+    assert_eq!(auto.refine, fissure::scenario::RefineChoice::Auto);
+    let edge = auto_edge(&auto);
+    let narrowest = auto.spatulas.iter().map(|s| s.shape.width).fold(f64::INFINITY, f64::min);
+    assert_eq!(edge, narrowest / AUTO_REFINE_EDGES_ACROSS);
+    let off = load_mesh(&Scenario::load(&path, &["refine=None".into()]).expect("None")).expect("unrefined");
+    let fine = load_mesh(&auto).expect("auto-refined");
+    assert_eq!(fine.positions[..off.node_count()], off.positions[..], "every input node kept, same index");
+    assert!(fine.node_count() > off.node_count(), "{} -> {} nodes", off.node_count(), fine.node_count());
+    let again = load_mesh(&auto).expect("again");
+    assert_eq!((again.positions.len(), &again.tets), (fine.positions.len(), &fine.tets), "deterministic");
+    // Where a blade's tip ends (the trajectory's last pose), the surface's edges are at most `edge`.
+    let tip = |s: &fissure::scenario::SpatulaConfig, pose: &fissure::geometry::Pose| pose.transform_point(&Vec3::new(s.shape.length, 0.0, 0.0));
+    let last = fissure::sim::replay::PoseSource::for_scenario(&auto, None).expect("poses").samples(auto.duration, 1).pop().expect("a set");
+    let tips: Vec<Vec3> = auto.spatulas.iter().zip(&last).map(|(s, p)| tip(s, p)).collect();
+    let surface = fine.boundary();
+    let (mut near, mut longest_far) = (0, 0.0_f64);
+    for t in &surface.triangles {
+        for (i, j) in [(0, 1), (1, 2), (2, 0)] {
+            let (p, q) = (fine.positions[surface.vertices[t[i] as usize] as usize], fine.positions[surface.vertices[t[j] as usize] as usize]);
+            let mid = (p + q) * 0.5;
+            if tips.iter().any(|t| (mid - t).norm() < 0.004) {
+                near += 1;
+                assert!((p - q).norm() <= edge + 1e-12, "an edge at a blade tip is {} mm (wanted <= {} mm)", (p - q).norm() * 1e3, edge * 1e3);
+            } else if tips.iter().all(|t| (mid - t).norm() > 0.05) {
+                longest_far = longest_far.max((p - q).norm());
+            }
+        }
+    }
+    assert!(near > 10 && longest_far > 1.5 * edge, "{near} edges at the tips; longest 5 cm away {} mm", longest_far * 1e3);
+    // No trajectory and no sphere: nothing to refine around.
+    let bare = Scenario::load(&path, &["refine=Auto".into(), "trajectory=None".into(), "spatulas[0].input=Keyboard".into(), "spatulas[1].input=Keyboard".into()]).expect("no trajectory");
+    assert_eq!(load_mesh(&bare).expect("bare").node_count(), off.node_count());
 }

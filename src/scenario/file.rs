@@ -17,14 +17,20 @@ pub struct ScenarioFile {
     /// Where the brain mesh comes from.
     pub mesh: MeshSourceFile,
     /// Local refinement of the mesh's boundary where the blades work, so a
-    /// blade holds a patch of many vertices: `Some((edge_mm: 1.0, within:
-    /// [Box(min_mm: (..), max_mm: (..))]))`. Every boundary edge whose
-    /// midpoint is in one of the volumes is split (longest-edge bisection,
-    /// conforming; interior edges only as that rule needs) until it is at
-    /// most `edge_mm` long. A function of the scenario alone, so a replay
-    /// sees the mesh the window saw. Default `None`.
+    /// blade holds a patch of many vertices. `None` (the default): the mesh
+    /// as it is. `Auto`: where the blades reach along the scenario's own
+    /// trajectory (or, without one, inside its `region_of_interest` sphere),
+    /// to edges of a quarter of the narrowest blade's width, so each blade
+    /// face spans at least four edges across (several times the contact
+    /// vertices, and the frame costs more with them). `Some((edge_mm: 1.0,
+    /// within: [Box(min_mm: (..), max_mm: (..))]))`: inside the given
+    /// volumes, to `edge_mm`. Every boundary edge whose midpoint is in the region is split
+    /// (longest-edge bisection, conforming; interior edges only as that rule
+    /// needs) until it is no longer than the edge length. A function of the
+    /// scenario alone (not of a `--trajectory` a replay plays), so a replay
+    /// sees the mesh the window saw.
     #[serde(default)]
-    pub refine: Option<RefineFile>,
+    pub refine: RefineChoiceFile,
     /// Linear elastic material of the brain.
     pub material: MaterialFile,
     /// Nodes held fixed (at least one entry; their union is fixed). Checked
@@ -198,6 +204,20 @@ pub enum FixedFile {
         /// Height of the fixed slab above each component's lowest point, mm (> 0).
         height_mm: f64,
     },
+}
+
+/// Where the boundary is refined: `Auto`, `None` or `Some((edge_mm: .., within: [..]))`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub enum RefineChoiceFile {
+    /// Where the blades reach, to a quarter of the narrowest blade's width.
+    Auto,
+    /// No refinement.
+    #[default]
+    #[serde(rename = "None")]
+    Off,
+    /// Inside the given volumes, to the given edge length.
+    #[serde(rename = "Some")]
+    Given(RefineFile),
 }
 
 /// Local boundary refinement: `(edge_mm: 1.0, within: [Sphere(center_mm: (..), radius_mm: 15.0)])`.

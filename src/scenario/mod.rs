@@ -26,7 +26,7 @@ pub use overrides::Document;
 pub use trajectory::{Sample, Trajectory, TrajectoryError, TrajectoryRecorder};
 pub use validate::{
     Display, EffectSet, FixedRegion, InputBinding, IntegrityLimits, Material, MeshSource, Outputs, RegionMaterial, RegionOfInterest,
-    NamedView, OneEuro, Refinement, Scenario, Skull, SolverOptions, SpatulaConfig, Sphere, Views, Volume,
+    NamedView, OneEuro, RefineChoice, Refinement, Scenario, Skull, SolverOptions, SpatulaConfig, Sphere, Views, Volume,
 };
 
 impl Scenario {

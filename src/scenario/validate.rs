@@ -21,7 +21,7 @@ use nalgebra::{Matrix3, Rotation3, Unit};
 
 use super::error::{FieldLocations, Location, ScenarioError, ScenarioWarning};
 use super::file::{
-    CollisionBackend, ComplianceStorage, Effect, FilterFile, FixedFile, InputFile, LayoutFile, LengthUnit, MeshSourceFile,
+    CollisionBackend, ComplianceStorage, Effect, FilterFile, FixedFile, RefineChoiceFile, InputFile, LayoutFile, LengthUnit, MeshSourceFile,
     RegionOfInterestFile, RotationFile, ScenarioFile, SphereFile, SpatulaContact, VolumeFile,
 };
 use super::overrides::Document;
@@ -138,6 +138,17 @@ pub struct Refinement {
     pub edge: f64,
     /// The volumes (non-empty; their union).
     pub within: Vec<Volume>,
+}
+
+/// Where the mesh's boundary is refined (see [`crate::scenario::file::RefineChoiceFile`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum RefineChoice {
+    /// The mesh as it is.
+    Off,
+    /// Where the blades reach along the scenario's trajectory, to a quarter of the narrowest blade's width.
+    Auto,
+    /// The given volumes and edge length.
+    Given(Refinement),
 }
 
 /// Skull spheres (at least one present).
@@ -337,7 +348,7 @@ pub struct Scenario {
     /// Mesh source.
     pub mesh: MeshSource,
     /// Local refinement of the mesh's boundary, when asked for.
-    pub refine: Option<Refinement>,
+    pub refine: RefineChoice,
     /// Material of every region without an override.
     pub material: Material,
     /// Per-region overrides, sorted by region id, ids unique.
@@ -552,11 +563,12 @@ impl Scenario {
         };
 
         let refine = match &file.refine {
-            None => None,
-            Some(r) => {
+            RefineChoiceFile::Auto => RefineChoice::Auto,
+            RefineChoiceFile::Off => RefineChoice::Off,
+            RefineChoiceFile::Given(r) => {
                 let edge = c.positive("refine.edge_mm", r.edge_mm)? * MM;
                 if r.within.is_empty() {
-                    return Err(c.invalid("refine.within", "give at least one volume (or leave `refine` out)"));
+                    return Err(c.invalid("refine.within", "give at least one volume (or `refine: Auto`, or leave `refine` out)"));
                 }
                 let mut within = Vec::with_capacity(r.within.len());
                 for (i, v) in r.within.iter().enumerate() {
@@ -571,7 +583,7 @@ impl Scenario {
                         }
                     });
                 }
-                Some(Refinement { edge, within })
+                RefineChoice::Given(Refinement { edge, within })
             }
         };
 
@@ -904,6 +916,11 @@ impl Scenario {
                 let _ = writeln!(s, "  mesh:      {} ({units:?})", path.display());
             }
         }
+        let _ = match &self.refine {
+            RefineChoice::Off => writeln!(s, "  refine:    none"),
+            RefineChoice::Auto => writeln!(s, "  refine:    Auto (where the blades reach, to a quarter of the narrowest blade's width)"),
+            RefineChoice::Given(r) => writeln!(s, "  refine:    to {} mm inside {} volume(s)", r.edge / MM, r.within.len()),
+        };
         let _ = writeln!(
             s,
             "  material:  E = {} Pa, nu = {}{}",

@@ -19,7 +19,7 @@ use crate::math::Vec3;
 use crate::mesh::TetMesh;
 use crate::mesh::quality::components;
 use crate::scenario::{
-    CollisionBackend, ComplianceStorage as ScenarioStorage, Effect, FixedRegion, MeshSource, RegionOfInterest, Scenario,
+    CollisionBackend, ComplianceStorage as ScenarioStorage, Effect, FixedRegion, MeshSource, RefineChoice, RegionOfInterest, Scenario,
     ScenarioError, TrajectoryError,
 };
 use std::path::PathBuf;
@@ -59,25 +59,95 @@ pub const AUTO_ROI_MARGIN_M: f64 = 0.020;
 /// contact beyond them gets its lazy column in the frame that needs it).
 pub const AUTO_ROI_SKULL_MAX: usize = 64;
 
+/// `refine: Auto` refines to this fraction of the narrowest blade's width: a
+/// blade face then spans at least four edges across, so its force rests on a
+/// patch of vertices rather than on the two or three a coarse surface puts
+/// under it.
+pub const AUTO_REFINE_EDGES_ACROSS: f64 = 4.0;
+
+/// `refine: Auto` refines within this distance (m) beyond a blade's half
+/// width of its centre line, at any pose the scenario's trajectory takes it
+/// to: the face's footprint and a margin for the tissue it pushes aside.
+pub const AUTO_REFINE_MARGIN_M: f64 = 0.003;
+
+/// Pose sets sampled over the scenario's trajectory for `refine: Auto`.
+const AUTO_REFINE_SAMPLES: usize = 200;
+
 /// Loads the scene's mesh in metres, refined where the scenario's `refine` asks.
 pub fn load_mesh(scenario: &Scenario) -> Result<TetMesh, BuildError> {
     let mesh = load_unrefined(scenario)?;
     match &scenario.refine {
-        None => Ok(mesh),
-        Some(r) => refine(scenario, r, &mesh),
+        RefineChoice::Off => Ok(mesh),
+        RefineChoice::Given(r) => refine(scenario, r.edge, &|p: &Vec3| r.within.iter().any(|v| v.contains(p)), &mesh),
+        RefineChoice::Auto => match auto_region(scenario)? {
+            Some(AutoRegion::Blades(segments)) => {
+                let edge = auto_edge(scenario);
+                let (lo, hi) = segments_box(&segments);
+                let inside = |p: &Vec3| {
+                    (0..3).all(|i| p[i] >= lo[i] && p[i] <= hi[i]) && segments.iter().any(|(a, b, r)| distance_to_segment(p, a, b) <= *r)
+                };
+                refine(scenario, edge, &inside, &mesh)
+            }
+            Some(AutoRegion::Sphere(s)) => refine(scenario, auto_edge(scenario), &|p: &Vec3| (p - s.center).norm() <= s.radius, &mesh),
+            None => {
+                tracing::info!("refine Auto: the scenario has no trajectory and no region-of-interest sphere to refine around; the mesh is used as it is");
+                Ok(mesh)
+            }
+        },
     }
 }
 
-/// The scene's boundary refined by `r`; at most four times the nodes.
-fn refine(scenario: &Scenario, r: &crate::scenario::Refinement, mesh: &TetMesh) -> Result<TetMesh, BuildError> {
+/// Where `refine: Auto` refines.
+enum AutoRegion {
+    /// Within each (start, end, radius) of the blades' centre lines over the trajectory.
+    Blades(Vec<(Vec3, Vec3, f64)>),
+    /// The scenario's region-of-interest sphere (a scene without a trajectory).
+    Sphere(crate::scenario::Sphere),
+}
+
+/// The region `refine: Auto` refines: the blades' reach along the scenario's
+/// own trajectory (its initial poses, then the trajectory sampled over the
+/// run), else its region-of-interest sphere, else nothing.
+fn auto_region(scenario: &Scenario) -> Result<Option<AutoRegion>, BuildError> {
+    if scenario.trajectory.is_some() {
+        let poses = super::replay::PoseSource::for_scenario(scenario, None)?;
+        let segments = poses
+            .samples(scenario.duration, AUTO_REFINE_SAMPLES)
+            .iter()
+            .flat_map(|set| blade_segments(scenario, set).map(|(a, b, w)| (a, b, w + AUTO_REFINE_MARGIN_M)).collect::<Vec<_>>())
+            .collect();
+        return Ok(Some(AutoRegion::Blades(segments)));
+    }
+    Ok(match scenario.solver.region_of_interest {
+        RegionOfInterest::Sphere(s) => Some(AutoRegion::Sphere(s)),
+        _ => None,
+    })
+}
+
+/// `refine: Auto`'s edge length: the narrowest blade's width over [`AUTO_REFINE_EDGES_ACROSS`].
+pub fn auto_edge(scenario: &Scenario) -> f64 {
+    scenario.spatulas.iter().map(|s| s.shape.width).fold(f64::INFINITY, f64::min) / AUTO_REFINE_EDGES_ACROSS
+}
+
+/// The box around every (a, b, r) segment grown by its r.
+fn segments_box(segments: &[(Vec3, Vec3, f64)]) -> (Vec3, Vec3) {
+    let (mut lo, mut hi) = (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY));
+    for (a, b, r) in segments {
+        lo = lo.inf(&(a.inf(b) - Vec3::repeat(*r)));
+        hi = hi.sup(&(a.sup(b) + Vec3::repeat(*r)));
+    }
+    (lo, hi)
+}
+
+/// The scene's boundary refined to `edge` (m) where `inside`; at most four times the nodes.
+fn refine(scenario: &Scenario, edge: f64, inside: &dyn Fn(&Vec3) -> bool, mesh: &TetMesh) -> Result<TetMesh, BuildError> {
     let t = std::time::Instant::now();
     let limit = (4 * mesh.node_count()).max(mesh.node_count() + 10_000);
-    let inside = |p: &Vec3| r.within.iter().any(|v| v.contains(p));
-    let (refined, stats) = crate::mesh::refine::refine_boundary(mesh, r.edge, inside, limit)
+    let (refined, stats) = crate::mesh::refine::refine_boundary(mesh, edge, inside, limit)
         .map_err(|e| BuildError::Scenario(scenario.invalid("refine", e.to_string())))?;
     tracing::info!(
         "refined the boundary to {:.2} mm edges: {} nodes added ({} on the boundary), {} -> {} tetrahedra, {:.0} ms",
-        r.edge * 1e3,
+        edge * 1e3,
         stats.splits,
         stats.boundary_splits,
         mesh.tets.len(),
@@ -183,11 +253,7 @@ pub fn region_of_interest(
             // A node within r of a segment is inside the segment's box grown
             // by r: one box test first skips the nodes far from every blade
             // (on the fine brain, most of 37k nodes against 400 segments).
-            let (mut lo, mut hi) = (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY));
-            for (a, b, r) in &segments {
-                lo = lo.inf(&(a.inf(b) - Vec3::repeat(*r)));
-                hi = hi.sup(&(a.sup(b) + Vec3::repeat(*r)));
-            }
+            let (lo, hi) = segments_box(&segments);
             let mut roi: Vec<u32> = surface_nodes
                 .iter()
                 .copied()
