@@ -88,10 +88,13 @@ mod tests {
         Pose { position: Vec3::new(x_mm * 1e-3, 0.0, 0.0), rotation: Quat::identity() }
     }
 
-    /// Deterministic jitter in [-1, 1] (a linear congruential sequence).
+    /// Deterministic jitter in [-1, 1] (SplitMix64 of `k`).
     fn jitter(k: u64) -> f64 {
-        let x = k.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407) >> 11;
-        2.0 * (x as f64 / (1u64 << 53) as f64) - 1.0
+        let mut z = k.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        2.0 * ((z >> 11) as f64 / (1u64 << 53) as f64) - 1.0
     }
 
     #[test]
