@@ -151,7 +151,9 @@ fn replays_with_contacts_outside_the_roi_are_bitwise_identical() {
         if s[count_col] != a[count_col] {
             break;
         }
-        for ((x, y), name) in s.iter().zip(&a).zip(&header) {
+        // A force change is a difference of forces compared just above: its
+        // round-off is the forces', not its own size.
+        for ((x, y), name) in s.iter().zip(&a).zip(&header).filter(|(_, name)| !name.ends_with("_force_jump_n")) {
             if let (Ok(x), Ok(y)) = (x.parse::<f64>(), y.parse::<f64>()) {
                 assert!((x - y).abs() <= 1e-10 * x.abs().max(y.abs()).max(1e-12), "frame {}: {name} {x} with a small ROI, {y} with all", s[0]);
             }
@@ -173,7 +175,8 @@ fn a_noisy_track_through_the_pose_filter_replays_bitwise_and_needs_fewer_substep
     let cache = format!("solver.cache_dir=Some({:?})", dir.path().join("cache").display().to_string());
     let filter = "OneEuro(min_cutoff_hz: 1.0, beta_hz_per_mm_s: 0.05, d_cutoff_hz: 1.0)";
     let load = |filtered: bool| {
-        let mut set = vec!["duration_s=1.0".to_string(), cache.clone()];
+        // Past the entry (tips 18 mm deep at 1.5 s) into the spread.
+        let mut set = vec!["duration_s=2.5".to_string(), cache.clone()];
         if filtered {
             set.push(format!("spatulas[0].filter={filter}"));
             set.push(format!("spatulas[1].filter={filter}"));

@@ -515,25 +515,35 @@ fn refine_auto_refines_where_the_trajectory_takes_the_blades() {
     assert!(fine.node_count() > off.node_count(), "{} -> {} nodes", off.node_count(), fine.node_count());
     let again = load_mesh(&auto).expect("again");
     assert_eq!((again.positions.len(), &again.tets), (fine.positions.len(), &fine.tets), "deterministic");
-    // Where a blade's tip ends (the trajectory's last pose), the surface's edges are at most `edge`.
-    let tip = |s: &fissure::scenario::SpatulaConfig, pose: &fissure::geometry::Pose| pose.transform_point(&Vec3::new(s.shape.length, 0.0, 0.0));
+    // Along each blade's centre line at the trajectory's last pose (within its
+    // half width), every boundary edge is at most `edge`; 5 cm away they are longer.
     let last = fissure::sim::replay::PoseSource::for_scenario(&auto, None).expect("poses").samples(auto.duration, 1).pop().expect("a set");
-    let tips: Vec<Vec3> = auto.spatulas.iter().zip(&last).map(|(s, p)| tip(s, p)).collect();
+    let blades: Vec<(Vec3, Vec3, f64)> = auto
+        .spatulas
+        .iter()
+        .zip(&last)
+        .map(|(s, p)| (p.transform_point(&Vec3::zeros()), p.transform_point(&Vec3::new(s.shape.length, 0.0, 0.0)), 0.5 * s.shape.width))
+        .collect();
+    let distance = |m: &Vec3, (a, b, _): &(Vec3, Vec3, f64)| {
+        let ab = b - a;
+        let s = ((m - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0);
+        (m - (a + ab * s)).norm()
+    };
     let surface = fine.boundary();
     let (mut near, mut longest_far) = (0, 0.0_f64);
     for t in &surface.triangles {
         for (i, j) in [(0, 1), (1, 2), (2, 0)] {
             let (p, q) = (fine.positions[surface.vertices[t[i] as usize] as usize], fine.positions[surface.vertices[t[j] as usize] as usize]);
             let mid = (p + q) * 0.5;
-            if tips.iter().any(|t| (mid - t).norm() < 0.004) {
+            if blades.iter().any(|b| distance(&mid, b) <= b.2) {
                 near += 1;
-                assert!((p - q).norm() <= edge + 1e-12, "an edge at a blade tip is {} mm (wanted <= {} mm)", (p - q).norm() * 1e3, edge * 1e3);
-            } else if tips.iter().all(|t| (mid - t).norm() > 0.05) {
+                assert!((p - q).norm() <= edge + 1e-12, "an edge under a blade is {} mm (wanted <= {} mm)", (p - q).norm() * 1e3, edge * 1e3);
+            } else if blades.iter().all(|b| distance(&mid, b) > 0.05) {
                 longest_far = longest_far.max((p - q).norm());
             }
         }
     }
-    assert!(near > 10 && longest_far > 1.5 * edge, "{near} edges at the tips; longest 5 cm away {} mm", longest_far * 1e3);
+    assert!(near > 10 && longest_far > 1.5 * edge, "{near} edges under the blades; longest 5 cm away {} mm", longest_far * 1e3);
     // No trajectory and no sphere: nothing to refine around.
     let bare = Scenario::load(&path, &["refine=Auto".into(), "trajectory=None".into(), "spatulas[0].input=Keyboard".into(), "spatulas[1].input=Keyboard".into()]).expect("no trajectory");
     assert_eq!(load_mesh(&bare).expect("bare").node_count(), off.node_count());
