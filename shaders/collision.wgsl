@@ -12,12 +12,18 @@
 //   2 c: face 1 behind, smallest t >= T1 (accepts t32 >= T1 - w)
 //   3 d: face 1 front,  largest t  <  T1 (accepts t32 <  T1 + w)
 // Each slot keeps its best four by key (key = t for b and c, -t for a and d; an
-// exact tie goes to the lower triangle index). An entry is CLEAR when its t32 lies
-// more than w from the slot's threshold (its f64 side is then certain). The f64
-// winner has key <= (first clear entry's key) + w, so the slot returns its best
-// three and flags the line when its fourth is also that close (a cluster of four:
-// e.g. two triangles on the blade plane and two more within w), or when no clear
-// entry exists among four. Hits whose f32 error bound exceeds w/8
+// exact tie goes to the lower triangle index). An entry is SURE when each of its
+// three f32 edge functions has the same sign beyond its error bound ee (the f64 test
+// then hits that triangle too), and CLEAR when it is sure and its t32 lies more than
+// w from the slot's threshold (its f64 side is then certain as well). A near miss
+// or an f32 hit within ee of an edge is a candidate but never clear: a line passing
+// within rounding OUTSIDE a silhouette edge is an f32 near miss of both triangles
+// there and an f64 miss of both, so it proves no hit and must not bound the slot
+// (it would prune the true hit farther along the line). The f64 winner has
+// key <= (first clear entry's key) + w, so the slot returns its best three and
+// flags the line when its fourth is also that close (a cluster of four: e.g. two
+// triangles on the blade plane and two more within w), or when no clear entry
+// exists among four. Hits whose f32 error bound exceeds w/8
 // (a line grazing a triangle) are remembered with their t range; the line is
 // flagged when such a range meets the final needed interval.
 // The same watertight line test and edge rules as `src/geometry/ray.rs` (Woop et
@@ -70,6 +76,8 @@ fn perturbed_sign(e: f32, dx: f32, dy: f32) -> i32 {
 }
 
 var<private> keys: array<f32, 16>;
+// 1u: the entry is a sure hit (see the header); only sure entries can be clear.
+var<private> sure: array<u32, 16>;
 var<private> ids: array<u32, 12>;
 var<private> counts: array<u32, 4>;
 var<private> thresholds: vec2<f32>;
@@ -99,14 +107,14 @@ fn slot_bound(s: u32) -> f32 {
     let thr = threshold_of(s);
     for (var q = 0u; q < counts[s]; q = q + 1u) {
         let k = keys[4u * s + q];
-        if (abs(key_of(s, k) - thr) > win) {
+        if (sure[4u * s + q] == 1u && abs(key_of(s, k) - thr) > win) {
             return k + win;
         }
     }
     return BIG;
 }
 
-fn insert(s: u32, k: f32, tri: u32) {
+fn insert(s: u32, k: f32, tri: u32, certain: u32) {
     let base = 4u * s;
     let cnt = counts[s];
     var pos = cnt;
@@ -124,12 +132,14 @@ fn insert(s: u32, k: f32, tri: u32) {
     loop {
         if (q <= pos) { break; }
         keys[base + q] = keys[base + q - 1u];
+        sure[base + q] = sure[base + q - 1u];
         if (q < 3u) {
             ids[3u * s + q] = ids[3u * s + q - 1u];
         }
         q = q - 1u;
     }
     keys[base + pos] = k;
+    sure[base + pos] = certain;
     if (pos < 3u) {
         ids[3u * s + pos] = tri;
     }
@@ -244,6 +254,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 let dc = 2.0 * EPS * (scale + 2.0 * reach);
                 let ee = 2.0 * dc * (abs(ax) + abs(ay) + abs(bx) + abs(by) + abs(cx) + abs(cy)) + 2.0 * EPS * (abs(cx * by) + abs(cy * bx) + abs(ax * cy) + abs(ay * cx) + abs(bx * ay) + abs(by * ax));
                 let inside = !(su == 0 || su != sv || su != sw);
+                // Every edge function beyond its error: the f64 edge functions have the
+                // same strict sign, so the f64 test hits this triangle (a sure hit).
+                let certain = select(0u, 1u, (eu > ee && ev > ee && ew > ee) || (eu < -ee && ev < -ee && ew < -ee));
                 // A near miss (within rounding of the inside) may be an f64 hit with no f32
                 // neighbour to stand for it (a line touching a silhouette vertex or edge):
                 // it becomes a candidate like a hit, and the CPU decides.
@@ -278,7 +291,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 }
                 for (var s = 0u; s < 4u; s = s + 1u) {
                     if (accepts(s, t)) {
-                        insert(s, key_of(s, t), tri.w);
+                        insert(s, key_of(s, t), tri.w, certain);
                     }
                 }
             }

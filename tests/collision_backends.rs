@@ -1,10 +1,11 @@
 //! Backend parity: `reference`, `bvh` and `gpu` give bit-identical outputs (pairs,
 //! culling, targets) on every scene, on random poses and in contact (the surface each
 //! frame deformed to its targets, triangles exactly on the blade planes), and on lines
-//! chosen to be hard for f32 (through vertices, along axes, grazing). `gpu` tests skip
-//! when the machine has no adapter (CI has the software Vulkan driver). Scenes: a
-//! sphere, the fissure boxes, and the real brain surfaces with 2000 nodes a face
-//! (skipped when ../shared is absent).
+//! chosen to be hard for f32 (through vertices, along axes, grazing, just outside a
+//! silhouette edge). `gpu` tests skip when the machine has no adapter (CI has the
+//! software Vulkan driver). Scenes: a sphere, the fissure boxes, a ridge over a slab,
+//! and the real brain surfaces with 2000 nodes a face (random poses and the first
+//! frames of the collision benchmark's motion).
 
 use fissure::collision::backend::gpu::GpuCaster;
 use fissure::collision::backend::reference::ReferenceCaster;
@@ -287,5 +288,75 @@ fn gpu_agrees_with_bvh_on_the_real_brains_at_2000_nodes_a_face() {
         let pairs = stage_parity(&mut g, &t, &p, &dense_specs(), 2, 99);
         println!("real brain {name} ({} triangles): {pairs} candidate pairs, gpu = bvh bit for bit", t.len());
         assert!(pairs > 0, "the random poses must touch the {name} brain");
+    }
+}
+
+/// A line passing within f32 rounding of a silhouette edge (a ridge whose two
+/// triangles both lie on one side of the line) is an f32 near miss of both and an
+/// f64 miss of both; it must not hide the true hit farther along the line (here a
+/// slab 50 mm below the ridge) from the GPU's candidates.
+#[test]
+fn gpu_finds_the_hit_behind_a_silhouette_edge_that_the_line_just_misses() {
+    let l = 10.0 * MM;
+    let ridge: (Vec<[u32; 3]>, Vec<Vec3>) =
+        (vec![[0, 1, 2], [1, 0, 3]], vec![Vec3::new(0.0, -l, 0.0), Vec3::new(0.0, l, 0.0), Vec3::new(l, 0.0, 0.5 * l), Vec3::new(l, 0.0, -0.5 * l)]);
+    let slab = subdivided_box(Vec3::new(-20.0, -20.0, -52.0) * MM, Vec3::new(20.0, 20.0, -50.0) * MM, 10, 10);
+    let (t, p) = merge(&[ridge, slab]);
+    let mut gpu = match GpuCaster::new(&t, &p, 256) {
+        Ok(g) => g,
+        Err(e) => {
+            println!("skip: no GPU adapter ({e})");
+            return;
+        }
+    };
+    let mut reference = ReferenceCaster::new(&t, &p);
+    gpu.update_surface(&p).expect("upload");
+    reference.update_surface(&p).expect("reference");
+    // Lines through a point just beside the ridge's edge (x = -gap), tilted a little,
+    // their origin 5 mm above it: the ridge is 5 mm behind, the slab about 55 mm.
+    let mut rng = Rng(5);
+    let lines: Vec<PairLine> = (0..200)
+        .map(|k| {
+            let gap = [1e-11, 1e-10, 1e-9][k % 3];
+            let d = Vec3::new(0.3 * rng.f() - 0.15, 0.3 * rng.f() - 0.15, 1.0).normalize();
+            let beside = Vec3::new(-gap, (rng.f() - 0.5) * l, 0.0);
+            PairLine { origin: beside + d * (5.0 * MM), direction: d, thickness: 1.0 * MM }
+        })
+        .collect();
+    let (mut g, mut r) = (Vec::new(), Vec::new());
+    gpu.cast(&lines, &mut g).expect("gpu cast");
+    reference.cast(&lines, &mut r).expect("reference cast");
+    assert!(r.iter().all(|h| h.face0.behind.is_some_and(|b| b.triangle >= 2)), "every line misses the ridge and hits the slab behind");
+    for (k, (gh, rh)) in g.iter().zip(&r).enumerate() {
+        assert_eq!(gh, rh, "line {k} ({:?}): gpu differs from reference", lines[k]);
+    }
+}
+
+/// The first frames of `fissure bench collision --frames 3 --warmup 1` on the coarse
+/// brain at 2000 nodes a face (the blades' poses of `bench::poses` at s = 0, 1/4,
+/// 1/2, the surface deformed to each frame's targets): at s = 1/2 a line of the
+/// first blade passes within f32 rounding outside a silhouette edge 64 mm behind
+/// its node, and its true hit lies 96 mm behind.
+#[test]
+fn gpu_agrees_with_bvh_on_the_first_frames_of_the_bench_motion() {
+    use fissure::mesh::brain;
+    let (t, p) = read_msh_surface(&brain::shipped(brain::COARSE));
+    let (lo, hi) = bbox(&p);
+    let length = 0.35 * (hi.x - lo.x);
+    let shape = SpatulaShape { length, width: 10.0 * MM, thickness: 1.0 * MM };
+    let specs = vec![SpatulaSpec { shape, layout: NodeLayout::Grid { along: 100, across: 20 } }; 2];
+    let Some(mut g) = gpu_stage(&t, &p, &specs, BackendKind::Gpu) else { return };
+    let mut b = CollisionStage::new(CollisionConfig { backend: BackendKind::Bvh, culling: true }, &t, &p, &specs).expect("stage");
+    let mut cur = p.clone();
+    for f in 0..3 {
+        let poses = fissure::collision::bench::poses(lo, hi, length, f as f64 / 4.0);
+        let bo = b.step(&cur, &poses).expect("bvh").clone();
+        g.step(&cur, &poses).expect("gpu");
+        assert_eq!(b.nearest_hits(), g.nearest_hits(), "frame {f}: gpu nearest hits differ from bvh");
+        assert_eq!(&bo, g.output(), "frame {f}: gpu output differs from bvh");
+        cur = p.clone();
+        for tg in &bo.targets {
+            cur[tg.vertex as usize] = p[tg.vertex as usize] + tg.displacement;
+        }
     }
 }

@@ -46,9 +46,10 @@
 //!    projects it, we leave it free. When several claims name one vertex, the deepest
 //!    (largest d) wins; exact ties go to the lower spatula, then face, then node.
 //!    Targets are sorted by vertex index.
-//! 5. **Backends** (`backend/`): `reference` and `bvh` agree bit for bit; `gpu` (f32)
-//!    agrees except at near-ties, see `backend/gpu.rs`. A `gpu` request without an
-//!    adapter falls back to `bvh` with a warning.
+//! 5. **Backends** (`backend/`): `reference`, `bvh` and `gpu` agree bit for bit;
+//!    `gpu` finds candidates in f32 and leaves every decision, and every line its
+//!    f32 bounds cannot settle, to the CPU in f64 (see `backend/gpu.rs`). A `gpu`
+//!    request without an adapter falls back to `bvh` with a warning.
 //!
 //! The stage allocates only at construction and when its reused Vecs grow.
 

@@ -20,7 +20,11 @@
 //! `w` = [`WINDOW_ULPS`] f32 ulps of the largest coordinate; the shader keeps the
 //! best four hits of each slot with thresholds widened by `w`, returns the best three
 //! and flags the line when the f64 winner could be outside them (a cluster of four
-//! within `w`, a grazing hit inside the needed interval, a stack overflow). Pruning
+//! within `w`, a grazing hit inside the needed interval, a stack overflow). Only a
+//! SURE f32 hit (every edge function beyond its error bound, so the f64 test hits it
+//! too) bounds a slot and the needed interval: a near miss, e.g. a line passing
+//! within rounding outside a silhouette edge, is a candidate but proves no hit, and
+//! bounding with it pruned the true hit farther along the line. Pruning
 //! is conservative: leaf boxes are grown by `w/2` of the surface's own scale. `tests/collision_backends.rs`
 //! checks bit-for-bit equality with `reference` on spheres, fissures, contact
 //! configurations and the real brain surfaces.
