@@ -1,16 +1,11 @@
 //! The built `fissure` binary: `check` (good, bad, `--set`), the bare command,
 //! and each `mesh` subcommand, run as a user would.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
-fn fissure(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_fissure"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the fissure binary runs")
-}
+mod common;
+use common::fissure;
 
 fn text(bytes: &[u8]) -> String {
     String::from_utf8_lossy(bytes).into_owned()

@@ -5,20 +5,15 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use fissure::fem::fixtures::{box_mesh, linspace};
 use fissure::math::Vec3;
 use fissure::mesh::TetMesh;
 use fissure::mesh::io::{self, Field, FieldData};
 
-fn fissure(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_fissure"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the fissure binary runs")
-}
+mod common;
+use common::fissure;
 
 fn text(bytes: &[u8]) -> String {
     String::from_utf8_lossy(bytes).into_owned()

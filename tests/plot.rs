@@ -5,20 +5,14 @@
 //! input or unwritable output is an error that names the file, never a panic.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use fissure::math::Vec3;
 use fissure::sim::metrics::{MetricsWriter, SummaryBuilder, write_summary};
 use fissure::sim::report::PASCALS_PER_MMHG;
 use fissure::sim::{FrameReport, SpatulaReport, StageId};
 
-fn fissure(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_fissure"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("the fissure binary runs")
-}
+mod common;
+use common::fissure;
 
 /// A path as an argument (the temporary folders' paths are UTF-8).
 fn s(path: &Path) -> String {

@@ -46,3 +46,12 @@ pub fn real_brain(stem: &str) -> PathBuf {
     p
 }
 pub mod xvfb;
+
+/// Runs the `fissure` binary with `args` in the repository root, as a user would.
+pub fn fissure(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_fissure"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("the fissure binary runs")
+}
