@@ -692,8 +692,8 @@ mod tests {
         Pose { position: Vec3::new(x_m, 0.0, 0.0), ..Pose::default() }
     }
 
-    /// A recording starts its clock at the press, not at t = 0 of the
-    /// session: t = 0 is the press; the poses before it stay (the lead-in,
+    /// A recording starts its clock at the press, not when the window
+    /// opened: t = 0 is the press; the poses before it stay (the lead-in,
     /// from rest, at negative times), and each later row is at session time
     /// minus the press's, so a replay that starts its clock at the first row
     /// samples the rows at exactly the window's frame times.

@@ -6,6 +6,8 @@
 
 pub mod ray;
 pub mod spatula;
+pub mod triangle;
 
 pub use ray::{LineHit, LineQuery, moller_trumbore};
 pub use spatula::{LayoutError, NodeLayout, Pose, SpatulaShape, face_normal_local, slerp};
+pub use triangle::{closest_barycentric, closest_point};

@@ -272,42 +272,9 @@ fn winding_number(triangles: &[[u32; 3]], positions: &[Vec3], p: &Vec3) -> f64 {
 fn distance_to_surface(triangles: &[[u32; 3]], positions: &[Vec3], p: &Vec3) -> f64 {
     triangles
         .iter()
-        .map(|t| (closest_on_triangle(p, &positions[t[0] as usize], &positions[t[1] as usize], &positions[t[2] as usize]) - p).norm_squared())
+        .map(|t| (crate::geometry::closest_point(p, &positions[t[0] as usize], &positions[t[1] as usize], &positions[t[2] as usize]) - p).norm_squared())
         .fold(f64::INFINITY, f64::min)
         .sqrt()
-}
-
-/// The point of triangle `abc` nearest `p` (Ericson, Real-Time Collision Detection, 5.1.5).
-fn closest_on_triangle(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Vec3 {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return *a;
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return *b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return *c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    a + ab * (vb * denom) + ac * (vc * denom)
 }
 
 fn mesh_field(scenario: &Scenario) -> &'static str {

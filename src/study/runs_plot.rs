@@ -1,5 +1,5 @@
 //! Replay runs drawn against time (`fissure plot`): what a trainee looks at
-//! after a session, and what an engineer compares settings with.
+//! after a training run in the window, and what an engineer compares settings with.
 //!
 //! In: run directories as `fissure replay` writes them: `metrics.csv` (a row a
 //! frame; each blade's columns are found by name, `NAME_force_n`,
