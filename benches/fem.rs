@@ -10,8 +10,7 @@
 //!
 //! Run: `cargo bench --bench fem` (add `-- brain`, `-- coarse`, `-- q15` or
 //! `-- paper` to run some models).
-//! Storage: env `FEM_BENCH_STORAGE` = `f32` (default) | `f64` | `lowrank<digits>`
-//! (e.g. `lowrank8`). After the frames, the last 300-constrained frame is solved
+//! Storage: env `FEM_BENCH_STORAGE` = `f32` (default) | `f64`. After the frames, the last 300-constrained frame is solved
 //! again with an f64 compliance whose ROI is exactly its constrained nodes (a
 //! fresh model), and the relative displacement / reaction errors are printed.
 //!
@@ -52,10 +51,7 @@ fn storage_from_env() -> ComplianceStorage {
     match v.as_str() {
         "" | "f32" => ComplianceStorage::F32,
         "f64" => ComplianceStorage::F64,
-        s => match s.strip_prefix("lowrank").and_then(|d| d.parse::<u8>().ok()) {
-            Some(digits) => ComplianceStorage::LowRank { digits },
-            None => panic!("FEM_BENCH_STORAGE={v}: expected f32, f64 or lowrank<digits>"),
-        },
+        _ => panic!("FEM_BENCH_STORAGE={v}: expected f32 or f64"),
     }
 }
 
@@ -121,12 +117,6 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
         cs.compute_seconds,
         t.elapsed().as_secs_f64()
     );
-    if let ComplianceStorage::LowRank { .. } = storage {
-        println!(
-            "  blocks: {} compressed (mean rank {:.1}, max {}), {} dense",
-            cs.compressed_blocks, cs.mean_rank, cs.max_rank, cs.dense_blocks
-        );
-    }
     drop(compliance);
     let t = Instant::now();
     let compliance = Compliance::compute(&model, &roi, storage, Some(cache), &mut |_, _| {}).expect("reload");
@@ -174,7 +164,6 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
             let entry_bytes = match solver.compliance().storage() {
                 ComplianceStorage::F64 => 8.0,
                 ComplianceStorage::F32 => 4.0,
-                ComplianceStorage::LowRank { .. } => f64::NAN,
             };
             // rows a column stores: those of its own body (K^-1 between the
             // bodies K does not couple, such as the hemispheres, is zero and not stored)
@@ -723,6 +712,49 @@ fn row_major_audit(model: &FemModel) {
         best[0],
         best[1],
         best[1] / best[0]
+    );
+    pruned_solve_audit(model, &chol);
+}
+
+/// `-- audit`: one batch of the compliance's precompute (the unit columns of
+/// the 32 free surface nodes nearest the highest one, 96 right-hand sides)
+/// solved pruned along the elimination tree and in full, alternating, best
+/// of three each; the answers are compared bit for bit.
+fn pruned_solve_audit(model: &FemModel, chol: &SparseCholesky) {
+    let positions = &model.mesh().positions;
+    let free: Vec<u32> = model.surface().vertices.iter().copied().filter(|&n| !model.is_fixed(n)).collect();
+    let Some(&top) = free.iter().max_by(|a, b| positions[**a as usize].z.total_cmp(&positions[**b as usize].z)) else { return };
+    let mut near = free.clone();
+    near.sort_by(|a, b| (positions[*a as usize] - positions[top as usize]).norm().total_cmp(&(positions[*b as usize] - positions[top as usize]).norm()));
+    let first: Vec<usize> = near.iter().take(32).filter_map(|&n| model.dofs().dof(n)).collect();
+    let (dim, m) = (chol.dim(), 3 * first.len());
+    let mut scratch = chol.scratch(m).expect("scratch");
+    let mut pruned = faer::Mat::<f64>::zeros(dim, m);
+    let mut full = faer::Mat::<f64>::zeros(dim, m);
+    let mut best = [f64::INFINITY; 2];
+    for rep in 0..6 {
+        let on = rep % 2 == (rep / 2) % 2;
+        let t = Instant::now();
+        if on {
+            chol.solve_unit_columns(&first, pruned.as_mut(), &mut scratch);
+        } else {
+            full.fill(0.0);
+            for (b, &d) in first.iter().enumerate() {
+                for c in 0..3 {
+                    full[(d + c, 3 * b + c)] = 1.0;
+                }
+            }
+            chol.solve_in_place(full.as_mut(), &mut scratch);
+        }
+        best[usize::from(!on)] = best[usize::from(!on)].min(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let same = (0..m).all(|j| (0..dim).all(|i| pruned[(i, j)].to_bits() == full[(i, j)].to_bits()));
+    println!(
+        "audit pruned-unit-columns  one batch of 32 nodes' unit columns: {:.1} -> {:.1} ms ({:.2}x faster pruned; best of three each; answers {})",
+        best[0],
+        best[1],
+        best[1] / best[0],
+        if same { "the same bits" } else { "DIFFER" }
     );
 }
 

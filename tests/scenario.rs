@@ -351,15 +351,24 @@ fn poisson_ratio_near_one_half_is_valid_with_a_locking_warning() {
     assert!(shipped.warnings.is_empty(), "the shipped scene warns of nothing: {:?}", shipped.warnings);
 }
 
+/// A storage the solver does not have is refused, naming the file, the line
+/// and the storages there are.
 #[test]
-fn low_rank_storage_is_read_and_its_digits_are_checked() {
+fn an_unknown_compliance_storage_names_the_choices() {
     let text = sylvian_text();
     let from = "compliance_storage: F64";
     assert!(text.contains(from), "the Sylvian scene must name its storage");
-    let (_dir, _path, ok) = load_text(&text.replacen(from, "compliance_storage: LowRank(digits: 8)", 1));
-    let s = ok.expect("LowRank(digits: 8) is valid");
-    assert_eq!(s.solver.compliance_storage, fissure::scenario::ComplianceStorage::LowRank { digits: 8 });
-    assert_bad(from, "compliance_storage: LowRank(digits: 3)", "solver.compliance_storage", "LowRank digits must be 4..=12, got 3");
+    let to = "compliance_storage: LowRank(digits: 8)";
+    let text = text.replacen(from, to, 1);
+    let (_dir, path, result) = load_text(&text);
+    let err = result.expect_err("an unknown storage must be rejected");
+    let message = err.to_string();
+    let location = err.location().unwrap_or_else(|| panic!("the error must carry a location: {message}"));
+    assert_eq!(location.origin, Origin::File(path.clone()), "the error must name the file: {message}");
+    assert_eq!(location.line, position_of(&text, to).0, "the error must name the line: {message}");
+    for part in ["LowRank", "F64", "F32"] {
+        assert!(message.contains(part), "{message:?} lacks {part:?}");
+    }
 }
 
 /// `display.pressure_max_mmhg` (the pressure colour bar's top) defaults to 30

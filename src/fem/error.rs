@@ -49,7 +49,7 @@ pub enum FemError {
     /// The compliance for the requested region would not fit in memory
     /// (checked before allocating it).
     #[error(
-        "the compliance for a region of interest of {cols} nodes ({rows} stored rows, {storage}) needs {need_mb} MB with the precompute's working space, more than the {available_mb} MB this machine has available; choose a smaller region of interest (region_of_interest: Auto, a smaller radius, or fewer nodes) or a smaller storage (F32 or LowRank)"
+        "the compliance for a region of interest of {cols} nodes ({rows} stored rows, {storage}) needs {need_mb} MB with the precompute's working space, more than the {available_mb} MB this machine has available; choose a smaller region of interest (region_of_interest: Auto, a smaller radius, or fewer nodes) or the smaller storage (F32)"
     )]
     RegionTooLarge { cols: usize, rows: usize, storage: String, need_mb: u64, available_mb: u64 },
     /// A memory request could not be met.

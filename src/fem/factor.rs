@@ -32,6 +32,11 @@ const SUPERNODE_RELAX: &[(usize, f64)] = &[(32, 1.0), (96, 0.8), (256, 0.2), (us
 pub struct SparseCholesky {
     symbolic: SymbolicCholesky<usize>,
     values: Vec<f64>,
+    /// Supernodal factor: the supernode of each (permuted) row, and each
+    /// supernode's parent in the supernodal elimination tree (`u32::MAX`
+    /// at a root): what [`Self::solve_sparse_in_place`] prunes along.
+    row_supernode: Vec<u32>,
+    parent: Vec<u32>,
     /// Seconds spent in the symbolic analysis.
     pub symbolic_seconds: f64,
     /// Seconds spent in the numeric factorization.
@@ -104,7 +109,11 @@ impl SparseCholesky {
             return Err(FemError::NotPositiveDefinite { dof, node, component });
         }
         let numeric_seconds = t1.elapsed().as_secs_f64();
-        Ok(Self { symbolic, values, symbolic_seconds, numeric_seconds, ordering })
+        let (row_supernode, parent) = match symbolic.raw() {
+            SymbolicCholeskyRaw::Supernodal(sn) => elimination_tree(sn),
+            SymbolicCholeskyRaw::Simplicial(_) => (Vec::new(), Vec::new()),
+        };
+        Ok(Self { symbolic, values, row_supernode, parent, symbolic_seconds, numeric_seconds, ordering })
     }
 
     /// Dimension (free DOFs).
@@ -149,11 +158,60 @@ impl SparseCholesky {
             && super::tuning::enabled(super::tuning::Optimisation::RowMajorSolve)
             && let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw()
         {
-            self.solve_row_major(symbolic, rhs, MemStack::new(scratch));
+            self.solve_row_major(symbolic, rhs, None, MemStack::new(scratch));
             return;
         }
         let llt = LltRef::new(&self.symbolic, &self.values);
         llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(scratch));
+    }
+
+    /// As [`Self::solve_in_place`] for right-hand sides that are zero outside
+    /// `nonzero_rows` (the caller's promise; any order, repeats allowed), with
+    /// the same answer bit for bit. The forward substitution visits only the
+    /// supernodes on the elimination-tree paths from those rows to the roots:
+    /// below them every entry stays an exact zero, so skipping them adds and
+    /// subtracts nothing (a unit column of a real brain's ROI node touches a
+    /// fraction of the factor on its way down). Row major whenever the factor
+    /// is supernodal, also for a few columns (the pruning is what pays there).
+    pub fn solve_sparse_in_place(&self, rhs: MatMut<'_, f64>, nonzero_rows: &[usize], scratch: &mut MemBuffer) {
+        if super::tuning::enabled(super::tuning::Optimisation::RowMajorSolve)
+            && let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw()
+        {
+            let inv = self.symbolic.perm().map(|p| p.arrays().1);
+            let mut reached = vec![false; symbolic.n_supernodes()];
+            for &old in nonzero_rows {
+                let row = inv.map_or(old, |v| v[old]);
+                if let Some(&s) = self.row_supernode.get(row) {
+                    reached[s as usize] = true;
+                }
+            }
+            // Children come before their parents: one ascending pass closes
+            // the set under "parent of".
+            for s in 0..reached.len() {
+                if reached[s] && let Some(&p) = self.parent.get(s).filter(|&&p| p != u32::MAX) {
+                    reached[p as usize] = true;
+                }
+            }
+            self.solve_row_major(symbolic, rhs, Some(&reached), MemStack::new(scratch));
+            return;
+        }
+        self.solve_in_place(rhs, scratch);
+    }
+
+    /// Columns of `K_FF^-1`: column `3 b + c` of `rhs` (dim x 3 nodes) is
+    /// solved for the unit right-hand side at DOF `first_dofs[b] + c`, pruned
+    /// as [`Self::solve_sparse_in_place`] prunes. The one way the compliance
+    /// and the lazy columns turn nodes into columns.
+    pub fn solve_unit_columns(&self, first_dofs: &[usize], mut rhs: MatMut<'_, f64>, scratch: &mut MemBuffer) {
+        rhs.fill(0.0);
+        let mut rows = Vec::with_capacity(3 * first_dofs.len());
+        for (b, &d) in first_dofs.iter().enumerate() {
+            for c in 0..3 {
+                rhs[(d + c, 3 * b + c)] = 1.0;
+                rows.push(d + c);
+            }
+        }
+        self.solve_sparse_in_place(rhs.subcols_mut(0, 3 * first_dofs.len()), &rows, scratch);
     }
 
     /// Scratch of [`Self::solve_row_major`] for `k` columns: the permuted
@@ -181,7 +239,9 @@ impl SparseCholesky {
     /// subtracted once. So the answer is faer's bit for bit; the test
     /// `row_major_solve_is_faers_bit_for_bit` checks it where it runs, and
     /// the shipped scenes' final states are unchanged.
-    fn solve_row_major(&self, symbolic: &SymbolicSupernodalCholesky<usize>, mut rhs: MatMut<'_, f64>, stack: &mut MemStack) {
+    /// `forward`: the supernodes the forward substitution must visit (the
+    /// others' rows are zero and stay zero); `None`: all.
+    fn solve_row_major(&self, symbolic: &SymbolicSupernodalCholesky<usize>, mut rhs: MatMut<'_, f64>, forward: Option<&[bool]>, stack: &mut MemStack) {
         let (n, k) = (rhs.nrows(), rhs.ncols());
         let llt = SupernodalLltRef::new(symbolic, &self.values);
         let (widest, deepest) = supernode_extent(symbolic);
@@ -205,6 +265,9 @@ impl SparseCholesky {
             }
         }
         for s in 0..symbolic.n_supernodes() {
+            if forward.is_some_and(|f| !f[s]) {
+                continue;
+            }
             let node = llt.supernode(s);
             let (start, pattern, ls) = (node.start(), node.pattern(), node.val());
             let size = ls.ncols();
@@ -270,6 +333,20 @@ const ROW_BLOCK: usize = 32;
 fn supernode_extent(symbolic: &SymbolicSupernodalCholesky<usize>) -> (usize, usize) {
     let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
     (0..symbolic.n_supernodes()).fold((0, 0), |(w, d), s| (w.max(end[s] - begin[s]), d.max(symbolic.supernode(s).pattern().len())))
+}
+
+/// The supernode of every row and the parent of every supernode (the
+/// supernode of the first row below its diagonal block; `u32::MAX` at a root).
+fn elimination_tree(symbolic: &SymbolicSupernodalCholesky<usize>) -> (Vec<u32>, Vec<u32>) {
+    let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
+    let mut row_supernode = vec![0u32; symbolic.nrows()];
+    for s in 0..symbolic.n_supernodes() {
+        row_supernode[begin[s]..end[s]].fill(s as u32);
+    }
+    let parent = (0..symbolic.n_supernodes())
+        .map(|s| symbolic.supernode(s).pattern().iter().min().map_or(u32::MAX, |&r| row_supernode[r]))
+        .collect();
+    (row_supernode, parent)
 }
 
 /// `dst` (column major, `dst.nrows()` rows) = rows `start..` of the row-major `x` with `k` columns.
@@ -406,6 +483,53 @@ mod tests {
                     worst = worst.max(r.iter().fold(0.0f64, |m, x| m.max(x.abs())));
                 }
                 assert!(worst < 1e-8, "{ordering:?}, {ncols} columns: residual {worst:e}");
+            }
+        }
+    }
+
+    /// Unit columns solved pruned along the elimination tree are the full
+    /// solve's bit for bit, for one node and for a batch spread over the
+    /// mesh, on a mesh of two bodies `K` does not couple (the second's
+    /// entries are exact zeros either way), with each ordering.
+    #[test]
+    fn pruned_unit_columns_are_the_full_solve_bit_for_bit() {
+        let axis = fixtures::linspace(0.0, 0.04, 9);
+        let a = fixtures::box_mesh(&fixtures::linspace(0.0, 0.06, 13), &axis, &axis).unwrap();
+        let b = fixtures::box_mesh(&fixtures::linspace(0.1, 0.13, 7), &axis, &axis).unwrap();
+        let mut mesh = a.clone();
+        let shift = a.positions.len() as u32;
+        mesh.positions.extend_from_slice(&b.positions);
+        mesh.tets.extend(b.tets.iter().map(|t| t.map(|v| v + shift)));
+        mesh.regions.extend_from_slice(&b.regions);
+        let fixed: Vec<bool> = mesh.positions.iter().map(|p| p.z <= 1e-12).collect();
+        let dofs = DofMap::new(&mesh, &fixed);
+        let lame = vec![(1.0e3, 1.0e4); mesh.regions.len()];
+        let k = assemble_lower(&mesh, &lame, &dofs);
+        for ordering in [FillOrdering::Amd, FillOrdering::NestedDissection] {
+            let chol = SparseCholesky::new(&k, &dofs, ordering).unwrap();
+            assert!(!chol.parent.is_empty(), "{ordering:?}: the test needs a supernodal factor");
+            let nodes = dofs.dof_count() / 3;
+            for first in [vec![0usize], vec![3 * (nodes / 2)], (0..32).map(|b| 3 * ((b * 37) % nodes)).collect()] {
+                let m = 3 * first.len();
+                let mut pruned = faer::Mat::<f64>::zeros(k.dim, m);
+                let mut scratch = chol.scratch(m).unwrap();
+                chol.solve_unit_columns(&first, pruned.as_mut(), &mut scratch);
+                let mut full = faer::Mat::<f64>::zeros(k.dim, m);
+                for (b, &d) in first.iter().enumerate() {
+                    for c in 0..3 {
+                        full[(d + c, 3 * b + c)] = 1.0;
+                    }
+                }
+                let llt = LltRef::new(&chol.symbolic, &chol.values);
+                llt.solve_in_place_with_conj(Conj::No, full.as_mut(), Par::Seq, MemStack::new(&mut scratch));
+                let mut zeros = 0;
+                for j in 0..m {
+                    for i in 0..k.dim {
+                        assert_eq!(pruned[(i, j)].to_bits(), full[(i, j)].to_bits(), "{ordering:?}, {m} columns: entry ({i}, {j})");
+                        zeros += usize::from(full[(i, j)] == 0.0);
+                    }
+                }
+                assert!(zeros > 0, "the other body's entries are zero");
             }
         }
     }

@@ -575,10 +575,6 @@ pub enum ComplianceStorage {
     F64,
     /// f32 (half the memory; the solver states its measured error).
     F32,
-    /// Block-low-rank: far blocks compressed to a relative accuracy of
-    /// 10^-digits (4..=12), near blocks f64 (less memory; error measured in
-    /// `tests/fem_lowrank.rs`: digits 8 gives about 1e-9 on displacements).
-    LowRank { digits: u8 },
 }
 
 /// Region of interest for the precomputed compliance.

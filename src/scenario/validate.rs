@@ -777,12 +777,7 @@ impl Scenario {
         }
 
         let solver = SolverOptions {
-            compliance_storage: match file.solver.compliance_storage {
-                ComplianceStorage::LowRank { digits } if !(4..=12).contains(&digits) => {
-                    return Err(c.invalid("solver.compliance_storage", format!("LowRank digits must be 4..=12, got {digits}")));
-                }
-                storage => storage,
-            },
+            compliance_storage: file.solver.compliance_storage,
             region_of_interest: match &file.solver.region_of_interest {
                 RegionOfInterestFile::Auto => RegionOfInterest::Auto,
                 RegionOfInterestFile::All => RegionOfInterest::All,

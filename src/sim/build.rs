@@ -406,7 +406,6 @@ impl Pipeline {
         let storage = match scenario.solver.compliance_storage {
             ScenarioStorage::F64 => fem::ComplianceStorage::F64,
             ScenarioStorage::F32 => fem::ComplianceStorage::F32,
-            ScenarioStorage::LowRank { digits } => fem::ComplianceStorage::LowRank { digits },
         };
         let mut no_progress = |_: usize, _: usize| {};
         let progress: &mut dyn FnMut(usize, usize) = match options.progress {

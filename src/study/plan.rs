@@ -320,8 +320,8 @@ impl StudyPlan {
             sweeps.push(Sweep { knob: Knob::Backend, runs });
         }
         if v.storage {
-            // Exact f64, rounded f32, block-low-rank at 8 and 6 digits: memory and time against accuracy.
-            let runs = [ComplianceStorage::F64, ComplianceStorage::F32, ComplianceStorage::LowRank { digits: 8 }, ComplianceStorage::LowRank { digits: 6 }]
+            // Exact f64 against rounded f32: memory and time against accuracy.
+            let runs = [ComplianceStorage::F64, ComplianceStorage::F32]
                 .into_iter()
                 .enumerate()
                 .map(|(k, s)| RunSpec { label: storage_label(s), value: k as f64, settings: Settings { storage: s, ..base.clone() } })
@@ -591,12 +591,11 @@ pub fn preset_plan(preset: super::StudyPreset, mesh_files: &[PathBuf]) -> StudyP
     StudyPlan::from_values(name, motion, &values)
 }
 
-/// Short label of a compliance storage: `f64`, `f32`, `lowrank8`.
+/// Short label of a compliance storage: `f64`, `f32`.
 pub fn storage_label(s: ComplianceStorage) -> String {
     match s {
         ComplianceStorage::F64 => "f64".into(),
         ComplianceStorage::F32 => "f32".into(),
-        ComplianceStorage::LowRank { digits } => format!("lowrank{digits}"),
     }
 }
 

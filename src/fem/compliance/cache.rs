@@ -3,65 +3,17 @@
 //! their checksums, and keeping the folder under its budget.
 //!
 //! A file is used only when its key (blake3 of the model's fingerprint, the
-//! factor's ordering, the ROI, the storage) matches; a dense one batch by
-//! batch, each batch only when its own checksum matches; a low-rank one only
-//! when the whole file's checksum matches ([`super::Compliance`] decides what
-//! to do with a mismatch: compute, warn, rewrite). Stays true: a reader never
-//! sees half a file; failing to write one loses nothing computed.
+//! factor's ordering, the ROI, the storage) matches, batch by batch, each
+//! batch only when its own checksum matches ([`super::Compliance`] decides
+//! what to do with a mismatch: compute, warn, rewrite). Stays true: a reader
+//! never sees half a file; failing to write one loses nothing computed.
 
 use super::fill::{Dense, Fill};
-use super::{CACHE_VERSION, ComplianceStorage, Layout, lowrank};
+use super::{CACHE_VERSION, ComplianceStorage, Layout};
 use crate::fem::FemError;
 use crate::fem::model::FemModel;
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
-
-/// Fills `bytes` from `file` and feeds them to `hasher`. Large reads hash on
-/// a second thread while the next chunk is read (a 1.1 GB cache: about 0.6 s
-/// of reading and 0.2 s of hashing, overlapped); if that thread cannot start,
-/// both happen here, one after the other.
-pub(super) fn read_and_hash(file: &mut std::fs::File, bytes: &mut [u8], hasher: &mut blake3::Hasher) -> Result<(), String> {
-    const CHUNK: usize = 1 << 24;
-    if bytes.len() <= CHUNK {
-        file.read_exact(bytes).map_err(|e| e.to_string())?;
-        hasher.update(bytes);
-        return Ok(());
-    }
-    std::thread::scope(|scope| {
-        let (tx, rx) = std::sync::mpsc::sync_channel::<&[u8]>(2);
-        let mut h = hasher.clone();
-        let worker = std::thread::Builder::new().name("fissure-cache-hash".into()).spawn_scoped(scope, move || {
-            for chunk in rx {
-                h.update(chunk);
-            }
-            h
-        });
-        let Ok(worker) = worker else {
-            // No second thread: read, then hash, here.
-            file.read_exact(bytes).map_err(|e| e.to_string())?;
-            hasher.update(bytes);
-            return Ok(());
-        };
-        let mut result = Ok(());
-        for chunk in bytes.chunks_mut(CHUNK) {
-            if let Err(e) = file.read_exact(chunk) {
-                result = Err(e.to_string());
-                break;
-            }
-            let chunk: &[u8] = chunk;
-            if tx.send(chunk).is_err() {
-                result = Err("hash thread stopped".to_string());
-                break;
-            }
-        }
-        drop(tx);
-        match worker.join() {
-            Ok(h) => *hasher = h,
-            Err(_) => result = Err("hash thread panicked".to_string()),
-        }
-        result
-    })
-}
 
 /// Writes a dense cache file: header, row nodes, the batch table (count,
 /// first columns, one blake3 a batch over its entries then its corrections),
@@ -170,22 +122,6 @@ pub(super) fn mark_used(path: &Path) {
     }
 }
 
-/// Writes a low-rank cache file: header, row nodes, the storage's sections,
-/// then the blake3 of all of it.
-pub(super) fn write_cache(path: &Path, header: &[u8], row_nodes: &[u32], sections: &[&[u8]]) -> Result<(), FemError> {
-    let mut hasher = blake3::Hasher::new();
-    hasher.update(header);
-    hasher.update(bytemuck::cast_slice(row_nodes));
-    for bytes in sections {
-        hasher.update(bytes);
-    }
-    let sum = *hasher.finalize().as_bytes();
-    let mut parts: Vec<&[u8]> = vec![header, bytemuck::cast_slice(row_nodes)];
-    parts.extend_from_slice(sections);
-    parts.push(&sum);
-    write_file(path, &parts)
-}
-
 /// Writes `parts` one after the other into a temporary file renamed to
 /// `path` at the end, so a reader never sees half a file.
 pub(super) fn write_file(path: &Path, parts: &[&[u8]]) -> Result<(), FemError> {
@@ -218,13 +154,6 @@ pub(super) fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorag
     h.update(&(roi.len() as u64).to_le_bytes());
     h.update(bytemuck::cast_slice(roi));
     h.update(&storage.code()[..1]);
-    if let ComplianceStorage::LowRank { digits } = storage {
-        // The clustering and admissibility parameters shape the stored blocks.
-        h.update(&[digits]);
-        h.update(&(lowrank::CLUSTER_NODES as u64).to_le_bytes());
-        h.update(&lowrank::ETA.to_le_bytes());
-        h.update(b"octree-cells");
-    }
     *h.finalize().as_bytes()
 }
 

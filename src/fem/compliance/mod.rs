@@ -14,26 +14,18 @@
 //! column after column, each 3x3 block column-major (see [`Layout`]; with one
 //! component, block `(i, j)` sits at `j n - j (j-1) / 2 + i - j`). A ROI x ROI
 //! block above the diagonal is the transpose of its mirror.
-//! Block-low-rank storage ([`ComplianceStorage::LowRank`], module `lowrank`):
-//! the same rows and columns cut into clusters of at most 64 nodes; far blocks
-//! are stored as `U V^T` within a relative tolerance, near ones dense; the
-//! per-frame product then costs about rows x rank instead of rows x forced
-//! columns.
-//! Stays true: entries are `K^-1` to round-off (f64), rounded once to f32, or
-//! within `10^-digits` (relative Frobenius, per block) for low rank; ROI x ROI
-//! blocks are exactly symmetric in every storage; a cache file is used only
-//! when its key (blake3 of model fingerprint, factor ordering, ROI, storage)
-//! matches, and a dense one batch by batch, each batch only when its own
-//! checksum matches (a batch that does not is computed, the file rewritten);
-//! a low-rank one only when the whole file's checksum matches.
+//! Stays true: entries are `K^-1` to round-off (f64) or rounded once to f32;
+//! ROI x ROI blocks are exactly symmetric in both storages; a cache file is
+//! used only when its key (blake3 of model fingerprint, factor ordering, ROI,
+//! storage) matches, batch by batch, each batch only when its own checksum
+//! matches (a batch that does not is computed, the file rewritten).
 //!
 //! Precompute here and in `fill` (the batches of columns, on every core or in
 //! the background); the cache files in `cache`; the per-frame surface product
-//! in `product`; block-low-rank storage in `lowrank`.
+//! in `product`.
 
 mod cache;
 mod fill;
-mod lowrank;
 mod product;
 
 use super::FemError;
@@ -43,7 +35,7 @@ use crate::math::{Matrix3, Vec3};
 use std::io::Read;
 use fill::{Buf, Dense, Fill, FillOwner};
 pub use cache::{CACHE_DIR_BUDGET_BYTES, prune_cache_dir};
-use cache::{CacheSource, cache_key, finish_write, hex, mark_used, read_and_hash, read_at, write_cache, write_dense_cache};
+use cache::{CacheSource, cache_key, finish_write, hex, mark_used, read_at, write_dense_cache};
 pub use product::ProductWorkspace;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -71,13 +63,6 @@ pub enum ComplianceStorage {
     /// rounding (about 1e-6 relative). Measured in `tests/fem_fast_path.rs`
     /// and `cargo bench --bench fem`.
     F32,
-    /// Block low rank: every stored block within relative Frobenius error
-    /// `10^-digits` of the f64 block; factors and near-field blocks in f64.
-    /// Solution error measured in `tests/fem_lowrank.rs`.
-    LowRank {
-        /// Decimal digits of the per-block tolerance; valid 4..=12.
-        digits: u8,
-    },
 }
 
 impl ComplianceStorage {
@@ -86,7 +71,6 @@ impl ComplianceStorage {
         match self {
             ComplianceStorage::F64 => [8, 0],
             ComplianceStorage::F32 => [4, 0],
-            ComplianceStorage::LowRank { digits } => [16, digits],
         }
     }
 }
@@ -97,7 +81,6 @@ enum Values {
     /// f32 entries and, for the ROI x ROI entries ([`Layout::lo_offset`]), the
     /// rest `x - f32(x)` in units of 2^-15 of the f32's ulp ([`split_f32`]).
     F32(Arc<Dense<f32>>),
-    LowRank(Arc<lowrank::BlockLowRank>),
 }
 
 /// How [`Compliance::compute_with`] orders, fills and caches the columns.
@@ -140,13 +123,6 @@ pub struct ComplianceStats {
     /// Stored rows (surface + ROI nodes) and columns (ROI nodes).
     pub rows: usize,
     pub cols: usize,
-    /// Low-rank storage only (0 otherwise): stored cluster blocks kept as `U V^T`.
-    pub compressed_blocks: usize,
-    /// Low-rank storage only (0 otherwise): stored cluster blocks kept dense.
-    pub dense_blocks: usize,
-    /// Low-rank storage only: mean and largest rank of the compressed blocks.
-    pub mean_rank: f64,
-    pub max_rank: usize,
 }
 
 /// `K^-1` over (surface ∪ ROI) x ROI nodes, symmetric storage.
@@ -157,7 +133,7 @@ pub struct Compliance {
     fill: Option<Arc<FillOwner>>,
     row_nodes: Vec<u32>,
     n_cols: usize,
-    /// Which rows each column stores (dense storage; unused for low rank).
+    /// Which rows each column stores.
     layout: Arc<Layout>,
     node_row: Vec<u32>,
     key: [u8; 32],
@@ -309,11 +285,6 @@ impl Compliance {
     pub fn compute_with(model: &FemModel, roi_nodes: &[u32], options: ComputeOptions<'_>, progress: &mut dyn FnMut(usize, usize)) -> Result<Self, FemError> {
         let ComputeOptions { storage, cache_dir, reach, background } = options;
         let count = model.mesh.node_count();
-        if let ComplianceStorage::LowRank { digits } = storage
-            && !(4..=12).contains(&digits)
-        {
-            return Err(FemError::InvalidOption { field: "compliance storage LowRank.digits", value: digits as f64, reason: "must be in 4..=12" });
-        }
         let mut roi: Vec<u32> = Vec::with_capacity(roi_nodes.len());
         for &n in roi_nodes {
             if n as usize >= count {
@@ -331,21 +302,18 @@ impl Compliance {
         // consecutive columns, so the per-frame product streams through memory.
         morton_sort(&mut roi, &model.mesh.positions);
         morton_sort(&mut others, &model.mesh.positions);
-        // Dense storage groups rows by free component (see [`Layout`]); the sorts
-        // are stable, so each component keeps its reach and Morton order.
-        let dense = !matches!(storage, ComplianceStorage::LowRank { .. });
-        let reach = reach.filter(|r| dense && r.len() == count);
+        // Rows are grouped by free component (see [`Layout`]); the sorts are
+        // stable, so each component keeps its reach and Morton order.
+        let reach = reach.filter(|r| r.len() == count);
         if let Some(reach) = reach {
             roi.sort_by_key(|&n| reach[n as usize]);
         }
-        let comp = if dense { free_components(model) } else { Vec::new() };
-        if dense {
-            roi.sort_by_key(|&n| comp[n as usize]);
-            others.sort_by_key(|&n| comp[n as usize]);
-        }
+        let comp = free_components(model);
+        roi.sort_by_key(|&n| comp[n as usize]);
+        others.sort_by_key(|&n| comp[n as usize]);
         let mut row_nodes = roi.clone();
         row_nodes.extend_from_slice(&others);
-        let layout = if dense { Layout::new(row_nodes.iter().map(|&n| comp[n as usize]).collect(), n_cols) } else { Layout::default() };
+        let layout = Layout::new(row_nodes.iter().map(|&n| comp[n as usize]).collect(), n_cols);
         let mut node_row = vec![NO_ROW; count];
         for (r, &n) in row_nodes.iter().enumerate() {
             node_row[n as usize] = r as u32;
@@ -364,43 +332,6 @@ impl Compliance {
         };
         let path = cache_dir.map(|d| d.join(format!("compliance-{}.bin", hex(&key[..16]))));
         let t = Instant::now();
-        if let ComplianceStorage::LowRank { digits } = storage {
-            if let Some(p) = &path {
-                match this.load_low_rank(p, digits, model) {
-                    Ok(values) => {
-                        this.values = values;
-                        this.stats = this.make_stats(0.0, t.elapsed().as_secs_f64(), true);
-                        mark_used(p);
-                        model.start_factor();
-                        progress(n_cols, n_cols);
-                        return Ok(this);
-                    }
-                    Err(reason) => {
-                        if p.exists() {
-                            tracing::warn!("compliance cache {} not used ({reason}); rebuilding", p.display());
-                        }
-                    }
-                }
-            }
-            let layout = this.clusters(model);
-            let b = lowrank::BlockLowRank::build(model, &this.row_nodes, n_cols, layout, digits, progress)?;
-            this.values = Values::LowRank(Arc::new(b));
-            this.stats = this.make_stats(t.elapsed().as_secs_f64(), 0.0, false);
-            if let Some(p) = &path {
-                let header = this.header(storage);
-                let written = match &this.values {
-                    Values::LowRank(b) => {
-                        let meta = b.meta();
-                        let mut sections: Vec<&[u8]> = vec![bytemuck::cast_slice(&meta)];
-                        sections.extend(b.sections());
-                        write_cache(p, &header, &this.row_nodes, &sections)
-                    }
-                    _ => Ok(()),
-                };
-                finish_write(p, written);
-            }
-            return Ok(this);
-        }
         let mut job = this.prepare_fill(model, storage, reach, background)?;
         if let Some(p) = &path {
             match this.open_dense(p, storage, &job.fill) {
@@ -456,7 +387,6 @@ impl Compliance {
             let written = match &this.values {
                 Values::F64(d) => unsafe { write_dense_cache(p, &header, &this.row_nodes, &this.layout, &fill, d) },
                 Values::F32(d) => unsafe { write_dense_cache(p, &header, &this.row_nodes, &this.layout, &fill, d) },
-                Values::LowRank(_) => Ok(()),
             };
             finish_write(p, written);
         }
@@ -464,23 +394,11 @@ impl Compliance {
     }
 
     fn make_stats(&self, compute_seconds: f64, load_seconds: f64, from_cache: bool) -> ComplianceStats {
-        let (bytes, counts) = match &self.values {
-            Values::F64(d) => (d.v.len() * 8, Default::default()),
-            Values::F32(d) => (d.v.len() * 4 + d.lo.len() * 2, Default::default()),
-            Values::LowRank(b) => (b.bytes(), b.counts()),
+        let bytes = match &self.values {
+            Values::F64(d) => d.v.len() * 8,
+            Values::F32(d) => d.v.len() * 4 + d.lo.len() * 2,
         };
-        ComplianceStats {
-            compute_seconds,
-            load_seconds,
-            bytes,
-            from_cache,
-            rows: self.row_nodes.len(),
-            cols: self.n_cols,
-            compressed_blocks: counts.compressed,
-            dense_blocks: counts.dense,
-            mean_rank: counts.mean_rank,
-            max_rank: counts.max_rank,
-        }
+        ComplianceStats { compute_seconds, load_seconds, bytes, from_cache, rows: self.row_nodes.len(), cols: self.n_cols }
     }
 
     fn entry_count(&self) -> usize {
@@ -510,7 +428,7 @@ impl Compliance {
             + threads * n_free * 3 * BATCH_NODES * 8;
         region_fits(self.n_cols, self.row_nodes.len(), storage, need as u64, super::meminfo::available_bytes())?;
         let values = match storage {
-            ComplianceStorage::F64 | ComplianceStorage::LowRank { .. } => {
+            ComplianceStorage::F64 => {
                 let mut v: Vec<f64> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 8 })?;
                 advise_huge_pages(&mut v);
                 Values::F64(Arc::new(Dense { v: Buf::new(v), lo: Buf::new(Vec::new()) }))
@@ -611,18 +529,6 @@ impl Compliance {
         match &self.values {
             Values::F64(_) => ComplianceStorage::F64,
             Values::F32(..) => ComplianceStorage::F32,
-            Values::LowRank(b) => ComplianceStorage::LowRank { digits: b.digits() },
-        }
-    }
-
-    /// Low-rank storage only: the row cluster starts (clusters + 1 entries,
-    /// the last is the row count) and how many of the clusters are column
-    /// (ROI) clusters. Stored blocks are (row cluster I, column cluster J) with
-    /// I >= J; a ROI block with I < J is the transpose of (J, I).
-    pub fn low_rank_clusters(&self) -> Option<(&[u32], usize)> {
-        match &self.values {
-            Values::LowRank(b) => Some(b.clusters()),
-            _ => None,
         }
     }
 
@@ -657,9 +563,6 @@ impl Compliance {
     /// here a failed filling reads as zero).
     #[inline]
     pub fn block(&self, row: usize, col: usize) -> Matrix3<f64> {
-        if let Values::LowRank(b) = &self.values {
-            return b.block(row, col);
-        }
         if row >= col {
             self.stored(row, col)
         } else {
@@ -712,7 +615,6 @@ impl Compliance {
                     None => Matrix3::from_iterator(g.v[o..o + 9].iter().map(|&x| x as f64)),
                 }
             }
-            Values::LowRank(b) => b.block(row, col),
         }
     }
 
@@ -726,50 +628,6 @@ impl Compliance {
         h.extend_from_slice(&(self.row_nodes.len() as u64).to_le_bytes());
         h.extend_from_slice(&(self.n_cols as u64).to_le_bytes());
         h
-    }
-
-    /// Low-rank cluster layout: octree cells of the Morton codes the rows were sorted by.
-    fn clusters(&self, model: &FemModel) -> (Vec<u32>, usize) {
-        let positions = &model.mesh.positions;
-        let (roi, others) = self.row_nodes.split_at(self.n_cols);
-        lowrank::cluster_starts(&morton_codes(roi, positions), &morton_codes(others, positions))
-    }
-
-    /// Reads a low-rank cache file; any mismatch or corruption is an `Err(reason)`.
-    fn load_low_rank(&self, path: &Path, digits: u8, model: &FemModel) -> Result<Values, String> {
-        let storage = ComplianceStorage::LowRank { digits };
-        let (mut file, _) = crate::fsio::open_regular(path, crate::fsio::Cap::COMPLIANCE_CACHE).map_err(|e| e.to_string())?;
-        let want = self.header(storage);
-        let size = file.metadata().map_err(|e| e.to_string())?.len() as usize;
-        let prefix = want.len() + 4 * self.row_nodes.len();
-        if size < prefix + 24 + 32 {
-            return Err(format!("size {size} bytes, expected at least {}", prefix + 24 + 32));
-        }
-        let mut hasher = blake3::Hasher::new();
-        let mut header = vec![0u8; want.len()];
-        file.read_exact(&mut header).map_err(|e| e.to_string())?;
-        if header != want {
-            return Err("header or key mismatch".into());
-        }
-        hasher.update(&header);
-        let mut rows = vec![0u32; self.row_nodes.len()];
-        file.read_exact(bytemuck::cast_slice_mut(&mut rows)).map_err(|e| e.to_string())?;
-        hasher.update(bytemuck::cast_slice(&rows));
-        if rows != self.row_nodes {
-            return Err("row nodes mismatch".into());
-        }
-        let mut read_hashed = |bytes: &mut [u8]| -> Result<(), String> { read_and_hash(&mut file, bytes, &mut hasher) };
-        let mut meta = [0u64; 3];
-        read_hashed(bytemuck::cast_slice_mut(&mut meta))?;
-        let remaining = size - prefix - 24 - 32;
-        let layout = self.clusters(model);
-        let b = lowrank::BlockLowRank::read(digits, self.row_nodes.len(), self.n_cols, layout, meta, remaining, &mut read_hashed)?;
-        let mut sum = [0u8; 32];
-        file.read_exact(&mut sum).map_err(|e| e.to_string())?;
-        if &sum != hasher.finalize().as_bytes() {
-            return Err("checksum mismatch (corrupt file)".into());
-        }
-        Ok(Values::LowRank(Arc::new(b)))
     }
 
     /// Opens a dense cache file ([`write_dense_cache`]) for `fill`'s batches:
@@ -1048,7 +906,6 @@ impl FillJob {
                         let written = match &worker.values {
                             Values::F64(d) => unsafe { write_dense_cache(&path, &header, &row_nodes, &worker.layout, &worker.fill, d) },
                             Values::F32(d) => unsafe { write_dense_cache(&path, &header, &row_nodes, &worker.layout, &worker.fill, d) },
-                            Values::LowRank(_) => return,
                         };
                         finish_write(&path, written);
                     }
@@ -1080,7 +937,6 @@ impl FillJob {
             match &self.values {
                 Values::F64(d) => Piece::F64(d.v.slice_mut(range)),
                 Values::F32(d) => Piece::F32(d.v.slice_mut(range), d.lo.slice_mut(9 * lo_off[cols.start]..9 * lo_off[cols.end])),
-                Values::LowRank(_) => unreachable!("low rank is not filled in batches"),
             }
         }
     }
@@ -1097,14 +953,7 @@ impl FillJob {
     ) {
         let (j0, nb) = (cols.start, cols.len());
         let row_dofs = &self.row_dofs;
-        rhs.fill(0.0);
-        for b in 0..nb {
-            let d = row_dofs[j0 + b];
-            for c in 0..3 {
-                rhs[(d + c, 3 * b + c)] = 1.0;
-            }
-        }
-        chol.solve_in_place(rhs.as_mut().subcols_mut(0, 3 * nb), scratch);
+        chol.solve_unit_columns(&row_dofs[j0..j0 + nb], rhs.as_mut().subcols_mut(0, 3 * nb), scratch);
         let (base, base_lo) = (self.layout.col_off[j0] * 9, self.layout.lo_off[j0] * 9);
         for b in 0..nb {
             let j = j0 + b;
@@ -1209,29 +1058,6 @@ fn morton_codes(nodes: &[u32], positions: &[Vec3]) -> Vec<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The pipelined read (hash on a second thread) gives the bytes and the
-    /// hash of a plain read, and a short file is an error, not a panic.
-    #[test]
-    fn read_and_hash_matches_a_plain_read() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("data.bin");
-        let data: Vec<u8> = (0..(40usize << 20) + 12345).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect();
-        std::fs::write(&path, &data).unwrap();
-        let mut buf = vec![0u8; data.len()];
-        let mut hasher = blake3::Hasher::new();
-        hasher.update(b"prefix");
-        let mut file = std::fs::File::open(&path).unwrap();
-        read_and_hash(&mut file, &mut buf, &mut hasher).unwrap();
-        assert!(buf == data, "bytes differ");
-        let mut plain = blake3::Hasher::new();
-        plain.update(b"prefix");
-        plain.update(&data);
-        assert_eq!(hasher.finalize(), plain.finalize());
-        let mut file = std::fs::File::open(&path).unwrap();
-        let mut longer = vec![0u8; data.len() + 1];
-        assert!(read_and_hash(&mut file, &mut longer, &mut blake3::Hasher::new()).is_err());
-    }
 
     #[test]
     fn a_region_larger_than_memory_is_refused_with_its_size() {

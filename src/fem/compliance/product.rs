@@ -60,7 +60,6 @@ impl Compliance {
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
                 accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows32.rows }, u, &mut workspace.acc, chunk)
             }
-            Values::LowRank(b) => b.accumulate(forces, u, &mut workspace.acc),
         }
     }
 }
@@ -93,7 +92,7 @@ impl Entry for f32 {
 /// with another compliance it starts over.
 #[derive(Debug, Default)]
 pub struct ProductWorkspace {
-    /// Partial sums (9 f64 a row of a chunk) or the low-rank scratch.
+    /// Partial sums (9 f64 a row of a chunk).
     acc: Vec<f64>,
     rows32: RowStore<f32>,
     rows64: RowStore<f64>,

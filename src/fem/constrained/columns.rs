@@ -131,28 +131,24 @@ pub(super) type NodeColumns = (u32, Vec<f64>);
 /// solves exactly the nodes it is missing, ascending: replays agree to the bit.
 pub(super) fn solve_columns(chol: &SparseCholesky, dofs: &DofMap, nodes: &[u32]) -> Result<Vec<NodeColumns>, FemError> {
     let n_free = dofs.dof_count();
-    let m = nodes.len();
-    if m == 0 {
-        return Ok(Vec::new());
+    let first_dofs: Vec<usize> = nodes.iter().filter_map(|&n| dofs.dof(n)).collect();
+    let mut rhs = faer::Mat::<f64>::zeros(n_free, 3 * first_dofs.len());
+    if !first_dofs.is_empty() {
+        let mut scratch = chol.scratch(3 * first_dofs.len())?;
+        chol.solve_unit_columns(&first_dofs, rhs.as_mut(), &mut scratch);
     }
-    let mut rhs = faer::Mat::<f64>::zeros(n_free, 3 * m);
-    for (b, &n) in nodes.iter().enumerate() {
-        if let Some(d) = dofs.dof(n) {
-            for c in 0..3 {
-                rhs[(d + c, 3 * b + c)] = 1.0;
-            }
-        }
-    }
-    let mut scratch = chol.scratch(3 * m)?;
-    chol.solve_in_place(rhs.as_mut(), &mut scratch);
+    let mut b = 0;
     Ok(nodes
         .iter()
-        .enumerate()
-        .map(|(b, &n)| {
+        .map(|&n| {
+            if dofs.dof(n).is_none() {
+                return (n, vec![0.0; 3 * n_free]);
+            }
             let mut values = Vec::with_capacity(3 * n_free);
             for c in 0..3 {
                 values.extend((0..n_free).map(|i| rhs[(i, 3 * b + c)]));
             }
+            b += 1;
             (n, values)
         })
         .collect())
