@@ -534,7 +534,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// and off in this run (alternating which goes first, three rounds), on
 /// three sequences of 300 constrained vertices; the medians.
 fn frame_audit(name: &str, solver: &mut ConstrainedSolver, near: &[u32], dir: &Path) {
-    use fissure::fem::tuning::{Optimisation, set_enabled};
+    use fissure::fem::tuning::{Optimisation, Tuning};
     let count = 300.min(near.len() / 2);
     let step = count / 10;
     let held: Vec<&[u32]> = (0..30).map(|_| &near[..count]).collect();
@@ -555,7 +555,7 @@ fn frame_audit(name: &str, solver: &mut ConstrainedSolver, near: &[u32], dir: &P
             let mut off = (Vec::new(), Vec::new(), Vec::new());
             for round in 0..3 {
                 for first_on in [round % 2 == 0, round % 2 != 0] {
-                    set_enabled(o, first_on);
+                    solver.set_tuning(Tuning::ALL_ON.with(o, first_on));
                     let Some(m) = measure_sets(solver, sets) else { continue };
                     let to = if first_on { &mut on } else { &mut off };
                     to.0.push(m.p50);
@@ -563,7 +563,7 @@ fn frame_audit(name: &str, solver: &mut ConstrainedSolver, near: &[u32], dir: &P
                     to.2.push(m.phases[phase]);
                 }
             }
-            set_enabled(o, true);
+            solver.set_tuning(Tuning::ALL_ON);
             if on.0.len() < 3 || off.0.len() < 3 {
                 continue;
             }
@@ -682,9 +682,8 @@ fn write_audit(name: &str, count: usize, bars: &[AuditBar], dir: &Path) -> Resul
 /// `-- audit`: one 96-column solve of the model's factor with the row-major
 /// solve and with faer's, alternating, best of three each.
 fn row_major_audit(model: &FemModel) {
-    use fissure::fem::tuning::{Optimisation, set_enabled};
     let k = model.stiffness();
-    let chol = match SparseCholesky::new(k, model.dofs(), FillOrdering::Best) {
+    let mut chol = match SparseCholesky::new(k, model.dofs(), FillOrdering::Best) {
         Ok(c) => c,
         Err(e) => {
             println!("audit row-major-solve: factor failed: {e}");
@@ -696,7 +695,7 @@ fn row_major_audit(model: &FemModel) {
     let mut best = [f64::INFINITY; 2];
     for rep in 0..6 {
         let on = rep % 2 == (rep / 2) % 2;
-        set_enabled(Optimisation::RowMajorSolve, on);
+        chol.set_row_major(on);
         rhs.fill(0.0);
         for c in 0..96 {
             rhs[((c * 7919 + rep) % k.dim, c)] = 1.0;
@@ -706,7 +705,7 @@ fn row_major_audit(model: &FemModel) {
         let s = t.elapsed().as_secs_f64() * 1e3;
         best[usize::from(!on)] = best[usize::from(!on)].min(s);
     }
-    set_enabled(Optimisation::RowMajorSolve, true);
+    chol.set_row_major(true);
     println!(
         "audit row-major-solve      one 96-column solve: {:.1} -> {:.1} ms ({:.2}x faster with it; best of three each)",
         best[0],

@@ -316,6 +316,9 @@ run_measure "startup: fine brain from the cache, early start" "$PERF/startup/q15
 # E, F. The fine-brain Sylvian scene as shipped: cold (writes its cache), then from the cache with early start.
 run_measure "startup: fine-brain Sylvian scene cold" "$PERF/startup/sylvian_cold.log" "$PROBE" config/real_brain/sylvian.ron "solver.cache_dir=Some(\"$sylvian_cache\")"
 run_measure "startup: fine-brain Sylvian scene from the cache, early start" "$PERF/startup/sylvian_cache_background.log" "$PROBE" config/real_brain/sylvian.ron "solver.cache_dir=Some(\"$sylvian_cache\")" --background
+# G. The same scene as a user writes it: no refinement, only the lowest 10 mm held, f64, no cache.
+user_sylvian=(refine=None "fixed=[LowestPerComponent(height_mm: 10.0)]" solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false)
+run_measure "startup: a user's fine-brain Sylvian scene cold" "$PERF/startup/user_sylvian_cold.log" "$PROBE" config/real_brain/sylvian.ron "${user_sylvian[@]}"
 
 # Figures of a build that waits for every column: model + factor (s before the
 # compliance), compliance compute / load s, whole build s, peak MB, from cache, rows, cols, MB.
@@ -353,6 +356,8 @@ probe_build "$PERF/startup/q15_cache.log"
 cache_build=$build cache_load=$load cache_peak=$peak
 probe_build "$PERF/startup/sylvian_cold.log"
 syl_cold_build=$build syl_rows=$rows syl_cols=$cols syl_mb=$mb syl_cold_peak=$peak
+probe_build "$PERF/startup/user_sylvian_cold.log"
+usr_before=$before usr_compute=$compute usr_build=$build usr_peak=$peak usr_rows=$rows usr_cols=$cols usr_mb=$mb
 if [ "$FAST" != 1 ]; then
     probe_background "$PERF/startup/q15_cold_background.log"
     bgc_first=$first bgc_motion=$motion bgc_slowest=$slowest bgc_over50=$over50 bgc_columns=$columns bgc_peak=$bpeak bgc_frames=$frames_n
@@ -574,6 +579,7 @@ summary_rows() {
     echo "| fine brain from the cache: whole build (of which reading the file) / peak memory | $cache_build s ($cache_load s) / $cache_peak MB | reload < 1 s: $(verdict "$cache_load" 1); < 2 GB: $(verdict "$cache_peak" 2048) | the same command again (DIR now full) |"
     echo "| fine brain from the cache with early start: first frame; slowest frame | first frame $bgk_first s; slowest $bgk_slowest ms ($bgk_over50 over 50 ms) | first frame < 1 s: $(verdict "$bgk_first" 1) | the same with $(code --background) |"
     echo "| fine-brain Sylvian scene as shipped ($syl_rows rows x $syl_cols columns, $syl_mb MB), from the cache with early start: first frame | first frame $syl_first s (cold build $syl_cold_build s); peak $syl_peak MB | first frame < 1 s: $(verdict "$syl_first" 1) | $(code "startup_probe config/real_brain/sylvian.ron 'solver.cache_dir=Some(DIR)' --background") |"
+    echo "| the same scene as a user writes it (no refinement, lowest 10 mm held, f64, no cache), every column first: compliance ($usr_rows rows x $usr_cols columns, $usr_mb MB); whole build; peak memory | $usr_compute s; $usr_build s; $usr_peak MB | build < 30 s: $(verdict "$usr_build" 30); < 2 GB: $(verdict "$usr_peak" 2048) | $(code "startup_probe config/real_brain/sylvian.ron refine=None 'fixed=[LowestPerComponent(height_mm: 10.0)]' solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false") |"
     if [ "$window_status" = ran ]; then
         window_figures "$PERF/window/threads_default.log"
         echo "| the window on the software renderer (Xvfb, llvmpipe on cores - 1 threads), default scene, blades held: fps; simulation step | $wfps fps; step p50 $wp50 / p95 $wp95 ms | step p95 < 2 ms: $(verdict "$wp95" 2) | $(code "fissure run config/sylvian.ron --exit-after 10 --size 1280x800") |"
@@ -699,6 +705,7 @@ tmp="$PERF/performance.md.tmp"
     echo "| fine brain from the cache, early start | the same with \`--background\` | first frame $bgk_first s; $bgk_frames frames done $bgk_motion s; slowest frame $bgk_slowest ms, $bgk_over50 over 50 ms; every column read $bgk_columns s; peak $bgk_peak MB |"
     echo "| fine-brain Sylvian scene as shipped, cold | \`config/real_brain/sylvian.ron 'solver.cache_dir=Some(DIR)'\` | refined mesh, $syl_rows rows x $syl_cols columns, $syl_mb MB; build done $syl_cold_build s; peak $syl_cold_peak MB |"
     echo "| the same from the cache, early start | the same with \`--background\` | first frame $syl_first s; slowest frame $syl_slowest ms, $syl_over50 over 50 ms; every column read $syl_columns s; peak $syl_peak MB |"
+    echo "| the same scene as a user writes it, cold | \`config/real_brain/sylvian.ron refine=None 'fixed=[LowestPerComponent(height_mm: 10.0)]' solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false\` | model + factor $usr_before s; compliance $usr_rows rows x $usr_cols columns, $usr_mb MB, computed in $usr_compute s; build done $usr_build s; peak $usr_peak MB |"
     echo
     echo "## The window's frame time"
     echo

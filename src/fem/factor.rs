@@ -37,6 +37,9 @@ pub struct SparseCholesky {
     /// at a root): what [`Self::solve_sparse_in_place`] prunes along.
     row_supernode: Vec<u32>,
     parent: Vec<u32>,
+    /// Solves run row major ([`Self::solve_row_major`]) where they can:
+    /// `fem::tuning`'s switch, taken when the factor is made.
+    row_major: bool,
     /// Seconds spent in the symbolic analysis.
     pub symbolic_seconds: f64,
     /// Seconds spent in the numeric factorization.
@@ -113,7 +116,8 @@ impl SparseCholesky {
             SymbolicCholeskyRaw::Supernodal(sn) => elimination_tree(sn),
             SymbolicCholeskyRaw::Simplicial(_) => (Vec::new(), Vec::new()),
         };
-        Ok(Self { symbolic, values, row_supernode, parent, symbolic_seconds, numeric_seconds, ordering })
+        let row_major = super::tuning::Tuning::current().enabled(super::tuning::Optimisation::RowMajorSolve);
+        Ok(Self { symbolic, values, row_supernode, parent, row_major, symbolic_seconds, numeric_seconds, ordering })
     }
 
     /// Dimension (free DOFs).
@@ -143,6 +147,12 @@ impl SparseCholesky {
         Ok(simplicial.len_val())
     }
 
+    /// Switches the row-major solve on or off for this factor's later solves
+    /// (the bench's audit; the answers are the same bits either way).
+    pub fn set_row_major(&mut self, on: bool) {
+        self.row_major = on;
+    }
+
     /// Scratch a solve with `ncols` right-hand sides needs.
     pub fn scratch(&self, ncols: usize) -> Result<MemBuffer, FemError> {
         let req = self.symbolic.solve_in_place_scratch::<f64>(ncols, Par::Seq).or(self.row_major_scratch(ncols));
@@ -155,7 +165,7 @@ impl SparseCholesky {
     /// is bit for bit faer's.
     pub fn solve_in_place(&self, rhs: MatMut<'_, f64>, scratch: &mut MemBuffer) {
         if rhs.ncols() >= ROW_MAJOR_MIN_RHS
-            && super::tuning::enabled(super::tuning::Optimisation::RowMajorSolve)
+            && self.row_major
             && let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw()
         {
             self.solve_row_major(symbolic, rhs, None, MemStack::new(scratch));
@@ -174,7 +184,7 @@ impl SparseCholesky {
     /// fraction of the factor on its way down). Row major whenever the factor
     /// is supernodal, also for a few columns (the pruning is what pays there).
     pub fn solve_sparse_in_place(&self, rhs: MatMut<'_, f64>, nonzero_rows: &[usize], scratch: &mut MemBuffer) {
-        if super::tuning::enabled(super::tuning::Optimisation::RowMajorSolve)
+        if self.row_major
             && let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw()
         {
             let inv = self.symbolic.perm().map(|p| p.arrays().1);

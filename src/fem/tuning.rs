@@ -4,10 +4,14 @@
 //! `scripts/fem_audit.sh`).
 //!
 //! In: `FISSURE_FEM_OFF=name,name` (read once; names in [`Optimisation::ALL`],
-//! `all` turns every one off), or [`set_enabled`] from a bench. Out:
-//! [`enabled`]. Off runs the plain path the optimisation replaced. Answers
-//! stay the same bit for bit unless the switch's doc says otherwise; a
-//! diagnostic, not a setting: scenes cannot name these.
+//! `all` turns every one off), or [`set_enabled`] from a test. Out: a
+//! [`Tuning`], taken by value when a solver, a product workspace or a factor
+//! is made ([`Tuning::current`]) and read from there: no hot loop reads the
+//! process-wide switches, and a bench turns one off on a built solver
+//! (`ConstrainedSolver::set_tuning`). Off runs the plain path the
+//! optimisation replaced. Answers stay the same bit for bit unless the
+//! switch's doc says otherwise; a diagnostic, not a setting: scenes cannot
+//! name these.
 
 use std::sync::Once;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -96,12 +100,42 @@ fn off_mask() -> u32 {
     OFF.load(Ordering::Relaxed)
 }
 
-/// Whether `o` is on (the default).
-pub fn enabled(o: Optimisation) -> bool {
-    off_mask() & o.bit() == 0
+/// Which optimisations are on: a value a solver keeps from when it was made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tuning {
+    off: u32,
 }
 
-/// Switches `o` on or off for the whole process (benches).
+impl Tuning {
+    /// Every optimisation on.
+    pub const ALL_ON: Tuning = Tuning { off: 0 };
+
+    /// The process's switches now (`FISSURE_FEM_OFF`, then [`set_enabled`]).
+    pub fn current() -> Self {
+        Self { off: off_mask() }
+    }
+
+    /// Whether `o` is on.
+    #[inline]
+    pub fn enabled(self, o: Optimisation) -> bool {
+        self.off & o.bit() == 0
+    }
+
+    /// The same with `o` switched on or off.
+    pub fn with(self, o: Optimisation, on: bool) -> Self {
+        Self { off: if on { self.off & !o.bit() } else { self.off | o.bit() } }
+    }
+}
+
+/// [`Tuning::current`]: what a solver made without being told takes.
+impl Default for Tuning {
+    fn default() -> Self {
+        Self::current()
+    }
+}
+
+/// Switches `o` on or off for the whole process: the default of every solver,
+/// workspace and factor made afterwards (tests).
 pub fn set_enabled(o: Optimisation, on: bool) {
     off_mask();
     if on {

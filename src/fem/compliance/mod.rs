@@ -721,7 +721,7 @@ fn f32_unit(hi: f32) -> f64 {
 /// the kernel may collapse the pages later in the background.
 fn advise_huge_pages<T>(v: &mut [T]) {
     #[cfg(target_os = "linux")]
-    if crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::HugePages) {
+    if crate::fem::tuning::Tuning::current().enabled(crate::fem::tuning::Optimisation::HugePages) {
         let bytes = std::mem::size_of_val(v);
         const HUGE: usize = 2 << 20;
         let start = (v.as_mut_ptr() as usize).next_multiple_of(HUGE);

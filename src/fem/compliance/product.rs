@@ -12,6 +12,7 @@
 //! workspace has grown; the sums run in a fixed order (bitwise replays).
 
 use super::{Compliance, Layout, ROW_CHUNK, Values};
+use crate::fem::tuning::{Optimisation, Tuning};
 use std::time::Instant;
 use crate::math::Vec3;
 
@@ -46,9 +47,9 @@ impl Compliance {
                     (g.v, g.base)
                 };
                 let t = Instant::now();
-                workspace.gathered = workspace.rows64.prepare(&region, layout, forces);
+                workspace.gathered = workspace.rows64.prepare(&region, layout, forces, workspace.tuning.enabled(Optimisation::KeptProductRows));
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows64.rows }, u, &mut workspace.acc, chunk)
+                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows64.rows, tuning: workspace.tuning }, u, &mut workspace.acc, chunk)
             }
             Values::F32(d) => {
                 let region = |k: usize| {
@@ -56,9 +57,9 @@ impl Compliance {
                     (g.v, g.base)
                 };
                 let t = Instant::now();
-                workspace.gathered = workspace.rows32.prepare(&region, layout, forces);
+                workspace.gathered = workspace.rows32.prepare(&region, layout, forces, workspace.tuning.enabled(Optimisation::KeptProductRows));
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows32.rows }, u, &mut workspace.acc, chunk)
+                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows32.rows, tuning: workspace.tuning }, u, &mut workspace.acc, chunk)
             }
         }
     }
@@ -101,6 +102,8 @@ pub struct ProductWorkspace {
     gather_seconds: f64,
     /// Rows a chunk of the product (0: [`ROW_CHUNK`]).
     chunk_rows: usize,
+    /// The optimisations the product uses (from when the workspace was made).
+    pub(crate) tuning: Tuning,
 }
 
 impl ProductWorkspace {
@@ -121,7 +124,7 @@ impl ProductWorkspace {
     fn chunk(&self) -> usize {
         if self.chunk_rows != 0 {
             self.chunk_rows
-        } else if crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::RowChunks) {
+        } else if self.tuning.enabled(Optimisation::RowChunks) {
             ROW_CHUNK
         } else {
             usize::MAX
@@ -183,11 +186,12 @@ impl<T: Copy> RowStore<T> {
 
     /// Makes `rows[k]` the row of `forces[k].0` (ascending): kept rows are moved,
     /// missing ones gathered. Returns how many were gathered.
-    fn prepare<'a>(&mut self, region: &impl Fn(usize) -> (&'a [T], usize), layout: &Layout, forces: &[(usize, Vec3)]) -> usize
+    /// `keep`: rows kept from the call before are reused (else all gathered).
+    fn prepare<'a>(&mut self, region: &impl Fn(usize) -> (&'a [T], usize), layout: &Layout, forces: &[(usize, Vec3)], keep: bool) -> usize
     where
         T: 'a,
     {
-        if !crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::KeptProductRows) {
+        if !keep {
             self.clear();
         }
         self.next_cols.clear();
@@ -281,9 +285,8 @@ const FUSED_COLUMNS: usize = 8;
 /// Adds `count` columns in order (`run(i)` covers all of `out`, `pattern(i)` its
 /// force pattern): groups of [`FUSED_COLUMNS`], then one by one.
 #[inline(always)]
-fn add_columns<'a, T: Entry + 'a>(out: &mut [f64], count: usize, run: impl Fn(usize) -> &'a [T], pattern: impl Fn(usize) -> [f64; 9]) {
+fn add_columns<'a, T: Entry + 'a>(out: &mut [f64], count: usize, fused: bool, run: impl Fn(usize) -> &'a [T], pattern: impl Fn(usize) -> [f64; 9]) {
     let mut i = 0;
-    let fused = crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::FusedColumns);
     while fused && i + FUSED_COLUMNS <= count {
         let runs: [&[T]; FUSED_COLUMNS] = std::array::from_fn(|k| run(i + k));
         let pats: [[f64; 9]; FUSED_COLUMNS] = std::array::from_fn(|k| pattern(i + k));
@@ -339,7 +342,8 @@ fn upper_pattern(f: &Vec3) -> [f64; 9] {
 /// scalar builds give the same bits.
 #[inline(always)]
 fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
-    let Product { region, layout, forces, rows } = p;
+    let Product { region, layout, forces, rows, tuning } = p;
+    let fused = tuning.enabled(Optimisation::FusedColumns);
     acc.clear();
     acc.resize(9 * chunk, 0.0);
     for (k, s) in layout.spans.iter().enumerate() {
@@ -363,6 +367,7 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
             add_columns(
                 out,
                 n_full,
+                fused,
                 |i| {
                     let o = 9 * (col_off(fk[i].0) + r0 - fk[i].0);
                     &v[o..o + len]
@@ -384,6 +389,7 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
             add_columns(
                 out,
                 fk.len(),
+                fused,
                 |i| {
                     let c = fk[i].0;
                     let o = 9 * (col_off(c) + (s[1] - c) + (r0 - s[2]));
@@ -407,7 +413,7 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
                 add_scaled_runs::<T, 1>(&mut out[..9 * (c - r0)], [&row[o..9 * (c - s[0])]], [upper_pattern(&f)]);
             }
             let (fu, ru) = (&fk[n_part..], &rows_k[n_part..]);
-            add_columns(out, fu.len(), |i| &ru[i][o..o + len], |i| upper_pattern(&fu[i].1));
+            add_columns(out, fu.len(), fused, |i| &ru[i][o..o + len], |i| upper_pattern(&fu[i].1));
             for (ui, a) in u[r0..r1].iter_mut().zip(out.chunks_exact(9)) {
                 // the transposed blocks: partial e belongs to component e / 3
                 *ui += Vec3::new(a[0] + a[1] + a[2], a[3] + a[4] + a[5], a[6] + a[7] + a[8]);
@@ -432,6 +438,7 @@ struct Product<'p, R, T> {
     layout: &'p Layout,
     forces: &'p [(usize, Vec3)],
     rows: &'p [Vec<T>],
+    tuning: Tuning,
 }
 
 impl<R, T> Clone for Product<'_, R, T> {
@@ -446,7 +453,7 @@ impl<R, T> Copy for Product<'_, R, T> {}
 /// AVX-512 build measured no faster: the kernel waits on memory.)
 fn accumulate_impl<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::Avx2Product) {
+    if std::arch::is_x86_feature_detected!("avx2") && p.tuning.enabled(Optimisation::Avx2Product) {
         // SAFETY: the CPU supports AVX2 (checked just above).
         unsafe { accumulate_avx2(p, u, acc, chunk) };
         return;

@@ -10,9 +10,9 @@ use super::*;
 pub(super) const CANDIDATE_BLOCKS_FROM_BYTES: usize = 64 << 20;
 
 /// Whether a solver on a compliance that is `large` (over
-/// [`CANDIDATE_BLOCKS_FROM_BYTES`]) keeps its candidates' blocks this frame.
-pub(super) fn wanted(large: bool) -> bool {
-    large && crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::CandidateBlocks)
+/// [`CANDIDATE_BLOCKS_FROM_BYTES`]) keeps its candidates' blocks.
+pub(super) fn wanted(large: bool, tuning: Tuning) -> bool {
+    large && tuning.enabled(Optimisation::CandidateBlocks)
 }
 
 /// The K^-1 blocks of the contact candidates against the nodes of the W

@@ -58,6 +58,7 @@ mod screen;
 use blocks::{CANDIDATE_BLOCKS_FROM_BYTES, CandidateBlocks};
 use super::FemError;
 use super::compliance::{Compliance, ProductWorkspace};
+use super::tuning::{Optimisation, Tuning};
 use super::wfactor::ContactFactor;
 use super::model::FemModel;
 use crate::math::{Matrix3, Vec3, is_finite3};
@@ -263,9 +264,12 @@ pub struct ConstrainedSolver {
     /// blocks miss the CPU's caches (a smaller one is read as fast as the
     /// kept blocks). Fixed at construction.
     large_compliance: bool,
-    /// Whether [`Self::candidate_blocks`] is used this frame: a large
-    /// compliance, and the optimisation not switched off (`fem::tuning`).
+    /// Whether [`Self::candidate_blocks`] is used: a large compliance, and
+    /// the optimisation not switched off in `tuning`.
     keep_candidate_blocks: bool,
+    /// The measured optimisations this solver uses (`fem::tuning`; taken
+    /// when it is made, changed only by [`Self::set_tuning`]).
+    tuning: Tuning,
     /// Counts the changes of `nodes` (the kept blocks' columns follow it).
     nodes_version: u64,
     /// Counts the changes of `lazy`: a block [`Self::kinv`] reads for a
@@ -346,7 +350,8 @@ impl ConstrainedSolver {
             prev_barrier: Vec::new(),
             candidate_blocks: std::cell::RefCell::new(CandidateBlocks::default()),
             large_compliance,
-            keep_candidate_blocks: blocks::wanted(large_compliance),
+            keep_candidate_blocks: blocks::wanted(large_compliance, Tuning::current()),
+            tuning: Tuning::current(),
             nodes_version: 0,
             lazy_generation: 0,
             rows: Vec::new(),
@@ -491,6 +496,15 @@ impl ConstrainedSolver {
         self.iteration_cap = cap;
     }
 
+    /// Switches this solver's measured optimisations (`fem::tuning`), its
+    /// surface product's included, from the next frame on (benches measure
+    /// each on and off on one solver).
+    pub fn set_tuning(&mut self, tuning: Tuning) {
+        self.tuning = tuning;
+        self.product.tuning = tuning;
+        self.keep_candidate_blocks = blocks::wanted(self.large_compliance, tuning);
+    }
+
     /// The cap set by [`Self::set_iteration_cap`].
     pub fn iteration_cap(&self) -> Option<usize> {
         self.iteration_cap
@@ -501,7 +515,6 @@ impl ConstrainedSolver {
         self.frame += 1;
         self.timings = PhaseTimings::default();
         self.validate(constraints)?;
-        self.keep_candidate_blocks = blocks::wanted(self.large_compliance);
         self.group_claims(constraints);
         self.collect_candidates(constraints);
         self.touch_candidate_columns();
@@ -534,7 +547,7 @@ impl ConstrainedSolver {
             return Err(self.not_converged(0, 0.0));
         }
         let mut iterations = 0;
-        let screening = crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::CandidateScreen);
+        let screening = self.tuning.enabled(Optimisation::CandidateScreen);
         self.screen.begin_frame();
         loop {
             iterations += 1;
@@ -785,7 +798,7 @@ impl ConstrainedSolver {
         self.enforced_nodes = self.nodes.len();
         let t = std::time::Instant::now();
         let mut factor = std::mem::take(&mut self.factor);
-        if !crate::fem::tuning::enabled(crate::fem::tuning::Optimisation::WFactorReuse) {
+        if !self.tuning.enabled(Optimisation::WFactorReuse) {
             factor.reset();
         }
         factor.update_enforced(&self.perm_nodes, &|p, q| self.kinv(p, q));
