@@ -48,7 +48,7 @@ fn reduced_study_writes_its_outputs_and_accuracy_behaves() {
     for needle in ["For this much accuracy, this much time", "160 ms (GPU)", "2000 ms (CPU)", "700 ms", "## Sweep: speed", "## Sweep: contact", "| 16 ms |"] {
         assert!(report.contains(needle), "report.md lacks `{needle}`");
     }
-    for stem in ["pareto", "knobs", "budget", "fig13_collision_vs_nodes", "speed_vs_error"] {
+    for stem in ["pareto", "knobs", "budget", "fig13_collision_vs_nodes", "speed_vs_error", "force_path"] {
         let png = dir.path().join(format!("{stem}.png"));
         let img = image::open(&png).unwrap_or_else(|e| panic!("{} does not decode: {e}", png.display())).to_rgb8();
         let first = *img.get_pixel(0, 0);
@@ -62,8 +62,9 @@ fn reduced_study_writes_its_outputs_and_accuracy_behaves() {
     let references: Vec<&RunRow> = results.rows.iter().filter(|r| r.is_reference()).collect();
     assert_eq!(references.len(), 1, "one reference for the whole study");
     let a = references[0].outcome.as_ref().ok().and_then(|m| m.accuracy).expect("reference has accuracy");
-    assert_eq!((a.rms_error_m, a.max_error_m, a.force_error_pct, a.pressure_error_mmhg), (0.0, 0.0, 0.0, 0.0));
+    assert_eq!((a.rms_error_m, a.max_error_m, a.force_rms_pct, a.force_max_pct, a.pressure_error_mmhg), (0.0, 0.0, 0.0, 0.0, 0.0));
     assert!(a.frames_compared > 0);
+    assert_eq!(a.force_points, a.frames_compared, "the reference's force is compared at each of its frames");
     for r in results.rows.iter().filter(|r| !r.is_reference()) {
         let a = r.outcome.as_ref().ok().and_then(|m| m.accuracy).expect("every run is compared");
         assert!(a.rms_error_m > 0.0, "{} {} is not the reference but has error 0", r.knob.map_or("", |k| k.name()), r.label);
@@ -78,6 +79,10 @@ fn reduced_study_writes_its_outputs_and_accuracy_behaves() {
     // The contact actually happens in the reference run.
     let sref = find(&results.rows, Knob::Speed, "0.5 h/frame");
     assert!(acc(sref).reference_contact_frames > 0, "the spatula must touch the wall in the reference run");
+    // A faster blade has fewer frames, and its force is judged at the reference's frames between them too.
+    let fastest = results.rows.iter().filter(|r| r.knob == Some(Knob::Speed)).max_by(|a, b| a.value.total_cmp(&b.value)).expect("speed runs");
+    let f = acc(fastest);
+    assert!(f.force_points > f.frames_compared, "{}: force compared at {} points, frames shared {}", fastest.label, f.force_points, f.frames_compared);
     // The paper's point: without culling, bilateral contact pulls tissue through a fast blade; with it, not.
     let crossed = |label: &str| find(&results.rows, Knob::Contact, label).outcome.as_ref().map(|m| m.crossed_total).unwrap_or(0);
     assert!(crossed("bilateral, culling off, 5 h/frame") > 0, "bilateral contact without culling must pull tissue through");

@@ -1,17 +1,24 @@
 //! Accuracy of a run against the study's reference run.
 //!
-//! In: two [`RunTrace`]s with displacements. Out: an [`Accuracy`]: RMS and max
-//! surface-displacement error (m), reaction-force error (% of the reference's
-//! peak force), mean contact pressure error (mmHg), missed-contact frames,
-//! frames compared. Stays true: frames are
-//! compared only where both runs stand at the same point of the path (same
-//! [`FrameKey`]); on the same mesh vertex by vertex; across meshes at probe
-//! points (the reference's surface vertices), where the run's displacement is
-//! interpolated barycentrically at the closest point of its rest surface.
-//! RMS is over the "moving" vertices (reference displacement above
-//! [`MOVING_FRACTION`] of its peak in some compared frame), max over all.
+//! In: two [`RunTrace`]s with displacements and the study's [`Motion`]. Out:
+//! an [`Accuracy`]: RMS and max surface-displacement error (m), the force's
+//! RMS and maximum error (% of the reference's peak force), mean contact
+//! pressure error (mmHg), missed-contact frames, frames compared. Stays true:
+//! displacements and pressures are compared only where both runs stand at the
+//! same point of the path (same [`FrameKey`](super::motion::FrameKey)); on the
+//! same mesh vertex by vertex; across meshes at probe points (the reference's
+//! surface vertices), where the run's displacement is interpolated
+//! barycentrically at the closest point of its rest surface. RMS is over the
+//! "moving" vertices (reference displacement above [`MOVING_FRACTION`] of its
+//! peak in some compared frame), max over all. The force is compared at every
+//! frame of the reference, the run's force interpolated linearly along the
+//! path between its two frames around that point, so a run with fewer frames
+//! (a faster blade) is judged at the same points as one with many, not only
+//! where their frames happen to coincide.
 
+use super::motion::Motion;
 use super::runner::RunTrace;
+use crate::math::Vec3;
 use crate::geometry::closest_barycentric;
 
 /// A vertex counts as moving when its reference displacement exceeds this
@@ -39,8 +46,13 @@ pub struct Accuracy {
     pub rms_error_m: f64,
     /// Largest displacement error, m.
     pub max_error_m: f64,
-    /// Largest |F - F_ref| over compared frames, % of the reference's peak |F| over its whole run.
-    pub force_error_pct: f64,
+    /// RMS of |F - F_ref| over the reference's frames within the run's path
+    /// (the run's force interpolated along the path), % of the reference's peak |F|.
+    pub force_rms_pct: f64,
+    /// Largest |F - F_ref| over the same points, % of the reference's peak |F|.
+    pub force_max_pct: f64,
+    /// Reference frames the force was compared at.
+    pub force_points: usize,
     /// Largest |p - p_ref| of the highest mean contact pressure over compared frames, mmHg.
     pub pressure_error_mmhg: f64,
     /// Compared frames where the reference had contact and this run none.
@@ -74,8 +86,38 @@ fn probe_map(reference: &RunTrace, run: &RunTrace, probes: Vec<usize>) -> ProbeM
     ProbeMap { probes, weights }
 }
 
-/// Compares `run` with `reference` (both with displacements).
-pub fn compare(reference: &RunTrace, run: &RunTrace, same_mesh: bool) -> Accuracy {
+/// The run's force at path position `s` (nm), linear between its frames
+/// around `s`; `None` outside its first and last frame. `path` is
+/// (position, force) in path order.
+fn force_at(path: &[(i64, Vec3)], s: i64) -> Option<Vec3> {
+    let k = path.partition_point(|p| p.0 < s);
+    let hi = path.get(k)?;
+    if hi.0 == s {
+        return Some(hi.1);
+    }
+    let lo = path.get(k.checked_sub(1)?)?;
+    let t = (s - lo.0) as f64 / (hi.0 - lo.0) as f64;
+    Some(lo.1 + (hi.1 - lo.1) * t)
+}
+
+/// (RMS, max, points) of |F - F_ref| over the reference's frames, the run's
+/// force interpolated along the path; in N.
+fn force_error(reference: &RunTrace, run: &RunTrace, motion: &Motion) -> (f64, f64, usize) {
+    let path: Vec<(i64, Vec3)> = run.frames.iter().map(|f| (motion.path_position_nm(f.key), f.force)).collect();
+    let (mut sum2, mut max, mut n) = (0.0, 0.0_f64, 0usize);
+    for f in &reference.frames {
+        if let Some(force) = force_at(&path, motion.path_position_nm(f.key)) {
+            let e = (f.force - force).norm();
+            sum2 += e * e;
+            max = max.max(e);
+            n += 1;
+        }
+    }
+    (if n > 0 { (sum2 / n as f64).sqrt() } else { 0.0 }, max, n)
+}
+
+/// Compares `run` with `reference` (both with displacements, both along `motion`).
+pub fn compare(reference: &RunTrace, run: &RunTrace, same_mesh: bool, motion: &Motion) -> Accuracy {
     // Matched frames: (reference index, run index), in run order. Keys grow
     // along the path (phase, then distance), so the frames are sorted by key.
     let mut pairs = Vec::new();
@@ -125,7 +167,8 @@ pub fn compare(reference: &RunTrace, run: &RunTrace, same_mesh: bool) -> Accurac
         }
     }
     let peak_force = reference.frames.iter().map(|f| f.force.norm()).fold(0.0, f64::max);
-    let force_error = pairs.iter().map(|&(r, k)| (reference.frames[r].force - run.frames[k].force).norm()).fold(0.0, f64::max);
+    let (force_rms, force_max, force_points) = force_error(reference, run, motion);
+    let pct = |e: f64| if peak_force > 0.0 { 100.0 * e / peak_force } else { 0.0 };
     let pressure_error = pairs.iter().map(|&(r, k)| (reference.frames[r].pressure_mmhg - run.frames[k].pressure_mmhg).abs()).fold(0.0, f64::max);
     let reference_contact_frames = pairs.iter().filter(|&&(r, _)| reference.frames[r].constrained > 0).count();
     let missed = pairs.iter().filter(|&&(r, k)| reference.frames[r].constrained > 0 && run.frames[k].constrained == 0).count();
@@ -137,7 +180,9 @@ pub fn compare(reference: &RunTrace, run: &RunTrace, same_mesh: bool) -> Accurac
         frames_compared: pairs.len(),
         rms_error_m: if count > 0 { (sum2 / count as f64).sqrt() } else { 0.0 },
         max_error_m: max,
-        force_error_pct: if peak_force > 0.0 { 100.0 * force_error / peak_force } else { 0.0 },
+        force_rms_pct: pct(force_rms),
+        force_max_pct: pct(force_max),
+        force_points,
         pressure_error_mmhg: pressure_error,
         missed_contact_frames: missed,
         reference_contact_frames,
@@ -178,18 +223,50 @@ mod tests {
 
     #[test]
     fn identical_runs_have_zero_error_and_shifted_runs_do_not() {
+        let m = Motion::default();
         let r = trace(&[1, 2, 3], &[0.0, 1.0, 2.0]);
-        let a = compare(&r, &r.clone(), true);
-        assert_eq!((a.rms_error_m, a.max_error_m, a.force_error_pct, a.missed_contact_frames), (0.0, 0.0, 0.0, 0));
-        assert_eq!(a.frames_compared, 3);
+        let a = compare(&r, &r.clone(), true, &m);
+        assert_eq!((a.rms_error_m, a.max_error_m, a.force_rms_pct, a.force_max_pct, a.missed_contact_frames), (0.0, 0.0, 0.0, 0.0, 0));
+        assert_eq!((a.frames_compared, a.force_points), (3, 3));
         // A faster run visiting keys 2 only, with half the displacement there; key 4 is unknown to the reference.
         let fast = trace(&[2, 4], &[0.5, 9.0]);
-        let b = compare(&r, &fast, true);
+        let b = compare(&r, &fast, true, &m);
         assert_eq!(b.frames_compared, 1, "only the shared path position is compared");
         assert!((b.max_error_m - 0.5).abs() < 1e-12 && (b.rms_error_m - 0.5).abs() < 1e-12, "{b:?}");
-        assert!((b.force_error_pct - 25.0).abs() < 1e-9, "0.5 N off a 2 N peak: {}", b.force_error_pct);
+        // The force at keys 2 (0.5 against 1) and 3 (4.75 half way to key 4's 9, against 2); key 1 lies before the run.
+        assert_eq!(b.force_points, 2);
+        assert!((b.force_max_pct - 137.5).abs() < 1e-9, "2.75 N off a 2 N peak: {}", b.force_max_pct);
+        let rms = ((0.5f64 * 0.5 + 2.75 * 2.75) / 2.0).sqrt() / 2.0 * 100.0;
+        assert!((b.force_rms_pct - rms).abs() < 1e-9, "{} against {rms}", b.force_rms_pct);
         let none = trace(&[2], &[0.0]);
-        assert_eq!(compare(&r, &none, true).missed_contact_frames, 1, "contact in the reference, none here");
+        assert_eq!(compare(&r, &none, true, &m).missed_contact_frames, 1, "contact in the reference, none here");
+    }
+
+    /// A run with every other frame is judged at every reference frame: on a
+    /// force that is linear along the path it is exact; a peak between its
+    /// frames is an error, where comparing only the shared frames saw none.
+    #[test]
+    fn the_force_is_compared_along_the_path_not_only_at_shared_frames() {
+        let m = Motion::default();
+        let keys: Vec<i64> = (1..=8).collect();
+        let ramp = trace(&keys, &[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
+        let coarse = trace(&[2, 4, 6, 8], &[1.0, 3.0, 5.0, 7.0]);
+        let a = compare(&ramp, &coarse, true, &m);
+        assert_eq!((a.frames_compared, a.force_points), (4, 7));
+        assert!(a.force_max_pct < 1e-9 && a.force_rms_pct < 1e-9, "{a:?}");
+        let bump = trace(&keys, &[0.0, 0.0, 0.0, 4.0, 0.0, 0.0, 0.0, 0.0]);
+        let blind = trace(&[2, 6], &[0.0, 0.0]);
+        let b = compare(&bump, &blind, true, &m);
+        assert_eq!(b.force_points, 5, "keys 2 to 6");
+        assert!((b.force_max_pct - 100.0).abs() < 1e-9, "{b:?}");
+        assert!((b.force_rms_pct - 100.0 / 5f64.sqrt()).abs() < 1e-9, "{b:?}");
+    }
+
+    #[test]
+    fn path_positions_follow_the_phases() {
+        let m = Motion { insert_m: 0.03, insert_step_m: 0.002, open_m: 0.01 };
+        let at = |phase, mm: i64| m.path_position_nm(FrameKey { phase, distance_nm: mm * 1_000_000 });
+        assert_eq!([at(0, 2), at(1, 0), at(2, 1), at(3, 30)], [2_000_000, 30_000_000, 41_000_000, 80_000_000]);
     }
 
     #[test]
@@ -200,7 +277,7 @@ mod tests {
         assert_eq!(w, [0.0, 1.0, 0.0], "beyond vertex b");
         // A uniform field is reproduced exactly across meshes.
         let r = trace(&[1], &[0.003]);
-        let a = compare(&r, &r.clone(), false);
+        let a = compare(&r, &r.clone(), false, &Motion::default());
         assert_eq!(a.comparison, Comparison::Probes(3));
         assert!(a.max_error_m < 1e-15);
     }

@@ -157,6 +157,9 @@ pub struct RunMeasure {
     pub inverted_max: u32,
     /// Highest mean contact pressure of the run, mmHg.
     pub peak_pressure_mmhg: f64,
+    /// The force on the tissue along the path: (path position mm, |F| N) a
+    /// frame, for the force-vs-path plot.
+    pub force_path: Vec<(f64, f64)>,
 }
 
 impl RunMeasure {
@@ -254,7 +257,7 @@ pub fn load_scene(path: Option<&Path>) -> Result<Scenario, StudyError> {
     Ok(scene)
 }
 
-fn measure(trace: &RunTrace) -> RunMeasure {
+fn measure(trace: &RunTrace, motion: &Motion) -> RunMeasure {
     let mut stages = Vec::new();
     for id in StageId::ALL {
         let mut v: Vec<f64> = trace.frames.iter().filter_map(|f| f.times.get(id)).collect();
@@ -279,6 +282,7 @@ fn measure(trace: &RunTrace) -> RunMeasure {
         penetration_max_m: trace.frames.iter().map(|f| f.max_penetration_m).fold(0.0, f64::max),
         inverted_max: trace.frames.iter().map(|f| f.inverted).max().unwrap_or(0),
         peak_pressure_mmhg: trace.frames.iter().map(|f| f.pressure_mmhg).fold(0.0, f64::max),
+        force_path: trace.frames.iter().map(|f| (motion.path_position_nm(f.key) as f64 * 1e-6, f.force.norm())).collect(),
     }
 }
 
@@ -366,8 +370,8 @@ fn run_plan_inner(
         settings: spec.settings.clone(),
         outcome: match &reference {
             Ok((t, note)) => {
-                let mut m = measure(t);
-                m.accuracy = Some(Accuracy { comparison: Comparison::Reference, ..accuracy::compare(t, t, true) });
+                let mut m = measure(t, &plan.motion);
+                m.accuracy = Some(Accuracy { comparison: Comparison::Reference, ..accuracy::compare(t, t, true, &plan.motion) });
                 m.note = note.clone();
                 Ok(m)
             }
@@ -386,9 +390,9 @@ fn run_plan_inner(
             };
             done += 1;
             let outcome = outcome.map(|trace| {
-                let mut m = measure(&trace);
+                let mut m = measure(&trace, &plan.motion);
                 match &reference {
-                    Ok((r, _)) => m.accuracy = Some(accuracy::compare(r, &trace, spec.settings.mesh == plan.reference.settings.mesh)),
+                    Ok((r, _)) => m.accuracy = Some(accuracy::compare(r, &trace, spec.settings.mesh == plan.reference.settings.mesh, &plan.motion)),
                     Err(_) => m.note = Some("the reference run failed".into()),
                 }
                 m

@@ -96,6 +96,20 @@ impl Motion {
         out
     }
 
+    /// Distance along the whole path, whole nanometres, of a frame at `key`:
+    /// the phases one after another (insert, open, close, withdraw), so it
+    /// grows with the key and runs at any speed share one axis, exactly.
+    pub fn path_position_nm(&self, key: FrameKey) -> i64 {
+        let (insert, open) = (nanometres(self.insert_m), nanometres(self.open_m));
+        let before = match key.phase {
+            0 => 0,
+            1 => insert,
+            2 => insert + open,
+            _ => insert + 2 * open,
+        };
+        before + key.distance_nm
+    }
+
     /// Where the blade works (world, m): on its centre line, the middle of the
     /// part that went past its starting tip, half way through the opening.
     /// The natural centre of a region-of-interest sphere.

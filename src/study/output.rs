@@ -27,7 +27,7 @@ pub const BUDGETS_MS: [f64; 3] = [1.0, 4.0, 16.0];
 pub const CSV_HEADER: &str = "knob,label,value,reference,mesh,mesh_nodes,surface_triangles,layout,nodes_per_face,backend,culling,\
 speed_thickness_per_frame,storage,roi,contact,substep_travel,skull,status,frames,build_s,compliance_mb,compliance_cached,\
 collision_p50_ms,collision_p95_ms,solve_p50_ms,solve_p95_ms,forces_p50_ms,forces_p95_ms,monitor_p50_ms,monitor_p95_ms,\
-frame_p50_ms,frame_p95_ms,comparison,frames_compared,rms_error_mm,max_error_mm,force_error_pct,missed_contact_frames,\
+frame_p50_ms,frame_p95_ms,comparison,frames_compared,rms_error_mm,max_error_mm,force_rms_pct,force_max_pct,force_points,missed_contact_frames,\
 reference_contact_frames,pressure_error_mmhg,peak_pressure_mmhg,crossed_vertices,penetrating_max,penetration_max_mm,inverted_max";
 
 fn quote(s: &str) -> String {
@@ -109,18 +109,20 @@ pub fn csv_line(r: &RunRow) -> String {
         Some(a) => {
             let _ = write!(
                 line,
-                "{},{},{:.6},{:.6},{:.4},{},{},{:.4},",
+                "{},{},{:.6},{:.6},{:.4},{:.4},{},{},{},{:.4},",
                 quote(&comparison_label(a.comparison)),
                 a.frames_compared,
                 a.rms_error_m * 1e3,
                 a.max_error_m * 1e3,
-                a.force_error_pct,
+                a.force_rms_pct,
+                a.force_max_pct,
+                a.force_points,
                 a.missed_contact_frames,
                 a.reference_contact_frames,
                 a.pressure_error_mmhg
             );
         }
-        None => line.push_str(",,,,,,,,"),
+        None => line.push_str(",,,,,,,,,,"),
     }
     let _ = write!(line, "{:.4},{},{},{:.6},{}", m.peak_pressure_mmhg, m.crossed_total, m.penetrating_max, m.penetration_max_m * 1e3, m.inverted_max);
     line
@@ -156,6 +158,11 @@ fn f_mm(x: f64) -> String {
 /// An error in its unit with `digits` decimals: "exact" when it is 0.
 fn f_err(v: f64, digits: usize) -> String {
     if v == 0.0 { "exact".into() } else { format!("{v:.digits$}") }
+}
+
+/// The force error's RMS and maximum, `rms / max` (or `exact`).
+fn force_cell(a: &super::Accuracy, digits: usize) -> String {
+    if a.force_rms_pct == 0.0 && a.force_max_pct == 0.0 { "exact".into() } else { format!("{:.digits$} / {:.digits$}", a.force_rms_pct, a.force_max_pct) }
 }
 
 /// The most accurate run (RMS error, then max error, then faster) whose frame
@@ -230,7 +237,7 @@ pub fn summary_section(text: &str) -> Option<&str> {
 
 /// The header of every run table; the first [`ACCURACY_COLUMNS`] cells after the
 /// value are deterministic (the CI test compares them with a committed report).
-const RUN_TABLE_HEADER: &str = "| value | RMS err (mm) | max err (mm) | force err (%) | pressure err (mmHg) | missed | crossed | pen. (mm) | inverted | frame p50/p95 (ms) | collision p50/p95 (ms) | solve p50/p95 (ms) | build (s) | compliance (MB) | note |\n\
+const RUN_TABLE_HEADER: &str = "| value | RMS err (mm) | max err (mm) | force RMS / max err (%) | pressure err (mmHg) | missed | crossed | pen. (mm) | inverted | frame p50/p95 (ms) | collision p50/p95 (ms) | solve p50/p95 (ms) | build (s) | compliance (MB) | note |\n\
 |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
 /// Deterministic cells of a run-table row after the value.
 pub const ACCURACY_COLUMNS: usize = 8;
@@ -272,7 +279,7 @@ fn run_table_row(t: &mut String, r: &RunRow) {
                 Some(a) => (
                     f_mm(a.rms_error_m),
                     f_mm(a.max_error_m),
-                    f_err(a.force_error_pct, 2),
+                    force_cell(a, 2),
                     f_err(a.pressure_error_mmhg, 2),
                     format!("{}/{}", a.missed_contact_frames, a.reference_contact_frames),
                 ),
@@ -318,7 +325,7 @@ fn write_summary(t: &mut String, results: &StudyResults) {
         cores,
         if cfg!(debug_assertions) { "debug" } else { "release" }
     );
-    t.push_str("| frame budget (p95) | most accurate setting that fits | frame p50 / p95 (ms) | RMS / max err (mm) | force err (%) | pressure err (mmHg) |\n|---|---|---:|---:|---:|---:|\n");
+    t.push_str("| frame budget (p95) | most accurate setting that fits | frame p50 / p95 (ms) | RMS / max err (mm) | force RMS / max err (%) | pressure err (mmHg) |\n|---|---|---:|---:|---:|---:|\n");
     for budget in BUDGETS_MS {
         match best_within(&results.rows, budget) {
             None => {
@@ -335,7 +342,7 @@ fn write_summary(t: &mut String, results: &StudyResults) {
                     f_ms(m.frame.p50),
                     f_ms(m.frame.p95),
                     if exact { "exact".into() } else { format!("{} / {}", f_mm(a.rms_error_m), f_mm(a.max_error_m)) },
-                    if exact { "exact".into() } else { f_err(a.force_error_pct, 1) },
+                    if exact { "exact".into() } else { force_cell(a, 1) },
                     if exact { "exact".into() } else { f_err(a.pressure_error_mmhg, 2) },
                 );
             }
@@ -396,8 +403,11 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
          point of the path; RMS over the vertices the reference moves (more than 1% of its peak), max over all. Same mesh: \
          vertex by vertex; across meshes: at the reference's moving surface vertices, where the other mesh's displacement is \
          interpolated barycentrically at the closest point of its rest surface (this includes the meshes' different fissure geometry).\n\
-         - **force err**: largest |F − F_ref| over those frames, % of the reference's peak force. **pressure err**: largest \
-         difference of the mean contact pressure (the highest over the spatulas), mmHg.\n\
+         - **force RMS / max err**: |F − F_ref| at every frame of the reference within the run's path, the run's force \
+         interpolated linearly along the path between its frames on either side (so a run with fewer frames is judged at the \
+         same points as the reference, not only where their frames coincide); RMS and largest, % of the reference's peak force. \
+         **pressure err**: largest difference of the mean contact pressure (the highest over the spatulas) at the shared \
+         points of the path, mmHg. ![force along the path](force_path.png) shows each knob's runs against the reference.\n\
          - **missed**: frames where the reference had contact and this run had none (tunnelling), of the reference's contact frames.\n\
          - **crossed**: surface vertices pulled through a blade (summed over frames); **pen.**: most vertices inside a blade in one \
          frame (deepest, mm); **inverted**: most inverted elements after a frame.\n\
@@ -420,7 +430,7 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
 
     t.push_str("## For this much accuracy, this much time\n\n");
     t.push_str("The error-vs-time Pareto front over all runs: no run is both faster and more accurate than a row here.\n\n");
-    t.push_str("| frame p95 (ms) | frame p50 (ms) | RMS err (mm) | max err (mm) | force err (%) | setting |\n|---:|---:|---:|---:|---:|---|\n");
+    t.push_str("| frame p95 (ms) | frame p50 (ms) | RMS err (mm) | max err (mm) | force RMS / max err (%) | setting |\n|---:|---:|---:|---:|---:|---|\n");
     for r in pareto_front(&results.rows) {
         let (Some(m), Some(a)) = (measure_of(r), measure_of(r).and_then(|m| m.accuracy.as_ref())) else { continue };
         let _ = writeln!(
@@ -430,7 +440,7 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
             f_ms(m.frame.p50),
             f_mm(a.rms_error_m),
             f_mm(a.max_error_m),
-            f_err(a.force_error_pct, 2),
+            force_cell(a, 2),
             r.knob.map_or("reference", |k| k.name()),
             r.label,
             settings_summary(r)

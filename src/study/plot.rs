@@ -5,8 +5,10 @@
 //! labelled with its setting), `budget` (for frame budgets of 1, 4 and 16 ms,
 //! the most accurate run that fits), `fig13_collision_vs_nodes` (collision
 //! time vs source nodes a face per backend, the paper's Fig. 13 points beside)
-//! and `speed_vs_error` (vertices pulled through a blade and RMS error vs speed
-//! in thicknesses a frame, culling on and off under both contact models).
+//! `speed_vs_error` (vertices pulled through a blade and RMS error vs speed
+//! in thicknesses a frame, culling on and off under both contact models) and
+//! `force_path` (one panel a knob: the force on the tissue against the
+//! position along the path, each run of the knob over the reference).
 //! Stays true: axes carry units; log axes where values span decades; an error
 //! of exactly 0 is drawn on a separate band labelled "exact" below the axis'
 //! smallest measured error, never at an invented number.
@@ -242,6 +244,69 @@ fn draw_knobs<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
     root.present().map_err(err)
 }
 
+/// One panel a knob: |F| on the tissue against the position along the path
+/// (insert, open, close, withdraw, phase ends dashed), the reference in
+/// black under each of the knob's runs; a legend a panel.
+fn draw_force_path<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &StudyResults) -> Res {
+    root.fill(&WHITE).map_err(err)?;
+    let path_of = |r: &RunRow| r.outcome.as_ref().ok().map(|m| m.force_path.clone()).filter(|p| !p.is_empty());
+    let reference = results.rows.iter().find(|r| r.is_reference()).and_then(path_of);
+    let knobs: Vec<Knob> = Knob::ALL.into_iter().filter(|k| results.rows.iter().any(|r| r.knob == Some(*k) && path_of(r).is_some())).collect();
+    let root = root.titled("Force on the tissue along the path: each knob's runs against the reference (black)", (FONT, 26)).map_err(err)?;
+    let m = &results.motion;
+    let length_mm = (2.0 * m.insert_m + 2.0 * m.open_m) * 1e3;
+    let top = results.rows.iter().filter_map(path_of).flatten().map(|p| p.1).fold(0.0, f64::max).max(1e-3) * 1.1;
+    let columns = 2;
+    let rows = knobs.len().div_ceil(columns).max(1);
+    let panels = root.split_evenly((rows, columns));
+    for (knob, area) in knobs.iter().zip(&panels) {
+        let mut chart = ChartBuilder::on(area)
+            .caption(knob.name(), (FONT, 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..length_mm, 0.0..top)
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc("position along the path (mm)")
+            .y_desc("|F| on the tissue (N)")
+            .axis_desc_style((FONT, 14))
+            .label_style((FONT, 12))
+            .draw()
+            .map_err(err)?;
+        for end in [m.insert_m, m.insert_m + m.open_m, m.insert_m + 2.0 * m.open_m] {
+            let x = end * 1e3;
+            chart.draw_series(DashedLineSeries::new(vec![(x, 0.0), (x, top)], 5, 4, RGBColor(170, 170, 170).into())).map_err(err)?;
+        }
+        if let Some(p) = &reference {
+            chart
+                .draw_series(LineSeries::new(p.iter().copied(), BLACK.stroke_width(3)))
+                .map_err(err)?
+                .label("reference")
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(3)));
+        }
+        for (i, r) in results.rows.iter().filter(|r| r.knob == Some(*knob)).enumerate() {
+            let Some(p) = path_of(r) else { continue };
+            let c = Palette99::pick(i).to_rgba();
+            chart
+                .draw_series(LineSeries::new(p, c.stroke_width(2)))
+                .map_err(err)?
+                .label(r.label.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font((FONT, 12))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(err)?;
+    }
+    root.present().map_err(err)
+}
+
 /// For each frame budget, the most accurate run within it: one bar a budget.
 fn draw_budget<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &StudyResults) -> Res {
     root.fill(&WHITE).map_err(err)?;
@@ -451,12 +516,13 @@ enum Plot {
     Budget,
     Fig13,
     Speed,
+    ForcePath,
 }
 
 impl Plot {
     fn size(self) -> (u32, u32) {
         match self {
-            Plot::Knobs => KNOBS_SIZE,
+            Plot::Knobs | Plot::ForcePath => KNOBS_SIZE,
             _ => SIZE,
         }
     }
@@ -469,6 +535,7 @@ fn draw<DB: DrawingBackend>(plot: Plot, root: &DrawingArea<DB, Shift>, results: 
         Plot::Budget => draw_budget(root, results),
         Plot::Fig13 => draw_fig13(root, results),
         Plot::Speed => draw_speed(root, results),
+        Plot::ForcePath => draw_force_path(root, results),
     }
 }
 
@@ -511,7 +578,7 @@ fn both(out_dir: &Path, stem: &str, results: &StudyResults, plot: Plot) -> Resul
 /// Draws every plot into `out_dir`; returns the files.
 pub fn draw_all(results: &StudyResults, out_dir: &Path) -> Result<Vec<PathBuf>, StudyError> {
     let mut files = Vec::new();
-    for (stem, plot) in [("pareto", Plot::Pareto), ("knobs", Plot::Knobs), ("budget", Plot::Budget), ("fig13_collision_vs_nodes", Plot::Fig13), ("speed_vs_error", Plot::Speed)] {
+    for (stem, plot) in [("pareto", Plot::Pareto), ("knobs", Plot::Knobs), ("budget", Plot::Budget), ("fig13_collision_vs_nodes", Plot::Fig13), ("speed_vs_error", Plot::Speed), ("force_path", Plot::ForcePath)] {
         files.extend(both(out_dir, stem, results, plot)?);
     }
     Ok(files)
