@@ -212,6 +212,14 @@ pub fn assemble_lower(mesh: &TetMesh, lame: &[(f64, f64)], dofs: &DofMap) -> Low
         }
     }
     let mut values = vec![0.0; nnz];
+    add_element_stiffness(mesh, lame, dofs, &row_nodes, &node_ptr, &col_ptr, &mut values);
+    LowerCsc { dim, col_ptr, row_idx, values }
+}
+
+/// Adds every tetrahedron's stiffness into `values`, the lower CSC laid out
+/// by [`assemble_lower`] (`row_nodes[node_ptr[j]..]`: the row nodes of column
+/// node `j`, itself first; `col_ptr`: the DOF columns' starts).
+fn add_element_stiffness(mesh: &TetMesh, lame: &[(f64, f64)], dofs: &DofMap, row_nodes: &[u32], node_ptr: &[usize], col_ptr: &[usize], values: &mut [f64]) {
     for (t, tet) in mesh.tets.iter().enumerate() {
         let f = tet.map(|n| dofs.free_index[n as usize]);
         if f.iter().all(|&x| x == NO_DOF) {
@@ -246,7 +254,6 @@ pub fn assemble_lower(mesh: &TetMesh, lame: &[(f64, f64)], dofs: &DofMap) -> Low
             }
         }
     }
-    LowerCsc { dim, col_ptr, row_idx, values }
 }
 
 /// Full stiffness of ALL nodes (fixed or not) as sorted (row, col, value)

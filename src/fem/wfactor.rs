@@ -133,11 +133,51 @@ impl ContactFactor {
             self.last_update = FactorUpdate::Reused;
             return;
         }
+        let q = if self.any_dropped { 0 } else { 3 * first_removed.min(kept) };
+        self.compact(&order[..kept], q, n);
+        self.gather_new(order, kept, block);
+        self.nodes.clear();
+        self.nodes.extend_from_slice(order);
+        self.nodes_sorted.clear();
+        self.nodes_sorted.extend_from_slice(order);
+        self.nodes_sorted.sort_unstable();
+        self.dropped.clear();
+        self.dropped.resize(n, false);
+        self.any_dropped = false;
+        if n == 0 {
+            self.last_update = FactorUpdate::Empty;
+            return;
+        }
+        let new_start = 3 * kept;
+        let ok = self.refactor_from(q, new_start, n);
+        let ld = self.ld;
+        let healthy = ok
+            && (q..n).all(|i| {
+                let d = self.l[i * ld + i];
+                d.is_finite() && d * d > DEPENDENT_PIVOT * self.w[i * ld + i]
+            });
+        self.last_update = if q == 0 {
+            FactorUpdate::Full
+        } else if q == new_start {
+            FactorUpdate::Extended
+        } else {
+            FactorUpdate::Trailing
+        };
+        if !healthy {
+            self.refactor_with_pivot_drop(n);
+            self.last_update = FactorUpdate::Full;
+        }
+    }
+
+    /// Moves the kept nodes' rows of W (and of L in its first `q` columns)
+    /// to their new places (`kept`: the kept nodes in their new order, a
+    /// subsequence of the old), growing the storage to `n` rows if needed.
+    fn compact(&mut self, kept: &[u32], q: usize, n: usize) {
         // row map of the kept rows (new row -> old row)
         self.compact_rows.clear();
         {
             let mut old = 0;
-            for &p in &order[..kept] {
+            for &p in kept {
                 while self.nodes[old] != p {
                     old += 1;
                 }
@@ -147,7 +187,6 @@ impl ContactFactor {
                 old += 1;
             }
         }
-        let q = if self.any_dropped { 0 } else { 3 * first_removed.min(kept) };
         if n > self.ld {
             let ld = n.max(2 * self.ld).max(48);
             let mut w = vec![0.0; ld * ld];
@@ -177,9 +216,13 @@ impl ContactFactor {
                 }
             }
         }
+    }
+
+    /// Gathers the rows of W of the new nodes `order[kept..]` against every
+    /// node up to themselves.
+    fn gather_new(&mut self, order: &[u32], kept: usize, block: &dyn Fn(u32, u32) -> Matrix3<f64>) {
         let ld = self.ld;
-        // gather rows of new nodes against every node up to themselves
-        for a in kept..m {
+        for a in kept..order.len() {
             for b in 0..=a {
                 let blk = block(order[a], order[b]);
                 for c in 0..3 {
@@ -189,19 +232,14 @@ impl ContactFactor {
                 }
             }
         }
-        self.nodes.clear();
-        self.nodes.extend_from_slice(order);
-        self.nodes_sorted.clear();
-        self.nodes_sorted.extend_from_slice(order);
-        self.nodes_sorted.sort_unstable();
-        self.dropped.clear();
-        self.dropped.resize(n, false);
-        self.any_dropped = false;
-        if n == 0 {
-            self.last_update = FactorUpdate::Empty;
-            return;
-        }
-        let new_start = 3 * kept;
+    }
+
+    /// Refactors the enforced block from column `q` on (`q` = 0: in full):
+    /// the new nodes' rows (from `new_start`) in the kept leading columns,
+    /// `L21 = W21 L11^-T`, then the trailing block. False when the Cholesky
+    /// of the trailing block fails.
+    fn refactor_from(&mut self, q: usize, new_start: usize, n: usize) -> bool {
+        let ld = self.ld;
         // rows of new nodes in the kept leading columns: L21 = W21 L11^-T
         for j in 0..q {
             for i in new_start..n {
@@ -214,7 +252,7 @@ impl ContactFactor {
                 self.l[j * ld + i] = self.w[j * ld + i];
             }
         }
-        let ok = {
+        {
             let lm = MatMut::from_column_major_slice_with_stride_mut(&mut self.l[..], ld, ld, ld);
             let lm = lm.submatrix_mut(0, 0, n, n);
             let (mut left, mut right) = lm.split_at_col_mut(q);
@@ -251,22 +289,6 @@ impl ContactFactor {
                 }
                 None => false,
             }
-        };
-        let healthy = ok
-            && (q..n).all(|i| {
-                let d = self.l[i * ld + i];
-                d.is_finite() && d * d > DEPENDENT_PIVOT * self.w[i * ld + i]
-            });
-        self.last_update = if q == 0 {
-            FactorUpdate::Full
-        } else if q == new_start {
-            FactorUpdate::Extended
-        } else {
-            FactorUpdate::Trailing
-        };
-        if !healthy {
-            self.refactor_with_pivot_drop(n);
-            self.last_update = FactorUpdate::Full;
         }
     }
 

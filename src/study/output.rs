@@ -520,7 +520,7 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
     }
     t.push_str(
         "Files: `results.csv` (every number above, one row a run), `pareto`, `knobs`, `budget`, `fig13_collision_vs_nodes`, \
-         `speed_vs_error` (each `.png` and `.svg`).\n",
+         `speed_vs_error`, `force_path` (each `.png` and `.svg`).\n",
     );
     crate::fsio::write_atomic(path, t.as_bytes()).map_err(|e| io(path)(e.source))?;
     Ok(path.to_path_buf())

@@ -284,6 +284,15 @@ impl Compliance {
     /// with `(0, total)`; [`Self::fill_progress`] says how far the filling is.
     pub fn compute_with(model: &FemModel, roi_nodes: &[u32], options: ComputeOptions<'_>, progress: &mut dyn FnMut(usize, usize)) -> Result<Self, FemError> {
         let ComputeOptions { storage, cache_dir, reach, background } = options;
+        let reach = reach.filter(|r| r.len() == model.mesh.node_count());
+        let this = Self::laid_out(model, roi_nodes, storage, reach)?;
+        let path = cache_dir.map(|d| d.join(format!("compliance-{}.bin", hex(&this.key[..16]))));
+        this.fill_from(model, storage, path, background, reach, progress)
+    }
+
+    /// The rows, columns and layout for `roi_nodes` (fixed ones skipped,
+    /// duplicates ignored); nothing computed yet.
+    fn laid_out(model: &FemModel, roi_nodes: &[u32], storage: ComplianceStorage, reach: Option<&[u32]>) -> Result<Self, FemError> {
         let count = model.mesh.node_count();
         let mut roi: Vec<u32> = Vec::with_capacity(roi_nodes.len());
         for &n in roi_nodes {
@@ -304,7 +313,6 @@ impl Compliance {
         morton_sort(&mut others, &model.mesh.positions);
         // Rows are grouped by free component (see [`Layout`]); the sorts are
         // stable, so each component keeps its reach and Morton order.
-        let reach = reach.filter(|r| r.len() == count);
         if let Some(reach) = reach {
             roi.sort_by_key(|&n| reach[n as usize]);
         }
@@ -319,7 +327,7 @@ impl Compliance {
             node_row[n as usize] = r as u32;
         }
         let key = cache_key(model, &roi, storage);
-        let mut this = Self {
+        Ok(Self {
             values: Values::F64(Arc::new(Dense { v: Buf::new(Vec::new()), lo: Buf::new(Vec::new()) })),
             fill: None,
             row_nodes,
@@ -329,8 +337,22 @@ impl Compliance {
             key,
             model_fingerprint: model.fingerprint,
             stats: ComplianceStats::default(),
-        };
-        let path = cache_dir.map(|d| d.join(format!("compliance-{}.bin", hex(&key[..16]))));
+        })
+    }
+
+    /// Fills a compliance [`Self::laid_out`]: from the cache file at `path`
+    /// where its batches check, else solved; in the background or here.
+    fn fill_from(
+        self,
+        model: &FemModel,
+        storage: ComplianceStorage,
+        path: Option<PathBuf>,
+        background: bool,
+        reach: Option<&[u32]>,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<Self, FemError> {
+        let mut this = self;
+        let n_cols = this.n_cols;
         let t = Instant::now();
         let mut job = this.prepare_fill(model, storage, reach, background)?;
         if let Some(p) = &path {

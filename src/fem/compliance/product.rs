@@ -400,26 +400,33 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
             flush_lower(&mut u[r0..r1], out);
             r0 = r1;
         }
-        // Upper part: ROI rows s[0] <= i < c; columns r0 < c < r1 cover [r0, c), c >= r1 the chunk.
-        let top = fk[fk.len() - 1].0;
-        let mut r0 = s[0];
-        while r0 < top {
-            let r1 = (r0 + chunk).min(top);
-            let (len, out) = zeroed_partials(acc, r1 - r0);
-            let first = fk.partition_point(|f| f.0 <= r0);
-            let n_part = fk.partition_point(|f| f.0 < r1);
-            let o = 9 * (r0 - s[0]);
-            for (&(c, f), row) in fk[first..n_part].iter().zip(&rows_k[first..n_part]) {
-                add_scaled_runs::<T, 1>(&mut out[..9 * (c - r0)], [&row[o..9 * (c - s[0])]], [upper_pattern(&f)]);
-            }
-            let (fu, ru) = (&fk[n_part..], &rows_k[n_part..]);
-            add_columns(out, fu.len(), fused, |i| &ru[i][o..o + len], |i| upper_pattern(&fu[i].1));
-            for (ui, a) in u[r0..r1].iter_mut().zip(out.chunks_exact(9)) {
-                // the transposed blocks: partial e belongs to component e / 3
-                *ui += Vec3::new(a[0] + a[1] + a[2], a[3] + a[4] + a[5], a[6] + a[7] + a[8]);
-            }
-            r0 = r1;
+        add_upper(fk, rows_k, s[0], u, acc, chunk, fused);
+    }
+}
+
+/// The upper part of one component's product: ROI rows `s0 <= i < c` of
+/// each forced column `c`, from the gathered rows `rows_k` (those of `fk`).
+#[inline(always)]
+fn add_upper<T: Entry>(fk: &[(usize, Vec3)], rows_k: &[Vec<T>], s0: usize, u: &mut [Vec3], acc: &mut [f64], chunk: usize, fused: bool) {
+    // Upper part: ROI rows s0 <= i < c; columns r0 < c < r1 cover [r0, c), c >= r1 the chunk.
+    let top = fk[fk.len() - 1].0;
+    let mut r0 = s0;
+    while r0 < top {
+        let r1 = (r0 + chunk).min(top);
+        let (len, out) = zeroed_partials(acc, r1 - r0);
+        let first = fk.partition_point(|f| f.0 <= r0);
+        let n_part = fk.partition_point(|f| f.0 < r1);
+        let o = 9 * (r0 - s0);
+        for (&(c, f), row) in fk[first..n_part].iter().zip(&rows_k[first..n_part]) {
+            add_scaled_runs::<T, 1>(&mut out[..9 * (c - r0)], [&row[o..9 * (c - s0)]], [upper_pattern(&f)]);
         }
+        let (fu, ru) = (&fk[n_part..], &rows_k[n_part..]);
+        add_columns(out, fu.len(), fused, |i| &ru[i][o..o + len], |i| upper_pattern(&fu[i].1));
+        for (ui, a) in u[r0..r1].iter_mut().zip(out.chunks_exact(9)) {
+            // the transposed blocks: partial e belongs to component e / 3
+            *ui += Vec3::new(a[0] + a[1] + a[2], a[3] + a[4] + a[5], a[6] + a[7] + a[8]);
+        }
+        r0 = r1;
     }
 }
 

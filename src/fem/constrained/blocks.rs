@@ -151,7 +151,7 @@ impl ConstrainedSolver {
     /// (after [`CandidateBlocks::prepare`] for the current node list).
     #[inline]
     pub(super) fn kept_block(&self, kept: &mut CandidateBlocks, base: usize, p: u32, slot: usize) -> Matrix3<f64> {
-        let q = self.nodes[slot];
+        let q = self.sys.nodes[slot];
         let i = base + kept.slot_columns[slot] as usize;
         if kept.nodes[i] != q {
             kept.blocks[i] = self.kinv(p, q);

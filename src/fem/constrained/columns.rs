@@ -20,12 +20,12 @@ impl ConstrainedSolver {
         }
         let dofs = &self.model.dofs;
         let n_free = dofs.dof_count();
-        if let (Ok(l), Some(dp)) = (self.lazy.binary_search_by_key(&q, |c| c.node), dofs.dof(p)) {
-            let v = &self.lazy[l].values;
+        if let (Ok(l), Some(dp)) = (self.columns.lazy.binary_search_by_key(&q, |c| c.node), dofs.dof(p)) {
+            let v = &self.columns.lazy[l].values;
             return Matrix3::from_fn(|r, c| v[c * n_free + dp + r]);
         }
-        if let (Ok(l), Some(dq)) = (self.lazy.binary_search_by_key(&p, |c| c.node), dofs.dof(q)) {
-            let v = &self.lazy[l].values;
+        if let (Ok(l), Some(dq)) = (self.columns.lazy.binary_search_by_key(&p, |c| c.node), dofs.dof(q)) {
+            let v = &self.columns.lazy[l].values;
             return Matrix3::from_fn(|r, c| v[r * n_free + dq + c]);
         }
         if let (Some(rp), Some(cq)) = (self.compliance.row_of(p), cq) {
@@ -60,8 +60,8 @@ impl ConstrainedSolver {
             if self.compliance.col_of(n).is_some() || self.model.is_fixed(n) {
                 continue;
             }
-            match self.lazy.binary_search_by_key(&n, |c| c.node) {
-                Ok(i) => self.lazy[i].last_used = frame,
+            match self.columns.lazy.binary_search_by_key(&n, |c| c.node) {
+                Ok(i) => self.columns.lazy[i].last_used = frame,
                 Err(_) => {
                     if !missing.contains(&n) {
                         missing.push(n);
@@ -75,7 +75,7 @@ impl ConstrainedSolver {
         missing.sort_unstable();
         self.make_room(missing.len(), frame);
         let columns = solve_columns(self.model.chol.get()?, &self.model.dofs, &missing)?;
-        self.lazy_computed += columns.len();
+        self.columns.lazy_computed += columns.len();
         self.insert_columns(columns, frame);
         Ok(())
     }
@@ -83,8 +83,9 @@ impl ConstrainedSolver {
     /// Evicts least recently used columns last used before frame `keep_from`
     /// until `count` more fit (or none is left to evict).
     pub(super) fn make_room(&mut self, count: usize, keep_from: u64) {
-        while self.lazy.len() + count > LAZY_CAPACITY {
+        while self.columns.lazy.len() + count > LAZY_CAPACITY {
             let victim = self
+                .columns
                 .lazy
                 .iter()
                 .enumerate()
@@ -93,8 +94,8 @@ impl ConstrainedSolver {
                 .map(|(i, _)| i);
             match victim {
                 Some(i) => {
-                    self.lazy.remove(i);
-                    self.lazy_generation += 1;
+                    self.columns.lazy.remove(i);
+                    self.columns.lazy_generation += 1;
                 }
                 None => break,
             }
@@ -104,9 +105,9 @@ impl ConstrainedSolver {
     /// Adds solved columns (nodes not yet cached), stamped as last used at `stamp`.
     pub(super) fn insert_columns(&mut self, columns: Vec<NodeColumns>, stamp: u64) {
         for (node, values) in columns {
-            if let Err(at) = self.lazy.binary_search_by_key(&node, |c| c.node) {
-                self.lazy.insert(at, LazyColumn { node, values, last_used: stamp });
-                self.lazy_generation += 1;
+            if let Err(at) = self.columns.lazy.binary_search_by_key(&node, |c| c.node) {
+                self.columns.lazy.insert(at, LazyColumn { node, values, last_used: stamp });
+                self.columns.lazy_generation += 1;
             }
         }
     }
@@ -118,7 +119,7 @@ impl ConstrainedSolver {
 
     /// Nodes whose columns are cached (lazy, outside the ROI), ascending.
     pub fn cached_lazy_nodes(&self) -> impl Iterator<Item = u32> + '_ {
-        self.lazy.iter().map(|c| c.node)
+        self.columns.lazy.iter().map(|c| c.node)
     }
 }
 

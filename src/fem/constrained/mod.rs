@@ -227,61 +227,61 @@ struct LazyColumn {
 }
 
 
-/// Exact constrained solver; holds the model, the compliance and all scratch.
+/// Exact constrained solver; holds the model, the compliance and all scratch,
+/// in parts with one job each.
 pub struct ConstrainedSolver {
     model: FemModel,
     compliance: Compliance,
     frame: u64,
     /// Replaces the active-set loop's iteration cap (tests of the capped path).
     iteration_cap: Option<usize>,
-    lazy: Vec<LazyColumn>,
+    /// The measured optimisations this solver uses (`fem::tuning`; taken
+    /// when it is made, changed only by [`Self::set_tuning`]).
+    tuning: Tuning,
+    timings: PhaseTimings,
+    /// The frame's constraint system: its nodes and rows, W's factor and the solution.
+    sys: System,
+    /// The tool constraints grouped by node, and which of them are held this iteration.
+    tools: ToolClaims,
+    /// The unilateral rows that may engage (skull spheres, blade barriers, demoted holds), carried between frames.
+    cands: Candidates,
+    /// The K^-1 columns solved in a frame for nodes outside the ROI, kept between frames.
+    columns: LazyColumns,
+    /// The surface product: displacement of every stored row, and what it reads.
+    surface: SurfaceUpdate,
+}
+
+/// The frame's constraint system: its nodes and rows, W's factor and the solution.
+#[derive(Default)]
+struct System {
     // --- per frame scratch ---
     order: Vec<(u32, usize)>,
     /// Distinct constrained nodes of the frame (enforced first, then active spheres).
     nodes: Vec<u32>,
+    /// Counts the changes of `nodes` (the kept blocks' columns follow it).
+    nodes_version: u64,
+    rows: Vec<ConstraintRow>,
+    /// Candidate index of each sphere row (row - enforced rows).
+    row_candidate: Vec<usize>,
+    /// Persistent factor of W (see [`super::wfactor`] for the order rule).
+    factor: ContactFactor,
+    /// Sphere rows of W: against the enforced rows (column per sphere row) and among themselves.
+    w_es: Vec<f64>,
+    w_ss: Vec<f64>,
+    lambda: Vec<f64>,
+    node_force: Vec<Vec3>,
+    solve_scratch: Option<faer::dyn_stack::MemBuffer>,
+}
+
+/// The tool constraints grouped by node, and which of them are held this iteration.
+#[derive(Default)]
+struct ToolClaims {
     /// Enforced node k: rows 3k..3k+3, claimants `claims[claim_ptr[k]..claim_ptr[k+1]]`.
     claim_ptr: Vec<usize>,
     claims: Vec<usize>,
     claim_owner: Vec<u16>,
     enforced_nodes: usize,
     enforced_targets: Vec<Vec3>,
-    lazy_computed: usize,
-    candidates: Vec<Candidate>,
-    prev_active: Vec<(u32, u16, bool)>,
-    /// Blade barrier rows active at the end of the last frame (node, owner), ascending: this frame starts from them.
-    prev_barrier: Vec<(u32, u16)>,
-    /// Per candidate node, the K^-1 blocks against the W rows' nodes that
-    /// [`Self::displacement_of`] and the face and sphere rows of W read, by a
-    /// column each W node keeps while it stays in W: a candidate is
-    /// evaluated against every held node at every iteration of every frame,
-    /// and a block read from the compliance is a cache miss into a matrix of
-    /// up to a gigabyte. The compliance and the lazy columns never change, so
-    /// a kept block is the block read again, bit for bit. (Kept by slot, as
-    /// before, the held set's reordering each frame re-read 20-30k blocks a
-    /// frame at the end of the fine-brain Sylvian spread; by node, 0.2-0.7k.)
-    candidate_blocks: std::cell::RefCell<CandidateBlocks>,
-    /// The compliance is larger than [`CANDIDATE_BLOCKS_FROM_BYTES`]: its
-    /// blocks miss the CPU's caches (a smaller one is read as fast as the
-    /// kept blocks). Fixed at construction.
-    large_compliance: bool,
-    /// Whether [`Self::candidate_blocks`] is used: a large compliance, and
-    /// the optimisation not switched off in `tuning`.
-    keep_candidate_blocks: bool,
-    /// The measured optimisations this solver uses (`fem::tuning`; taken
-    /// when it is made, changed only by [`Self::set_tuning`]).
-    tuning: Tuning,
-    /// Counts the changes of `nodes` (the kept blocks' columns follow it).
-    nodes_version: u64,
-    /// Counts the changes of `lazy`: a block [`Self::kinv`] reads for a
-    /// node with a lazy column is that column's (exact), else the
-    /// compliance's rows (f32 beyond the ROI), so a kept block is good only
-    /// while `lazy` is as it was.
-    lazy_generation: u64,
-    rows: Vec<ConstraintRow>,
-    /// Candidate index of each sphere row (row - enforced rows).
-    row_candidate: Vec<usize>,
-    /// Persistent factor of W (see [`super::wfactor`] for the order rule).
-    factor: ContactFactor,
     /// Every node a tool claims this frame, ascending (group g), and per group:
     /// its claims `group_claims[group_ptr[g]..group_ptr[g + 1]]` and their owners,
     /// the mean target, the unilateral normal (None: held bilaterally), engaged or released.
@@ -300,25 +300,59 @@ pub struct ConstrainedSolver {
     /// Unilateral nodes released / sliding on their face plane in the last frame, ascending.
     released: Vec<u32>,
     sliding: Vec<u32>,
-    /// Sphere rows of W: against the enforced rows (column per sphere row) and among themselves.
-    w_es: Vec<f64>,
-    w_ss: Vec<f64>,
-    lambda: Vec<f64>,
-    node_force: Vec<Vec3>,
-    col_forces: Vec<(usize, Vec3)>,
-    u_rows: Vec<Vec3>,
-    prev_u_rows: Vec<Vec3>,
-    solve_scratch: Option<faer::dyn_stack::MemBuffer>,
-    /// Nodal forces of the last frame (node, force) for interior displacements.
-    last_forces: Vec<(u32, Vec3)>,
-    timings: PhaseTimings,
-    /// Scratch of the surface product (partial sums, gathered rows of forced columns).
-    product: ProductWorkspace,
+}
+
+/// The unilateral rows that may engage (skull spheres, blade barriers, demoted holds), carried between frames.
+struct Candidates {
+    candidates: Vec<Candidate>,
+    prev_active: Vec<(u32, u16, bool)>,
+    /// Blade barrier rows active at the end of the last frame (node, owner), ascending: this frame starts from them.
+    prev_barrier: Vec<(u32, u16)>,
     /// Which inactive candidates need no evaluation ([`screen::Screen`]).
     screen: screen::Screen,
+    /// Per candidate node, the K^-1 blocks against the W rows' nodes that
+    /// [`Self::displacement_of`] and the face and sphere rows of W read, by a
+    /// column each W node keeps while it stays in W: a candidate is
+    /// evaluated against every held node at every iteration of every frame,
+    /// and a block read from the compliance is a cache miss into a matrix of
+    /// up to a gigabyte. The compliance and the lazy columns never change, so
+    /// a kept block is the block read again, bit for bit. (Kept by slot, as
+    /// before, the held set's reordering each frame re-read 20-30k blocks a
+    /// frame at the end of the fine-brain Sylvian spread; by node, 0.2-0.7k.)
+    candidate_blocks: std::cell::RefCell<CandidateBlocks>,
+    /// The compliance is larger than [`CANDIDATE_BLOCKS_FROM_BYTES`]: its
+    /// blocks miss the CPU's caches (a smaller one is read as fast as the
+    /// kept blocks). Fixed at construction.
+    large_compliance: bool,
+    /// Whether [`Self::candidate_blocks`] is used: a large compliance, and
+    /// the optimisation not switched off in `tuning`.
+    keep_candidate_blocks: bool,
+}
+
+/// The K^-1 columns solved in a frame for nodes outside the ROI, kept between frames.
+#[derive(Default)]
+struct LazyColumns {
+    lazy: Vec<LazyColumn>,
+    lazy_computed: usize,
+    /// Counts the changes of `lazy`: a block [`Self::kinv`] reads for a
+    /// node with a lazy column is that column's (exact), else the
+    /// compliance's rows (f32 beyond the ROI), so a kept block is good only
+    /// while `lazy` is as it was.
+    lazy_generation: u64,
+}
+
+/// The surface product: displacement of every stored row, and what it reads.
+struct SurfaceUpdate {
+    u_rows: Vec<Vec3>,
+    prev_u_rows: Vec<Vec3>,
+    col_forces: Vec<(usize, Vec3)>,
+    /// Scratch of the surface product (partial sums, gathered rows of forced columns).
+    product: ProductWorkspace,
     /// The compliance row of each surface vertex (`u32::MAX`: none, a fixed
     /// vertex), read in order when the frame's surface displacement is written.
     vertex_rows: Vec<u32>,
+    /// Nodal forces of the last frame (node, force) for interior displacements.
+    last_forces: Vec<(u32, Vec3)>,
 }
 
 impl ConstrainedSolver {
@@ -331,57 +365,34 @@ impl ConstrainedSolver {
         let large_compliance = compliance.stats().bytes > CANDIDATE_BLOCKS_FROM_BYTES;
         let node_count = model.mesh.node_count();
         let vertex_rows = model.surface.vertices.iter().map(|&n| compliance.row_of(n).map_or(u32::MAX, |r| r as u32)).collect();
+        let tuning = Tuning::current();
         Ok(Self {
             model,
             compliance,
             frame: 0,
             iteration_cap: None,
-            lazy: Vec::new(),
-            order: Vec::new(),
-            nodes: Vec::new(),
-            claim_ptr: Vec::new(),
-            claims: Vec::new(),
-            claim_owner: Vec::new(),
-            enforced_nodes: 0,
-            enforced_targets: Vec::new(),
-            lazy_computed: 0,
-            candidates: Vec::new(),
-            prev_active: Vec::new(),
-            prev_barrier: Vec::new(),
-            candidate_blocks: std::cell::RefCell::new(CandidateBlocks::default()),
-            large_compliance,
-            keep_candidate_blocks: blocks::wanted(large_compliance, Tuning::current()),
-            tuning: Tuning::current(),
-            nodes_version: 0,
-            lazy_generation: 0,
-            rows: Vec::new(),
-            row_candidate: Vec::new(),
-            factor: ContactFactor::default(),
-            claimed_sorted: Vec::new(),
-            group_claims: Vec::new(),
-            group_owner: Vec::new(),
-            group_ptr: Vec::new(),
-            group_targets: Vec::new(),
-            group_normals: Vec::new(),
-            group_engaged: Vec::new(),
-            engaged_sorted: Vec::new(),
-            perm_nodes: Vec::new(),
-            enforced_group: Vec::new(),
-            released: Vec::new(),
-            sliding: Vec::new(),
-            w_es: Vec::new(),
-            w_ss: Vec::new(),
-            lambda: Vec::new(),
-            node_force: Vec::new(),
-            col_forces: Vec::new(),
-            u_rows: vec![Vec3::zeros(); rows],
-            prev_u_rows: vec![Vec3::zeros(); rows],
-            solve_scratch: None,
-            last_forces: Vec::new(),
+            tuning,
             timings: PhaseTimings::default(),
-            product: ProductWorkspace::default(),
-            screen: screen::Screen::new(node_count),
-            vertex_rows,
+            sys: System::default(),
+            tools: ToolClaims::default(),
+            cands: Candidates {
+                candidates: Vec::new(),
+                prev_active: Vec::new(),
+                prev_barrier: Vec::new(),
+                screen: screen::Screen::new(node_count),
+                candidate_blocks: std::cell::RefCell::new(CandidateBlocks::default()),
+                large_compliance,
+                keep_candidate_blocks: blocks::wanted(large_compliance, tuning),
+            },
+            columns: LazyColumns::default(),
+            surface: SurfaceUpdate {
+                u_rows: vec![Vec3::zeros(); rows],
+                prev_u_rows: vec![Vec3::zeros(); rows],
+                col_forces: Vec::new(),
+                product: ProductWorkspace::default(),
+                vertex_rows,
+                last_forces: Vec::new(),
+            },
         })
     }
 
@@ -393,7 +404,7 @@ impl ConstrainedSolver {
     /// How the enforced block of W's factor was updated in the last frame
     /// (see [`super::wfactor`] for the order rule).
     pub fn factor_update(&self) -> super::wfactor::FactorUpdate {
-        self.factor.last_update()
+        self.sys.factor.last_update()
     }
 
     /// Phase timings of the last frame (s).
@@ -409,42 +420,42 @@ impl ConstrainedSolver {
     /// Unilateral tool nodes released in the last frame (their hold would have
     /// pulled the tissue), ascending; their reactions are zero.
     pub fn released_nodes(&self) -> &[u32] {
-        &self.released
+        &self.tools.released
     }
 
     /// Unilateral tool nodes that ended the last frame on their face plane with a
     /// normal push only (ascending): full holding pulled, release penetrated.
     pub fn sliding_nodes(&self) -> &[u32] {
-        &self.sliding
+        &self.tools.sliding
     }
 
     /// Rows of the last frame's constraint system.
     pub fn constraint_rows(&self) -> &[ConstraintRow] {
-        &self.rows
+        &self.sys.rows
     }
 
     /// Nodes of the last frame's system (`ConstraintRow::slot` indexes this).
     pub fn constraint_nodes(&self) -> &[u32] {
-        &self.nodes
+        &self.sys.nodes
     }
 
     /// Copies `W = C K^-1 C^T` of the last frame into `out` (n x n column
     /// major, full symmetric), n = `constraint_rows().len()`. For a haptic
     /// thread that wants its own copy.
     pub fn contact_compliance(&self, out: &mut Vec<f64>) {
-        let n = self.rows.len();
-        let e = 3 * self.enforced_nodes;
+        let n = self.sys.rows.len();
+        let e = 3 * self.tools.enforced_nodes;
         let s = n - e;
         out.clear();
         out.resize(n * n, 0.0);
-        self.factor.copy_enforced_w(out, n);
+        self.sys.factor.copy_enforced_w(out, n);
         for t in 0..s {
             for i in 0..e {
-                out[(e + t) * n + i] = self.w_es[t * e + i];
-                out[i * n + e + t] = self.w_es[t * e + i];
+                out[(e + t) * n + i] = self.sys.w_es[t * e + i];
+                out[i * n + e + t] = self.sys.w_es[t * e + i];
             }
             for u in 0..s {
-                out[(e + u) * n + e + t] = self.w_ss[u * s + t];
+                out[(e + u) * n + e + t] = self.sys.w_ss[u * s + t];
             }
         }
     }
@@ -455,11 +466,11 @@ impl ConstrainedSolver {
     /// costs two triangular solves (O(rows^2)), no allocation once `scratch`
     /// has grown. The haptic force on the tool is the negative of this.
     pub fn spatula_force_delta(&self, owner: u16, delta: Vec3, scratch: &mut Vec<f64>) -> Vec3 {
-        let n = self.rows.len();
+        let n = self.sys.rows.len();
         scratch.clear();
         scratch.resize(n, 0.0);
         let mut any = false;
-        for k in 0..self.enforced_nodes {
+        for k in 0..self.tools.enforced_nodes {
             let share = self.owner_share(k, owner);
             if share > 0.0 {
                 scratch[3 * k] = delta.x;
@@ -471,9 +482,9 @@ impl ConstrainedSolver {
         if !any {
             return Vec3::zeros();
         }
-        self.factor.solve_in_place(scratch);
+        self.sys.factor.solve_in_place(scratch);
         let mut f = Vec3::zeros();
-        for k in 0..self.enforced_nodes {
+        for k in 0..self.tools.enforced_nodes {
             let share = self.owner_share(k, owner);
             if share > 0.0 {
                 f += Vec3::new(scratch[3 * k], scratch[3 * k + 1], scratch[3 * k + 2]) * share;
@@ -484,7 +495,7 @@ impl ConstrainedSolver {
 
     /// Fraction of enforced node k's reaction that belongs to `owner`.
     fn owner_share(&self, k: usize, owner: u16) -> f64 {
-        let claims = &self.claim_owner[self.claim_ptr[k]..self.claim_ptr[k + 1]];
+        let claims = &self.tools.claim_owner[self.tools.claim_ptr[k]..self.tools.claim_ptr[k + 1]];
         let mine = claims.iter().filter(|&&o| o == owner).count();
         mine as f64 / claims.len().max(1) as f64
     }
@@ -501,8 +512,8 @@ impl ConstrainedSolver {
     /// each on and off on one solver).
     pub fn set_tuning(&mut self, tuning: Tuning) {
         self.tuning = tuning;
-        self.product.tuning = tuning;
-        self.keep_candidate_blocks = blocks::wanted(self.large_compliance, tuning);
+        self.surface.product.tuning = tuning;
+        self.cands.keep_candidate_blocks = blocks::wanted(self.cands.large_compliance, tuning);
     }
 
     /// The cap set by [`Self::set_iteration_cap`].
@@ -515,15 +526,28 @@ impl ConstrainedSolver {
         self.frame += 1;
         self.timings = PhaseTimings::default();
         self.validate(constraints)?;
+        let lazy_before = self.columns.lazy_computed;
+        self.prepare(constraints)?;
+        let iterations = self.solve_active_set()?;
+        let t = std::time::Instant::now();
+        self.update_surface();
+        self.timings.surface += t.elapsed().as_secs_f64();
+        self.timings.surface_gather += self.surface.product.gather_seconds();
+        self.write_solution(constraints, out, iterations, self.columns.lazy_computed - lazy_before);
+        Ok(())
+    }
+
+    /// The frame's claims and candidates, with every K^-1 column they read
+    /// available, and the held nodes in the factor.
+    fn prepare(&mut self, constraints: &[Constraint]) -> Result<(), FemError> {
         self.group_claims(constraints);
         self.collect_candidates(constraints);
         self.touch_candidate_columns();
-        let lazy_before = self.lazy_computed;
         // ROI candidates need their columns final (a W entry between two ROI
         // nodes is read from the earlier column): at once unless they are
         // still computed in the background.
         let t = std::time::Instant::now();
-        for c in &self.candidates {
+        for c in &self.cands.candidates {
             if let Some(col) = self.compliance.col_of(c.node) {
                 self.compliance.wait_column(col)?;
             }
@@ -531,155 +555,155 @@ impl ConstrainedSolver {
         self.timings.lazy += t.elapsed().as_secs_f64();
         // Candidates that are neither surface nor ROI rows need their own columns to be evaluated.
         let mut extra: Vec<u32> = Vec::new();
-        for c in &self.candidates {
+        for c in &self.cands.candidates {
             if self.compliance.row_of(c.node).is_none() {
                 extra.push(c.node);
             }
         }
         self.ensure_lazy(&extra)?;
-        let claimed = std::mem::take(&mut self.claimed_sorted);
+        let claimed = std::mem::take(&mut self.tools.claimed_sorted);
         let ensured = self.ensure_lazy(&claimed);
-        self.claimed_sorted = claimed;
+        self.tools.claimed_sorted = claimed;
         ensured?;
         self.arrange_engaged();
-        let max_iterations = self.iteration_cap.unwrap_or(100 + 2 * (self.candidates.len() + self.claimed_sorted.len()));
+        Ok(())
+    }
+
+    /// The active-set loop: solve the rows, add violated candidates, demote
+    /// pulling holds, release the most adhesive row, re-linearize spheres,
+    /// until none of these applies. Returns the iterations it took.
+    fn solve_active_set(&mut self) -> Result<usize, FemError> {
+        let max_iterations = self.iteration_cap.unwrap_or(100 + 2 * (self.cands.candidates.len() + self.tools.claimed_sorted.len()));
         if max_iterations == 0 {
             return Err(self.not_converged(0, 0.0));
         }
         let mut iterations = 0;
         let screening = self.tuning.enabled(Optimisation::CandidateScreen);
-        self.screen.begin_frame();
+        self.cands.screen.begin_frame();
         loop {
             iterations += 1;
             self.build_rows();
-            let nodes = std::mem::take(&mut self.nodes);
+            let nodes = std::mem::take(&mut self.sys.nodes);
             let ensured = self.ensure_lazy(&nodes);
-            self.nodes = nodes;
+            self.sys.nodes = nodes;
             ensured?;
             self.solve_rows();
-            if self.candidates.is_empty() && self.group_normals.iter().all(Option::is_none) {
-                break;
+            if self.cands.candidates.is_empty() && self.tools.group_normals.iter().all(Option::is_none) {
+                return Ok(iterations);
             }
-            // Evaluate every candidate at the current solution (but those
-            // the screen shows cannot have reached their constraint).
-            let evaluated = std::time::Instant::now();
-            if screening {
-                for k in 0..self.nodes.len() {
-                    self.screen_root(self.nodes[k]);
-                }
-                self.screen.advance(&self.nodes, &self.node_force);
-            }
-            let mut worst_inactive: f64 = 0.0;
-            let mut worst_active: f64 = 0.0;
-            let mut any_add = false;
-            for ci in 0..self.candidates.len() {
-                let c = self.candidates[ci];
-                if self.engaged_sorted.binary_search(&c.node).is_ok() {
-                    // Held by a tool this iteration: the enforced displacement wins.
-                    self.candidates[ci].active = false;
-                    self.screen.forget(ci);
-                    continue;
-                }
-                if c.active && c.plane.is_some() {
-                    // Held on its face plane by its row: nothing to check.
-                    continue;
-                }
-                if screening && !c.active && self.screen_root(c.node).is_some_and(|r| self.screen.can_skip(ci, r)) {
-                    self.timings.screened += 1;
-                    continue;
-                }
-                let u = self.displacement_of(c.node);
-                if let Some((n, b, _)) = c.plane {
-                    // Face plane: exact row, nothing to re-linearize.
-                    let violation = b - n.dot(&u);
-                    let tol = CONTACT_TOLERANCE_M + CONTACT_TOLERANCE * b.abs();
-                    if !c.active && violation > tol {
-                        any_add = true;
-                        worst_inactive = worst_inactive.max(violation);
-                        self.candidates[ci].active = true;
-                        self.screen.forget(ci);
-                    } else if !c.active {
-                        self.screen.record(ci, tol - violation);
-                    }
-                    continue;
-                }
-                let x = self.model.mesh.positions[c.node as usize] + u;
-                let dist = (x - c.center).norm();
-                let violation = if c.inside { dist - c.radius } else { c.radius - dist };
-                let tol = SPHERE_TOLERANCE * c.radius;
-                if !c.active && violation > tol {
-                    any_add = true;
-                    worst_inactive = worst_inactive.max(violation);
-                    self.candidates[ci].active = true;
-                    self.candidates[ci].at = x;
-                    self.screen.forget(ci);
-                } else if !c.active {
-                    self.screen.record(ci, tol - violation);
-                } else if violation.abs() > tol {
-                    worst_active = worst_active.max(violation.abs());
-                }
-            }
-            self.timings.candidates += evaluated.elapsed().as_secs_f64();
+            let (any_add, worst_inactive, worst_active) = self.evaluate_candidates(screening);
+            let cap = |this: &Self, worst: f64| if iterations >= max_iterations { Err(this.not_converged(iterations, worst)) } else { Ok(()) };
             if any_add {
-                if iterations >= max_iterations {
-                    return Err(self.not_converged(iterations, worst_inactive));
-                }
-                continue;
-            }
-            // Tool contacts: a held node whose hold pulls goes to its face plane.
-            if self.demote_pulling_holds(iterations) {
-                if iterations >= max_iterations {
-                    return Err(self.not_converged(iterations, worst_active));
-                }
+                cap(self, worst_inactive)?;
+            } else if self.demote_pulling_holds(iterations) {
+                // Tool contacts: a held node whose hold pulls goes to its face plane.
+                cap(self, worst_active)?;
                 self.arrange_engaged();
-                continue;
-            }
-            // Most adhesive active row (lambda < 0 pulls the tissue toward the skull).
-            let enforced_rows = 3 * self.enforced_nodes;
-            let scale = self.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()));
-            let mut most: Option<(usize, f64)> = None;
-            for (k, &ci) in self.row_candidate.iter().enumerate() {
-                let l = self.lambda[enforced_rows + k];
-                if l < -1e-12 * scale && most.is_none_or(|(_, m)| l < m) {
-                    most = Some((ci, l));
+            } else if self.release_most_adhesive()
+                || worst_active > 0.0 && {
+                    self.relinearize_active();
+                    true
                 }
+            {
+                cap(self, worst_active)?;
+            } else {
+                return Ok(iterations);
             }
-            if let Some((ci, _)) = most {
-                self.candidates[ci].active = false;
-                self.screen.forget(ci);
-                if iterations >= max_iterations {
-                    return Err(self.not_converged(iterations, worst_active));
-                }
-                continue;
-            }
-            if worst_active > 0.0 {
-                // Re-linearize active rows at the current positions.
-                for ci in 0..self.candidates.len() {
-                    if self.candidates[ci].active && self.candidates[ci].plane.is_none() {
-                        let node = self.candidates[ci].node;
-                        let x = self.model.mesh.positions[node as usize] + self.displacement_of(node);
-                        let at = self.candidates[ci].at;
-                        self.candidates[ci].at = at + (x - at) * RELINEARIZE_RELAXATION;
-                    }
-                }
-                if iterations >= max_iterations {
-                    return Err(self.not_converged(iterations, worst_active));
-                }
-                continue;
-            }
-            break;
         }
-        let t = std::time::Instant::now();
-        self.update_surface();
-        self.timings.surface += t.elapsed().as_secs_f64();
-        self.timings.surface_gather += self.product.gather_seconds();
-        self.write_solution(constraints, out, iterations, self.lazy_computed - lazy_before);
-        Ok(())
+    }
+
+    /// Evaluates every candidate at the current solution (but those the
+    /// screen shows cannot have reached their constraint); activates the
+    /// violated ones. Returns (any activated, largest violation of an
+    /// inactive one, largest miss of an active sphere row).
+    fn evaluate_candidates(&mut self, screening: bool) -> (bool, f64, f64) {
+        let evaluated = std::time::Instant::now();
+        if screening {
+            for k in 0..self.sys.nodes.len() {
+                self.screen_root(self.sys.nodes[k]);
+            }
+            self.cands.screen.advance(&self.sys.nodes, &self.sys.node_force);
+        }
+        let mut worst_inactive: f64 = 0.0;
+        let mut worst_active: f64 = 0.0;
+        let mut any_add = false;
+        for ci in 0..self.cands.candidates.len() {
+            let c = self.cands.candidates[ci];
+            if self.tools.engaged_sorted.binary_search(&c.node).is_ok() {
+                // Held by a tool this iteration: the enforced displacement wins.
+                self.cands.candidates[ci].active = false;
+                self.cands.screen.forget(ci);
+                continue;
+            }
+            if c.active && c.plane.is_some() {
+                // Held on its face plane by its row: nothing to check.
+                continue;
+            }
+            if screening && !c.active && self.screen_root(c.node).is_some_and(|r| self.cands.screen.can_skip(ci, r)) {
+                self.timings.screened += 1;
+                continue;
+            }
+            let u = self.displacement_of(c.node);
+            let (violation, tol) = match c.plane {
+                // Face plane: exact row, nothing to re-linearize.
+                Some((n, b, _)) => (b - n.dot(&u), CONTACT_TOLERANCE_M + CONTACT_TOLERANCE * b.abs()),
+                None => {
+                    let dist = (self.model.mesh.positions[c.node as usize] + u - c.center).norm();
+                    (if c.inside { dist - c.radius } else { c.radius - dist }, SPHERE_TOLERANCE * c.radius)
+                }
+            };
+            if !c.active && violation > tol {
+                any_add = true;
+                worst_inactive = worst_inactive.max(violation);
+                self.cands.candidates[ci].active = true;
+                if c.plane.is_none() {
+                    self.cands.candidates[ci].at = self.model.mesh.positions[c.node as usize] + u;
+                }
+                self.cands.screen.forget(ci);
+            } else if !c.active {
+                self.cands.screen.record(ci, tol - violation);
+            } else if c.plane.is_none() && violation.abs() > tol {
+                worst_active = worst_active.max(violation.abs());
+            }
+        }
+        self.timings.candidates += evaluated.elapsed().as_secs_f64();
+        (any_add, worst_inactive, worst_active)
+    }
+
+    /// Releases the most adhesive active candidate row (lambda < 0 pulls the
+    /// tissue toward the skull or the face). Returns whether one was released.
+    fn release_most_adhesive(&mut self) -> bool {
+        let enforced_rows = 3 * self.tools.enforced_nodes;
+        let scale = self.sys.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()));
+        let mut most: Option<(usize, f64)> = None;
+        for (k, &ci) in self.sys.row_candidate.iter().enumerate() {
+            let l = self.sys.lambda[enforced_rows + k];
+            if l < -1e-12 * scale && most.is_none_or(|(_, m)| l < m) {
+                most = Some((ci, l));
+            }
+        }
+        let Some((ci, _)) = most else { return false };
+        self.cands.candidates[ci].active = false;
+        self.cands.screen.forget(ci);
+        true
+    }
+
+    /// Moves the linearization point of every active sphere row part of the
+    /// way to the node's current position.
+    fn relinearize_active(&mut self) {
+        for ci in 0..self.cands.candidates.len() {
+            if self.cands.candidates[ci].active && self.cands.candidates[ci].plane.is_none() {
+                let node = self.cands.candidates[ci].node;
+                let x = self.model.mesh.positions[node as usize] + self.displacement_of(node);
+                let at = self.cands.candidates[ci].at;
+                self.cands.candidates[ci].at = at + (x - at) * RELINEARIZE_RELAXATION;
+            }
+        }
     }
 
     fn not_converged(&self, iterations: usize, max_violation: f64) -> FemError {
-        let enforced_rows = 3 * self.enforced_nodes;
-        let min_force = self.lambda.get(enforced_rows..).map(|l| l.iter().fold(0.0_f64, |m, &x| m.min(x))).unwrap_or(0.0);
+        let enforced_rows = 3 * self.tools.enforced_nodes;
+        let min_force = self.sys.lambda.get(enforced_rows..).map(|l| l.iter().fold(0.0_f64, |m, &x| m.min(x))).unwrap_or(0.0);
         FemError::ActiveSetNotConverged { iterations, max_violation, min_force }
     }
 
@@ -714,35 +738,35 @@ impl ConstrainedSolver {
     /// pairwise agreeing: `n_i . n_j > 0`); a node pinched between opposing faces,
     /// or claimed by a bilateral `Enforced`, is held bilaterally.
     fn group_claims(&mut self, constraints: &[Constraint]) {
-        self.order.clear();
+        self.sys.order.clear();
         for (i, c) in constraints.iter().enumerate() {
             if c.kind.tool_displacement().is_some() && !self.model.is_fixed(c.node) {
-                self.order.push((c.node, i));
+                self.sys.order.push((c.node, i));
             }
         }
-        self.order.sort_unstable();
-        self.claimed_sorted.clear();
-        self.group_claims.clear();
-        self.group_owner.clear();
-        self.group_ptr.clear();
-        self.group_ptr.push(0);
-        self.group_targets.clear();
-        self.group_normals.clear();
-        self.group_engaged.clear();
+        self.sys.order.sort_unstable();
+        self.tools.claimed_sorted.clear();
+        self.tools.group_claims.clear();
+        self.tools.group_owner.clear();
+        self.tools.group_ptr.clear();
+        self.tools.group_ptr.push(0);
+        self.tools.group_targets.clear();
+        self.tools.group_normals.clear();
+        self.tools.group_engaged.clear();
         let mut k = 0;
-        while k < self.order.len() {
-            let node = self.order[k].0;
+        while k < self.sys.order.len() {
+            let node = self.sys.order[k].0;
             let mut sum = Vec3::zeros();
             let mut normal_sum = Vec3::zeros();
             let mut unilateral = true;
             let start = k;
-            while k < self.order.len() && self.order[k].0 == node {
-                let i = self.order[k].1;
+            while k < self.sys.order.len() && self.sys.order[k].0 == node {
+                let i = self.sys.order[k].1;
                 match constraints[i].kind {
                     ConstraintKind::Contact { displacement, normal } => {
                         sum += displacement;
                         let n = normal.normalize();
-                        for &j in &self.order[start..k] {
+                        for &j in &self.sys.order[start..k] {
                             if let ConstraintKind::Contact { normal: other, .. } = constraints[j.1].kind {
                                 if other.normalize().dot(&n) <= 0.0 {
                                     unilateral = false;
@@ -757,52 +781,52 @@ impl ConstrainedSolver {
                     }
                     _ => {}
                 }
-                self.group_claims.push(i);
-                self.group_owner.push(constraints[i].owner);
+                self.tools.group_claims.push(i);
+                self.tools.group_owner.push(constraints[i].owner);
                 k += 1;
             }
             let normal = if unilateral && normal_sum.norm() > 0.0 { Some(normal_sum.normalize()) } else { None };
-            self.claimed_sorted.push(node);
-            self.group_ptr.push(self.group_claims.len());
-            self.group_targets.push(sum / (k - start) as f64);
-            self.group_normals.push(normal);
+            self.tools.claimed_sorted.push(node);
+            self.tools.group_ptr.push(self.tools.group_claims.len());
+            self.tools.group_targets.push(sum / (k - start) as f64);
+            self.tools.group_normals.push(normal);
             // Every node starts held; a hold that pulls is demoted in the active-set loop.
-            self.group_engaged.push(true);
+            self.tools.group_engaged.push(true);
         }
     }
 
     /// Arranges the engaged tool nodes in the factor's persistent order (see
     /// `wfactor`) and updates the enforced factor to them.
     fn arrange_engaged(&mut self) {
-        self.engaged_sorted.clear();
-        self.engaged_sorted.extend(self.claimed_sorted.iter().zip(&self.group_engaged).filter(|(_, e)| **e).map(|(n, _)| *n));
-        self.factor.order_for(&self.engaged_sorted, &mut self.perm_nodes);
-        self.claims.clear();
-        self.claim_owner.clear();
-        self.claim_ptr.clear();
-        self.claim_ptr.push(0);
-        self.enforced_targets.clear();
-        self.enforced_group.clear();
-        for &node in &self.perm_nodes {
-            let Ok(g) = self.claimed_sorted.binary_search(&node) else { continue };
-            let (a, b) = (self.group_ptr[g], self.group_ptr[g + 1]);
-            self.claims.extend_from_slice(&self.group_claims[a..b]);
-            self.claim_owner.extend_from_slice(&self.group_owner[a..b]);
-            self.claim_ptr.push(self.claims.len());
-            self.enforced_targets.push(self.group_targets[g]);
-            self.enforced_group.push(g);
+        self.tools.engaged_sorted.clear();
+        self.tools.engaged_sorted.extend(self.tools.claimed_sorted.iter().zip(&self.tools.group_engaged).filter(|(_, e)| **e).map(|(n, _)| *n));
+        self.sys.factor.order_for(&self.tools.engaged_sorted, &mut self.tools.perm_nodes);
+        self.tools.claims.clear();
+        self.tools.claim_owner.clear();
+        self.tools.claim_ptr.clear();
+        self.tools.claim_ptr.push(0);
+        self.tools.enforced_targets.clear();
+        self.tools.enforced_group.clear();
+        for &node in &self.tools.perm_nodes {
+            let Ok(g) = self.tools.claimed_sorted.binary_search(&node) else { continue };
+            let (a, b) = (self.tools.group_ptr[g], self.tools.group_ptr[g + 1]);
+            self.tools.claims.extend_from_slice(&self.tools.group_claims[a..b]);
+            self.tools.claim_owner.extend_from_slice(&self.tools.group_owner[a..b]);
+            self.tools.claim_ptr.push(self.tools.claims.len());
+            self.tools.enforced_targets.push(self.tools.group_targets[g]);
+            self.tools.enforced_group.push(g);
         }
-        self.nodes.clear();
-        self.nodes.extend_from_slice(&self.perm_nodes);
-        self.nodes_version += 1;
-        self.enforced_nodes = self.nodes.len();
+        self.sys.nodes.clear();
+        self.sys.nodes.extend_from_slice(&self.tools.perm_nodes);
+        self.sys.nodes_version += 1;
+        self.tools.enforced_nodes = self.sys.nodes.len();
         let t = std::time::Instant::now();
-        let mut factor = std::mem::take(&mut self.factor);
+        let mut factor = std::mem::take(&mut self.sys.factor);
         if !self.tuning.enabled(Optimisation::WFactorReuse) {
             factor.reset();
         }
-        factor.update_enforced(&self.perm_nodes, &|p, q| self.kinv(p, q));
-        self.factor = factor;
+        factor.update_enforced(&self.tools.perm_nodes, &|p, q| self.kinv(p, q));
+        self.sys.factor = factor;
         self.timings.factor += t.elapsed().as_secs_f64();
     }
 
@@ -813,13 +837,13 @@ impl ConstrainedSolver {
     /// most adhesive one per iteration. A node never returns to held within a
     /// frame, so this terminates. Returns whether any node was demoted.
     fn demote_pulling_holds(&mut self, iterations: usize) -> bool {
-        let scale = self.node_force[..self.enforced_nodes].iter().fold(0.0_f64, |m, f| m.max(f.norm()));
+        let scale = self.sys.node_force[..self.tools.enforced_nodes].iter().fold(0.0_f64, |m, f| m.max(f.norm()));
         let mut most: Option<(usize, usize, f64)> = None;
         let mut changed = false;
-        for k in 0..self.enforced_nodes {
-            let g = self.enforced_group[k];
-            let Some(n) = self.group_normals[g] else { continue };
-            let push = self.node_force[k].dot(&n);
+        for k in 0..self.tools.enforced_nodes {
+            let g = self.tools.enforced_group[k];
+            let Some(n) = self.tools.group_normals[g] else { continue };
+            let push = self.sys.node_force[k].dot(&n);
             if push < -CONTACT_TOLERANCE * scale {
                 if iterations <= BULK_RELEASE_ITERATIONS {
                     self.demote(k, n);
@@ -830,7 +854,7 @@ impl ConstrainedSolver {
             }
         }
         if let Some((k, g, _)) = most {
-            if let Some(n) = self.group_normals[g] {
+            if let Some(n) = self.tools.group_normals[g] {
                 self.demote(k, n);
                 changed = true;
             }
@@ -840,13 +864,13 @@ impl ConstrainedSolver {
 
     /// Moves held slot `k` to a face-plane candidate (active: it starts on the plane).
     fn demote(&mut self, k: usize, n: Vec3) {
-        let g = self.enforced_group[k];
-        self.group_engaged[g] = false;
-        let node = self.claimed_sorted[g];
-        let target = self.group_targets[g];
-        let owner = self.group_owner[self.group_ptr[g]];
+        let g = self.tools.enforced_group[k];
+        self.tools.group_engaged[g] = false;
+        let node = self.tools.claimed_sorted[g];
+        let target = self.tools.group_targets[g];
+        let owner = self.tools.group_owner[self.tools.group_ptr[g]];
         let at = self.model.mesh.positions[node as usize] + target;
-        self.candidates.push(Candidate {
+        self.cands.candidates.push(Candidate {
             constraint: usize::MAX,
             node,
             owner,
@@ -860,20 +884,20 @@ impl ConstrainedSolver {
     }
 
     fn collect_candidates(&mut self, constraints: &[Constraint]) {
-        self.candidates.clear();
+        self.cands.candidates.clear();
         for (i, c) in constraints.iter().enumerate() {
             let (center, radius, inside) = match c.kind {
                 ConstraintKind::Enforced { .. } | ConstraintKind::Contact { .. } => continue,
                 ConstraintKind::Barrier { displacement, normal } => {
                     // A held node ignores it (skipped each iteration); a bilaterally held one never needs it.
-                    let bilateral = self.claimed_sorted.binary_search(&c.node).is_ok_and(|g| self.group_normals[g].is_none());
+                    let bilateral = self.tools.claimed_sorted.binary_search(&c.node).is_ok_and(|g| self.tools.group_normals[g].is_none());
                     if self.model.is_fixed(c.node) || bilateral {
                         continue;
                     }
                     let n = normal.normalize();
                     let at = self.model.mesh.positions[c.node as usize] + displacement;
-                    let active = self.prev_barrier.binary_search(&(c.node, c.owner)).is_ok();
-                    self.candidates.push(Candidate {
+                    let active = self.cands.prev_barrier.binary_search(&(c.node, c.owner)).is_ok();
+                    self.cands.candidates.push(Candidate {
                         constraint: i,
                         node: c.node,
                         owner: c.owner,
@@ -890,17 +914,17 @@ impl ConstrainedSolver {
                 ConstraintKind::SphereOutside { center, radius } => (center, radius, false),
             };
             // A bilaterally held node takes no sphere row; a unilateral tool node does while released.
-            let bilateral = self.claimed_sorted.binary_search(&c.node).is_ok_and(|g| self.group_normals[g].is_none());
+            let bilateral = self.tools.claimed_sorted.binary_search(&c.node).is_ok_and(|g| self.tools.group_normals[g].is_none());
             if self.model.is_fixed(c.node) || bilateral {
                 continue;
             }
             let rest = self.model.mesh.positions[c.node as usize];
             let at = match self.compliance.row_of(c.node) {
-                Some(r) => rest + self.prev_u_rows[r],
+                Some(r) => rest + self.surface.prev_u_rows[r],
                 None => rest,
             };
-            let active = self.prev_active.binary_search(&(c.node, c.owner, inside)).is_ok();
-            self.candidates.push(Candidate { constraint: i, node: c.node, owner: c.owner, center, radius, inside, active, at, plane: None });
+            let active = self.cands.prev_active.binary_search(&(c.node, c.owner, inside)).is_ok();
+            self.cands.candidates.push(Candidate { constraint: i, node: c.node, owner: c.owner, center, radius, inside, active, at, plane: None });
         }
     }
 
@@ -909,39 +933,39 @@ impl ConstrainedSolver {
     /// in this frame's active-set solve.
     fn touch_candidate_columns(&mut self) {
         let frame = self.frame;
-        for c in &self.candidates {
-            if let Ok(i) = self.lazy.binary_search_by_key(&c.node, |l| l.node) {
-                self.lazy[i].last_used = frame;
+        for c in &self.cands.candidates {
+            if let Ok(i) = self.columns.lazy.binary_search_by_key(&c.node, |l| l.node) {
+                self.columns.lazy[i].last_used = frame;
             }
         }
     }
 
     /// Rows: 3 per enforced node, then one per active candidate.
     fn build_rows(&mut self) {
-        self.rows.clear();
-        self.nodes.truncate(self.enforced_nodes);
-        self.nodes_version += 1;
-        for k in 0..self.enforced_nodes {
-            let g = self.enforced_targets[k];
-            self.rows.push(ConstraintRow { slot: k, dir: Vec3::x(), target: g.x });
-            self.rows.push(ConstraintRow { slot: k, dir: Vec3::y(), target: g.y });
-            self.rows.push(ConstraintRow { slot: k, dir: Vec3::z(), target: g.z });
+        self.sys.rows.clear();
+        self.sys.nodes.truncate(self.tools.enforced_nodes);
+        self.sys.nodes_version += 1;
+        for k in 0..self.tools.enforced_nodes {
+            let g = self.tools.enforced_targets[k];
+            self.sys.rows.push(ConstraintRow { slot: k, dir: Vec3::x(), target: g.x });
+            self.sys.rows.push(ConstraintRow { slot: k, dir: Vec3::y(), target: g.y });
+            self.sys.rows.push(ConstraintRow { slot: k, dir: Vec3::z(), target: g.z });
         }
-        self.row_candidate.clear();
-        for (ci, c) in self.candidates.iter().enumerate() {
-            if !c.active || self.engaged_sorted.binary_search(&c.node).is_ok() {
+        self.sys.row_candidate.clear();
+        for (ci, c) in self.cands.candidates.iter().enumerate() {
+            if !c.active || self.tools.engaged_sorted.binary_search(&c.node).is_ok() {
                 continue;
             }
-            let slot = match self.nodes[self.enforced_nodes..].iter().position(|&n| n == c.node) {
-                Some(p) => self.enforced_nodes + p,
+            let slot = match self.sys.nodes[self.tools.enforced_nodes..].iter().position(|&n| n == c.node) {
+                Some(p) => self.tools.enforced_nodes + p,
                 None => {
-                    self.nodes.push(c.node);
-                    self.nodes.len() - 1
+                    self.sys.nodes.push(c.node);
+                    self.sys.nodes.len() - 1
                 }
             };
             if let Some((n, b, _)) = c.plane {
-                self.rows.push(ConstraintRow { slot, dir: n, target: b });
-                self.row_candidate.push(ci);
+                self.sys.rows.push(ConstraintRow { slot, dir: n, target: b });
+                self.sys.row_candidate.push(ci);
                 continue;
             }
             let rest = self.model.mesh.positions[c.node as usize];
@@ -956,8 +980,8 @@ impl ConstrainedSolver {
             };
             // inside: n.(X+u-c) <= R  <=>  (-n).u >= n.(X-c) - R;  outside: n.u >= r - n.(X-c)
             let (dir, target) = if c.inside { (-n, n.dot(&(rest - c.center)) - c.radius) } else { (n, c.radius - n.dot(&(rest - c.center))) };
-            self.rows.push(ConstraintRow { slot, dir, target });
-            self.row_candidate.push(ci);
+            self.sys.rows.push(ConstraintRow { slot, dir, target });
+            self.sys.row_candidate.push(ci);
         }
     }
 
@@ -965,27 +989,27 @@ impl ConstrainedSolver {
     /// solves for lambda and the nodal forces.
     fn solve_rows(&mut self) {
         let t = std::time::Instant::now();
-        let n = self.rows.len();
-        let e = 3 * self.enforced_nodes;
+        let n = self.sys.rows.len();
+        let e = 3 * self.tools.enforced_nodes;
         let s = n - e;
-        self.w_es.clear();
-        self.w_es.resize(e * s, 0.0);
-        self.w_ss.clear();
-        self.w_ss.resize(s * s, 0.0);
-        let (mut w_es, mut w_ss) = (std::mem::take(&mut self.w_es), std::mem::take(&mut self.w_ss));
-        let mut kept = self.keep_candidate_blocks.then(|| self.candidate_blocks.borrow_mut());
+        self.sys.w_es.clear();
+        self.sys.w_es.resize(e * s, 0.0);
+        self.sys.w_ss.clear();
+        self.sys.w_ss.resize(s * s, 0.0);
+        let (mut w_es, mut w_ss) = (std::mem::take(&mut self.sys.w_es), std::mem::take(&mut self.sys.w_ss));
+        let mut kept = self.cands.keep_candidate_blocks.then(|| self.cands.candidate_blocks.borrow_mut());
         if let Some(kept) = kept.as_mut() {
-            kept.prepare(self.frame, self.lazy_generation, &self.nodes, self.nodes_version);
+            kept.prepare(self.frame, self.columns.lazy_generation, &self.sys.nodes, self.sys.nodes_version);
         }
         for t in 0..s {
-            let ri = self.rows[e + t];
-            let pi = self.nodes[ri.slot];
+            let ri = self.sys.rows[e + t];
+            let pi = self.sys.nodes[ri.slot];
             // A sphere or face row's node is a candidate: its blocks against
             // the W nodes are kept (K^-1[q, p] is K^-1[p, q] transposed, bit
             // for bit, unless both have lazy columns: then each reads its own).
-            let mut row = kept.as_mut().map(|k| (k.row(pi), self.lazy.binary_search_by_key(&pi, |c| c.node).is_ok()));
-            for l in 0..self.enforced_nodes {
-                let q = self.nodes[l];
+            let mut row = kept.as_mut().map(|k| (k.row(pi), self.columns.lazy.binary_search_by_key(&pi, |c| c.node).is_ok()));
+            for l in 0..self.tools.enforced_nodes {
+                let q = self.sys.nodes[l];
                 let block = match (kept.as_mut(), row) {
                     (Some(k), Some((base, false))) => self.kept_block(k, base, pi, l).transpose(),
                     _ => self.kinv(q, pi),
@@ -996,10 +1020,10 @@ impl ConstrainedSolver {
                 }
             }
             for u in 0..=t {
-                let rj = self.rows[e + u];
+                let rj = self.sys.rows[e + u];
                 let block = match (kept.as_mut(), row.as_mut()) {
                     (Some(k), Some((base, _))) => self.kept_block(k, *base, pi, rj.slot),
-                    _ => self.kinv(pi, self.nodes[rj.slot]),
+                    _ => self.kinv(pi, self.sys.nodes[rj.slot]),
                 };
                 let value = ri.dir.dot(&(block * rj.dir));
                 w_ss[u * s + t] = value;
@@ -1007,37 +1031,37 @@ impl ConstrainedSolver {
             }
         }
         drop(kept);
-        (self.w_es, self.w_ss) = (w_es, w_ss);
+        (self.sys.w_es, self.sys.w_ss) = (w_es, w_ss);
         self.timings.gather += t.elapsed().as_secs_f64();
         let t = std::time::Instant::now();
-        self.factor.set_sphere_rows(s, &self.w_es, &self.w_ss);
-        self.lambda.clear();
-        for row in &self.rows {
-            let u0 = self.model.gravity_displacement(self.nodes[row.slot]);
-            self.lambda.push(row.target - row.dir.dot(&u0));
+        self.sys.factor.set_sphere_rows(s, &self.sys.w_es, &self.sys.w_ss);
+        self.sys.lambda.clear();
+        for row in &self.sys.rows {
+            let u0 = self.model.gravity_displacement(self.sys.nodes[row.slot]);
+            self.sys.lambda.push(row.target - row.dir.dot(&u0));
         }
-        self.factor.solve_in_place(&mut self.lambda);
+        self.sys.factor.solve_in_place(&mut self.sys.lambda);
         self.timings.factor += t.elapsed().as_secs_f64();
-        self.node_force.clear();
-        self.node_force.resize(self.nodes.len(), Vec3::zeros());
-        for (row, l) in self.rows.iter().zip(&self.lambda) {
-            self.node_force[row.slot] += row.dir * *l;
+        self.sys.node_force.clear();
+        self.sys.node_force.resize(self.sys.nodes.len(), Vec3::zeros());
+        for (row, l) in self.sys.rows.iter().zip(&self.sys.lambda) {
+            self.sys.node_force[row.slot] += row.dir * *l;
         }
     }
 
     /// `sqrt(|K^-1[node, node]|_F)` for the screen, when the node has a
     /// column (ROI or lazy) to read it from; kept once read.
     fn screen_root(&mut self, node: u32) -> Option<f64> {
-        if let Some(r) = self.screen.root(node) {
+        if let Some(r) = self.cands.screen.root(node) {
             return Some(r);
         }
-        let column = self.compliance.col_of(node).is_some() || self.lazy.binary_search_by_key(&node, |c| c.node).is_ok();
+        let column = self.compliance.col_of(node).is_some() || self.columns.lazy.binary_search_by_key(&node, |c| c.node).is_ok();
         if !column || self.model.dofs.dof(node).is_none() {
             return None;
         }
         let r = self.kinv(node, node).norm().sqrt();
         r.is_finite().then(|| {
-            self.screen.set_root(node, r);
+            self.cands.screen.set_root(node, r);
             r
         })
     }
@@ -1045,18 +1069,18 @@ impl ConstrainedSolver {
     /// Displacement of one node at the current forces (gravity included).
     fn displacement_of(&self, node: u32) -> Vec3 {
         let mut u = self.model.gravity_displacement(node);
-        if !self.keep_candidate_blocks {
-            for (slot, f) in self.node_force.iter().enumerate() {
+        if !self.cands.keep_candidate_blocks {
+            for (slot, f) in self.sys.node_force.iter().enumerate() {
                 if *f != Vec3::zeros() {
-                    u += self.kinv(node, self.nodes[slot]) * f;
+                    u += self.kinv(node, self.sys.nodes[slot]) * f;
                 }
             }
             return u;
         }
-        let mut kept = self.candidate_blocks.borrow_mut();
-        kept.prepare(self.frame, self.lazy_generation, &self.nodes, self.nodes_version);
+        let mut kept = self.cands.candidate_blocks.borrow_mut();
+        kept.prepare(self.frame, self.columns.lazy_generation, &self.sys.nodes, self.sys.nodes_version);
         let base = kept.row(node);
-        for (slot, f) in self.node_force.iter().enumerate() {
+        for (slot, f) in self.sys.node_force.iter().enumerate() {
             if *f != Vec3::zeros() {
                 u += self.kept_block(&mut kept, base, node, slot) * f;
             }
@@ -1067,26 +1091,26 @@ impl ConstrainedSolver {
     /// u_rows = u0 + K^-1[rows, nodes] F.
     fn update_surface(&mut self) {
         let row_nodes = self.compliance.row_nodes();
-        for (u, &n) in self.u_rows.iter_mut().zip(row_nodes) {
+        for (u, &n) in self.surface.u_rows.iter_mut().zip(row_nodes) {
             *u = self.model.gravity_displacement(n);
         }
-        self.col_forces.clear();
-        for (slot, f) in self.node_force.iter().enumerate() {
-            if let Some(c) = self.compliance.col_of(self.nodes[slot]) {
-                self.col_forces.push((c, *f));
+        self.surface.col_forces.clear();
+        for (slot, f) in self.sys.node_force.iter().enumerate() {
+            if let Some(c) = self.compliance.col_of(self.sys.nodes[slot]) {
+                self.surface.col_forces.push((c, *f));
             }
         }
-        self.col_forces.sort_unstable_by_key(|x| x.0);
-        self.compliance.accumulate(&self.col_forces, &mut self.u_rows, &mut self.product);
+        self.surface.col_forces.sort_unstable_by_key(|x| x.0);
+        self.compliance.accumulate(&self.surface.col_forces, &mut self.surface.u_rows, &mut self.surface.product);
         let n_free = self.model.dofs.dof_count();
-        for (slot, f) in self.node_force.iter().enumerate() {
-            let node = self.nodes[slot];
+        for (slot, f) in self.sys.node_force.iter().enumerate() {
+            let node = self.sys.nodes[slot];
             if self.compliance.col_of(node).is_some() {
                 continue;
             }
-            if let Ok(l) = self.lazy.binary_search_by_key(&node, |c| c.node) {
-                let v = &self.lazy[l].values;
-                for (u, &rn) in self.u_rows.iter_mut().zip(row_nodes) {
+            if let Ok(l) = self.columns.lazy.binary_search_by_key(&node, |c| c.node) {
+                let v = &self.columns.lazy[l].values;
+                for (u, &rn) in self.surface.u_rows.iter_mut().zip(row_nodes) {
                     if let Some(d) = self.model.dofs.dof(rn) {
                         for r in 0..3 {
                             u[r] += v[d + r] * f.x + v[n_free + d + r] * f.y + v[2 * n_free + d + r] * f.z;
@@ -1095,12 +1119,12 @@ impl ConstrainedSolver {
                 }
             }
         }
-        std::mem::swap(&mut self.u_rows, &mut self.prev_u_rows);
+        std::mem::swap(&mut self.surface.u_rows, &mut self.surface.prev_u_rows);
     }
 
     fn write_solution(&mut self, constraints: &[Constraint], out: &mut FrameSolution, iterations: usize, lazy_solves: usize) {
         out.displacement_surface.clear();
-        out.displacement_surface.extend(self.vertex_rows.iter().map(|&r| match self.prev_u_rows.get(r as usize) {
+        out.displacement_surface.extend(self.surface.vertex_rows.iter().map(|&r| match self.surface.prev_u_rows.get(r as usize) {
             Some(u) => *u,
             None => Vec3::zeros(),
         }));
@@ -1109,25 +1133,25 @@ impl ConstrainedSolver {
         out.max_displacement = out.displacement_surface.iter().fold(0.0_f64, |m, u| m.max(u.norm_squared())).sqrt();
         out.reactions.clear();
         out.reactions.resize(constraints.len(), Vec3::zeros());
-        for k in 0..self.enforced_nodes {
-            let claims = &self.claims[self.claim_ptr[k]..self.claim_ptr[k + 1]];
-            let share = self.node_force[k] / claims.len() as f64;
+        for k in 0..self.tools.enforced_nodes {
+            let claims = &self.tools.claims[self.tools.claim_ptr[k]..self.tools.claim_ptr[k + 1]];
+            let share = self.sys.node_force[k] / claims.len() as f64;
             for &c in claims {
                 out.reactions[c] = share;
             }
         }
-        let enforced_rows = 3 * self.enforced_nodes;
-        for (k, &ci) in self.row_candidate.iter().enumerate() {
+        let enforced_rows = 3 * self.tools.enforced_nodes;
+        for (k, &ci) in self.sys.row_candidate.iter().enumerate() {
             let row = enforced_rows + k;
-            let force = self.rows[row].dir * self.lambda[row];
-            match self.candidates[ci].plane {
+            let force = self.sys.rows[row].dir * self.sys.lambda[row];
+            match self.cands.candidates[ci].plane {
                 Some((_, _, g)) if g != NO_GROUP => {
-                    let claims = &self.group_claims[self.group_ptr[g]..self.group_ptr[g + 1]];
+                    let claims = &self.tools.group_claims[self.tools.group_ptr[g]..self.tools.group_ptr[g + 1]];
                     for &c in claims {
                         out.reactions[c] = force / claims.len() as f64;
                     }
                 }
-                _ => out.reactions[self.candidates[ci].constraint] = force,
+                _ => out.reactions[self.cands.candidates[ci].constraint] = force,
             }
         }
         out.owner_forces.clear();
@@ -1139,46 +1163,53 @@ impl ConstrainedSolver {
                 Err(i) => list.insert(i, (c.owner, *r)),
             }
         }
-        self.prev_active.clear();
-        for c in &self.candidates {
+        self.carry_active_set(out);
+        out.active_sphere_contacts = self.sys.row_candidate.iter().filter(|&&ci| self.cands.candidates[ci].plane.is_none()).count();
+        let n = self.sys.rows.len();
+        out.rows = n;
+        out.dropped_rows = self.sys.factor.dropped().filter(|d| *d).count();
+        out.conditioning = self.sys.factor.conditioning_estimate();
+        out.iterations = iterations;
+        out.lazy_solves = lazy_solves;
+        self.surface.last_forces.clear();
+        for (slot, f) in self.sys.node_force.iter().enumerate() {
+            self.surface.last_forces.push((self.sys.nodes[slot], *f));
+        }
+    }
+
+    /// Keeps the rows active at the end of the frame for the next one (the
+    /// sphere rows, the blade barriers) and lists the released and sliding
+    /// tool nodes; counts them into `out`.
+    fn carry_active_set(&mut self, out: &mut FrameSolution) {
+        self.cands.prev_active.clear();
+        for c in &self.cands.candidates {
             if c.active && c.plane.is_none() {
-                self.prev_active.push((c.node, c.owner, c.inside));
+                self.cands.prev_active.push((c.node, c.owner, c.inside));
             }
         }
-        self.prev_active.sort_unstable();
-        self.prev_barrier.clear();
-        for c in &self.candidates {
+        self.cands.prev_active.sort_unstable();
+        self.cands.prev_barrier.clear();
+        for c in &self.cands.candidates {
             if c.active && matches!(c.plane, Some((_, _, NO_GROUP))) {
-                self.prev_barrier.push((c.node, c.owner));
+                self.cands.prev_barrier.push((c.node, c.owner));
             }
         }
-        self.prev_barrier.sort_unstable();
-        self.released.clear();
-        self.sliding.clear();
+        self.cands.prev_barrier.sort_unstable();
+        self.tools.released.clear();
+        self.tools.sliding.clear();
         out.barrier_contacts = 0;
-        for c in &self.candidates {
+        for c in &self.cands.candidates {
             match c.plane {
-                Some((_, _, NO_GROUP)) => out.barrier_contacts += usize::from(c.active && self.engaged_sorted.binary_search(&c.node).is_err()),
-                Some(_) if c.active => self.sliding.push(c.node),
-                Some(_) => self.released.push(c.node),
+                Some((_, _, NO_GROUP)) => out.barrier_contacts += usize::from(c.active && self.tools.engaged_sorted.binary_search(&c.node).is_err()),
+                Some(_) if c.active => self.tools.sliding.push(c.node),
+                Some(_) => self.tools.released.push(c.node),
                 None => {}
             }
         }
-        self.released.sort_unstable();
-        self.sliding.sort_unstable();
-        out.released_contacts = self.released.len();
-        out.sliding_contacts = self.sliding.len();
-        out.active_sphere_contacts = self.row_candidate.iter().filter(|&&ci| self.candidates[ci].plane.is_none()).count();
-        let n = self.rows.len();
-        out.rows = n;
-        out.dropped_rows = self.factor.dropped().filter(|d| *d).count();
-        out.conditioning = self.factor.conditioning_estimate();
-        out.iterations = iterations;
-        out.lazy_solves = lazy_solves;
-        self.last_forces.clear();
-        for (slot, f) in self.node_force.iter().enumerate() {
-            self.last_forces.push((self.nodes[slot], *f));
-        }
+        self.tools.released.sort_unstable();
+        self.tools.sliding.sort_unstable();
+        out.released_contacts = self.tools.released.len();
+        out.sliding_contacts = self.tools.sliding.len();
     }
 
     /// Displacement of every node (m) for the last frame's forces: one sparse
@@ -1186,12 +1217,12 @@ impl ConstrainedSolver {
     pub fn interior_displacements(&mut self, out: &mut Vec<Vec3>) -> Result<(), FemError> {
         let m = &self.model;
         let mut rhs = Vec::new();
-        displacements_from_forces((m.chol.get()?, &m.dofs, &m.body_force), m.mesh.node_count(), &self.last_forces, (&mut rhs, &mut self.solve_scratch), out)
+        displacements_from_forces((m.chol.get()?, &m.dofs, &m.body_force), m.mesh.node_count(), &self.surface.last_forces, (&mut rhs, &mut self.sys.solve_scratch), out)
     }
 
     /// Nodal forces (node, N, on the tissue) of the last frame.
     pub fn last_forces(&self) -> &[(u32, Vec3)] {
-        &self.last_forces
+        &self.surface.last_forces
     }
 }
 
