@@ -14,7 +14,7 @@
 //! stress depends on timing (replays use the StressField stage).
 
 use super::assembly::DofMap;
-use super::constrained::displacements_from_forces;
+use super::model::displacements_from_forces;
 use super::factor::LazyFactor;
 use super::stress::{ElementStress, tet_stress};
 use super::{FemError, FemModel};

@@ -187,27 +187,10 @@ impl FemModel {
         if forces.len() != self.mesh.node_count() {
             return Err(FemError::LengthMismatch { what: "nodal forces", expected: self.mesh.node_count(), got: forces.len() });
         }
-        let mut rhs = if self.body_force.is_empty() { vec![0.0; self.dofs.dof_count()] } else { self.body_force.clone() };
-        for (node, f) in forces.iter().enumerate() {
-            if let Some(d) = self.dofs.dof(node as u32) {
-                rhs[d] += f.x;
-                rhs[d + 1] += f.y;
-                rhs[d + 2] += f.z;
-            }
-        }
-        let chol = self.chol.get()?;
-        let mut scratch = chol.scratch(1)?;
-        chol.solve_vec_in_place(&mut rhs, &mut scratch);
-        Ok(self.free_to_nodal(&rhs))
-    }
-
-    /// Expands a free-DOF vector to one Vec3 per node (zero where fixed).
-    pub fn free_to_nodal(&self, free: &[f64]) -> Vec<Vec3> {
-        let mut out = vec![Vec3::zeros(); self.mesh.node_count()];
-        for (k, &n) in self.dofs.free_nodes.iter().enumerate() {
-            out[n as usize] = Vec3::new(free[3 * k], free[3 * k + 1], free[3 * k + 2]);
-        }
-        out
+        let forces: Vec<(u32, Vec3)> = forces.iter().enumerate().map(|(node, f)| (node as u32, *f)).collect();
+        let mut out = Vec::new();
+        displacements_from_forces((self.chol.get()?, &self.dofs, &self.body_force), self.mesh.node_count(), &forces, (&mut Vec::new(), &mut None), &mut out)?;
+        Ok(out)
     }
 
     /// Gravity displacement of a node (zero without gravity or when fixed).
@@ -250,4 +233,43 @@ fn fingerprint(mesh: &TetMesh, sorted: &[(u32, super::Material)], materials: &Re
     let bits: Vec<u8> = fixed.iter().map(|&f| f as u8).collect();
     h.update(&bits);
     *h.finalize().as_bytes()
+}
+
+/// Every node's displacement (m) for nodal `forces` (N, on free nodes) plus the
+/// body force: one sparse solve with the factor of `K_FF`; fixed nodes get 0.
+/// `rhs` and `scratch` are reused between calls. What
+/// [`FemModel::solve_nodal_forces`], `ConstrainedSolver::interior_displacements`
+/// and the background stress worker compute.
+pub(crate) fn displacements_from_forces(
+    (chol, dofs, body_force): (&SparseCholesky, &DofMap, &[f64]),
+    node_count: usize,
+    forces: &[(u32, Vec3)],
+    (rhs, scratch): (&mut Vec<f64>, &mut Option<faer::dyn_stack::MemBuffer>),
+    out: &mut Vec<Vec3>,
+) -> Result<(), FemError> {
+    rhs.clear();
+    if body_force.is_empty() {
+        rhs.resize(dofs.dof_count(), 0.0);
+    } else {
+        rhs.extend_from_slice(body_force);
+    }
+    for &(node, f) in forces {
+        if let Some(d) = dofs.dof(node) {
+            rhs[d] += f.x;
+            rhs[d + 1] += f.y;
+            rhs[d + 2] += f.z;
+        }
+    }
+    if scratch.is_none() {
+        *scratch = Some(chol.scratch(1)?);
+    }
+    if let Some(scratch) = scratch.as_mut() {
+        chol.solve_vec_in_place(rhs, scratch);
+    }
+    out.clear();
+    out.resize(node_count, Vec3::zeros());
+    for (k, &n) in dofs.free_nodes.iter().enumerate() {
+        out[n as usize] = Vec3::new(rhs[3 * k], rhs[3 * k + 1], rhs[3 * k + 2]);
+    }
+    Ok(())
 }

@@ -245,8 +245,9 @@ fn draw_knobs<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
 }
 
 /// One panel a knob: |F| on the tissue against the position along the path
-/// (insert, open, close, withdraw, phase ends dashed), the reference in
-/// black under each of the knob's runs; a legend a panel.
+/// (insert, open, close, withdraw; the phase starts dashed), the reference in
+/// black under each of the knob's runs; a legend a panel. Each panel has its
+/// own scale and shows the part of the path where its forces are.
 fn draw_force_path<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &StudyResults) -> Res {
     root.fill(&WHITE).map_err(err)?;
     let path_of = |r: &RunRow| r.outcome.as_ref().ok().map(|m| m.force_path.clone()).filter(|p| !p.is_empty());
@@ -255,17 +256,25 @@ fn draw_force_path<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &
     let root = root.titled("Force on the tissue along the path: each knob's runs against the reference (black)", (FONT, 26)).map_err(err)?;
     let m = &results.motion;
     let length_mm = (2.0 * m.insert_m + 2.0 * m.open_m) * 1e3;
-    let top = results.rows.iter().filter_map(path_of).flatten().map(|p| p.1).fold(0.0, f64::max).max(1e-3) * 1.1;
     let columns = 2;
     let rows = knobs.len().div_ceil(columns).max(1);
     let panels = root.split_evenly((rows, columns));
     for (knob, area) in knobs.iter().zip(&panels) {
+        // Each panel its own scale: the path where this panel's forces are
+        // above 1 % of its largest (2 mm either side), up to that force.
+        let curves: Vec<Vec<(f64, f64)>> = reference.iter().cloned().chain(results.rows.iter().filter(|r| r.knob == Some(*knob)).filter_map(path_of)).collect();
+        let top = curves.iter().flatten().map(|p| p.1).fold(0.0, f64::max).max(1e-6);
+        let loaded = || curves.iter().flatten().filter(|p| p.1 > 0.01 * top).map(|p| p.0);
+        let x0 = (loaded().fold(f64::INFINITY, f64::min) - 2.0).max(0.0);
+        let x1 = (loaded().fold(f64::NEG_INFINITY, f64::max) + 2.0).min(length_mm);
+        let (x0, x1) = if x0 < x1 { (x0, x1) } else { (0.0, length_mm) };
+        let top = top * 1.1;
         let mut chart = ChartBuilder::on(area)
             .caption(knob.name(), (FONT, 18))
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(60)
-            .build_cartesian_2d(0.0..length_mm, 0.0..top)
+            .build_cartesian_2d(x0..x1, 0.0..top)
             .map_err(err)?;
         chart
             .configure_mesh()
@@ -275,13 +284,17 @@ fn draw_force_path<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &
             .label_style((FONT, 12))
             .draw()
             .map_err(err)?;
-        for end in [m.insert_m, m.insert_m + m.open_m, m.insert_m + 2.0 * m.open_m] {
+        for (end, phase) in [(m.insert_m, "open"), (m.insert_m + m.open_m, "close"), (m.insert_m + 2.0 * m.open_m, "withdraw")] {
             let x = end * 1e3;
+            if x <= x0 || x >= x1 {
+                continue;
+            }
             chart.draw_series(DashedLineSeries::new(vec![(x, 0.0), (x, top)], 5, 4, RGBColor(170, 170, 170).into())).map_err(err)?;
+            chart.draw_series(std::iter::once(Text::new(phase, (x, top * 0.97), (FONT, 12).into_font().color(&RGBColor(110, 110, 110))))).map_err(err)?;
         }
         if let Some(p) = &reference {
             chart
-                .draw_series(LineSeries::new(p.iter().copied(), BLACK.stroke_width(3)))
+                .draw_series(LineSeries::new(p.iter().copied().filter(|q| q.0 >= x0 && q.0 <= x1), BLACK.stroke_width(3)))
                 .map_err(err)?
                 .label("reference")
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(3)));
@@ -290,7 +303,7 @@ fn draw_force_path<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &
             let Some(p) = path_of(r) else { continue };
             let c = Palette99::pick(i).to_rgba();
             chart
-                .draw_series(LineSeries::new(p, c.stroke_width(2)))
+                .draw_series(LineSeries::new(p.into_iter().filter(|q| q.0 >= x0 && q.0 <= x1), c.stroke_width(2)))
                 .map_err(err)?
                 .label(r.label.clone())
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));

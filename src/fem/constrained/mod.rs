@@ -1217,50 +1217,11 @@ impl ConstrainedSolver {
     pub fn interior_displacements(&mut self, out: &mut Vec<Vec3>) -> Result<(), FemError> {
         let m = &self.model;
         let mut rhs = Vec::new();
-        displacements_from_forces((m.chol.get()?, &m.dofs, &m.body_force), m.mesh.node_count(), &self.surface.last_forces, (&mut rhs, &mut self.sys.solve_scratch), out)
+        super::model::displacements_from_forces((m.chol.get()?, &m.dofs, &m.body_force), m.mesh.node_count(), &self.surface.last_forces, (&mut rhs, &mut self.sys.solve_scratch), out)
     }
 
     /// Nodal forces (node, N, on the tissue) of the last frame.
     pub fn last_forces(&self) -> &[(u32, Vec3)] {
         &self.surface.last_forces
     }
-}
-
-/// Every node's displacement (m) for nodal `forces` (N, on free nodes) plus the
-/// body force: one sparse solve with the factor of `K_FF`; fixed nodes get 0.
-/// `rhs` and `scratch` are reused between calls. What
-/// [`ConstrainedSolver::interior_displacements`] and the background stress
-/// worker compute.
-pub fn displacements_from_forces(
-    (chol, dofs, body_force): (&super::factor::SparseCholesky, &super::assembly::DofMap, &[f64]),
-    node_count: usize,
-    forces: &[(u32, Vec3)],
-    (rhs, scratch): (&mut Vec<f64>, &mut Option<faer::dyn_stack::MemBuffer>),
-    out: &mut Vec<Vec3>,
-) -> Result<(), FemError> {
-    rhs.clear();
-    if body_force.is_empty() {
-        rhs.resize(dofs.dof_count(), 0.0);
-    } else {
-        rhs.extend_from_slice(body_force);
-    }
-    for &(node, f) in forces {
-        if let Some(d) = dofs.dof(node) {
-            rhs[d] += f.x;
-            rhs[d + 1] += f.y;
-            rhs[d + 2] += f.z;
-        }
-    }
-    if scratch.is_none() {
-        *scratch = Some(chol.scratch(1)?);
-    }
-    if let Some(scratch) = scratch.as_mut() {
-        chol.solve_vec_in_place(rhs, scratch);
-    }
-    out.clear();
-    out.resize(node_count, Vec3::zeros());
-    for (k, &n) in dofs.free_nodes.iter().enumerate() {
-        out[n as usize] = Vec3::new(rhs[3 * k], rhs[3 * k + 1], rhs[3 * k + 2]);
-    }
-    Ok(())
 }
