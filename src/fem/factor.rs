@@ -451,16 +451,21 @@ mod tests {
     use crate::fem::assembly::assemble_lower;
     use crate::fem::fixtures;
 
+    /// `K_FF` of `mesh` (one soft material) with its nodes at z = 0 held, and its DOFs.
+    fn held_at_the_bottom(mesh: &crate::mesh::TetMesh) -> (LowerCsc, DofMap) {
+        let fixed: Vec<bool> = mesh.positions.iter().map(|p| p.z <= 1e-12).collect();
+        let dofs = DofMap::new(mesh, &fixed);
+        let lame = vec![(1.0e3, 1.0e4); mesh.regions.len()];
+        (assemble_lower(mesh, &lame, &dofs), dofs)
+    }
+
     /// The row-major solve against faer's own supernodal solve on the same
     /// factor: every entry the same bits, with each ordering and with column
     /// counts below, at and above the switch (and the precompute's 96).
     #[test]
     fn row_major_solve_is_faers_bit_for_bit() {
         let mesh = fixtures::box_mesh(&fixtures::linspace(0.0, 0.06, 13), &fixtures::linspace(0.0, 0.05, 11), &fixtures::linspace(0.0, 0.04, 9)).unwrap();
-        let fixed: Vec<bool> = mesh.positions.iter().map(|p| p.z <= 1e-12).collect();
-        let dofs = DofMap::new(&mesh, &fixed);
-        let lame = vec![(1.0e3, 1.0e4); mesh.regions.len()];
-        let k = assemble_lower(&mesh, &lame, &dofs);
+        let (k, dofs) = held_at_the_bottom(&mesh);
         for ordering in [FillOrdering::Amd, FillOrdering::NestedDissection] {
             let chol = SparseCholesky::new(&k, &dofs, ordering).unwrap();
             assert!(matches!(chol.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)), "{ordering:?}: the test needs a supernodal factor");
@@ -511,10 +516,7 @@ mod tests {
         mesh.positions.extend_from_slice(&b.positions);
         mesh.tets.extend(b.tets.iter().map(|t| t.map(|v| v + shift)));
         mesh.regions.extend_from_slice(&b.regions);
-        let fixed: Vec<bool> = mesh.positions.iter().map(|p| p.z <= 1e-12).collect();
-        let dofs = DofMap::new(&mesh, &fixed);
-        let lame = vec![(1.0e3, 1.0e4); mesh.regions.len()];
-        let k = assemble_lower(&mesh, &lame, &dofs);
+        let (k, dofs) = held_at_the_bottom(&mesh);
         for ordering in [FillOrdering::Amd, FillOrdering::NestedDissection] {
             let chol = SparseCholesky::new(&k, &dofs, ordering).unwrap();
             assert!(!chol.parent.is_empty(), "{ordering:?}: the test needs a supernodal factor");
