@@ -90,7 +90,7 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
     assert_eq!(trajectory.samples(0).len(), frames + 1, "the rest row plus one row per frame for spatula 0");
     assert_eq!(trajectory.samples(1).len(), frames + 1, "the rest row plus one row per frame for spatula 1");
     let start = trajectory.start_time();
-    assert!((start + 0.99).abs() < 1e-9, "the lead-in starts at rest, 0.99 s before the press (the frame before 1.0 s), got {start}");
+    assert!((start + 0.99).abs() < 1e-9, "the run-up starts at rest, 0.99 s before the press (the frame before 1.0 s), got {start}");
     for k in 0..2 {
         assert!(trajectory.samples(k).iter().any(|s| s.time_s == 0.0), "spatula {k}: a row at t = 0, the pose at the press");
     }
@@ -100,7 +100,7 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
     assert!((last.time_s - (frames as f64 * 0.01 + start)).abs() < 1e-9, "the last row is the last frame in recording time: {}", last.time_s);
     assert!((last.position_mm[0] - x_mm).abs() < 1e-9, "recorded last pose {:?} vs window {x_mm}", last.position_mm);
 
-    // Replay it headless for the same frames (the lead-in first, from rest).
+    // Replay it headless for the same frames (the run-up first, from rest).
     let out = dir.path().join("replay");
     let replay = fissure(dir.path())
         .args(["replay", "config/sylvian.ron", "--trajectory"])

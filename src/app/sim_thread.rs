@@ -11,7 +11,7 @@
 //! step, OpenIGTLink's latest pose, or the scenario's trajectory at the frame's
 //! time); a recording's t = 0 is the frame at which it was started (key R),
 //! and the session before it, from the brain at rest, comes first at negative
-//! times (the lead-in), so `fissure replay --trajectory` rebuilds the tissue
+//! times (the run-up), so `fissure replay --trajectory` rebuilds the tissue
 //! as it was at the press and then plays the recording with the poses the sim
 //! actually used; a recording that cannot be started or written says so in
 //! the panel and the log and keeps every row written so far; a failing frame
@@ -328,7 +328,7 @@ struct Recording {
 }
 
 /// Starts a recording at session time `origin_s`: t = 0 is now, the history
-/// before it (the lead-in the replay needs to rebuild the tissue) at negative times.
+/// before it (the run-up the replay needs to rebuild the tissue) at negative times.
 fn start_recording(path: &PathBuf, history: &History, origin_s: f64) -> Result<Recording, String> {
     let note = format!(
         "recording: t = 0 is the moment it was started ({origin_s} s into the session); the rows before it are the session from the scene at rest (replay plays them first)"
@@ -693,7 +693,7 @@ mod tests {
     }
 
     /// A recording starts its clock at the press, not when the window
-    /// opened: t = 0 is the press; the poses before it stay (the lead-in,
+    /// opened: t = 0 is the press; the poses before it stay (the run-up,
     /// from rest, at negative times), and each later row is at session time
     /// minus the press's, so a replay that starts its clock at the first row
     /// samples the rows at exactly the window's frame times.
@@ -717,7 +717,7 @@ mod tests {
         assert!(text.starts_with("# recording: t = 0 is the moment it was started (0.3"), "{text}");
         let t = Trajectory::load(&path).expect("a valid trajectory");
         assert_eq!(t.samples(0).len(), 41, "rest + 30 lead-in frames + 10 recorded");
-        assert_eq!(t.start_time(), -origin, "the lead-in starts at rest, at -press");
+        assert_eq!(t.start_time(), -origin, "the run-up starts at rest, at -press");
         let at_press = t.sample(0, 0.0).expect("pose");
         assert!((at_press.position.x - 0.030).abs() < 1e-12, "t = 0 holds the pose at the press: {:?}", at_press.position);
         // A replay's frame k samples (k * dt) + start_time: frame 35's pose.

@@ -324,9 +324,6 @@ struct Candidates {
     /// blocks miss the CPU's caches (a smaller one is read as fast as the
     /// kept blocks). Fixed at construction.
     large_compliance: bool,
-    /// Whether [`Self::candidate_blocks`] is used: a large compliance, and
-    /// the optimisation not switched off in `tuning`.
-    keep_candidate_blocks: bool,
 }
 
 /// The K^-1 columns solved in a frame for nodes outside the ROI, kept between frames.
@@ -382,7 +379,6 @@ impl ConstrainedSolver {
                 screen: screen::Screen::new(node_count),
                 candidate_blocks: std::cell::RefCell::new(CandidateBlocks::default()),
                 large_compliance,
-                keep_candidate_blocks: blocks::wanted(large_compliance, tuning),
             },
             columns: LazyColumns::default(),
             surface: SurfaceUpdate {
@@ -513,7 +509,12 @@ impl ConstrainedSolver {
     pub fn set_tuning(&mut self, tuning: Tuning) {
         self.tuning = tuning;
         self.surface.product.tuning = tuning;
-        self.cands.keep_candidate_blocks = blocks::wanted(self.cands.large_compliance, tuning);
+    }
+
+    /// Whether the candidates' blocks are kept between frames: a large
+    /// compliance, and the optimisation not switched off in `tuning`.
+    fn keep_candidate_blocks(&self) -> bool {
+        blocks::wanted(self.cands.large_compliance, self.tuning)
     }
 
     /// The cap set by [`Self::set_iteration_cap`].
@@ -997,7 +998,7 @@ impl ConstrainedSolver {
         self.sys.w_ss.clear();
         self.sys.w_ss.resize(s * s, 0.0);
         let (mut w_es, mut w_ss) = (std::mem::take(&mut self.sys.w_es), std::mem::take(&mut self.sys.w_ss));
-        let mut kept = self.cands.keep_candidate_blocks.then(|| self.cands.candidate_blocks.borrow_mut());
+        let mut kept = self.keep_candidate_blocks().then(|| self.cands.candidate_blocks.borrow_mut());
         if let Some(kept) = kept.as_mut() {
             kept.prepare(self.frame, self.columns.lazy_generation, &self.sys.nodes, self.sys.nodes_version);
         }
@@ -1069,7 +1070,7 @@ impl ConstrainedSolver {
     /// Displacement of one node at the current forces (gravity included).
     fn displacement_of(&self, node: u32) -> Vec3 {
         let mut u = self.model.gravity_displacement(node);
-        if !self.cands.keep_candidate_blocks {
+        if !self.keep_candidate_blocks() {
             for (slot, f) in self.sys.node_force.iter().enumerate() {
                 if *f != Vec3::zeros() {
                     u += self.kinv(node, self.sys.nodes[slot]) * f;
