@@ -735,7 +735,7 @@ fn pruned_solve_audit(model: &FemModel, chol: &SparseCholesky) {
         let on = rep % 2 == (rep / 2) % 2;
         let t = Instant::now();
         if on {
-            chol.solve_unit_columns(&first, pruned.as_mut(), &mut scratch);
+            chol.solve_unit_columns(&first, pruned.as_mut(), None, &mut scratch);
         } else {
             full.fill(0.0);
             for (b, &d) in first.iter().enumerate() {

@@ -77,7 +77,7 @@ fn pipeline_refuses_every_bad_pose_and_holds_the_last_good_one() {
         assert_eq!(r.rejected_poses, 1, "{what}: exactly one pose refused");
         assert_eq!(state.poses[0], a, "{what}: the last good pose of spatula a holds");
         assert_eq!(state.surface_displacement, twin_state.surface_displacement, "{what}: the bad pose must act as the last good one (bit for bit)");
-        assert_eq!(p.state_hash(&state), twin.state_hash(&twin_state), "{what}: His-flags too");
+        assert_eq!(p.state_hash(&state).expect("hash"), twin.state_hash(&twin_state).expect("hash"), "{what}: His-flags too");
         // A bad pose for a, a good new one for b: only a's is refused.
         let b2 = pressed(-0.002, 0.0045);
         let r = p.step(&mut state, &FrameInput { poses: vec![Some(bad), Some(b2)] }).unwrap().clone();

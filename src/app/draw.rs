@@ -202,6 +202,25 @@ impl Snapshot {
 }
 
 impl Snapshot {
+    /// Shows the surface beyond the working region (the vertices without
+    /// compliance rows, which the frames leave as they were) at `nodes`,
+    /// every node's displacement from the background solve of a recent
+    /// frame; nothing when `nodes` is not one per mesh node.
+    pub fn set_far_surface(&mut self, pipeline: &Pipeline, nodes: &[crate::math::Vec3]) {
+        if nodes.len() != pipeline.mesh().node_count() {
+            return;
+        }
+        let (vertices, rest) = (&pipeline.surface().vertices, pipeline.rest_positions());
+        for &k in pipeline.solver().far_vertices() {
+            let k = k as usize;
+            let u = nodes[vertices[k] as usize];
+            if let (Some(p), Some(d)) = (self.surface_positions.get_mut(k), self.displacement_mm.get_mut(k)) {
+                *p = rest[k] + u;
+                *d = u.norm() * 1e3;
+            }
+        }
+    }
+
     /// Sets [`Snapshot::strain`] from per-tet stress (empty when `stress` is
     /// not one entry per tet of `surface`'s mesh).
     pub fn set_strain(&mut self, surface: &crate::mesh::BoundarySurface, stress: &[crate::fem::ElementStress]) {

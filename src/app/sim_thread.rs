@@ -365,23 +365,31 @@ fn stopped(shared: &SimShared, recording: Option<Recording>) {
     shared.recording.store(false, Ordering::Relaxed);
 }
 
-/// The strain colour for a scene without the StressField stage: a background
-/// worker, started when the window first asks for strain.
+/// The background solve (`fem::StressWorker`, on the other core, never waited
+/// for): the strain colour for a scene without the StressField stage
+/// (started when the window first asks for strain) and the surface beyond
+/// the working region, whose vertices have no compliance rows and so move
+/// in the picture only by this solve (started with the first frame).
 #[derive(Default)]
-struct BackgroundStrain {
+struct BackgroundSolve {
+    /// The window shows strain.
     wanted: bool,
     worker: Option<crate::fem::StressWorker>,
     /// Set when the worker could not start or stopped: no more tries.
     failed: bool,
-    /// The newest stress the worker finished (empty: none yet).
+    /// The newest stress the worker finished (empty: none yet, or not asked).
     stress: Vec<crate::fem::ElementStress>,
+    /// Every node's displacement for the newest frame the worker finished (empty: none yet).
+    nodes: Vec<crate::math::Vec3>,
 }
 
-impl BackgroundStrain {
-    /// Posts this frame's forces and picks up the newest finished stress;
+impl BackgroundSolve {
+    /// Posts this frame's forces and picks up the newest finished solve;
     /// true when there is stress to show. Never waits; failures go to the status line once.
     fn update(&mut self, pipeline: &Pipeline, state: &SimState, shared: &SimShared) -> bool {
-        if !self.wanted || self.failed || pipeline.effects().contains(Effect::StressField) {
+        let strain = self.wanted && !pipeline.effects().contains(Effect::StressField);
+        let far = !pipeline.solver().far_vertices().is_empty();
+        if self.failed || !(strain || far) {
             return false;
         }
         if self.worker.is_none() {
@@ -389,21 +397,21 @@ impl BackgroundStrain {
                 Ok(w) => self.worker = Some(w),
                 Err(e) => {
                     self.failed = true;
-                    *lock(&shared.status) = format!("strain colour unavailable: {e}");
+                    *lock(&shared.status) = format!("background solve unavailable (strain colour, far surface): {e}");
                     return false;
                 }
             }
         }
         let Some(worker) = self.worker.as_mut() else { return false };
-        worker.post(state.frame, pipeline.solver().last_forces());
-        worker.take(&mut self.stress);
+        worker.post(state.frame, pipeline.solver().last_forces(), strain);
+        worker.take(&mut self.stress, &mut self.nodes);
         if let Some(reason) = worker.take_failure() {
             self.failed = true;
             self.worker = None;
-            *lock(&shared.status) = format!("strain colour stopped: {reason}");
+            *lock(&shared.status) = format!("background solve stopped (strain colour, far surface): {reason}");
             return false;
         }
-        !self.stress.is_empty()
+        strain && !self.stress.is_empty()
     }
 }
 
@@ -433,7 +441,7 @@ fn run_loop(
     exit.peak_force_n = vec![0.0; b.state.poses.len()];
     let mut next = Instant::now();
     let mut quit = false;
-    let mut strain = BackgroundStrain::default();
+    let mut background = BackgroundSolve::default();
     // Guards replaced by a rebuild leave their counts here.
     let mut rejected_before_rebuild = 0u64;
     let mut tracker_refused_shown = 0u64;
@@ -481,8 +489,8 @@ fn run_loop(
                     Err(e) => *lock(&shared.status) = format!("cannot load {}: {e}", path.display()),
                 },
                 SimCommand::ShowStrain(on) => {
-                    strain.wanted = on;
-                    strain.stress.clear();
+                    background.wanted = on;
+                    background.stress.clear();
                 }
             }
             if let Some(s) = rebuild {
@@ -491,8 +499,9 @@ fn run_loop(
                     Ok(nb) => {
                         b = nb;
                         // another model: the worker's factor and mesh are stale
-                        strain.worker = None;
-                        strain.stress.clear();
+                        background.worker = None;
+                        background.stress.clear();
+                        background.nodes.clear();
                         rejected_before_rebuild += guards.iter().map(PoseGuard::rejected).sum::<u64>();
                         guards = b.state.poses.iter().map(|p| PoseGuard::new(*p, "window")).collect();
                         history = History::at_rest(&b.state.poses);
@@ -631,10 +640,11 @@ fn run_loop(
                     h.publish(Arc::new(model));
                 }
                 back.capture(&b.pipeline, &b.state, &report, &b.areas);
-                if strain.update(&b.pipeline, &b.state, shared) {
-                    back.set_strain(b.pipeline.surface(), &strain.stress);
+                if background.update(&b.pipeline, &b.state, shared) {
+                    back.set_strain(b.pipeline.surface(), &background.stress);
                     exit.background_strain_frames += 1;
                 }
+                back.set_far_surface(&b.pipeline, &background.nodes);
                 shared.frames.publish(&mut back);
                 match b.pipeline.solver().compliance().fill_progress() {
                     Some((done, total)) if columns_shown != Some(done) => {
@@ -669,7 +679,10 @@ fn run_loop(
     exit.frames = b.state.frame;
     exit.time_s = b.state.time_s;
     exit.final_poses = b.state.poses.clone();
-    exit.state_hash = b.pipeline.state_hash(&b.state);
+    exit.state_hash = b.pipeline.state_hash(&b.state).unwrap_or_else(|e| {
+        tracing::error!("the final state's hash: {e}");
+        String::new()
+    });
     exit.rejected_poses = rejected_before_rebuild + guards.iter().map(PoseGuard::rejected).sum::<u64>();
     if let Some(server) = &igtl {
         let stats = lock(server).stats();

@@ -75,11 +75,15 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
     };
     let progress = bar(scenario.step_count(), "frames");
     let mut frame_writer = if frames { Some(super::frames::FrameWriter::new(&out_dir)?) } else { None };
-    let mut on_frame = |pipeline: &fissure::sim::Pipeline, state: &fissure::sim::SimState, done: u64, _total: u64| {
+    let mut on_frame = |pipeline: &mut fissure::sim::Pipeline, state: &fissure::sim::SimState, done: u64, _total: u64| {
         precompute.finish_and_clear();
         progress.set_position(done);
         match &mut frame_writer {
-            Some(w) => w.write(pipeline, state).map_err(|e| format!("{e:#}")),
+            Some(w) => {
+                // the picture shows the whole surface, the far part brought up to date
+                let whole = pipeline.with_whole_surface(state).map_err(|e| format!("{e:#}"))?;
+                w.write(pipeline, &whole).map_err(|e| format!("{e:#}"))
+            }
             None => Ok(()),
         }
     };

@@ -109,7 +109,9 @@ pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
         ViewArg::Microscope => ViewPreset::Microscope,
     };
     let mut frames = super::frames::OffscreenFrames::new(args.size, options, view);
-    let image = frames.render(&pipeline, &state, &report)?;
+    // the whole surface, the far part brought up to date
+    let whole = pipeline.with_whole_surface(&state)?;
+    let image = frames.render(&pipeline, &whole, &report)?;
     if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }

@@ -1,10 +1,13 @@
-//! Per-tet stress on a background thread, for a display that wants it without
-//! the scene's synchronous StressField stage.
+//! Every node's displacement, and per-tet stress when asked, on a background
+//! thread: for a display that wants the strain colour without the scene's
+//! synchronous StressField stage, or the surface beyond the working region
+//! (no compliance rows) up to date.
 //!
 //! In: after a frame, that frame's nodal forces on the tissue
-//! ([`super::ConstrainedSolver::last_forces`]). Out: now and then, the stress
-//! of every tet for the newest frame the worker finished (one interior sparse
-//! solve and the stress pass, about 20 ms on paper-12k, on the other core).
+//! ([`super::ConstrainedSolver::last_forces`]) and whether stress is wanted.
+//! Out: now and then, every node's displacement (and the stress of every
+//! tet) for the newest frame the worker finished (one interior sparse solve
+//! and the stress pass, about 20 ms on paper-12k, on the other core).
 //! Stays true: the simulation never waits for it (a newer request replaces one
 //! not yet started, so the worker is never more than one solve behind); values
 //! equal what [`super::element_stress`] gives for the same forces; buffers go
@@ -33,10 +36,10 @@ struct Inputs {
 
 #[derive(Default)]
 struct Exchange {
-    /// The newest frame's forces not yet taken by the worker.
-    request: Option<(u64, Vec<(u32, Vec3)>)>,
-    /// The newest finished frame and its stress, until taken.
-    result: Option<(u64, Vec<ElementStress>)>,
+    /// The newest frame's forces not yet taken by the worker, and whether stress is wanted.
+    request: Option<(u64, Vec<(u32, Vec3)>, bool)>,
+    /// The newest finished frame, its stress (empty unless asked) and every node's displacement, until taken.
+    result: Option<Solved>,
     /// Set when the owner is dropped.
     closed: bool,
     /// Set (with the reason) when the worker failed.
@@ -44,7 +47,11 @@ struct Exchange {
     /// Buffers handed back for reuse, so that a steady state allocates nothing.
     spare_forces: Vec<(u32, Vec3)>,
     spare_stress: Vec<ElementStress>,
+    spare_nodes: Vec<Vec3>,
 }
+
+/// A finished frame: its number, stress (empty unless asked), every node's displacement.
+type Solved = (u64, Vec<ElementStress>, Vec<Vec3>);
 
 type Shared = Arc<(Mutex<Exchange>, Condvar)>;
 
@@ -84,13 +91,15 @@ impl StressWorker {
         Ok(Self { shared, failure_reported: false })
     }
 
-    /// Asks for the stress of frame `frame` with these forces; replaces a
-    /// request the worker has not started. Never waits for the worker.
-    pub fn post(&self, frame: u64, forces: &[(u32, Vec3)]) {
+    /// Asks for the displacement (and with `stress`, the stress) of frame
+    /// `frame` with these forces; replaces a request the worker has not
+    /// started. Never waits for the worker.
+    pub fn post(&self, frame: u64, forces: &[(u32, Vec3)], stress: bool) {
         let mut x = lock(&self.shared);
         match x.request.as_mut() {
-            Some((f, v)) => {
+            Some((f, v, s)) => {
                 *f = frame;
+                *s = stress;
                 v.clear();
                 v.extend_from_slice(forces);
             }
@@ -98,20 +107,20 @@ impl StressWorker {
                 let mut v = std::mem::take(&mut x.spare_forces);
                 v.clear();
                 v.extend_from_slice(forces);
-                x.request = Some((frame, v));
+                x.request = Some((frame, v, stress));
             }
         }
         drop(x);
         self.shared.1.notify_one();
     }
 
-    /// Moves the newest finished stress into `out` and returns its frame;
-    /// `None` when nothing new has finished since the last call.
-    pub fn take(&self, out: &mut Vec<ElementStress>) -> Option<u64> {
+    /// Moves the newest finished stress (empty unless asked) and node
+    /// displacements into `stress` and `nodes` and returns its frame; `None`
+    /// when nothing new has finished since the last call.
+    pub fn take(&self, stress: &mut Vec<ElementStress>, nodes: &mut Vec<Vec3>) -> Option<u64> {
         let mut x = lock(&self.shared);
-        let (frame, stress) = x.result.take()?;
-        x.spare_stress = std::mem::replace(out, stress);
-        Some(frame)
+        let solved = x.result.take()?;
+        Some(give(&mut x, solved, stress, nodes))
     }
 
     /// The reason the worker stopped, the first time it is asked after the failure.
@@ -125,20 +134,19 @@ impl StressWorker {
     }
 
     /// Waits until the worker has finished frame `frame` or a later one and
-    /// moves that stress into `out` (tests and tools; the frame loop never waits).
-    /// `None` when the worker failed.
-    pub fn wait_for(&self, frame: u64, out: &mut Vec<ElementStress>) -> Option<u64> {
+    /// moves its results as [`Self::take`] does (tests and tools; the frame
+    /// loop never waits). `None` when the worker failed.
+    pub fn wait_for(&self, frame: u64, stress: &mut Vec<ElementStress>, nodes: &mut Vec<Vec3>) -> Option<u64> {
         let mut x = lock(&self.shared);
         loop {
             if x.failed.is_some() {
                 return None;
             }
-            if let Some((f, _)) = &x.result
+            if let Some((f, _, _)) = &x.result
                 && *f >= frame
             {
-                let (f, stress) = x.result.take()?;
-                x.spare_stress = std::mem::replace(out, stress);
-                return Some(f);
+                let solved = x.result.take()?;
+                return Some(give(&mut x, solved, stress, nodes));
             }
             x = self.shared.1.wait(x).unwrap_or_else(std::sync::PoisonError::into_inner);
         }
@@ -152,17 +160,24 @@ impl Drop for StressWorker {
     }
 }
 
+/// Hands a finished frame's buffers out, keeping the caller's old ones as spares.
+fn give(x: &mut Exchange, (frame, stress, nodes): Solved, stress_out: &mut Vec<ElementStress>, nodes_out: &mut Vec<Vec3>) -> u64 {
+    x.spare_stress = std::mem::replace(stress_out, stress);
+    x.spare_nodes = std::mem::replace(nodes_out, nodes);
+    frame
+}
+
 fn work(inputs: &Inputs, shared: &Shared) {
-    let (mut rhs, mut scratch, mut nodes) = (Vec::new(), None, Vec::new());
+    let (mut rhs, mut scratch) = (Vec::new(), None);
     loop {
-        let (frame, forces, mut stress) = {
+        let (frame, forces, want_stress, mut stress, mut nodes) = {
             let mut x = lock(shared);
             loop {
                 if x.closed {
                     return;
                 }
-                if let Some((frame, forces)) = x.request.take() {
-                    break (frame, forces, std::mem::take(&mut x.spare_stress));
+                if let Some((frame, forces, want_stress)) = x.request.take() {
+                    break (frame, forces, want_stress, std::mem::take(&mut x.spare_stress), std::mem::take(&mut x.spare_nodes));
                 }
                 x = shared.1.wait(x).unwrap_or_else(std::sync::PoisonError::into_inner);
             }
@@ -179,14 +194,22 @@ fn work(inputs: &Inputs, shared: &Shared) {
                     &mut nodes,
                 )
             })
-            .and_then(|()| tet_stress(&inputs.mesh, &inputs.lame, &nodes, &mut stress));
+            .and_then(|()| {
+                if want_stress {
+                    tet_stress(&inputs.mesh, &inputs.lame, &nodes, &mut stress)
+                } else {
+                    stress.clear();
+                    Ok(())
+                }
+            });
         let mut x = lock(shared);
         x.spare_forces = forces;
         match result {
             // an unread older result goes back as a spare
             Ok(()) => {
-                if let Some((_, old)) = x.result.replace((frame, stress)) {
+                if let Some((_, old, old_nodes)) = x.result.replace((frame, stress, nodes)) {
                     x.spare_stress = old;
+                    x.spare_nodes = old_nodes;
                 }
             }
             Err(e) => {

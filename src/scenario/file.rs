@@ -534,10 +534,24 @@ pub struct SolverFile {
     /// became final; the order is part of the cache key. Default `false`.
     #[serde(default)]
     pub early_start: bool,
+    /// The working region, mm: surface vertices within this distance of the
+    /// region of interest (at rest) get compliance rows, as do those within
+    /// 15 mm of a skull sphere; every frame reads and moves them exactly.
+    /// The rest of the surface moves only as far as the picture needs: a
+    /// sparse solve brings it up to date for the final state, PNG frames
+    /// and the window's display, and a blade that comes within 10 mm of a
+    /// vertex outside brings it up to date every sub-step. `None`: every
+    /// surface vertex gets a row. Default `Some(10.0)`.
+    #[serde(default = "default_row_band_mm")]
+    pub row_band_mm: Option<f64>,
 }
 
 fn default_substep_travel() -> Option<f64> {
     Some(0.125)
+}
+
+fn default_row_band_mm() -> Option<f64> {
+    Some(10.0)
 }
 
 impl Default for SolverFile {
@@ -549,6 +563,7 @@ impl Default for SolverFile {
             spatula_contact: SpatulaContact::default(),
             substep_travel: default_substep_travel(),
             early_start: false,
+            row_band_mm: default_row_band_mm(),
         }
     }
 }

@@ -279,6 +279,9 @@ pub struct SolverOptions {
     pub substep_travel: Option<f64>,
     /// Compliance columns ordered by the blades' reach; the window starts before they are all computed.
     pub early_start: bool,
+    /// Surface vertices within this distance (m) of the region of interest
+    /// get compliance rows (the working region); `None`: every surface vertex.
+    pub row_band: Option<f64>,
 }
 
 /// Output options.
@@ -798,6 +801,12 @@ impl Scenario {
                 t => t,
             },
             early_start: file.solver.early_start,
+            row_band: match file.solver.row_band_mm {
+                Some(b) if !(b.is_finite() && b > 0.0 && b <= 1000.0) => {
+                    return Err(c.invalid("solver.row_band_mm", format!("must be in (0, 1000] mm (or None: every surface vertex), got {}", number(b))));
+                }
+                b => b.map(|b| b * 1e-3),
+            },
         };
 
         let gravity = c.vec3("gravity_m_s2", file.gravity_m_s2)?;

@@ -412,11 +412,13 @@ impl Pipeline {
             Some(p) => p,
             None => &mut no_progress,
         };
+        let rows = working_rows(scenario, &mesh, &surface.vertices, &roi);
         let compute = fem::ComputeOptions {
             storage,
             cache_dir: scenario.solver.cache_dir.as_deref(),
             reach: early.then_some(reach.as_slice()),
             background: early && options.background_columns,
+            rows: rows.as_deref(),
         };
         let compliance = Compliance::compute_with(&model, &roi, compute, progress)?;
         let solver = ConstrainedSolver::new(model, compliance)?;
@@ -433,6 +435,45 @@ impl Pipeline {
         let state = pipeline.initial_state(&initial);
         Ok((pipeline, state))
     }
+}
+
+/// A skull sphere's rows: the surface vertices within this gap (m) of a
+/// sphere at rest get compliance rows (the skull stage's candidate band and
+/// the far vertices' tracking margin: the brain deforms toward the skull).
+pub const SKULL_ROWS_GAP_M: f64 = SKULL_CANDIDATE_BAND_M + super::pipeline::FAR_TRACK_MARGIN_M;
+
+/// The surface nodes that get compliance rows besides the ROI's (the
+/// working region, `solver.row_band_mm`): within the band of an ROI node at
+/// rest, or within [`SKULL_ROWS_GAP_M`] of a skull sphere. `None`: every
+/// surface node (no band, or the band holds them all).
+pub fn working_rows(scenario: &Scenario, mesh: &TetMesh, surface_nodes: &[u32], roi: &[u32]) -> Option<Vec<u32>> {
+    let band = scenario.solver.row_band?;
+    let skull = scenario.skull.filter(|_| scenario.effects.contains(Effect::SkullSpheres));
+    // ROI nodes hashed into cells of the band's size: a node within the
+    // band of one lies in one of the 27 cells around its own.
+    let cell = |p: &Vec3| -> [i64; 3] { [0, 1, 2].map(|i| (p[i] / band).floor() as i64) };
+    let mut grid: std::collections::HashMap<[i64; 3], Vec<Vec3>> = std::collections::HashMap::new();
+    for &n in roi {
+        let p = mesh.positions[n as usize];
+        grid.entry(cell(&p)).or_default().push(p);
+    }
+    let near_roi = |p: &Vec3| {
+        let c = cell(p);
+        (-1..=1).any(|i| {
+            (-1..=1).any(|j| {
+                (-1..=1).any(|k| grid.get(&[c[0] + i, c[1] + j, c[2] + k]).is_some_and(|ps| ps.iter().any(|q| (q - p).norm() <= band)))
+            })
+        })
+    };
+    let rows: Vec<u32> = surface_nodes
+        .iter()
+        .copied()
+        .filter(|&n| {
+            let p = mesh.positions[n as usize];
+            near_roi(&p) || skull.as_ref().is_some_and(|s| super::pipeline::skull_gap(s, &p) < SKULL_ROWS_GAP_M)
+        })
+        .collect();
+    (rows.len() < surface_nodes.len()).then_some(rows)
 }
 
 /// What the build derives from the boundary surface alone.

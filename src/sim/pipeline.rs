@@ -187,8 +187,20 @@ pub struct Pipeline {
     feasible_constraints: Vec<Constraint>,
     saved_history: crate::collision::CollisionHistory,
     saved_claims: Vec<(u32, u8, u8)>,
+    /// The far surface vertices near a blade this sub-step ([`Self::track_far`]), and the blades' boxes it grows.
+    near_far: Vec<u32>,
+    blade_boxes: Vec<(Vec3, Vec3)>,
+    /// The working region's edge: vertices with rows that share a triangle with a far one.
+    far_edge: Vec<u32>,
     report: FrameReport,
 }
+
+/// A far surface vertex (one without a compliance row) is brought up to
+/// date every sub-step while it lies within this distance (m) of a blade's
+/// box at the sub-step's start or end: farther than a blade and the tissue
+/// it pushes move in a sub-step, so a blade never meets a vertex it last saw
+/// out of date.
+pub const FAR_TRACK_MARGIN_M: f64 = 0.010;
 
 impl Pipeline {
     pub(super) fn assemble(
@@ -200,7 +212,8 @@ impl Pipeline {
         collision: Option<CollisionStage>,
         skull: Option<SkullStage>,
     ) -> Result<Self, super::build::BuildError> {
-        let surface_tets = surface_tets(&mesh, &surface);
+        let surface_tets = surface_tets(&mesh, &surface, solver.far_vertices());
+        let far_edge = region_edge(&surface.triangles, solver.far_vertices());
         let contact_scratch = crate::fem::ContactScratch::for_surface(&surface);
         let n = scenario.spatulas.len();
         let unilateral = scenario.solver.spatula_contact == crate::scenario::SpatulaContact::Unilateral;
@@ -222,6 +235,9 @@ impl Pipeline {
             feasible_constraints: Vec::new(),
             saved_history: Default::default(),
             saved_claims: Vec::new(),
+            near_far: Vec::new(),
+            blade_boxes: Vec::new(),
+            far_edge,
             mesh,
             surface,
             rest,
@@ -537,6 +553,7 @@ impl Pipeline {
 
         // Exact constrained solve and surface update.
         let t = Instant::now();
+        self.track_far(state);
         self.solver.step(&self.constraints, &mut self.solution).map_err(|source| StepError::Solve { frame, source })?;
         self.feasible_constraints.clone_from(&self.constraints);
         self.previous_positions.clone_from(&state.surface_positions);
@@ -544,6 +561,7 @@ impl Pipeline {
         for ((p, rest), u) in state.surface_positions.iter_mut().zip(&self.rest).zip(&state.surface_displacement) {
             *p = rest + u;
         }
+        let r = &mut self.report;
         r.max_displacement_m = self.solution.max_displacement;
         r.skull_contacts = self.solution.active_sphere_contacts as u32;
         r.times.add(StageId::Solve, t.elapsed().as_secs_f64());
@@ -598,10 +616,63 @@ impl Pipeline {
         Ok(u)
     }
 
-    /// blake3 over the surface displacement bits and the His-flags: equal for bitwise-equal states.
-    pub fn state_hash(&self, state: &SimState) -> String {
+    /// Names to the solver the far surface vertices (no compliance row)
+    /// within [`FAR_TRACK_MARGIN_M`] of a blade's box at the sub-step's
+    /// start or end; it brings them up to date this sub-step.
+    fn track_far(&mut self, state: &SimState) {
+        if self.solver.far_vertices().is_empty() {
+            return;
+        }
+        self.near_far.clear();
+        // The far surface is assumed to have moved less than the tracking
+        // margin (displacement decays away from the blades). Where the
+        // region's edge has moved half of it, that no longer holds: every far
+        // vertex is brought up to date until the edge comes back.
+        let edge = self.far_edge.iter().map(|&k| state.surface_displacement[k as usize].norm_squared()).fold(0.0, f64::max);
+        if edge > (0.5 * FAR_TRACK_MARGIN_M).powi(2) {
+            self.solver.track_all();
+            return;
+        }
+        self.blade_boxes.clear();
+        for ((shape, before), after) in self.shapes.iter().zip(&self.previous_poses).zip(&state.poses) {
+            let (lo, hi) = (Vec3::new(0.0, -0.5 * shape.width, -0.5 * shape.thickness), Vec3::new(shape.length, 0.5 * shape.width, 0.5 * shape.thickness));
+            for pose in [before, after] {
+                self.blade_boxes.push(super::barrier::world_bounds(pose, &lo, &hi, FAR_TRACK_MARGIN_M));
+            }
+        }
+        for &k in self.solver.far_vertices() {
+            let p = &state.surface_positions[k as usize];
+            if self.blade_boxes.iter().any(|b| !super::barrier::outside_bounds(p, b)) {
+                self.near_far.push(k);
+            }
+        }
+        self.solver.track(&self.near_far);
+    }
+
+    /// `state` with its whole surface up to date: the far vertices (no
+    /// compliance row, left as last brought up to date by the frames) from
+    /// one sparse solve with the last frame's forces. For outputs that show
+    /// or hash the whole surface (the final state, PNG frames); the frames
+    /// that follow are not changed by it. Borrows `state` when every surface
+    /// vertex has a row.
+    pub fn with_whole_surface<'a>(&mut self, state: &'a SimState) -> Result<std::borrow::Cow<'a, SimState>, StepError> {
+        if self.solver.far_vertices().is_empty() {
+            return Ok(std::borrow::Cow::Borrowed(state));
+        }
+        let mut whole = state.clone();
+        self.solver.whole_surface(&mut whole.surface_displacement).map_err(|source| StepError::Solve { frame: state.frame, source })?;
+        for ((p, rest), u) in whole.surface_positions.iter_mut().zip(&self.rest).zip(&whole.surface_displacement) {
+            *p = rest + u;
+        }
+        Ok(std::borrow::Cow::Owned(whole))
+    }
+
+    /// blake3 over the whole surface's displacement bits
+    /// ([`Self::with_whole_surface`]) and the His-flags: equal for bitwise-equal states.
+    pub fn state_hash(&mut self, state: &SimState) -> Result<String, StepError> {
+        let whole = self.with_whole_surface(state)?;
         let mut h = blake3::Hasher::new();
-        for u in &state.surface_displacement {
+        for u in &whole.surface_displacement {
             for c in u.iter() {
                 h.update(&c.to_bits().to_le_bytes());
             }
@@ -612,18 +683,31 @@ impl Pipeline {
                 h.update(&[flags.get(k) as u8]);
             }
         }
-        h.finalize().to_hex().to_string()
+        Ok(h.finalize().to_hex().to_string())
     }
+}
+
+/// The surface vertices not in `far` (ascending) that share a triangle with one in it.
+fn region_edge(triangles: &[[u32; 3]], far: &[u32]) -> Vec<u32> {
+    let is_far = |v: &u32| far.binary_search(v).is_ok();
+    let mut edge: Vec<u32> = triangles.iter().filter(|t| t.iter().any(is_far)).flat_map(|t| t.iter().copied().filter(|v| !is_far(v))).collect();
+    edge.sort_unstable();
+    edge.dedup();
+    edge
 }
 
 /// The tets whose four nodes are on `surface`, as surface vertex indices,
 /// sorted by their first vertex (a frame reads them in memory order).
-fn surface_tets(mesh: &TetMesh, surface: &BoundarySurface) -> Vec<[u32; 4]> {
+/// Those with a vertex in `far` (ascending surface indices of the vertices
+/// without compliance rows) are left out: the frames leave such a vertex as
+/// it was, so its tets are judged only in the working region.
+fn surface_tets(mesh: &TetMesh, surface: &BoundarySurface, far: &[u32]) -> Vec<[u32; 4]> {
     let mut tets: Vec<[u32; 4]> = mesh
         .tets
         .iter()
         .filter(|t| t.iter().all(|&n| surface.node_to_vertex[n as usize] != crate::mesh::surface::NOT_ON_SURFACE))
         .map(|t| t.map(|n| surface.node_to_vertex[n as usize]))
+        .filter(|t| t.iter().all(|v| far.binary_search(v).is_err()))
         .collect();
     tets.sort_unstable_by_key(|t| t[0]);
     tets
@@ -662,7 +746,7 @@ mod tests {
     fn surface_tets_inverted_count_is_the_count_at_the_nodes() {
         let mesh = crate::mesh::tests::cube();
         let surface = mesh.boundary();
-        let tets = surface_tets(&mesh, &surface);
+        let tets = surface_tets(&mesh, &surface, &[]);
         assert_eq!(tets.len(), mesh.tets.len(), "every node of the cube is on its surface");
         let rest = surface.gather_positions(&mesh.positions);
         let mut s = 0x9e3779b97f4a7c15u64;

@@ -138,7 +138,7 @@ pub fn replay(
     scenario: &Scenario,
     options: &ReplayOptions,
     interrupt: &AtomicBool,
-    on_frame: &mut dyn FnMut(&Pipeline, &SimState, u64, u64) -> Result<(), String>,
+    on_frame: &mut dyn FnMut(&mut Pipeline, &SimState, u64, u64) -> Result<(), String>,
     compliance_progress: Option<&mut dyn FnMut(usize, usize)>,
 ) -> Result<Summary, ReplayError> {
     let checked = super::preflight::preflight(scenario, options.trajectory.as_deref())?;
@@ -190,13 +190,21 @@ pub fn replay(
                 break;
             }
         }
-        if let Err(e) = on_frame(&pipeline, &state, k + 1, total) {
+        if let Err(e) = on_frame(&mut pipeline, &state, k + 1, total) {
             failure = Some(ReplayError::Frames(e));
             break;
         }
     }
     let interrupted = failure.is_some() || summary_frames(&summary) < total;
-    let mut result = summary.finish(pipeline.state_hash(&state), interrupted);
+    let hash = match pipeline.state_hash(&state) {
+        Ok(h) => h,
+        Err(e) => {
+            let frames = summary_frames(&summary);
+            failure.get_or_insert(ReplayError::Step { source: e, frames, dir: options.out_dir.clone() });
+            String::new()
+        }
+    };
+    let mut result = summary.finish(hash, interrupted);
     if let Some(c) = pipeline.collision() {
         result.collision_backend = Some(format!("{:?}", c.backend()).to_lowercase());
         result.collision_notes = c.warnings().to_vec();

@@ -278,7 +278,9 @@ pub fn execute(
             inverted: r.inverted_elements,
         });
         if keep_displacements {
-            trace.displacements.push(state.surface_displacement.clone());
+            // The whole surface: the far part (no compliance rows) brought up to date.
+            let whole = pipeline.with_whole_surface(&state)?;
+            trace.displacements.push(whole.surface_displacement.clone());
         }
     }
     Ok(trace)

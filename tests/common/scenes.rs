@@ -428,7 +428,11 @@ pub fn pose_mm(position_mm: [f64; 3], q: [f64; 4]) -> fissure::geometry::Pose {
 /// between the pipeline's last frame and the direct reference solve (constrained DOFs
 /// eliminated, `K_FF` factored anew) with the same enforced displacements and fixed
 /// nodes. Valid for frames without active skull rows and without gravity.
-pub fn reference_disagreement(pipeline: &Pipeline, state: &SimState) -> f64 {
+/// The pipeline's whole surface is compared: the working region as the frame
+/// left it, the rest brought up to date ([`Pipeline::with_whole_surface`]).
+pub fn reference_disagreement(pipeline: &mut Pipeline, state: &SimState) -> f64 {
+    let whole = pipeline.with_whole_surface(state).expect("the whole surface").into_owned();
+    let state = &whole;
     let model = pipeline.solver().model();
     let mesh = model.mesh();
     let mut prescribed = Vec::new();

@@ -141,7 +141,8 @@ pub(super) fn write_file(path: &Path, parts: &[&[u8]]) -> Result<(), FemError> {
     Ok(())
 }
 
-pub(super) fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage) -> [u8; 32] {
+/// `rows`: the other rows when not every surface node's (in stored order).
+pub(super) fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorage, rows: Option<&[u32]>) -> [u8; 32] {
     let mut h = blake3::Hasher::new();
     h.update(b"fissure-compliance");
     h.update(&CACHE_VERSION.to_le_bytes());
@@ -154,6 +155,11 @@ pub(super) fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorag
     h.update(&(roi.len() as u64).to_le_bytes());
     h.update(bytemuck::cast_slice(roi));
     h.update(&storage.code()[..1]);
+    if let Some(rows) = rows {
+        h.update(b"rows");
+        h.update(&(rows.len() as u64).to_le_bytes());
+        h.update(bytemuck::cast_slice(rows));
+    }
     *h.finalize().as_bytes()
 }
 

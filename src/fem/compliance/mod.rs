@@ -101,12 +101,18 @@ pub struct ComputeOptions<'a> {
     /// not final yet waits for it; the values are those of a build that
     /// waits, bit for bit.
     pub background: bool,
+    /// The surface nodes stored as rows besides the ROI's (the working
+    /// region: what a frame's physics reads); `None`: every free surface
+    /// node. Part of the cache key. A surface node without a row is brought
+    /// up to date by a sparse solve where something reads it
+    /// ([`crate::fem::ConstrainedSolver::track`], `whole_surface`).
+    pub rows: Option<&'a [u32]>,
 }
 
 impl ComputeOptions<'_> {
-    /// Morton order, no cache, built before returning.
+    /// Morton order, no cache, built before returning, every surface row.
     pub fn new(storage: ComplianceStorage) -> Self {
-        Self { storage, cache_dir: None, reach: None, background: false }
+        Self { storage, cache_dir: None, reach: None, background: false, rows: None }
     }
 }
 
@@ -283,16 +289,16 @@ impl Compliance {
     /// of [`ComputeOptions`]. With `background`, `progress` is called once
     /// with `(0, total)`; [`Self::fill_progress`] says how far the filling is.
     pub fn compute_with(model: &FemModel, roi_nodes: &[u32], options: ComputeOptions<'_>, progress: &mut dyn FnMut(usize, usize)) -> Result<Self, FemError> {
-        let ComputeOptions { storage, cache_dir, reach, background } = options;
+        let ComputeOptions { storage, cache_dir, reach, background, rows } = options;
         let reach = reach.filter(|r| r.len() == model.mesh.node_count());
-        let this = Self::laid_out(model, roi_nodes, storage, reach)?;
+        let this = Self::laid_out(model, roi_nodes, storage, reach, rows)?;
         let path = cache_dir.map(|d| d.join(format!("compliance-{}.bin", hex(&this.key[..16]))));
         this.fill_from(model, storage, path, background, reach, progress)
     }
 
     /// The rows, columns and layout for `roi_nodes` (fixed ones skipped,
-    /// duplicates ignored); nothing computed yet.
-    fn laid_out(model: &FemModel, roi_nodes: &[u32], storage: ComplianceStorage, reach: Option<&[u32]>) -> Result<Self, FemError> {
+    /// duplicates ignored) and the surface `rows` (`None`: all); nothing computed yet.
+    fn laid_out(model: &FemModel, roi_nodes: &[u32], storage: ComplianceStorage, reach: Option<&[u32]>, rows: Option<&[u32]>) -> Result<Self, FemError> {
         let count = model.mesh.node_count();
         let mut roi: Vec<u32> = Vec::with_capacity(roi_nodes.len());
         for &n in roi_nodes {
@@ -306,7 +312,13 @@ impl Compliance {
         roi.sort_unstable();
         roi.dedup();
         let n_cols = roi.len();
-        let mut others: Vec<u32> = model.surface.vertices.iter().copied().filter(|&n| !model.is_fixed(n) && roi.binary_search(&n).is_err()).collect();
+        let mut wanted: Option<Vec<u32>> = rows.map(<[u32]>::to_vec);
+        if let Some(w) = &mut wanted {
+            w.sort_unstable();
+        }
+        let stored = |n: u32| wanted.as_ref().is_none_or(|w| w.binary_search(&n).is_ok());
+        let mut others: Vec<u32> =
+            model.surface.vertices.iter().copied().filter(|&n| !model.is_fixed(n) && roi.binary_search(&n).is_err() && stored(n)).collect();
         // Spatial (Morton) order: a spatula's contact patch maps to a few runs of
         // consecutive columns, so the per-frame product streams through memory.
         morton_sort(&mut roi, &model.mesh.positions);
@@ -326,7 +338,7 @@ impl Compliance {
         for (r, &n) in row_nodes.iter().enumerate() {
             node_row[n as usize] = r as u32;
         }
-        let key = cache_key(model, &roi, storage);
+        let key = cache_key(model, &roi, storage, wanted.is_some().then_some(others.as_slice()));
         Ok(Self {
             values: Values::F64(Arc::new(Dense { v: Buf::new(Vec::new()), lo: Buf::new(Vec::new()) })),
             fill: None,
@@ -465,7 +477,7 @@ impl Compliance {
         };
         let fill = Arc::new(Fill::new(&self.layout, self.n_cols, &starts));
         let row_dofs: Vec<usize> = self.row_nodes.iter().map(|&n| model.dofs.dof(n).unwrap_or(0)).collect();
-        Ok(FillJob { chol: Arc::clone(&model.chol), n_free, row_dofs, layout: Arc::clone(&self.layout), values, order, fill, threads, background, source: None })
+        Ok(FillJob { chol: Arc::clone(&model.chol), n_free, row_dofs, wanted: std::sync::OnceLock::new(), layout: Arc::clone(&self.layout), values, order, fill, threads, background, source: None })
     }
     /// Statistics of the last build or load.
     pub fn stats(&self) -> ComplianceStats {
@@ -793,6 +805,8 @@ struct FillJob {
     n_free: usize,
     /// First free DOF of every stored row.
     row_dofs: Vec<usize>,
+    /// The supernodes above the stored rows ([`super::factor::SparseCholesky::supernodes_above`]), made by the first batch solved.
+    wanted: std::sync::OnceLock<Option<Vec<bool>>>,
     layout: Arc<Layout>,
     values: Values,
     /// Batches in the order they are solved.
@@ -975,7 +989,9 @@ impl FillJob {
     ) {
         let (j0, nb) = (cols.start, cols.len());
         let row_dofs = &self.row_dofs;
-        chol.solve_unit_columns(&row_dofs[j0..j0 + nb], rhs.as_mut().subcols_mut(0, 3 * nb), scratch);
+        // Only the stored rows are read: the backward pass visits only their supernodes and those above.
+        let wanted = self.wanted.get_or_init(|| chol.supernodes_above(&row_dofs.iter().flat_map(|&d| d..d + 3).collect::<Vec<_>>()));
+        chol.solve_unit_columns(&row_dofs[j0..j0 + nb], rhs.as_mut().subcols_mut(0, 3 * nb), wanted.as_deref(), scratch);
         let (base, base_lo) = (self.layout.col_off[j0] * 9, self.layout.lo_off[j0] * 9);
         for b in 0..nb {
             let j = j0 + b;

@@ -136,7 +136,7 @@ pub(super) fn solve_columns(chol: &SparseCholesky, dofs: &DofMap, nodes: &[u32])
     let mut rhs = faer::Mat::<f64>::zeros(n_free, 3 * first_dofs.len());
     if !first_dofs.is_empty() {
         let mut scratch = chol.scratch(3 * first_dofs.len())?;
-        chol.solve_unit_columns(&first_dofs, rhs.as_mut(), &mut scratch);
+        chol.solve_unit_columns(&first_dofs, rhs.as_mut(), None, &mut scratch);
     }
     let mut b = 0;
     Ok(nodes

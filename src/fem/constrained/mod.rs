@@ -155,7 +155,8 @@ pub struct FrameSolution {
     /// Unilateral tool contacts that ended on their face plane with only a normal
     /// push (holding them fully would have pulled; released they would penetrate).
     pub sliding_contacts: usize,
-    /// Largest surface displacement, m.
+    /// Largest surface displacement in the working region (every vertex with
+    /// a compliance row, and the far ones a blade is near), m.
     pub max_displacement: f64,
     /// Estimate of cond(W) (`(max L_ii / min L_ii)^2`, a lower bound).
     pub conditioning: f64,
@@ -350,6 +351,18 @@ struct SurfaceUpdate {
     vertex_rows: Vec<u32>,
     /// Nodal forces of the last frame (node, force) for interior displacements.
     last_forces: Vec<(u32, Vec3)>,
+    /// The surface vertices (indices into `model.surface().vertices`) that
+    /// have no compliance row although free: beyond the working region.
+    far: Vec<u32>,
+    /// Per surface vertex: a far vertex's displacement when it was last
+    /// brought up to date (gravity's at first; unused for the others).
+    held: Vec<Vec3>,
+    /// Far vertices a blade is near ([`ConstrainedSolver::track`]), ascending:
+    /// each frame brings them up to date with one sparse solve.
+    tracked: Vec<u32>,
+    /// Scratch of that solve (right-hand side, every node's displacement).
+    solve_rhs: Vec<f64>,
+    solve_u: Vec<Vec3>,
 }
 
 impl ConstrainedSolver {
@@ -361,7 +374,11 @@ impl ConstrainedSolver {
         let rows = compliance.row_nodes().len();
         let large_compliance = compliance.stats().bytes > CANDIDATE_BLOCKS_FROM_BYTES;
         let node_count = model.mesh.node_count();
-        let vertex_rows = model.surface.vertices.iter().map(|&n| compliance.row_of(n).map_or(u32::MAX, |r| r as u32)).collect();
+        let vertex_rows: Vec<u32> = model.surface.vertices.iter().map(|&n| compliance.row_of(n).map_or(u32::MAX, |r| r as u32)).collect();
+        let far: Vec<u32> = (0..vertex_rows.len() as u32)
+            .filter(|&k| vertex_rows[k as usize] == u32::MAX && !model.is_fixed(model.surface.vertices[k as usize]))
+            .collect();
+        let held = model.surface.vertices.iter().map(|&n| model.gravity_displacement(n)).collect();
         let tuning = Tuning::current();
         Ok(Self {
             model,
@@ -388,6 +405,11 @@ impl ConstrainedSolver {
                 product: ProductWorkspace::default(),
                 vertex_rows,
                 last_forces: Vec::new(),
+                far,
+                held,
+                tracked: Vec::new(),
+                solve_rhs: Vec::new(),
+                solve_u: Vec::new(),
             },
         })
     }
@@ -532,6 +554,8 @@ impl ConstrainedSolver {
         let iterations = self.solve_active_set()?;
         let t = std::time::Instant::now();
         self.update_surface();
+        self.keep_last_forces();
+        self.update_tracked()?;
         self.timings.surface += t.elapsed().as_secs_f64();
         self.timings.surface_gather += self.surface.product.gather_seconds();
         self.write_solution(constraints, out, iterations, self.columns.lazy_computed - lazy_before);
@@ -920,9 +944,11 @@ impl ConstrainedSolver {
                 continue;
             }
             let rest = self.model.mesh.positions[c.node as usize];
-            let at = match self.compliance.row_of(c.node) {
-                Some(r) => rest + self.surface.prev_u_rows[r],
-                None => rest,
+            let at = match (self.compliance.row_of(c.node), self.model.surface.node_to_vertex.get(c.node as usize)) {
+                (Some(r), _) => rest + self.surface.prev_u_rows[r],
+                // a far surface vertex: as last brought up to date
+                (None, Some(&k)) => rest + self.surface.held.get(k as usize).copied().unwrap_or_else(Vec3::zeros),
+                (None, None) => rest,
             };
             let active = self.cands.prev_active.binary_search(&(c.node, c.owner, inside)).is_ok();
             self.cands.candidates.push(Candidate { constraint: i, node: c.node, owner: c.owner, center, radius, inside, active, at, plane: None });
@@ -1125,13 +1151,19 @@ impl ConstrainedSolver {
 
     fn write_solution(&mut self, constraints: &[Constraint], out: &mut FrameSolution, iterations: usize, lazy_solves: usize) {
         out.displacement_surface.clear();
-        out.displacement_surface.extend(self.surface.vertex_rows.iter().map(|&r| match self.surface.prev_u_rows.get(r as usize) {
-            Some(u) => *u,
-            None => Vec3::zeros(),
+        out.displacement_surface.extend(self.surface.vertex_rows.iter().zip(&self.surface.held).map(|(&r, held)| {
+            match self.surface.prev_u_rows.get(r as usize) {
+                Some(u) => *u,
+                // a far vertex: as last brought up to date (a fixed one: zero)
+                None => *held,
+            }
         }));
         // sqrt is monotonic and correctly rounded: the largest norm is the
         // root of the largest squared norm, bit for bit.
-        out.max_displacement = out.displacement_surface.iter().fold(0.0_f64, |m, u| m.max(u.norm_squared())).sqrt();
+        // Over the working region (the vertices with rows, and the far ones
+        // brought up to date this frame): the far surface is as it was.
+        let tracked = self.surface.tracked.iter().map(|&k| &out.displacement_surface[k as usize]);
+        out.max_displacement = self.surface.prev_u_rows.iter().chain(tracked).fold(0.0_f64, |m, u| m.max(u.norm_squared())).sqrt();
         out.reactions.clear();
         out.reactions.resize(constraints.len(), Vec3::zeros());
         for k in 0..self.tools.enforced_nodes {
@@ -1172,10 +1204,84 @@ impl ConstrainedSolver {
         out.conditioning = self.sys.factor.conditioning_estimate();
         out.iterations = iterations;
         out.lazy_solves = lazy_solves;
+    }
+
+    fn keep_last_forces(&mut self) {
         self.surface.last_forces.clear();
         for (slot, f) in self.sys.node_force.iter().enumerate() {
             self.surface.last_forces.push((self.sys.nodes[slot], *f));
         }
+    }
+
+    /// Brings the tracked far vertices up to date: one sparse solve with
+    /// this frame's forces, when there are any.
+    fn update_tracked(&mut self) -> Result<(), FemError> {
+        if self.surface.tracked.is_empty() {
+            return Ok(());
+        }
+        self.solve_last_forces()?;
+        let s = &mut self.surface;
+        for &k in &s.tracked {
+            s.held[k as usize] = s.solve_u[self.model.surface.vertices[k as usize] as usize];
+        }
+        Ok(())
+    }
+
+    /// Every node's displacement for the last frame's forces, into `surface.solve_u`.
+    fn solve_last_forces(&mut self) -> Result<(), FemError> {
+        let m = &self.model;
+        let s = &mut self.surface;
+        super::model::displacements_from_forces(
+            (m.chol.get()?, &m.dofs, &m.body_force),
+            m.mesh.node_count(),
+            &s.last_forces,
+            (&mut s.solve_rhs, &mut self.sys.solve_scratch),
+            &mut s.solve_u,
+        )
+    }
+
+    /// The free surface vertices without a compliance row (indices into
+    /// `model.surface().vertices`, ascending): beyond the working region, so
+    /// a frame leaves them as they were last brought up to date unless
+    /// [`Self::track`] names them.
+    pub fn far_vertices(&self) -> &[u32] {
+        &self.surface.far
+    }
+
+    /// The far vertices (surface indices) the next frames bring up to date:
+    /// those a blade is near. Others in `vertices` are ignored.
+    pub fn track(&mut self, vertices: &[u32]) {
+        let s = &mut self.surface;
+        s.tracked.clear();
+        s.tracked.extend(vertices.iter().copied().filter(|k| s.far.binary_search(k).is_ok()));
+        s.tracked.sort_unstable();
+        s.tracked.dedup();
+    }
+
+    /// Every far vertex is brought up to date by the next frames (as if
+    /// [`Self::track`] named them all).
+    pub fn track_all(&mut self) {
+        let s = &mut self.surface;
+        s.tracked.clone_from(&s.far);
+    }
+
+    /// Writes the far vertices' displacement for the last frame's forces into
+    /// `displacement_surface` (per surface vertex, as a frame's solution):
+    /// the whole surface up to date, for an output that shows or hashes it.
+    /// Changes nothing the next frame reads. Nothing to do (no solve) when
+    /// every surface vertex has a row.
+    pub fn whole_surface(&mut self, displacement_surface: &mut [Vec3]) -> Result<(), FemError> {
+        if self.surface.far.is_empty() {
+            return Ok(());
+        }
+        self.solve_last_forces()?;
+        let s = &self.surface;
+        for &k in &s.far {
+            if let Some(u) = displacement_surface.get_mut(k as usize) {
+                *u = s.solve_u[self.model.surface.vertices[k as usize] as usize];
+            }
+        }
+        Ok(())
     }
 
     /// Keeps the rows active at the end of the frame for the next one (the
@@ -1216,9 +1322,9 @@ impl ConstrainedSolver {
     /// Displacement of every node (m) for the last frame's forces: one sparse
     /// solve. Fixed nodes get zero. Errors only when the solve scratch cannot be allocated.
     pub fn interior_displacements(&mut self, out: &mut Vec<Vec3>) -> Result<(), FemError> {
-        let m = &self.model;
-        let mut rhs = Vec::new();
-        super::model::displacements_from_forces((m.chol.get()?, &m.dofs, &m.body_force), m.mesh.node_count(), &self.surface.last_forces, (&mut rhs, &mut self.sys.solve_scratch), out)
+        self.solve_last_forces()?;
+        std::mem::swap(out, &mut self.surface.solve_u);
+        Ok(())
     }
 
     /// Nodal forces (node, N, on the tissue) of the last frame.
