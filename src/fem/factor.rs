@@ -205,9 +205,18 @@ impl SparseCholesky {
     /// substitution needs for the answer at `rows` (a supernode's answer
     /// reads only its ancestors'). `None` when the factor is not supernodal.
     pub fn supernodes_above(&self, rows: &[usize]) -> Option<Vec<bool>> {
-        let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw() else { return None };
+        let mut reached = Vec::new();
+        self.supernodes_above_into(rows, &mut reached).then_some(reached)
+    }
+
+    /// As [`Self::supernodes_above`], into `reached` (reused: nothing is
+    /// allocated once it has grown); false (and `reached` empty) when the
+    /// factor is not supernodal.
+    pub fn supernodes_above_into(&self, rows: &[usize], reached: &mut Vec<bool>) -> bool {
+        reached.clear();
+        let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw() else { return false };
         let inv = self.symbolic.perm().map(|p| p.arrays().1);
-        let mut reached = vec![false; symbolic.n_supernodes()];
+        reached.resize(symbolic.n_supernodes(), false);
         for &old in rows {
             let row = inv.map_or(old, |v| v[old]);
             if let Some(&s) = self.row_supernode.get(row) {
@@ -221,7 +230,24 @@ impl SparseCholesky {
                 reached[p as usize] = true;
             }
         }
-        Some(reached)
+        true
+    }
+
+    /// Solves `K_FF X = B` in place visiting, forward, only the supernodes
+    /// `forward` marks (`B` is zero at every other supernode's rows: the
+    /// caller's promise) and, backward, only those `backward` marks (the
+    /// answer is read only at their rows), both made by
+    /// [`Self::supernodes_above_into`]; `None`: all. The answer is
+    /// [`Self::solve_in_place`]'s bit for bit where it is read. A factor
+    /// that is not supernodal solves in full.
+    pub fn solve_pruned_in_place(&self, rhs: MatMut<'_, f64>, forward: Option<&[bool]>, backward: Option<&[bool]>, scratch: &mut MemBuffer) {
+        if self.row_major
+            && let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw()
+        {
+            self.solve_row_major(symbolic, rhs, forward, backward, MemStack::new(scratch));
+            return;
+        }
+        self.solve_in_place(rhs, scratch);
     }
 
     /// Columns of `K_FF^-1`: column `3 b + c` of `rhs` (dim x 3 nodes) is

@@ -196,9 +196,10 @@ pub struct Pipeline {
 }
 
 /// A far surface vertex (one without a compliance row) is brought up to
-/// date every sub-step while it lies within this distance (m) of a blade's
-/// box at the sub-step's start or end: farther than a blade and the tissue
-/// it pushes move in a sub-step, so a blade never meets a vertex it last saw
+/// date every sub-step while it lies within this distance (m), plus the
+/// largest displacement of the working region's edge, of a blade's box at
+/// the sub-step's start or end: farther than a blade and the tissue it
+/// pushes move in a sub-step, so a blade never meets a vertex it last saw
 /// out of date.
 pub const FAR_TRACK_MARGIN_M: f64 = 0.010;
 
@@ -624,20 +625,16 @@ impl Pipeline {
             return;
         }
         self.near_far.clear();
-        // The far surface is assumed to have moved less than the tracking
-        // margin (displacement decays away from the blades). Where the
-        // region's edge has moved half of it, that no longer holds: every far
-        // vertex is brought up to date until the edge comes back.
-        let edge = self.far_edge.iter().map(|&k| state.surface_displacement[k as usize].norm_squared()).fold(0.0, f64::max);
-        if edge > (0.5 * FAR_TRACK_MARGIN_M).powi(2) {
-            self.solver.track_all();
-            return;
-        }
+        // A far vertex not brought up to date may have moved since: by about
+        // as much as the region's edge has (displacement decays away from
+        // the blades), so the margin grows by the edge's largest displacement.
+        let edge = self.far_edge.iter().map(|&k| state.surface_displacement[k as usize].norm_squared()).fold(0.0, f64::max).sqrt();
+        let grow = FAR_TRACK_MARGIN_M + edge;
         self.blade_boxes.clear();
         for ((shape, before), after) in self.shapes.iter().zip(&self.previous_poses).zip(&state.poses) {
             let (lo, hi) = (Vec3::new(0.0, -0.5 * shape.width, -0.5 * shape.thickness), Vec3::new(shape.length, 0.5 * shape.width, 0.5 * shape.thickness));
             for pose in [before, after] {
-                self.blade_boxes.push(super::barrier::world_bounds(pose, &lo, &hi, FAR_TRACK_MARGIN_M));
+                self.blade_boxes.push(super::barrier::world_bounds(pose, &lo, &hi, grow));
             }
         }
         for &k in self.solver.far_vertices() {

@@ -360,9 +360,12 @@ struct SurfaceUpdate {
     /// Far vertices a blade is near ([`ConstrainedSolver::track`]), ascending:
     /// each frame brings them up to date with one sparse solve.
     tracked: Vec<u32>,
-    /// Scratch of that solve (right-hand side, every node's displacement).
+    /// Scratch of the solves (right-hand side, every node's displacement;
+    /// the rows a tracked solve reads and is nonzero at, its supernodes).
     solve_rhs: Vec<f64>,
     solve_u: Vec<Vec3>,
+    solve_rows: Vec<usize>,
+    solve_marks: [Vec<bool>; 2],
 }
 
 impl ConstrainedSolver {
@@ -410,6 +413,8 @@ impl ConstrainedSolver {
                 tracked: Vec::new(),
                 solve_rhs: Vec::new(),
                 solve_u: Vec::new(),
+                solve_rows: Vec::new(),
+                solve_marks: [Vec::new(), Vec::new()],
             },
         })
     }
@@ -1214,15 +1219,53 @@ impl ConstrainedSolver {
     }
 
     /// Brings the tracked far vertices up to date: one sparse solve with
-    /// this frame's forces, when there are any.
+    /// this frame's forces, when there are any, pruned at both ends (forward
+    /// from the forced rows, backward to the tracked ones; a body force is
+    /// nonzero everywhere, so with gravity the forward pass is whole). The
+    /// tracked vertices' answer is the whole solve's bit for bit.
     fn update_tracked(&mut self) -> Result<(), FemError> {
         if self.surface.tracked.is_empty() {
             return Ok(());
         }
-        self.solve_last_forces()?;
+        let m = &self.model;
+        let chol = m.chol.get()?;
         let s = &mut self.surface;
+        let n = m.dofs.dof_count();
+        s.solve_rhs.clear();
+        if m.body_force.is_empty() {
+            s.solve_rhs.resize(n, 0.0);
+        } else {
+            s.solve_rhs.extend_from_slice(&m.body_force);
+        }
+        s.solve_rows.clear();
+        for &(node, f) in &s.last_forces {
+            if let Some(d) = m.dofs.dof(node) {
+                for c in 0..3 {
+                    s.solve_rhs[d + c] += f[c];
+                    s.solve_rows.push(d + c);
+                }
+            }
+        }
+        let [forward, backward] = &mut s.solve_marks;
+        let pruned_forward = m.body_force.is_empty() && chol.supernodes_above_into(&s.solve_rows, forward);
+        s.solve_rows.clear();
         for &k in &s.tracked {
-            s.held[k as usize] = s.solve_u[self.model.surface.vertices[k as usize] as usize];
+            if let Some(d) = m.dofs.dof(m.surface.vertices[k as usize]) {
+                s.solve_rows.extend(d..d + 3);
+            }
+        }
+        let pruned_backward = chol.supernodes_above_into(&s.solve_rows, backward);
+        if self.sys.solve_scratch.is_none() {
+            self.sys.solve_scratch = Some(chol.scratch(1)?);
+        }
+        if let Some(scratch) = self.sys.solve_scratch.as_mut() {
+            let rhs = faer::MatMut::from_column_major_slice_mut(&mut s.solve_rhs, n, 1);
+            chol.solve_pruned_in_place(rhs, pruned_forward.then_some(forward.as_slice()), pruned_backward.then_some(backward.as_slice()), scratch);
+        }
+        for &k in &s.tracked {
+            if let Some(d) = m.dofs.dof(m.surface.vertices[k as usize]) {
+                s.held[k as usize] = Vec3::new(s.solve_rhs[d], s.solve_rhs[d + 1], s.solve_rhs[d + 2]);
+            }
         }
         Ok(())
     }
@@ -1256,13 +1299,6 @@ impl ConstrainedSolver {
         s.tracked.extend(vertices.iter().copied().filter(|k| s.far.binary_search(k).is_ok()));
         s.tracked.sort_unstable();
         s.tracked.dedup();
-    }
-
-    /// Every far vertex is brought up to date by the next frames (as if
-    /// [`Self::track`] named them all).
-    pub fn track_all(&mut self) {
-        let s = &mut self.surface;
-        s.tracked.clone_from(&s.far);
     }
 
     /// Writes the far vertices' displacement for the last frame's forces into
