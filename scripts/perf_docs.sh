@@ -319,6 +319,8 @@ run_measure "startup: fine-brain Sylvian scene from the cache, early start" "$PE
 # G. The same scene as a user writes it: no refinement, only the lowest 10 mm held, f64, no cache.
 user_sylvian=(refine=None "fixed=[LowestPerComponent(height_mm: 10.0)]" solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false)
 run_measure "startup: a user's fine-brain Sylvian scene cold" "$PERF/startup/user_sylvian_cold.log" "$PROBE" config/real_brain/sylvian.ron "${user_sylvian[@]}"
+# H. The same opened as the window opens it (early start): the frames that wait for their columns.
+run_measure "startup: a user's fine-brain Sylvian scene cold, early start" "$PERF/startup/user_sylvian_background.log" "$PROBE" config/real_brain/sylvian.ron "${user_sylvian[@]}" solver.early_start=true --background
 
 # Figures of a build that waits for every column: model + factor (s before the
 # compliance), compliance compute / load s, whole build s, peak MB, from cache, rows, cols, MB.
@@ -366,6 +368,8 @@ probe_background "$PERF/startup/q15_cache_background.log"
 bgk_first=$first bgk_motion=$motion bgk_slowest=$slowest bgk_over50=$over50 bgk_columns=$columns bgk_peak=$bpeak bgk_frames=$frames_n
 probe_background "$PERF/startup/sylvian_cache_background.log"
 syl_first=$first syl_slowest=$slowest syl_over50=$over50 syl_columns=$columns syl_peak=$bpeak
+probe_background "$PERF/startup/user_sylvian_background.log"
+usb_first=$first usb_motion=$motion usb_slowest=$slowest usb_over50=$over50 usb_columns=$columns usb_peak=$bpeak usb_frames=$frames_n
 t_startup=$((SECONDS - t0))
 
 # ---------------------------------------------------------------- 4. the window
@@ -580,6 +584,7 @@ summary_rows() {
     echo "| fine brain from the cache with early start: first frame; slowest frame | first frame $bgk_first s; slowest $bgk_slowest ms ($bgk_over50 over 50 ms) | first frame < 1 s: $(verdict "$bgk_first" 1) | the same with $(code --background) |"
     echo "| fine-brain Sylvian scene as shipped ($syl_rows rows x $syl_cols columns, $syl_mb MB), from the cache with early start: first frame | first frame $syl_first s (cold build $syl_cold_build s); peak $syl_peak MB | first frame < 1 s: $(verdict "$syl_first" 1) | $(code "startup_probe config/real_brain/sylvian.ron 'solver.cache_dir=Some(DIR)' --background") |"
     echo "| the same scene as a user writes it (no refinement, lowest 10 mm held, f64, no cache), every column first: compliance ($usr_rows rows x $usr_cols columns, $usr_mb MB); whole build; peak memory | $usr_compute s; $usr_build s; $usr_peak MB | build < 30 s: $(verdict "$usr_build" 30); < 2 GB: $(verdict "$usr_peak" 2048) | $(code "startup_probe config/real_brain/sylvian.ron refine=None 'fixed=[LowestPerComponent(height_mm: 10.0)]' solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false") |"
+    echo "| the same scene opened as the window opens it (early start): first frame; frames that waited for their columns | first frame $usb_first s; slowest $usb_slowest ms ($usb_over50 over 50 ms); every column final $usb_columns s; peak $usb_peak MB | no frame over 50 ms: $( [ "$usb_over50" = 0 ] && echo met || echo "not met" ) | the same with $(code solver.early_start=true --background) |"
     if [ "$window_status" = ran ]; then
         window_figures "$PERF/window/threads_default.log"
         echo "| the window on the software renderer (Xvfb, llvmpipe on cores - 1 threads), default scene, blades held: fps; simulation step | $wfps fps; step p50 $wp50 / p95 $wp95 ms | step p95 < 2 ms: $(verdict "$wp95" 2) | $(code "fissure run config/sylvian.ron --exit-after 10 --size 1280x800") |"
@@ -706,6 +711,7 @@ tmp="$PERF/performance.md.tmp"
     echo "| fine-brain Sylvian scene as shipped, cold | \`config/real_brain/sylvian.ron 'solver.cache_dir=Some(DIR)'\` | refined mesh, $syl_rows rows x $syl_cols columns, $syl_mb MB; build done $syl_cold_build s; peak $syl_cold_peak MB |"
     echo "| the same from the cache, early start | the same with \`--background\` | first frame $syl_first s; slowest frame $syl_slowest ms, $syl_over50 over 50 ms; every column read $syl_columns s; peak $syl_peak MB |"
     echo "| the same scene as a user writes it, cold | \`config/real_brain/sylvian.ron refine=None 'fixed=[LowestPerComponent(height_mm: 10.0)]' solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false\` | model + factor $usr_before s; compliance $usr_rows rows x $usr_cols columns, $usr_mb MB, computed in $usr_compute s; build done $usr_build s; peak $usr_peak MB |"
+    echo "| the same scene as a user writes it, cold, early start | the same with \`solver.early_start=true --background\` | first frame $usb_first s; $usb_frames frames done $usb_motion s; slowest frame $usb_slowest ms, $usb_over50 over 50 ms (those waiting for their columns); every column final $usb_columns s; peak $usb_peak MB |"
     echo
     echo "## The window's frame time"
     echo
