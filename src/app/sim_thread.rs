@@ -381,7 +381,13 @@ struct BackgroundSolve {
     stress: Vec<crate::fem::ElementStress>,
     /// Every node's displacement for the newest frame the worker finished (empty: none yet).
     nodes: Vec<crate::math::Vec3>,
+    /// When the far surface alone was last asked for.
+    far_posted: Option<Instant>,
 }
+
+/// The far surface alone is solved at most this often (s): it moves slowly
+/// and a solve a frame would take the simulation's core on a small machine.
+const FAR_SURFACE_PERIOD_S: f64 = 0.1;
 
 impl BackgroundSolve {
     /// Posts this frame's forces and picks up the newest finished solve;
@@ -403,7 +409,11 @@ impl BackgroundSolve {
             }
         }
         let Some(worker) = self.worker.as_mut() else { return false };
-        worker.post(state.frame, pipeline.solver().last_forces(), strain);
+        let due = self.far_posted.is_none_or(|t| t.elapsed().as_secs_f64() >= FAR_SURFACE_PERIOD_S);
+        if strain || due {
+            worker.post(state.frame, pipeline.solver().last_forces(), strain);
+            self.far_posted = Some(Instant::now());
+        }
         worker.take(&mut self.stress, &mut self.nodes);
         if let Some(reason) = worker.take_failure() {
             self.failed = true;

@@ -168,6 +168,8 @@ fn give(x: &mut Exchange, (frame, stress, nodes): Solved, stress_out: &mut Vec<E
 }
 
 fn work(inputs: &Inputs, shared: &Shared) {
+    // The frames come first: this thread yields to them.
+    super::compliance::lower_thread_priority();
     let (mut rhs, mut scratch) = (Vec::new(), None);
     loop {
         let (frame, forces, want_stress, mut stress, mut nodes) = {

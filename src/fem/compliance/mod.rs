@@ -1017,7 +1017,7 @@ impl FillJob {
 /// Makes the calling thread yield to the frames: Linux nice 10 for this
 /// thread alone (on Linux a thread's nice value is its own). A hint: where it
 /// is refused, or elsewhere, the thread keeps the default priority.
-fn lower_thread_priority() {
+pub(crate) fn lower_thread_priority() {
     #[cfg(target_os = "linux")]
     {
         // SAFETY: plain system calls on the calling thread's own id.
@@ -1026,7 +1026,7 @@ fn lower_thread_priority() {
             libc::setpriority(libc::PRIO_PROCESS, tid, 10) != 0
         };
         if refused {
-            tracing::debug!("compliance filling thread: lower priority refused");
+            tracing::debug!("background thread: lower priority refused");
         }
     }
 }
