@@ -103,6 +103,13 @@ pub struct Rays<'a> {
     pub feasible: &'a [Pair],
 }
 
+/// Distance (m) from `p` to the blade's box at `pose` (0 inside it).
+pub fn distance_to_blade(shape: &SpatulaShape, pose: &Pose, p: &Vec3) -> f64 {
+    let q = local(pose, p);
+    let (lo, hi) = (Vec3::new(0.0, -0.5 * shape.width, -0.5 * shape.thickness), Vec3::new(shape.length, 0.5 * shape.width, 0.5 * shape.thickness));
+    Vec3::from_fn(|i, _| (lo[i] - q[i]).max(q[i] - hi[i]).max(0.0)).norm()
+}
+
 #[inline]
 fn local(pose: &Pose, p: &Vec3) -> Vec3 {
     pose.rotation.inverse_transform_vector(&(p - pose.position))

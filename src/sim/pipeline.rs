@@ -197,8 +197,8 @@ pub struct Pipeline {
 
 /// A far surface vertex (one without a compliance row) is brought up to
 /// date every sub-step while it lies within this distance (m), plus the
-/// largest displacement of the working region's edge, of a blade's box at
-/// the sub-step's start or end: farther than a blade and the tissue it
+/// largest displacement of the working region's edge, of a blade at the
+/// sub-step's start or end: farther than a blade and the tissue it
 /// pushes move in a sub-step, so a blade never meets a vertex it last saw
 /// out of date.
 pub const FAR_TRACK_MARGIN_M: f64 = 0.010;
@@ -637,9 +637,14 @@ impl Pipeline {
                 self.blade_boxes.push(super::barrier::world_bounds(pose, &lo, &hi, grow));
             }
         }
+        let poses = self.shapes.iter().zip(&self.previous_poses).zip(&state.poses).flat_map(|((shape, before), after)| [(shape, before), (shape, after)]);
         for &k in self.solver.far_vertices() {
             let p = &state.surface_positions[k as usize];
-            if self.blade_boxes.iter().any(|b| !super::barrier::outside_bounds(p, b)) {
+            // the world box first (cheap), then the distance to the blade itself
+            let near = self.blade_boxes.iter().zip(poses.clone()).any(|(b, (shape, pose))| {
+                !super::barrier::outside_bounds(p, b) && super::barrier::distance_to_blade(shape, pose, p) <= grow
+            });
+            if near {
                 self.near_far.push(k);
             }
         }
