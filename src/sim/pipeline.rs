@@ -669,6 +669,14 @@ impl Pipeline {
         Ok(std::borrow::Cow::Owned(whole))
     }
 
+    /// Brings the far part of a frame's `surface_displacement` up to date
+    /// from that frame's nodal forces (`solver().last_forces()` then), as
+    /// [`Self::with_whole_surface`] would have then, bit for bit: a run that
+    /// keeps every frame's surface does the solves after its timed frames.
+    pub fn whole_surface_for(&mut self, frame: u64, forces: &[(u32, Vec3)], surface_displacement: &mut [Vec3]) -> Result<(), StepError> {
+        self.solver.whole_surface_for(forces, surface_displacement).map_err(|source| StepError::Solve { frame, source })
+    }
+
     /// blake3 over the whole surface's displacement bits
     /// ([`Self::with_whole_surface`]) and the His-flags: equal for bitwise-equal states.
     pub fn state_hash(&mut self, state: &SimState) -> Result<String, StepError> {

@@ -1272,12 +1272,20 @@ impl ConstrainedSolver {
 
     /// Every node's displacement for the last frame's forces, into `surface.solve_u`.
     fn solve_last_forces(&mut self) -> Result<(), FemError> {
+        let forces = std::mem::take(&mut self.surface.last_forces);
+        let solved = self.solve_forces(&forces);
+        self.surface.last_forces = forces;
+        solved
+    }
+
+    /// Every node's displacement for nodal `forces` (and the body force), into `surface.solve_u`.
+    fn solve_forces(&mut self, forces: &[(u32, Vec3)]) -> Result<(), FemError> {
         let m = &self.model;
         let s = &mut self.surface;
         super::model::displacements_from_forces(
             (m.chol.get()?, &m.dofs, &m.body_force),
             m.mesh.node_count(),
-            &s.last_forces,
+            forces,
             (&mut s.solve_rhs, &mut self.sys.solve_scratch),
             &mut s.solve_u,
         )
@@ -1307,10 +1315,19 @@ impl ConstrainedSolver {
     /// Changes nothing the next frame reads. Nothing to do (no solve) when
     /// every surface vertex has a row.
     pub fn whole_surface(&mut self, displacement_surface: &mut [Vec3]) -> Result<(), FemError> {
+        let forces = std::mem::take(&mut self.surface.last_forces);
+        let done = self.whole_surface_for(&forces, displacement_surface);
+        self.surface.last_forces = forces;
+        done
+    }
+
+    /// As [`Self::whole_surface`] for a frame whose nodal forces
+    /// ([`Self::last_forces`]) were kept: the same bits, at a later time.
+    pub fn whole_surface_for(&mut self, forces: &[(u32, Vec3)], displacement_surface: &mut [Vec3]) -> Result<(), FemError> {
         if self.surface.far.is_empty() {
             return Ok(());
         }
-        self.solve_last_forces()?;
+        self.solve_forces(forces)?;
         let s = &self.surface;
         for &k in &s.far {
             if let Some(u) = displacement_surface.get_mut(k as usize) {
