@@ -2,8 +2,10 @@
 //! `cargo run --release --example startup_probe -- config/real_brain/interhemispheric.ron [PATH=VALUE..] [--background]`.
 //! With `--background` (and `solver.early_start: true`) the build returns
 //! before the columns are computed, as in the window; the probe then runs the
-//! scene's motion and says when its first frame was done, which frames waited
-//! for columns, and when the last column was final.
+//! scene's motion paced in real time as the window paces it (one frame every
+//! `time_step_s`; `--free-running`: as fast as they go) and says when its
+//! first frame was done, which frames took over 50 ms (waiting for columns),
+//! and when the last column was final.
 use fissure::scenario::Scenario;
 use fissure::sim::replay::PoseSource;
 use fissure::sim::{BuildOptions, Pipeline};
@@ -20,7 +22,8 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let path = args.get(1).map(String::as_str).unwrap_or("config/sylvian.ron");
     let background = args.iter().any(|a| a == "--background");
-    let overrides: Vec<String> = args.iter().skip(2).filter(|a| *a != "--background").cloned().collect();
+    let free_running = args.iter().any(|a| a == "--free-running");
+    let overrides: Vec<String> = args.iter().skip(2).filter(|a| !a.starts_with("--")).cloned().collect();
     let scenario = Scenario::load(Path::new(path), &overrides).expect("scenario");
     let source = PoseSource::for_scenario(&scenario, None).expect("trajectory");
     let mut first_progress: Option<f64> = None;
@@ -31,7 +34,12 @@ fn main() {
     };
     let (pipeline, _state) = Pipeline::build(
         &scenario,
-        BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: Some(&mut progress), background_columns: background },
+        BuildOptions {
+            expected_poses: source.samples(scenario.duration, 200),
+            expected_step_s: scenario.duration / 200.0,
+            progress: Some(&mut progress),
+            background_columns: background,
+        },
     )
     .expect("build");
     let total = t.elapsed().as_secs_f64();
@@ -42,7 +50,20 @@ fn main() {
         let mut input = fissure::sim::FrameInput::default();
         let frames = (scenario.duration / scenario.time_step).round() as usize;
         let (mut first_frame, mut slow, mut worst, mut complete_at) = (None, Vec::new(), 0.0f64, None);
+        let dt = std::time::Duration::from_secs_f64(scenario.time_step);
+        let mut next = Instant::now();
         for f in 1..=frames {
+            if !free_running {
+                // The window's pacing: a frame every time step, and a frame
+                // late by more than five steps does not make the next ones hurry.
+                let now = Instant::now();
+                if next > now {
+                    std::thread::sleep(next - now);
+                } else if now - next > 5 * dt {
+                    next = now;
+                }
+                next += dt;
+            }
             source.poses_at(f as f64 * scenario.time_step, &mut input);
             let s = Instant::now();
             pipeline.step(&mut state, &input).expect("frame");

@@ -262,3 +262,29 @@ fn a_compliance_dropped_while_it_fills_lets_go() {
     let c = Compliance::compute_with(&m, &roi, options(ComplianceStorage::F64, &reach, true), &mut |_, _| {}).unwrap();
     c.wait_complete().unwrap();
 }
+
+#[test]
+fn a_start_that_waits_until_ahead_returns_once_the_rest_keeps_ahead_of_the_blades() {
+    let m = model();
+    let reach = reach(&m);
+    let roi = m.surface().vertices.clone();
+    let waited = Compliance::compute_with(&m, &roi, options(ComplianceStorage::F64, &reach, false), &mut |_, _| {}).unwrap();
+    // Every column due at once: the wait lasts until the last one is final,
+    // reporting the columns as they come.
+    let filling = Compliance::compute_with(&m, &roi, options(ComplianceStorage::F64, &reach, true), &mut |_, _| {}).unwrap();
+    let mut seen = Vec::new();
+    filling.wait_until_ahead(&|_| 0.0, &mut |d, t| seen.push((d, t))).unwrap();
+    assert_eq!(filling.fill_progress(), None, "nothing left to fill when every column is due now");
+    assert!(seen.windows(2).all(|w| w[0].0 <= w[1].0), "progress only grows: {seen:?}");
+    assert_eq!(all_blocks(&filling), all_blocks(&waited));
+    // No column ever due: back once the rate is measured (or all is done),
+    // and the entries read afterwards are those of the build that waited.
+    let filling = Compliance::compute_with(&m, &roi, options(ComplianceStorage::F64, &reach, true), &mut |_, _| {}).unwrap();
+    filling.wait_until_ahead(&|_| f64::INFINITY, &mut |_, _| {}).unwrap();
+    if let Some((done, total)) = filling.fill_progress() {
+        assert!(done > 0 && done < total, "{done} / {total}");
+    }
+    assert_eq!(all_blocks(&filling), all_blocks(&waited));
+    // A compliance built first: at once.
+    waited.wait_until_ahead(&|_| 0.0, &mut |_, _| panic!("nothing is filling")).unwrap();
+}

@@ -205,7 +205,8 @@ fn build(scenario: Scenario, shared: &SimShared) -> Result<Built, String> {
         Ok(source) if follows => source.samples(scenario.duration, 200),
         _ => Vec::new(),
     };
-    let built = Pipeline::build(&scenario, BuildOptions { expected_poses, progress: Some(&mut progress), background_columns: true });
+    let expected_step_s = scenario.duration / 200.0;
+    let built = Pipeline::build(&scenario, BuildOptions { expected_poses, expected_step_s, progress: Some(&mut progress), background_columns: true });
     bar.finish_and_clear();
     *lock(&shared.progress) = None;
     let (pipeline, state) = built.map_err(|e| e.to_string())?;

@@ -235,6 +235,28 @@ fn fingerprint(mesh: &TetMesh, sorted: &[(u32, super::Material)], materials: &Re
     *h.finalize().as_bytes()
 }
 
+/// The right-hand side of `K u = f` for nodal `forces` plus the body force
+/// (`body_force` empty: none), in free DOFs, into `rhs`; the DOFs a force
+/// lands on are appended to `forced` when given.
+pub(crate) fn force_rhs((dofs, body_force): (&DofMap, &[f64]), forces: &[(u32, Vec3)], rhs: &mut Vec<f64>, mut forced: Option<&mut Vec<usize>>) {
+    rhs.clear();
+    if body_force.is_empty() {
+        rhs.resize(dofs.dof_count(), 0.0);
+    } else {
+        rhs.extend_from_slice(body_force);
+    }
+    for &(node, f) in forces {
+        if let Some(d) = dofs.dof(node) {
+            rhs[d] += f.x;
+            rhs[d + 1] += f.y;
+            rhs[d + 2] += f.z;
+            if let Some(forced) = forced.as_deref_mut() {
+                forced.extend(d..d + 3);
+            }
+        }
+    }
+}
+
 /// Every node's displacement (m) for nodal `forces` (N, on free nodes) plus the
 /// body force: one sparse solve with the factor of `K_FF`; fixed nodes get 0.
 /// `rhs` and `scratch` are reused between calls. What
@@ -247,19 +269,7 @@ pub(crate) fn displacements_from_forces(
     (rhs, scratch): (&mut Vec<f64>, &mut Option<faer::dyn_stack::MemBuffer>),
     out: &mut Vec<Vec3>,
 ) -> Result<(), FemError> {
-    rhs.clear();
-    if body_force.is_empty() {
-        rhs.resize(dofs.dof_count(), 0.0);
-    } else {
-        rhs.extend_from_slice(body_force);
-    }
-    for &(node, f) in forces {
-        if let Some(d) = dofs.dof(node) {
-            rhs[d] += f.x;
-            rhs[d + 1] += f.y;
-            rhs[d + 2] += f.z;
-        }
-    }
+    force_rhs((dofs, body_force), forces, rhs, None);
     if scratch.is_none() {
         *scratch = Some(chol.scratch(1)?);
     }

@@ -528,8 +528,9 @@ pub struct SolverFile {
     pub substep_travel: Option<f64>,
     /// Order the compliance columns (dense storage) by how soon a blade
     /// reaches them, so that the window shows the scene and runs its frames
-    /// while the rest are computed in the background; a frame that needs a
-    /// column not yet computed waits for it. Replays, benches and the study
+    /// while the rest are computed in the background, from when the rest is
+    /// predicted to keep ahead of the blades; a frame that needs a column not
+    /// yet computed waits for it. Replays, benches and the study
     /// compute every column first. The answers do not depend on when a column
     /// became final; the order is part of the cache key. Default `false`.
     #[serde(default)]

@@ -329,17 +329,45 @@ fn reach_ranks(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], pose_sets: &[Ve
     rank
 }
 
+/// The speed a blade is assumed to move at toward tissue its expected path
+/// does not reach (m/s): the keyboard's default speed. It dates the distance
+/// shells of [`reach_ranks`] for [`reach_seconds`].
+const REACH_HAND_SPEED_M_S: f64 = 0.01;
+
+/// Seconds from the first frame until a blade is expected to reach a node of
+/// reach `rank` ([`reach_ranks`], over `sets` pose sets: the start, then
+/// expected sets `step_s` apart from time 0): the set's time; past the
+/// expected path, its end plus the node's distance shells at
+/// [`REACH_HAND_SPEED_M_S`]; never for a node off the ROI.
+fn reach_seconds(rank: u32, sets: usize, step_s: f64) -> f64 {
+    let r = rank as usize;
+    if rank == u32::MAX {
+        f64::INFINITY
+    } else if r < sets {
+        r.saturating_sub(1) as f64 * step_s
+    } else {
+        sets.saturating_sub(2) as f64 * step_s + (r - sets) as f64 * REACH_SHELL_M / REACH_HAND_SPEED_M_S
+    }
+}
+
 /// Options of the build that are not in the scenario.
 #[derive(Default)]
 pub struct BuildOptions<'a> {
     /// Pose sets the spatulas will visit (e.g. trajectory samples), for `Auto` ROI.
     pub expected_poses: Vec<Vec<Pose>>,
+    /// Seconds between the expected pose sets (the first at the first
+    /// frame): when a blade reaches a node, for `background_columns`.
+    pub expected_step_s: f64,
     /// Called with (done, total) while the compliance is computed.
     pub progress: Option<&'a mut dyn FnMut(usize, usize)>,
     /// With `solver.early_start`: return once the compliance's storage is
-    /// allocated and compute its columns in the background (the window); a
-    /// frame that needs a column not yet computed waits for it. Otherwise every
-    /// column is computed before the build returns.
+    /// allocated and the rest of its columns is predicted to stay ahead of
+    /// the blades (each column final before the expected poses, or a blade
+    /// at [`REACH_HAND_SPEED_M_S`] past them, reach its node:
+    /// [`Compliance::wait_until_ahead`]), and compute the rest in the
+    /// background (the window); a frame that still needs a column not yet
+    /// computed waits for it. Otherwise every column is computed before the
+    /// build returns.
     pub background_columns: bool,
 }
 
@@ -420,7 +448,12 @@ impl Pipeline {
             background: early && options.background_columns,
             rows: rows.as_deref(),
         };
+        let background = compute.background;
         let compliance = Compliance::compute_with(&model, &roi, compute, progress)?;
+        if background {
+            let (sets, step) = (pose_sets.len(), options.expected_step_s);
+            compliance.wait_until_ahead(&|n| reach_seconds(reach[n as usize], sets, step), progress)?;
+        }
         let solver = ConstrainedSolver::new(model, compliance)?;
         let skull = if effects.contains(Effect::SkullSpheres) {
             let skull = scenario.skull.ok_or_else(|| BuildError::Scene {
@@ -531,4 +564,24 @@ pub fn stages_for(scenario: &Scenario) -> Vec<StageId> {
         v.push(StageId::Monitor);
     }
     v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reach_dates_the_expected_sets_then_the_shells_at_hand_speed() {
+        // The start and 201 expected sets 20 ms apart (a 4 s motion).
+        let (sets, step) = (202, 0.02);
+        assert_eq!(reach_seconds(0, sets, step), 0.0);
+        assert_eq!(reach_seconds(1, sets, step), 0.0);
+        assert!((reach_seconds(51, sets, step) - 1.0).abs() < 1e-12);
+        assert!((reach_seconds(201, sets, step) - 4.0).abs() < 1e-12);
+        // Past the path: 2 mm shells at 10 mm/s after its end.
+        assert!((reach_seconds(202 + 3, sets, step) - 4.6).abs() < 1e-12);
+        // Without an expected path (a hand drives): from the start.
+        assert!((reach_seconds(1 + 5, 1, 0.0) - 1.0).abs() < 1e-12);
+        assert_eq!(reach_seconds(u32::MAX, sets, step), f64::INFINITY);
+    }
 }

@@ -112,6 +112,8 @@ pub(super) struct Fill {
     computed: AtomicUsize,
     state: Mutex<FillState>,
     changed: Condvar,
+    /// Batches in the order they are solved (column order unless [`Self::solved_in`] says).
+    order: Vec<usize>,
 }
 
 #[derive(Debug)]
@@ -119,6 +121,8 @@ struct FillState {
     done: Vec<bool>,
     error: Option<String>,
     seconds: f64,
+    /// Seconds from the filling's start to its latest final batch.
+    latest: f64,
 }
 
 impl Fill {
@@ -137,9 +141,48 @@ impl Fill {
             columns_done: AtomicUsize::new(if complete { n_cols } else { 0 }),
             loaded: AtomicUsize::new(0),
             computed: AtomicUsize::new(0),
-            state: Mutex::new(FillState { done: vec![false; starts.len()], error: None, seconds: 0.0 }),
+            state: Mutex::new(FillState { done: vec![false; starts.len()], error: None, seconds: 0.0, latest: 0.0 }),
             changed: Condvar::new(),
+            order: (0..starts.len()).collect(),
         }
+    }
+
+    /// The order the batches are solved in (a permutation of the batches).
+    pub(super) fn solved_in(mut self, order: Vec<usize>) -> Self {
+        debug_assert_eq!(order.len(), self.order.len());
+        self.order = order;
+        self
+    }
+
+    /// Waits until `enough(done, columns_done, seconds)` says so, asked
+    /// again after each batch is final (`done`: per batch, final;
+    /// `seconds`: from the filling's start to the latest final batch).
+    /// `Ok(true)` when it did, `Ok(false)` when every batch is final first,
+    /// `Err` when the filling failed or was stopped.
+    pub(super) fn wait_until(&self, mut enough: impl FnMut(&[bool], usize, f64) -> bool) -> Result<bool, String> {
+        let mut state = self.lock();
+        loop {
+            if let Some(e) = &state.error {
+                return Err(e.clone());
+            }
+            if self.is_complete() {
+                return Ok(false);
+            }
+            if enough(&state.done, self.columns_done(), state.latest) {
+                return Ok(true);
+            }
+            state = self.changed.wait(state).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+
+    /// The batches in the order they are solved.
+    pub(super) fn order(&self) -> &[usize] {
+        &self.order
+    }
+
+    /// The batch holding column `col`.
+    pub(super) fn batch_of(&self, col: usize) -> usize {
+        self.starts.partition_point(|&s| s <= col) - 1
     }
 
     fn lock(&self) -> std::sync::MutexGuard<'_, FillState> {
@@ -220,6 +263,7 @@ impl Fill {
     pub(super) fn finish_batch(&self, b: usize, seconds_so_far: f64) {
         let mut state = self.lock();
         state.done[b] = true;
+        state.latest = seconds_so_far;
         let cols = self.batch(b);
         for (k, &(first, end)) in self.comps.iter().enumerate() {
             if cols.end <= first || cols.start >= end {

@@ -475,7 +475,7 @@ impl Compliance {
                 Values::F32(Arc::new(Dense { v: Buf::new(v), lo: Buf::new(lo) }))
             }
         };
-        let fill = Arc::new(Fill::new(&self.layout, self.n_cols, &starts));
+        let fill = Arc::new(Fill::new(&self.layout, self.n_cols, &starts).solved_in(order.clone()));
         let row_dofs: Vec<usize> = self.row_nodes.iter().map(|&n| model.dofs.dof(n).unwrap_or(0)).collect();
         Ok(FillJob { chol: Arc::clone(&model.chol), n_free, row_dofs, wanted: std::sync::OnceLock::new(), layout: Arc::clone(&self.layout), values, order, fill, threads, background, source: None })
     }
@@ -508,6 +508,47 @@ impl Compliance {
             f.0.wait(k, s[1] - s[0]).map_err(|reason| FemError::ComplianceIncomplete { reason })?;
         }
         Ok(())
+    }
+
+    /// With the columns filling in the background: waits until the rest of
+    /// the filling, at the rate measured so far slowed by
+    /// [`AHEAD_SLOWDOWN`] (the frames share the machine with it), is
+    /// predicted to make every column readable before `due_s(node)` seconds
+    /// from now, when a blade is first expected to read it. A scene whose
+    /// first frame starts then never waits for a column its expected motion
+    /// reaches. `progress(done, total)` on each final batch; at once when
+    /// nothing is filling.
+    pub fn wait_until_ahead(&self, due_s: &dyn Fn(u32) -> f64, progress: &mut dyn FnMut(usize, usize)) -> Result<(), FemError> {
+        let Some(owner) = &self.fill else { return Ok(()) };
+        let f = &owner.0;
+        // A column is readable once its component's columns before it are
+        // final: a batch is due when the earliest of its own and its
+        // component's later columns is.
+        let mut due = vec![f64::INFINITY; f.batch_count()];
+        for s in &self.layout.spans {
+            let mut earliest = f64::INFINITY;
+            for col in (s[0]..s[1]).rev() {
+                earliest = earliest.min(due_s(self.row_nodes[col]));
+                let b = f.batch_of(col);
+                due[b] = due[b].min(earliest);
+            }
+        }
+        let n_cols = self.n_cols;
+        let ahead = |done: &[bool], columns_done: usize, seconds: f64| {
+            progress(columns_done, n_cols);
+            // The rate is measured over a few batches (the first ones also
+            // wait for the threads to start).
+            if done.iter().filter(|&&d| d).count() < AHEAD_MIN_BATCHES || seconds <= 0.0 {
+                return false;
+            }
+            let seconds_per_column = AHEAD_SLOWDOWN * seconds / columns_done as f64;
+            let mut left = 0usize;
+            f.order().iter().filter(|&&b| !done[b]).all(|&b| {
+                left += f.batch(b).len();
+                left as f64 * seconds_per_column <= due[b]
+            })
+        };
+        f.wait_until(ahead).map(|_| ()).map_err(|reason| FemError::ComplianceIncomplete { reason })
     }
 
     /// Waits until column `col` can be read (its component's columns up to
@@ -766,6 +807,12 @@ fn advise_huge_pages<T>(v: &mut [T]) {
         }
     }
 }
+
+/// How much slower the background filling is assumed to run once the
+/// frames share the machine with it ([`Compliance::wait_until_ahead`]).
+pub const AHEAD_SLOWDOWN: f64 = 1.25;
+/// Final batches before the filling's rate is trusted ([`Compliance::wait_until_ahead`]).
+const AHEAD_MIN_BATCHES: usize = 4;
 
 /// Refuses a compliance of `need` bytes when the machine has less
 /// `available` (unknown: allowed), naming the region and what to change.

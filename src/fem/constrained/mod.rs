@@ -1231,21 +1231,8 @@ impl ConstrainedSolver {
         let chol = m.chol.get()?;
         let s = &mut self.surface;
         let n = m.dofs.dof_count();
-        s.solve_rhs.clear();
-        if m.body_force.is_empty() {
-            s.solve_rhs.resize(n, 0.0);
-        } else {
-            s.solve_rhs.extend_from_slice(&m.body_force);
-        }
         s.solve_rows.clear();
-        for &(node, f) in &s.last_forces {
-            if let Some(d) = m.dofs.dof(node) {
-                for c in 0..3 {
-                    s.solve_rhs[d + c] += f[c];
-                    s.solve_rows.push(d + c);
-                }
-            }
-        }
+        super::model::force_rhs((&m.dofs, &m.body_force), &s.last_forces, &mut s.solve_rhs, Some(&mut s.solve_rows));
         let [forward, backward] = &mut s.solve_marks;
         let pruned_forward = m.body_force.is_empty() && chol.supernodes_above_into(&s.solve_rows, forward);
         s.solve_rows.clear();
