@@ -2,9 +2,12 @@
 //! the paper shows in pictures. Tolerances are stated beside each assertion.
 //!
 //! - Fig. 11: a spatula jumps 5 thicknesses sideways in one frame inside the
-//!   inter-hemispheric fissure: with culling no surface vertex is pulled through
-//!   the blade; without culling some are (the failure the paper shows).
-//! - Fig. 12: V-valley, both faces give displacements and culling cancels none.
+//!   inter-hemispheric fissure: with the rays' claims (`Unilateral`, as in the
+//!   paper) and culling no surface vertex is pulled through the blade; without
+//!   culling some are (the failure the paper shows). Sliding contact (the
+//!   default) claims nothing and pulls nothing through, culling or not.
+//! - Fig. 12: V-valley, both faces give displacements and culling cancels none
+//!   of the rays' claims.
 //!   (The rotated U channel is checked at the collision stage, where each face's
 //!   contact pattern is asserted: `tests/collision_paper_cases.rs`.)
 //! - Fig. 14: two spatulas open the Sylvian fissure: its width at depth grows to
@@ -47,9 +50,10 @@ fn fig11_culling_keeps_tissue_out_of_the_blade_and_without_it_tissue_is_pulled_t
     let traj = "assets/trajectories/paper_fig11_interhemispheric.csv";
     // One step a frame, as in the paper: sub-steps (our default) make the jump
     // continuous and culling then has nothing to cancel (checked below).
-    let (with, csv_with) = run("config/interhemispheric.ron", traj, &["duration_s=2.5", "solver.substep_travel=None"]);
+    let claims = "solver.spatula_contact=Unilateral";
+    let (with, csv_with) = run("config/interhemispheric.ron", traj, &["duration_s=2.5", "solver.substep_travel=None", claims]);
     let (without, csv_without) =
-        run("config/interhemispheric.ron", traj, &["duration_s=2.5", "effects=[Collision, ForceOutput]", "solver.substep_travel=None"]);
+        run("config/interhemispheric.ron", traj, &["duration_s=2.5", "effects=[Collision, ForceOutput]", "solver.substep_travel=None", claims]);
     let pairs_with: f64 = column(&csv_with, "spatula_feasible_pairs").iter().sum();
     assert!(pairs_with > 0.0, "the spatula must touch the wall");
     let culled: f64 = column(&csv_with, "spatula_culled_pairs").iter().sum();
@@ -62,15 +66,20 @@ fn fig11_culling_keeps_tissue_out_of_the_blade_and_without_it_tissue_is_pulled_t
     assert!(without.max_crossed_vertices > 0, "without culling the far wall is pulled through the blade (paper Fig. 11b)");
     assert_eq!(column(&csv_without, "spatula_culled_pairs").iter().sum::<f64>(), 0.0);
     // With sub-steps the jump is continuous: nothing is pulled through even without culling.
-    let (substepped, _) = run("config/interhemispheric.ron", traj, &["duration_s=2.5", "effects=[Collision, ForceOutput]"]);
+    let (substepped, _) = run("config/interhemispheric.ron", traj, &["duration_s=2.5", "effects=[Collision, ForceOutput]", claims]);
     println!("Fig. 11 with sub-steps, no culling: max crossed {}, up to {} sub-steps", substepped.max_crossed_vertices, substepped.max_substeps);
     assert!(substepped.max_substeps > 1, "the 5-thickness jump must be split");
     assert_eq!(substepped.max_crossed_vertices, 0, "sub-steps alone keep the far wall out of the blade");
+    // Sliding (the default): no claims, so the one-frame jump without culling pulls nothing through either.
+    let (sliding, csv_sliding) = run("config/interhemispheric.ron", traj, &["duration_s=2.5", "effects=[Collision, ForceOutput]", "solver.substep_travel=None"]);
+    assert!(column(&csv_sliding, "spatula_force_n").iter().any(|&f| f > 0.0), "the sliding blade must push the wall");
+    assert_eq!(sliding.max_crossed_vertices, 0, "sliding contact pulls no vertex through the blade");
 }
 
 #[test]
 fn fig12_v_valley_both_faces_push_and_culling_cancels_none() {
-    let (s, csv) = run("config/v_valley.ron", "assets/trajectories/paper_fig12_v_valley.csv", &[]);
+    // The rays' claims, as in the paper (sliding contact claims nothing for culling to cancel).
+    let (s, csv) = run("config/v_valley.ron", "assets/trajectories/paper_fig12_v_valley.csv", &["solver.spatula_contact=Unilateral"]);
     let culled: f64 = column(&csv, "spatula_culled_pairs").iter().sum();
     let feasible = column(&csv, "spatula_feasible_pairs");
     println!("Fig. 12 V: final feasible pairs {}, culled total {culled}, max displacement {:.2} mm", feasible.last().unwrap(), s.max_displacement_mm);

@@ -63,7 +63,11 @@ fn pressing_deforms_to_the_blade_and_withdrawing_returns_to_rest() {
     let r = pipeline.step(&mut state, &input).expect("step").clone();
     assert!(r.constrained_vertices > 0, "the blade must constrain the top face");
     assert!(last_force_z < 0.0, "the blade pushes the tissue down: force z {last_force_z}");
-    assert!((r.max_displacement_m - press_mm * 1e-3).abs() < 1e-6, "vertices follow the blade: max displacement {} m", r.max_displacement_m);
+    // The blade pushes the top down by the press; the tissue slides along the
+    // frictionless face as it bulges, so a vertex also moves sideways.
+    let max_down = state.surface_displacement.iter().map(|u| -u.z).fold(0.0, f64::max);
+    assert!((max_down - press_mm * 1e-3).abs() < 1e-6, "vertices follow the blade down: {max_down} m");
+    assert!(r.max_displacement_m >= max_down && r.max_displacement_m < 1.1 * press_mm * 1e-3, "max displacement {} m", r.max_displacement_m);
     // Every constrained vertex sits on the blade's lower face plane (z = top - press).
     let face_z = (top - press_mm) * 1e-3;
     let mut on_face = 0;

@@ -14,7 +14,7 @@ use crate::fem::{ConstrainedSolver, Constraint, ConstraintKind, ContactPatch, El
 use crate::geometry::{Pose, SpatulaShape};
 use crate::math::{Vec3, is_finite3};
 use crate::mesh::{BoundarySurface, TetMesh, signed_volume};
-use crate::scenario::{Effect, EffectSet, Scenario, Skull};
+use crate::scenario::{Effect, EffectSet, Scenario, Skull, SpatulaContact};
 use std::time::Instant;
 
 /// Errors of one frame. The state is left as it was before the failing stage.
@@ -158,8 +158,9 @@ pub struct Pipeline {
     solver: ConstrainedSolver,
     collision: Option<CollisionStage>,
     skull: Option<SkullStage>,
-    /// Spatula targets become unilateral `Contact` rows (else bilateral `Enforced`).
-    unilateral: bool,
+    /// What a spatula target becomes: a sticking `Contact`, a bilateral
+    /// `Enforced` hold, or a sliding `Barrier` row.
+    contact_law: crate::scenario::SpatulaContact,
     /// Largest blade travel of a sub-step, in thicknesses (`None`: one step a frame).
     substep_travel: Option<f64>,
     /// Blade barrier rows for unclaimed vertices near a blade (unilateral contact only).
@@ -217,11 +218,12 @@ impl Pipeline {
         let far_edge = region_edge(&surface.triangles, solver.far_vertices());
         let contact_scratch = crate::fem::ContactScratch::for_surface(&surface);
         let n = scenario.spatulas.len();
-        let unilateral = scenario.solver.spatula_contact == crate::scenario::SpatulaContact::Unilateral;
+        let contact_law = scenario.solver.spatula_contact;
+        let unilateral = contact_law != SpatulaContact::Bilateral;
         let barrier = (unilateral && collision.is_some()).then(|| super::barrier::BarrierStage::new(surface.vertices.len()));
         Ok(Self {
             name: scenario.name.clone(),
-            unilateral,
+            contact_law,
             substep_travel: scenario.solver.substep_travel,
             barrier,
             effects: scenario.effects,
@@ -513,14 +515,16 @@ impl Pipeline {
                 self.saved_claims.extend_from_slice(barrier.previous_claims());
             }
             let out = collision.step(&state.surface_positions, &state.poses).map_err(|source| StepError::Collision { frame, source })?;
-            for target in &out.targets {
+            // Sliding: the rays claim nothing; the barrier rows hold every vertex under a blade alike.
+            let targets = if self.contact_law == SpatulaContact::Sliding { &[][..] } else { &out.targets[..] };
+            for target in targets {
                 self.constraints.push(Constraint {
                     node: self.surface.vertices[target.vertex as usize],
                     owner: target.spatula as u16,
-                    kind: if self.unilateral {
-                        ConstraintKind::Contact { displacement: target.displacement, normal: target.normal }
-                    } else {
-                        ConstraintKind::Enforced { displacement: target.displacement }
+                    kind: match self.contact_law {
+                        SpatulaContact::Unilateral => ConstraintKind::Contact { displacement: target.displacement, normal: target.normal },
+                        SpatulaContact::Sliding => ConstraintKind::Barrier { displacement: target.displacement, normal: target.normal },
+                        SpatulaContact::Bilateral => ConstraintKind::Enforced { displacement: target.displacement },
                     },
                 });
             }
@@ -540,7 +544,23 @@ impl Pipeline {
                     rest: &self.rest,
                     nodes: &self.surface.vertices,
                 };
-                barrier.push_rows(blades, collision, surface, &mut self.constraints);
+                if self.contact_law == SpatulaContact::Sliding {
+                    let output = collision.output();
+                    let rays = super::barrier::Rays { source_nodes: &output.source_nodes, hits: collision.nearest_hits(), feasible: &output.feasible_pairs };
+                    barrier.push_rows_from(blades, &[], Some(rays), surface, &mut self.constraints);
+                    // Every row is a blade's: a spatula constrains the vertices it has rows for.
+                    for s in r.spatulas.iter_mut() {
+                        s.constrained_vertices = 0;
+                    }
+                    for c in &self.constraints {
+                        if let Some(s) = r.spatulas.get_mut(usize::from(c.owner)) {
+                            s.constrained_vertices += 1;
+                        }
+                    }
+                    r.constrained_vertices = self.constraints.len() as u32;
+                } else {
+                    barrier.push_rows(blades, collision, surface, &mut self.constraints);
+                }
             }
             r.times.add(StageId::Collision, t.elapsed().as_secs_f64());
         }

@@ -185,7 +185,7 @@ pub fn preflight_with_mesh(scenario: &Scenario, mesh: TetMesh, trajectory: Optio
             &field,
             format!(
                 "spatula {} (\"{name}\") starts inside the tissue {when}: {} of its blade's {} sample points are inside, the \
-                 deepest {:.2} mm below the surface at ({:.1}, {:.1}, {:.1}) mm. The first frame pulls the tissue around it onto the \
+                 deepest {:.2} mm below the surface at ({:.1}, {:.1}, {:.1}) mm. The first frame moves the tissue around it onto the \
                  blade's faces: vertices pulled through and a failed integrity check are likely. Start the blade outside the tissue \
                  and let the trajectory bring it in",
                 b.spatula, b.inside, b.samples, b.depth / MM, p.x, p.y, p.z

@@ -170,8 +170,8 @@ pub fn compare(reference: &RunTrace, run: &RunTrace, same_mesh: bool, motion: &M
     let (force_rms, force_max, force_points) = force_error(reference, run, motion);
     let pct = |e: f64| if peak_force > 0.0 { 100.0 * e / peak_force } else { 0.0 };
     let pressure_error = pairs.iter().map(|&(r, k)| (reference.frames[r].pressure_mmhg - run.frames[k].pressure_mmhg).abs()).fold(0.0, f64::max);
-    let reference_contact_frames = pairs.iter().filter(|&&(r, _)| reference.frames[r].constrained > 0).count();
-    let missed = pairs.iter().filter(|&&(r, k)| reference.frames[r].constrained > 0 && run.frames[k].constrained == 0).count();
+    let reference_contact_frames = pairs.iter().filter(|&&(r, _)| reference.frames[r].contact > 0).count();
+    let missed = pairs.iter().filter(|&&(r, k)| reference.frames[r].contact > 0 && run.frames[k].contact == 0).count();
     Accuracy {
         comparison: match &map {
             None => Comparison::PerVertex,
@@ -205,7 +205,7 @@ mod tests {
                 .map(|(&k, &x)| FrameRecord {
                     key: FrameKey { phase: 1, distance_nm: k },
                     times: Default::default(),
-                    constrained: (x > 0.0) as u32,
+                    contact: (x > 0.0) as u32,
                     force: Vec3::new(x, 0.0, 0.0),
                     crossed: 0,
                     penetrating: 0,

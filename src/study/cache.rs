@@ -154,7 +154,7 @@ fn encode(t: &RunTrace, out: &mut Vec<u8>) {
             out.push(s.is_some() as u8);
             put_f64(out, s.unwrap_or(0.0));
         }
-        put_u32(out, f.constrained);
+        put_u32(out, f.contact);
         put_vec3(out, &f.force);
         put_u32(out, f.crossed);
         put_u32(out, f.penetrating);
@@ -232,7 +232,7 @@ fn decode(r: &mut Reader) -> Result<RunTrace, String> {
         frames.push(FrameRecord {
             key: FrameKey { phase, distance_nm },
             times,
-            constrained: r.u32()?,
+            contact: r.u32()?,
             force: r.vec3()?,
             crossed: r.u32()?,
             penetrating: r.u32()?,
@@ -264,7 +264,7 @@ mod tests {
             frames: vec![FrameRecord {
                 key: FrameKey { phase: 1, distance_nm: -7 },
                 times,
-                constrained: 3,
+                contact: 3,
                 force: Vec3::new(0.1, -0.2, f64::MIN_POSITIVE),
                 crossed: 1,
                 penetrating: 2,

@@ -396,7 +396,7 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
     );
     t.push_str(
         "Every sweep changes one knob from the base (150 grid nodes a face, BVH, culling on, 0.5 blade thicknesses a frame, \
-         f64 compliance, automatic region of interest, unilateral contact, sub-steps of 1/8 blade thickness, the skull simulated) and every run is compared with \
+         f64 compliance, automatic region of interest, sliding contact, sub-steps of 1/8 blade thickness, the skull simulated) and every run is compared with \
          one *reference* run, the finest setting of every knob at once, which no swept run equals. The reference is \
          run once and kept in the cache folder; a later study by the same build with the same scene, mesh, motion and settings reads it back.\n\n\
          - **RMS / max error**: surface displacement vs the reference, mm, at the frames where both runs are at the same \

@@ -25,8 +25,9 @@ pub enum Knob {
     Mesh,
     /// Spatula speed a frame, in blade thicknesses.
     Speed,
-    /// His-flag culling on and off under both contact models (the paper's
-    /// bilateral hold, our unilateral one), at a slow and a fast speed.
+    /// His-flag culling on and off under each contact law (sliding, the
+    /// default; unilateral stick; the paper's bilateral hold), at a slow and
+    /// a fast speed.
     Contact,
     /// Sub-steps: the largest blade travel of one sub-step, at a fast speed.
     Substeps,
@@ -281,7 +282,7 @@ impl StudyPlan {
         }
         if !v.contact_speeds.is_empty() {
             let mut runs = Vec::new();
-            for contact in [SpatulaContact::Unilateral, SpatulaContact::Bilateral] {
+            for contact in [SpatulaContact::Sliding, SpatulaContact::Unilateral, SpatulaContact::Bilateral] {
                 for culling in [true, false] {
                     for &s in &v.contact_speeds {
                         runs.push(RunSpec {
@@ -384,7 +385,7 @@ impl StudyPlan {
 /// the most source nodes, the plan's reference backend (brute force unless it
 /// would take hours), culling on, half the smallest swept speed, the finest
 /// sub-step, f64, the plan's reference region (the whole surface where it
-/// fits), our unilateral contact, the skull simulated.
+/// fits), the default (sliding) contact, the skull simulated.
 pub fn reference_run(v: &PlanValues) -> RunSpec {
     let b = &v.base;
     let nodes = v.nodes.iter().chain(&v.backend_nodes).copied().max().map_or_else(|| b.layout.clone(), grid);
@@ -398,7 +399,7 @@ pub fn reference_run(v: &PlanValues) -> RunSpec {
         speed,
         storage: ComplianceStorage::F64,
         roi: v.reference_roi,
-        contact: SpatulaContact::Unilateral,
+        contact: SpatulaContact::default(),
         substep_travel,
         skull: true,
     };
@@ -412,11 +413,12 @@ pub fn reference_run(v: &PlanValues) -> RunSpec {
     RunSpec { label, value: f64::NAN, settings }
 }
 
-/// `unilateral` / `bilateral`.
+/// `sliding` / `unilateral` / `bilateral`.
 pub fn contact_name(c: SpatulaContact) -> &'static str {
     match c {
         SpatulaContact::Unilateral => "unilateral",
         SpatulaContact::Bilateral => "bilateral",
+        SpatulaContact::Sliding => "sliding",
     }
 }
 
@@ -435,7 +437,7 @@ pub fn substep_label(t: Option<f64>) -> String {
 
 /// The base every preset starts from: the scene's mesh, 150 grid nodes a face
 /// (the paper's), BVH, culling on, half a thickness a frame, f64, automatic
-/// ROI, unilateral contact, sub-steps of 1/8 thickness (the shipped default:
+/// ROI, sliding contact (the default), sub-steps of 1/8 thickness (the shipped default:
 /// without them the insertion, 2 blade thicknesses a frame, differs from the
 /// reference's and that difference buries every other knob's; one step a
 /// frame, the paper's, is a value of the sub-step sweep), the skull simulated
@@ -451,7 +453,7 @@ pub fn base_settings(mesh: MeshChoice) -> Settings {
         speed: 0.5,
         storage: ComplianceStorage::F64,
         roi: RoiChoice::Auto,
-        contact: SpatulaContact::Unilateral,
+        contact: SpatulaContact::default(),
         substep_travel: Some(0.125),
         skull: true,
     }
@@ -612,7 +614,7 @@ mod tests {
         {
             let plan = preset_plan(preset, meshes);
             let r = &plan.reference.settings;
-            assert_eq!((r.storage, r.culling, r.skull, r.contact), (ComplianceStorage::F64, true, true, SpatulaContact::Unilateral));
+            assert_eq!((r.storage, r.culling, r.skull, r.contact), (ComplianceStorage::F64, true, true, SpatulaContact::Sliding));
             if preset == StudyPreset::Brain {
                 // The documented departures, each with its note.
                 assert_eq!((r.backend, r.roi), (CollisionBackend::Bvh, RoiChoice::Auto));

@@ -457,11 +457,13 @@ fn draw_speed<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
         (C::Bilateral, false, RGBColor(214, 39, 40), 0),
         (C::Unilateral, true, RGBColor(44, 160, 44), 1),
         (C::Unilateral, false, RGBColor(255, 127, 14), 1),
+        (C::Sliding, true, RGBColor(148, 103, 189), 2),
+        (C::Sliding, false, RGBColor(140, 86, 75), 2),
     ];
     let name = |c: C, culling: bool| format!("{}, culling {}", contact_name(c), if culling { "on" } else { "off" });
     {
         let mut chart = ChartBuilder::on(&top)
-            .caption("Culling under both contact models: tunnelling and error vs spatula speed", (FONT, 24))
+            .caption("Culling under each contact law: tunnelling and error vs spatula speed", (FONT, 24))
             .margin(15)
             .x_label_area_size(45)
             .y_label_area_size(90)

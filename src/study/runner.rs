@@ -39,8 +39,8 @@ pub enum RunError {
 pub struct FrameRecord {
     pub key: FrameKey,
     pub times: StageTimes,
-    /// Spatula-constrained surface vertices.
-    pub constrained: u32,
+    /// Surface vertices the spatulas push (the frame is in contact when > 0).
+    pub contact: u32,
     /// Sum of the spatulas' forces on the tissue, N.
     pub force: Vec3,
     pub crossed: u32,
@@ -271,7 +271,7 @@ pub fn execute(
         trace.frames.push(FrameRecord {
             key: f.key,
             times: r.times,
-            constrained: r.constrained_vertices,
+            contact: r.spatulas.iter().map(|s| s.contact_vertices).sum(),
             force: r.spatulas.iter().map(|s| s.force).sum(),
             crossed: r.crossed_vertices,
             penetrating: r.penetrating_vertices,

@@ -483,22 +483,29 @@ impl ConstrainedSolver {
         }
     }
 
-    /// Change of the force ON the tissue from spatula `owner` when all of its
-    /// enforced vertices move by `delta` (m) and the active set stays as in the
-    /// last frame: `delta_lambda = W^-1 delta_g`. Exact for the linear model;
-    /// costs two triangular solves (O(rows^2)), no allocation once `scratch`
-    /// has grown. The haptic force on the tool is the negative of this.
+    /// Change of the force ON the tissue from spatula `owner` when it moves
+    /// by `delta` (m) and the active set stays as in the last frame: its held
+    /// vertices move by `delta`, its active face rows' planes by `n . delta`;
+    /// `delta_lambda = W^-1 delta_g`. Exact for the linear model; costs two
+    /// triangular solves (O(rows^2)), no allocation once `scratch` has grown.
+    /// The haptic force on the tool is the negative of this.
     pub fn spatula_force_delta(&self, owner: u16, delta: Vec3, scratch: &mut Vec<f64>) -> Vec3 {
         let n = self.sys.rows.len();
         scratch.clear();
         scratch.resize(n, 0.0);
         let mut any = false;
         for k in 0..self.tools.enforced_nodes {
-            let share = self.owner_share(k, owner);
-            if share > 0.0 {
+            if self.owner_share(k, owner) > 0.0 {
                 scratch[3 * k] = delta.x;
                 scratch[3 * k + 1] = delta.y;
                 scratch[3 * k + 2] = delta.z;
+                any = true;
+            }
+        }
+        let enforced_rows = 3 * self.tools.enforced_nodes;
+        for (k, &ci) in self.sys.row_candidate.iter().enumerate() {
+            if self.face_row_share(ci, owner) > 0.0 {
+                scratch[enforced_rows + k] = self.sys.rows[enforced_rows + k].dir.dot(&delta);
                 any = true;
             }
         }
@@ -513,7 +520,27 @@ impl ConstrainedSolver {
                 f += Vec3::new(scratch[3 * k], scratch[3 * k + 1], scratch[3 * k + 2]) * share;
             }
         }
+        for (k, &ci) in self.sys.row_candidate.iter().enumerate() {
+            let share = self.face_row_share(ci, owner);
+            if share > 0.0 {
+                f += self.sys.rows[enforced_rows + k].dir * (scratch[enforced_rows + k] * share);
+            }
+        }
         f
+    }
+
+    /// Fraction of candidate `ci`'s face-row reaction that belongs to spatula
+    /// `owner` (0 for a sphere row).
+    fn face_row_share(&self, ci: usize, owner: u16) -> f64 {
+        let c = &self.cands.candidates[ci];
+        match c.plane {
+            None => 0.0,
+            Some((_, _, g)) if g == NO_GROUP => f64::from(u8::from(c.owner == owner)),
+            Some((_, _, g)) => {
+                let owners = &self.tools.group_owner[self.tools.group_ptr[g]..self.tools.group_ptr[g + 1]];
+                owners.iter().filter(|&&o| o == owner).count() as f64 / owners.len().max(1) as f64
+            }
+        }
     }
 
     /// Fraction of enforced node k's reaction that belongs to `owner`.
