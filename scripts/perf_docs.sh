@@ -285,6 +285,18 @@ one_euro='OneEuro(min_cutoff_hz: 1.0, beta_hz_per_mm_s: 0.05, d_cutoff_hz: 1.0)'
 replay sylvian_noisy config/sylvian.ron --trajectory assets/trajectories/paper_fig14_sylvian_noisy.csv
 replay sylvian_noisy_filtered config/sylvian.ron --trajectory assets/trajectories/paper_fig14_sylvian_noisy.csv \
     --set "spatulas[0].filter=$one_euro" --set "spatulas[1].filter=$one_euro"
+# The same blade motion on the coarse and the fine brain: the fine-brain Sylvian
+# scene as a user writes it (no refinement), on each brain, with the working
+# region's rows (the default) and with a row for every surface vertex.
+coarse_mesh='mesh=File(path: "../../assets/brain/brain_pial_coarse.msh.gz", units: Millimetres)'
+replay size/coarse config/real_brain/sylvian.ron --set refine=None --set "$coarse_mesh"
+replay size/coarse_all config/real_brain/sylvian.ron --set refine=None --set "$coarse_mesh" --set solver.row_band_mm=None
+replay size/fine config/real_brain/sylvian.ron --set refine=None
+replay size/fine_all config/real_brain/sylvian.ron --set refine=None --set solver.row_band_mm=None
+# The rows, surface vertices and columns a size/ run's compliance has.
+size_rows() { grab "$PERF/replay/size_${1}_1.log" '^  compliance: \([0-9]*\) rows .*$'; }
+size_surface() { grab "$PERF/replay/size_${1}_1.log" '^  compliance: [0-9]* rows (the working region, of \([0-9]*\) surface vertices).*$'; }
+size_cols() { grab "$PERF/replay/size_${1}_1.log" '^  compliance: .* x \([0-9]*\) columns.*$'; }
 # Per tag: the medians of p50 and p95 over the runs, the largest max, the p95 range.
 replay_stat() { # TAG COLUMN (1-based in replays.tsv) -> that column of every run, one a line
     awk -F'\t' -v t="$1" -v c="$2" '$1 == t { print $c }' "$PERF/replays.tsv"
@@ -529,6 +541,7 @@ summary_rows() {
     echo "| collision stage, fine real brain (q15, 67,708 triangles), 500 source nodes a face, bvh | p50 ${coll_q15_p50:-n/a} / p95 ${coll_q15_p95:-n/a} ms | under 1 ms: $(verdict "$coll_q15_p50" 1) (p50) | the same |"
     local tag p95 goal
     for tag in "${replay_tags[@]}"; do
+        [[ $tag == size/* ]] && continue
         p95=$(replay_p95 "$tag")
         case $tag in
             sylvian) goal="p95 < 2 ms (paper-size model): $(verdict "$p95" 2); < 5 ms: $(verdict "$p95" 5)" ;;
@@ -572,6 +585,12 @@ summary_rows() {
     local worst worst_tag
     worst=$(awk -F'\t' '{ print $6 }' "$PERF/replays.tsv" | maximum)
     worst_tag=$(awk -F'\t' -v w="$worst" '$6 == w { print $1; exit }' "$PERF/replays.tsv")
+    local band_x rows_x all_x surf_x
+    band_x=$(ratio "$(replay_p50 size/fine)" "$(replay_p50 size/coarse)")
+    rows_x=$(ratio "$(size_rows fine)" "$(size_rows coarse)")
+    all_x=$(ratio "$(replay_p50 size/fine_all)" "$(replay_p50 size/coarse_all)")
+    surf_x=$(ratio "$(size_surface fine)" "$(size_surface coarse)")
+    echo "| the same blade motion on the coarse and the fine brain (the Sylvian scene unrefined), working region 10 mm beyond the ROI: frame p50 coarse / fine; fine over coarse, against its rows' ratio | $(replay_p50 size/coarse) / $(replay_p50 size/fine) ms; ${band_x}x for ${rows_x}x the rows ($(size_rows coarse) / $(size_rows fine)); with a row for every surface vertex ${all_x}x for ${surf_x}x ($(size_surface coarse) / $(size_surface fine)) | frame time follows the working region's rows, not the brain (docs/performance.md, "The same motion on the coarse and the fine brain") | $(code "fissure replay config/real_brain/sylvian.ron --set refine=None [--set 'mesh=File(coarse)'] [--set solver.row_band_mm=None]") |"
     echo "| longest frame of every replay above (the haptic loop reads the last answer) | $worst ms ($worst_tag) | no frame frozen > 50 ms: $(verdict "$worst" 50) | the replays above |"
     local cold_prob="solver.compliance_storage=F32"
     echo "| fine brain (q15, 62.8k nodes) cold, f32, every column first: model + factor / compliance precompute ($cold_rows rows x $cold_cols columns, $cold_mb MB) / peak memory | $cold_before s / $cold_compute s / $cold_peak MB | precompute < 60 s: $(verdict "$cold_compute" 60); < 2 GB: $(verdict "$cold_peak" 2048) | $(code "startup_probe config/real_brain/interhemispheric.ron 'mesh=File(q15)' $cold_prob 'solver.cache_dir=Some(DIR)'") (empty DIR) |"
@@ -591,9 +610,9 @@ summary_rows() {
     else
         echo "| the window on the software renderer (Xvfb): fps; simulation step | $window_status | step p95 < 2 ms | $(code "fissure run config/sylvian.ron --exit-after 10 --size 1280x800") |"
     fi
-    echo "| exact FEM solve + surface update, paper-12k, f32, 100 / 300 constrained vertices (10 / 30 new a frame) | p95 $p_p95_100 / $p_p95_300 ms; at 300 ${p_floor_x}x the floor ($p_floor ms), ${p_two_x}x the floor with the surface product's ($p_two ms) | p95 < 3 ms at 300: $(verdict "$p_p95_300" 3); <= 2x the floor: $(at_most "$p_floor_x" 2) | $(code "cargo bench --bench fem -- ${fem_models[*]}") |"
+    echo "| exact FEM solve + surface update over the working region, paper-12k, f32, 100 / 300 constrained vertices (10 / 30 new a frame) | p95 $p_p95_100 / $p_p95_300 ms; at 300 ${p_two_x}x the floor of what the frame reads and factors ($p_two ms: W's new entries, W's factor, the working region's product), ${p_floor_x}x W's alone ($p_floor ms) | p95 < 3 ms at 300: $(verdict "$p_p95_300" 3); <= 2x the floor: $(at_most "$p_two_x" 2) | $(code "cargo bench --bench fem -- ${fem_models[*]}") |"
     if [ "$FAST" != 1 ]; then
-        echo "| the same on the coarse real brain (hemispheres stored apart) | p95 $c_p95_100 / $c_p95_300 ms; at 300 ${c_floor_x}x the floor ($c_floor ms), ${c_two_x}x with the product's ($c_two ms) | <= 2x the floor: $(at_most "$c_floor_x" 2) | the same |"
+        echo "| the same on the coarse real brain (hemispheres stored apart) | p95 $c_p95_100 / $c_p95_300 ms; at 300 ${c_two_x}x the floor ($c_two ms), ${c_floor_x}x W's alone ($c_floor ms) | <= 2x the floor: $(at_most "$c_two_x" 2) | the same |"
     else
         echo "| the same on the coarse real brain | $NOT_RUN_FAST | <= 2x the floor | the same |"
     fi
@@ -688,6 +707,22 @@ tmp="$PERF/performance.md.tmp"
     echo "|---|---:|---:|---|---|---:|---:|---|---|---|---|"
     awk -F'\t' '{ printf "| %s | %s | %s | %s / %s / %s | %s | %s | %s | %s | %s | %s | %s |\n", $1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, substr($13, 1, 8) }' "$PERF/replays.tsv"
     echo
+    echo "## The same motion on the coarse and the fine brain"
+    echo
+    echo "The fine-brain Sylvian scene as a user writes it (\`--set refine=None\`), its"
+    echo "motion replayed on the fine brain (q15) and on the coarse one (\`--set '$coarse_mesh'\`),"
+    echo "each with the working region's rows (the default \`solver.row_band_mm\`, 10 mm"
+    echo "beyond the region of interest) and with a row for every surface vertex"
+    echo "(\`--set solver.row_band_mm=None\`); $REPEAT run(s) each, medians. The region"
+    echo "is the same in millimetres on both brains; the fine brain has more vertices in it."
+    echo
+    echo "| brain | rows x columns, working region | frame p50 / p95 ms | rows, every surface vertex | frame p50 / p95 ms |"
+    echo "|---|---|---|---|---|"
+    local b
+    for b in coarse fine; do
+        echo "| $b | $(size_rows "$b") x $(size_cols "$b") | $(replay_p50 "size/$b") / $(replay_p95 "size/$b") | $(size_rows "${b}_all") | $(replay_p50 "size/${b}_all") / $(replay_p95 "size/${b}_all") |"
+    done
+    echo
     echo "## Startup"
     echo
     echo "\`examples/startup_probe.rs\` ($t_startup s in all): a scene's build (mesh, model,"
@@ -740,9 +775,12 @@ tmp="$PERF/performance.md.tmp"
     echo "\`cargo bench --bench fem -- ${fem_models[*]}\` ($t_fem s with the audit below): for each model, the"
     echo "scene-independent solver on a window of constrained vertices sliding over the"
     echo "surface (100 / 300 constrained, 10 / 30 new a frame), f32 compliance reloaded"
-    echo "from the cache. The floor is measured in the same run: reading W's new entries"
-    echo "plus the cheapest dense Cholesky of W; the product floor is reading every stored"
-    echo "row of the constrained columns once at this machine's streaming rate."
+    echo "from the cache, its rows the working region's (the surface within the default"
+    echo "\`solver.row_band_mm\` of the ROI, as a scene stores them). The floors are measured"
+    echo "in the same run: W's floor is reading W's new entries plus the cheapest dense"
+    echo "Cholesky of W; the product floor is reading every stored row of the constrained"
+    echo "columns once at this machine's streaming rate; what the frame reads and factors"
+    echo "is their sum."
     echo
     echo "| | paper-12k | coarse real brain |"
     echo "|---|---|---|"

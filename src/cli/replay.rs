@@ -110,6 +110,11 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
             s.name, s.max_force_jump_n, s.p95_force_jump_n
         );
     }
+    let c = &summary.compliance;
+    println!(
+        "  compliance: {} rows (the working region, of {} surface vertices) x {} columns, {:.0} MB",
+        c.rows, c.surface_vertices, c.columns, c.megabytes
+    );
     println!("  max displacement {:.2} mm, tissue pulled through a blade: {} vertices (max in a frame)", summary.max_displacement_mm, summary.max_crossed_vertices);
     if let Some(b) = &summary.collision_backend {
         println!("  collision backend: {b}");

@@ -542,7 +542,8 @@ pub struct SolverFile {
     /// sparse solve brings it up to date for the final state, PNG frames
     /// and the window's display, and a blade that comes within 10 mm of a
     /// vertex outside brings it up to date every sub-step. `None`: every
-    /// surface vertex gets a row. Default `Some(10.0)`.
+    /// surface vertex gets a row. Default `Some(10.0)`
+    /// ([`DEFAULT_ROW_BAND_MM`]).
     #[serde(default = "default_row_band_mm")]
     pub row_band_mm: Option<f64>,
 }
@@ -551,8 +552,11 @@ fn default_substep_travel() -> Option<f64> {
     Some(0.125)
 }
 
+/// `solver.row_band_mm`'s default: the working region reaches this far (mm) beyond the region of interest.
+pub const DEFAULT_ROW_BAND_MM: f64 = 10.0;
+
 fn default_row_band_mm() -> Option<f64> {
-    Some(10.0)
+    Some(DEFAULT_ROW_BAND_MM)
 }
 
 impl Default for SolverFile {

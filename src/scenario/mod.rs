@@ -21,7 +21,7 @@ pub mod validate;
 use std::path::Path;
 
 pub use error::{Location, Origin, ScenarioError};
-pub use file::{CollisionBackend, ComplianceStorage, Effect, LengthUnit, ScenarioFile, SpatulaContact};
+pub use file::{CollisionBackend, ComplianceStorage, DEFAULT_ROW_BAND_MM, Effect, LengthUnit, ScenarioFile, SpatulaContact};
 pub use overrides::Document;
 pub use trajectory::{Sample, Trajectory, TrajectoryError, TrajectoryRecorder};
 pub use validate::{

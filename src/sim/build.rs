@@ -482,12 +482,22 @@ pub const SKULL_ROWS_GAP_M: f64 = SKULL_CANDIDATE_BAND_M + super::pipeline::FAR_
 pub fn working_rows(scenario: &Scenario, mesh: &TetMesh, surface_nodes: &[u32], roi: &[u32]) -> Option<Vec<u32>> {
     let band = scenario.solver.row_band?;
     let skull = scenario.skull.filter(|_| scenario.effects.contains(Effect::SkullSpheres));
+    let rows = rows_near(&mesh.positions, surface_nodes, roi, band, &|p: &Vec3| {
+        skull.as_ref().is_some_and(|s| super::pipeline::skull_gap(s, p) < SKULL_ROWS_GAP_M)
+    });
+    (rows.len() < surface_nodes.len()).then_some(rows)
+}
+
+/// The `surface_nodes` within `band` (m) of an `roi` node, or where `also`
+/// holds, in their order: the working region's rows ([`working_rows`]; the
+/// fem bench takes the same rows).
+pub fn rows_near(positions: &[Vec3], surface_nodes: &[u32], roi: &[u32], band: f64, also: &dyn Fn(&Vec3) -> bool) -> Vec<u32> {
     // ROI nodes hashed into cells of the band's size: a node within the
     // band of one lies in one of the 27 cells around its own.
     let cell = |p: &Vec3| -> [i64; 3] { [0, 1, 2].map(|i| (p[i] / band).floor() as i64) };
     let mut grid: std::collections::HashMap<[i64; 3], Vec<Vec3>> = std::collections::HashMap::new();
     for &n in roi {
-        let p = mesh.positions[n as usize];
+        let p = positions[n as usize];
         grid.entry(cell(&p)).or_default().push(p);
     }
     let near_roi = |p: &Vec3| {
@@ -498,15 +508,14 @@ pub fn working_rows(scenario: &Scenario, mesh: &TetMesh, surface_nodes: &[u32], 
             })
         })
     };
-    let rows: Vec<u32> = surface_nodes
+    surface_nodes
         .iter()
         .copied()
         .filter(|&n| {
-            let p = mesh.positions[n as usize];
-            near_roi(&p) || skull.as_ref().is_some_and(|s| super::pipeline::skull_gap(s, &p) < SKULL_ROWS_GAP_M)
+            let p = positions[n as usize];
+            near_roi(&p) || also(&p)
         })
-        .collect();
-    (rows.len() < surface_nodes.len()).then_some(rows)
+        .collect()
 }
 
 /// What the build derives from the boundary surface alone.

@@ -213,6 +213,19 @@ pub struct Summary {
     /// Whether the run kept the tissue whole: penetration, inverted elements and
     /// tunnelling against the scene's limits (`replay --strict` fails on them).
     pub integrity: Integrity,
+    /// The precomputed compliance the frames read: what the scene's working region costs.
+    pub compliance: ComplianceSummary,
+}
+
+/// The size of a run's precomputed compliance.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct ComplianceSummary {
+    /// Surface vertices with stored rows (the working region), of all surface vertices.
+    pub rows: usize,
+    pub surface_vertices: usize,
+    /// Stored columns (the region of interest's vertices).
+    pub columns: usize,
+    pub megabytes: f64,
 }
 
 pub use crate::scenario::IntegrityLimits;
@@ -257,6 +270,11 @@ impl SummaryBuilder {
             force_jumps: vec![Vec::new(); spatula_names.len()],
             ..Default::default()
         }
+    }
+
+    /// Records the size of the compliance the run reads.
+    pub fn set_compliance(&mut self, compliance: ComplianceSummary) {
+        self.summary.compliance = compliance;
     }
 
     /// Sets the integrity limits the summary judges the run by (default: [`IntegrityLimits::default`]).

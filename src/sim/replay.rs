@@ -154,6 +154,13 @@ pub fn replay(
     let names = pipeline.spatula_names().to_vec();
     let mut writer = MetricsWriter::create(&options.out_dir.join("metrics.csv"), &stages, &names)?;
     let mut summary = SummaryBuilder::new(&scenario.name, &stages, &names).with_limits(scenario.integrity);
+    let cs = pipeline.solver().compliance().stats();
+    summary.set_compliance(super::metrics::ComplianceSummary {
+        rows: cs.rows,
+        surface_vertices: pipeline.surface().vertices.len(),
+        columns: cs.cols,
+        megabytes: cs.bytes as f64 / 1e6,
+    });
     let total = scenario.step_count();
     let dt = scenario.time_step;
     let mut input = FrameInput::default();

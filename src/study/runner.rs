@@ -271,7 +271,8 @@ pub fn execute(
         trace.frames.push(FrameRecord {
             key: f.key,
             times: r.times,
-            contact: r.spatulas.iter().map(|s| s.contact_vertices).sum(),
+            // A blade that pushes is in contact, with the pressure stage's patch or without it.
+            contact: r.spatulas.iter().map(|s| s.contact_vertices.max(u32::from(s.force.norm() > 0.0))).sum(),
             force: r.spatulas.iter().map(|s| s.force).sum(),
             crossed: r.crossed_vertices,
             penetrating: r.penetrating_vertices,
