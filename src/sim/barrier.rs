@@ -274,11 +274,14 @@ impl BarrierStage {
     }
 
     /// Appends the barrier rows of every spatula; returns how many. `collision`
-    /// has run this frame on `surface.start` with `blades.after`.
-    pub fn push_rows(&mut self, blades: Blades<'_>, collision: &CollisionStage, surface: SurfaceState<'_>, out: &mut Vec<Constraint>) -> usize {
+    /// has run this frame on `surface.start` with `blades.after`. With
+    /// `claims` the vertices its targets claim get no row (their own rows hold
+    /// them); without (sliding contact) every vertex near a blade gets one.
+    pub fn push_rows(&mut self, blades: Blades<'_>, collision: &CollisionStage, claims: bool, surface: SurfaceState<'_>, out: &mut Vec<Constraint>) -> usize {
         let output = collision.output();
         let rays = Rays { source_nodes: &output.source_nodes, hits: collision.nearest_hits(), feasible: &output.feasible_pairs };
-        self.push_rows_from(blades, &output.targets, Some(rays), surface, out)
+        let targets = if claims { &output.targets[..] } else { &[] };
+        self.push_rows_from(blades, targets, Some(rays), surface, out)
     }
 
     /// [`Self::push_rows`] from the collision stage's pieces; `rays: None` applies rule 1 only.

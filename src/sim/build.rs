@@ -452,7 +452,7 @@ impl Pipeline {
         let compliance = Compliance::compute_with(&model, &roi, compute, progress)?;
         if background {
             let (sets, step) = (pose_sets.len(), options.expected_step_s);
-            compliance.wait_until_ahead(&|n| reach_seconds(reach[n as usize], sets, step), progress)?;
+            compliance.wait_until_ahead(&|n| reach_seconds(reach.get(n as usize).copied().unwrap_or(u32::MAX), sets, step), progress)?;
         }
         let solver = ConstrainedSolver::new(model, compliance)?;
         let skull = if effects.contains(Effect::SkullSpheres) {

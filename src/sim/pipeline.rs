@@ -160,7 +160,7 @@ pub struct Pipeline {
     skull: Option<SkullStage>,
     /// What a spatula target becomes: a sticking `Contact`, a bilateral
     /// `Enforced` hold, or a sliding `Barrier` row.
-    contact_law: crate::scenario::SpatulaContact,
+    contact_law: SpatulaContact,
     /// Largest blade travel of a sub-step, in thicknesses (`None`: one step a frame).
     substep_travel: Option<f64>,
     /// Blade barrier rows for unclaimed vertices near a blade (unilateral contact only).
@@ -219,8 +219,8 @@ impl Pipeline {
         let contact_scratch = crate::fem::ContactScratch::for_surface(&surface);
         let n = scenario.spatulas.len();
         let contact_law = scenario.solver.spatula_contact;
-        let unilateral = contact_law != SpatulaContact::Bilateral;
-        let barrier = (unilateral && collision.is_some()).then(|| super::barrier::BarrierStage::new(surface.vertices.len()));
+        // Barrier rows keep released or sliding tissue out of a blade; the paper's bilateral hold has none.
+        let barrier = (contact_law != SpatulaContact::Bilateral && collision.is_some()).then(|| super::barrier::BarrierStage::new(surface.vertices.len()));
         Ok(Self {
             name: scenario.name.clone(),
             contact_law,
@@ -516,15 +516,15 @@ impl Pipeline {
             }
             let out = collision.step(&state.surface_positions, &state.poses).map_err(|source| StepError::Collision { frame, source })?;
             // Sliding: the rays claim nothing; the barrier rows hold every vertex under a blade alike.
-            let targets = if self.contact_law == SpatulaContact::Sliding { &[][..] } else { &out.targets[..] };
-            for target in targets {
+            let claims = self.contact_law != SpatulaContact::Sliding;
+            for target in out.targets.iter().filter(|_| claims) {
                 self.constraints.push(Constraint {
                     node: self.surface.vertices[target.vertex as usize],
                     owner: target.spatula as u16,
-                    kind: match self.contact_law {
-                        SpatulaContact::Unilateral => ConstraintKind::Contact { displacement: target.displacement, normal: target.normal },
-                        SpatulaContact::Sliding => ConstraintKind::Barrier { displacement: target.displacement, normal: target.normal },
-                        SpatulaContact::Bilateral => ConstraintKind::Enforced { displacement: target.displacement },
+                    kind: if self.contact_law == SpatulaContact::Unilateral {
+                        ConstraintKind::Contact { displacement: target.displacement, normal: target.normal }
+                    } else {
+                        ConstraintKind::Enforced { displacement: target.displacement }
                     },
                 });
             }
@@ -544,10 +544,8 @@ impl Pipeline {
                     rest: &self.rest,
                     nodes: &self.surface.vertices,
                 };
-                if self.contact_law == SpatulaContact::Sliding {
-                    let output = collision.output();
-                    let rays = super::barrier::Rays { source_nodes: &output.source_nodes, hits: collision.nearest_hits(), feasible: &output.feasible_pairs };
-                    barrier.push_rows_from(blades, &[], Some(rays), surface, &mut self.constraints);
+                barrier.push_rows(blades, collision, claims, surface, &mut self.constraints);
+                if !claims {
                     // Every row is a blade's: a spatula constrains the vertices it has rows for.
                     for s in r.spatulas.iter_mut() {
                         s.constrained_vertices = 0;
@@ -558,8 +556,6 @@ impl Pipeline {
                         }
                     }
                     r.constrained_vertices = self.constraints.len() as u32;
-                } else {
-                    barrier.push_rows(blades, collision, surface, &mut self.constraints);
                 }
             }
             r.times.add(StageId::Collision, t.elapsed().as_secs_f64());
