@@ -112,7 +112,7 @@ pub(super) struct Fill {
     computed: AtomicUsize,
     state: Mutex<FillState>,
     changed: Condvar,
-    /// Batches in the order they are solved (column order unless [`Self::solved_in`] says).
+    /// Batches in the order they are solved (column order unless [`Self::solved_in`] says); the filling threads take them in this order.
     order: Vec<usize>,
 }
 

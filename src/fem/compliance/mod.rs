@@ -475,9 +475,9 @@ impl Compliance {
                 Values::F32(Arc::new(Dense { v: Buf::new(v), lo: Buf::new(lo) }))
             }
         };
-        let fill = Arc::new(Fill::new(&self.layout, self.n_cols, &starts).solved_in(order.clone()));
+        let fill = Arc::new(Fill::new(&self.layout, self.n_cols, &starts).solved_in(order));
         let row_dofs: Vec<usize> = self.row_nodes.iter().map(|&n| model.dofs.dof(n).unwrap_or(0)).collect();
-        Ok(FillJob { chol: Arc::clone(&model.chol), n_free, row_dofs, wanted: std::sync::OnceLock::new(), layout: Arc::clone(&self.layout), values, order, fill, threads, background, source: None })
+        Ok(FillJob { chol: Arc::clone(&model.chol), n_free, row_dofs, wanted: std::sync::OnceLock::new(), layout: Arc::clone(&self.layout), values, fill, threads, background, source: None })
     }
     /// Statistics of the last build or load.
     pub fn stats(&self) -> ComplianceStats {
@@ -856,8 +856,6 @@ struct FillJob {
     wanted: std::sync::OnceLock<Option<Vec<bool>>>,
     layout: Arc<Layout>,
     values: Values,
-    /// Batches in the order they are solved.
-    order: Vec<usize>,
     fill: Arc<Fill>,
     threads: usize,
     /// Filling beside the frames: its threads run at a lower priority.
@@ -890,7 +888,7 @@ impl FillJob {
                                 return Ok(());
                             }
                             let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                            let Some(&b) = self.order.get(i) else { return Ok(()) };
+                            let Some(&b) = self.fill.order().get(i) else { return Ok(()) };
                             let cols = self.fill.batch(b);
                             // SAFETY: batch b is taken by this thread alone (the
                             // counter hands each out once) and nobody reads its
