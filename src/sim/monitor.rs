@@ -40,6 +40,14 @@ fn in_footprint(shape: &SpatulaShape, q: &Vec3) -> bool {
     q.x >= 0.0 && q.x <= shape.length && q.y.abs() <= 0.5 * shape.width
 }
 
+/// Over the footprint and not on its tip or side-edge plane (to
+/// [`PENETRATION_TOLERANCE_M`]): a vertex the barrier's end-face row holds on
+/// the tip plane lies there to rounding, beside the blade, not over it.
+#[inline]
+fn within_footprint(shape: &SpatulaShape, q: &Vec3) -> bool {
+    q.x >= 0.0 && q.x < shape.length - PENETRATION_TOLERANCE_M && q.y.abs() < 0.5 * shape.width - PENETRATION_TOLERANCE_M
+}
+
 /// Measures one frame. `before`/`after` are surface-vertex positions, `poses_*`
 /// one per spatula.
 pub fn measure(
@@ -76,8 +84,11 @@ pub fn measure(
                 counts.max_depth_m = counts.max_depth_m.max(depth);
             }
             let q0 = local(pb, p0);
-            // A side is only meaningful outside the blade on both frames.
-            if in_footprint(shape, &q0) && q0.z.abs() >= half - PENETRATION_TOLERANCE_M && q1.z.abs() >= half - PENETRATION_TOLERANCE_M && q0.z.signum() != q1.z.signum() {
+            // A side is only meaningful outside the blade on both frames; a
+            // vertex that starts or ends on the tip or a side-edge plane went
+            // round that edge, not through the blade (tissue slipping off a
+            // turning blade's tip onto its other side).
+            if within_footprint(shape, &q0) && within_footprint(shape, &q1) && q0.z.abs() >= half - PENETRATION_TOLERANCE_M && q1.z.abs() >= half - PENETRATION_TOLERANCE_M && q0.z.signum() != q1.z.signum() {
                 counts.crossed += 1;
             }
         }
@@ -101,6 +112,21 @@ mod tests {
         let c = measure(&[blade()], &[pose], &[pose], &before, &after);
         assert_eq!(c.crossed, 1, "the first vertex went from +z to -z through the blade");
         assert_eq!(c.penetrating, 0, "z = -0.5 mm lies on the face, not inside");
+    }
+
+    #[test]
+    fn vertex_that_goes_round_the_tip_onto_its_plane_has_not_crossed() {
+        let pose = Pose::default();
+        // On the +z face 26 um short of the tip, then on the tip's plane below the -z face
+        // (the u_shape scene refined, a wall slipping off the turning blade's tip).
+        let before = [Vec3::new(0.049974, -0.0007, 0.0005), Vec3::new(0.0499, 0.0, 0.0005)];
+        let after = [Vec3::new(0.05, -0.0006, -0.002), Vec3::new(0.0499, 0.0, -0.002)];
+        let c = measure(&[blade()], &[pose], &[pose], &before, &after);
+        assert_eq!(c.crossed, 1, "only the second vertex, 0.1 mm inside the tip on both frames, crossed");
+        // The same on a side edge's plane.
+        let before = [Vec3::new(0.02, 0.005, 0.0005)];
+        let after = [Vec3::new(0.02, 0.005, -0.002)];
+        assert_eq!(measure(&[blade()], &[pose], &[pose], &before, &after).crossed, 0);
     }
 
     #[test]
