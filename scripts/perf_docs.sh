@@ -286,10 +286,10 @@ replay sylvian_noisy config/sylvian.ron --trajectory assets/trajectories/paper_f
 replay sylvian_noisy_filtered config/sylvian.ron --trajectory assets/trajectories/paper_fig14_sylvian_noisy.csv \
     --set "spatulas[0].filter=$one_euro" --set "spatulas[1].filter=$one_euro"
 # The same blade motion on the coarse and the fine brain: the fine-brain Sylvian
-# scene as a user writes it (no refinement, the lowest 10 mm held), on each brain, with the working
+# scene as a user writes it (no `refine`, so `Auto`; the lowest 10 mm held), on each brain, with the working
 # region's rows (the default) and with a row for every surface vertex.
 coarse_mesh='mesh=File(path: "../../assets/brain/brain_pial_coarse.msh.gz", units: Millimetres)'
-user_scene=(--set refine=None --set "fixed=[LowestPerComponent(height_mm: 10.0)]")
+user_scene=(--set "fixed=[LowestPerComponent(height_mm: 10.0)]")
 replay size/coarse config/real_brain/sylvian.ron "${user_scene[@]}" --set "$coarse_mesh"
 replay size/coarse_all config/real_brain/sylvian.ron "${user_scene[@]}" --set "$coarse_mesh" --set solver.row_band_mm=None
 replay size/fine config/real_brain/sylvian.ron "${user_scene[@]}"
@@ -329,8 +329,8 @@ run_measure "startup: fine brain from the cache, early start" "$PERF/startup/q15
 # E, F. The fine-brain Sylvian scene as shipped: cold (writes its cache), then from the cache with early start.
 run_measure "startup: fine-brain Sylvian scene cold" "$PERF/startup/sylvian_cold.log" "$PROBE" config/real_brain/sylvian.ron "solver.cache_dir=Some(\"$sylvian_cache\")"
 run_measure "startup: fine-brain Sylvian scene from the cache, early start" "$PERF/startup/sylvian_cache_background.log" "$PROBE" config/real_brain/sylvian.ron "solver.cache_dir=Some(\"$sylvian_cache\")" --background
-# G. The same scene as a user writes it: no refinement, only the lowest 10 mm held, f64, no cache.
-user_sylvian=(refine=None "fixed=[LowestPerComponent(height_mm: 10.0)]" solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false)
+# G. The same scene as a user writes it: no `refine` (so `Auto`), only the lowest 10 mm held, f64, no cache.
+user_sylvian=("fixed=[LowestPerComponent(height_mm: 10.0)]" solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false)
 run_measure "startup: a user's fine-brain Sylvian scene cold" "$PERF/startup/user_sylvian_cold.log" "$PROBE" config/real_brain/sylvian.ron "${user_sylvian[@]}"
 # H. The same opened as the window opens it (early start): the frames that wait for their columns.
 run_measure "startup: a user's fine-brain Sylvian scene cold, early start" "$PERF/startup/user_sylvian_background.log" "$PROBE" config/real_brain/sylvian.ron "${user_sylvian[@]}" solver.early_start=true --background
@@ -569,7 +569,7 @@ summary_rows() {
             u_shape) what="the paper's U block" ;;
             v_valley) what="the paper's V valley" ;;
             real_brain/interhemispheric) what="coarse real brain (25,757 nodes), two blades down the inter-hemispheric fissure" ;;
-            real_brain/sylvian) what="fine real brain (q15), the Sylvian opening, refined under the blades" ;;
+            real_brain/sylvian) what="fine real brain (q15), the Sylvian opening, refined where the blades reach (refine: Auto)" ;;
             real_brain/sylvian_wide) what="the same, pressed wider (the wide-press trajectory)" ;;
             sylvian_noisy) what="default scene, its spread with +-0.5 mm tracker noise every 10 ms, unfiltered" ;;
             sylvian_noisy_filtered) what="the same noisy spread through the One Euro filter" ;;
@@ -591,7 +591,7 @@ summary_rows() {
     rows_x=$(ratio "$(size_rows fine)" "$(size_rows coarse)")
     all_x=$(ratio "$(replay_p50 size/fine_all)" "$(replay_p50 size/coarse_all)")
     surf_x=$(ratio "$(size_surface fine)" "$(size_surface coarse)")
-    echo "| the same blade motion on the coarse and the fine brain (the Sylvian scene as a user writes it), working region 10 mm beyond the ROI: frame p50 coarse / fine; fine over coarse, against its rows' ratio | $(replay_p50 size/coarse) / $(replay_p50 size/fine) ms; ${band_x}x for ${rows_x}x the rows ($(size_rows coarse) / $(size_rows fine)); with a row for every surface vertex ${all_x}x for ${surf_x}x ($(size_surface coarse) / $(size_surface fine)) | frame time follows the working region's rows, not the brain (docs/performance.md, "The same motion on the coarse and the fine brain") | $(code "fissure replay config/real_brain/sylvian.ron --set refine=None --set 'fixed=[LowestPerComponent(height_mm: 10.0)]' [--set 'mesh=File(coarse)'] [--set solver.row_band_mm=None]") |"
+    echo "| the same blade motion on the coarse and the fine brain (the Sylvian scene as a user writes it), working region 10 mm beyond the ROI: frame p50 coarse / fine; fine over coarse, against its rows' ratio | $(replay_p50 size/coarse) / $(replay_p50 size/fine) ms; ${band_x}x for ${rows_x}x the rows ($(size_rows coarse) / $(size_rows fine)); with a row for every surface vertex ${all_x}x for ${surf_x}x ($(size_surface coarse) / $(size_surface fine)) | frame time follows the working region's rows, not the brain (docs/performance.md, "The same motion on the coarse and the fine brain") | $(code "fissure replay config/real_brain/sylvian.ron --set 'fixed=[LowestPerComponent(height_mm: 10.0)]' [--set 'mesh=File(coarse)'] [--set solver.row_band_mm=None]") |"
     echo "| longest frame of every replay above (the haptic loop reads the last answer) | $worst ms ($worst_tag) | no frame frozen > 50 ms: $(verdict "$worst" 50) | the replays above |"
     local cold_prob="solver.compliance_storage=F32"
     echo "| fine brain (q15, 62.8k nodes) cold, f32, every column first: model + factor / compliance precompute ($cold_rows rows x $cold_cols columns, $cold_mb MB) / peak memory | $cold_before s / $cold_compute s / $cold_peak MB | precompute < 60 s: $(verdict "$cold_compute" 60); < 2 GB: $(verdict "$cold_peak" 2048) | $(code "startup_probe config/real_brain/interhemispheric.ron 'mesh=File(q15)' $cold_prob 'solver.cache_dir=Some(DIR)'") (empty DIR) |"
@@ -603,7 +603,7 @@ summary_rows() {
     echo "| fine brain from the cache: whole build (of which reading the file) / peak memory | $cache_build s ($cache_load s) / $cache_peak MB | reload < 1 s: $(verdict "$cache_load" 1); < 2 GB: $(verdict "$cache_peak" 2048) | the same command again (DIR now full) |"
     echo "| fine brain from the cache with early start: first frame; slowest frame | first frame $bgk_first s; slowest $bgk_slowest ms ($bgk_over50 over 50 ms) | first frame < 1 s: $(verdict "$bgk_first" 1) | the same with $(code --background) |"
     echo "| fine-brain Sylvian scene as shipped ($syl_rows rows x $syl_cols columns, $syl_mb MB), from the cache with early start: first frame | first frame $syl_first s (cold build $syl_cold_build s); peak $syl_peak MB | first frame < 1 s: $(verdict "$syl_first" 1) | $(code "startup_probe config/real_brain/sylvian.ron 'solver.cache_dir=Some(DIR)' --background") |"
-    echo "| the same scene as a user writes it (no refinement, lowest 10 mm held, f64, no cache), every column first: compliance ($usr_rows rows x $usr_cols columns, $usr_mb MB); whole build; peak memory | $usr_compute s; $usr_build s; $usr_peak MB | build < 30 s: $(verdict "$usr_build" 30); < 2 GB: $(verdict "$usr_peak" 2048) | $(code "startup_probe config/real_brain/sylvian.ron refine=None 'fixed=[LowestPerComponent(height_mm: 10.0)]' solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false") |"
+    echo "| the same scene as a user writes it (no \`refine\`, so \`Auto\`; lowest 10 mm held, f64, no cache), every column first: compliance ($usr_rows rows x $usr_cols columns, $usr_mb MB); whole build; peak memory | $usr_compute s; $usr_build s; $usr_peak MB | build < 30 s: $(verdict "$usr_build" 30); < 2 GB: $(verdict "$usr_peak" 2048) | $(code "startup_probe config/real_brain/sylvian.ron 'fixed=[LowestPerComponent(height_mm: 10.0)]' solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false") |"
     echo "| the same scene opened as the window opens it (early start): first frame; frames that waited for their columns | first frame $usb_first s; slowest $usb_slowest ms ($usb_over50 over 50 ms); every column final $usb_columns s; peak $usb_peak MB | no frame over 50 ms: $( [ "$usb_over50" = 0 ] && echo met || echo "not met" ) | the same with $(code solver.early_start=true --background) |"
     if [ "$window_status" = ran ]; then
         window_figures "$PERF/window/threads_default.log"
@@ -710,12 +710,12 @@ tmp="$PERF/performance.md.tmp"
     echo
     echo "## The same motion on the coarse and the fine brain"
     echo
-    echo "The fine-brain Sylvian scene as a user writes it (\`--set refine=None --set 'fixed=[LowestPerComponent(height_mm: 10.0)]'\`), its"
+    echo "The fine-brain Sylvian scene as a user writes it (\`--set 'fixed=[LowestPerComponent(height_mm: 10.0)]'\`: no \`refine\`, so \`Auto\`), its"
     echo "motion replayed on the fine brain (q15) and on the coarse one (\`--set '$coarse_mesh'\`),"
     echo "each with the working region's rows (the default \`solver.row_band_mm\`, 10 mm"
     echo "beyond the region of interest) and with a row for every surface vertex"
     echo "(\`--set solver.row_band_mm=None\`); $REPEAT run(s) each, medians. The region"
-    echo "is the same in millimetres on both brains; the fine brain has more vertices in it."
+    echo "is the same in millimetres on both brains; the fine brain has more vertices in it, except where \`Auto\` refined both to the same edge."
     echo
     echo "| brain | rows x columns, working region | frame p50 / p95 ms | rows, every surface vertex | frame p50 / p95 ms |"
     echo "|---|---|---|---|---|"
@@ -745,7 +745,7 @@ tmp="$PERF/performance.md.tmp"
     echo "| fine brain from the cache, early start | the same with \`--background\` | first frame $bgk_first s; $bgk_frames frames done $bgk_motion s; slowest frame $bgk_slowest ms, $bgk_over50 over 50 ms; every column read $bgk_columns s; peak $bgk_peak MB |"
     echo "| fine-brain Sylvian scene as shipped, cold | \`config/real_brain/sylvian.ron 'solver.cache_dir=Some(DIR)'\` | refined mesh, $syl_rows rows x $syl_cols columns, $syl_mb MB; build done $syl_cold_build s; peak $syl_cold_peak MB |"
     echo "| the same from the cache, early start | the same with \`--background\` | first frame $syl_first s; slowest frame $syl_slowest ms, $syl_over50 over 50 ms; every column read $syl_columns s; peak $syl_peak MB |"
-    echo "| the same scene as a user writes it, cold | \`config/real_brain/sylvian.ron refine=None 'fixed=[LowestPerComponent(height_mm: 10.0)]' solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false\` | model + factor $usr_before s; compliance $usr_rows rows x $usr_cols columns, $usr_mb MB, computed in $usr_compute s; build done $usr_build s; peak $usr_peak MB |"
+    echo "| the same scene as a user writes it, cold | \`config/real_brain/sylvian.ron 'fixed=[LowestPerComponent(height_mm: 10.0)]' solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false\` | model + factor $usr_before s; compliance $usr_rows rows x $usr_cols columns, $usr_mb MB, computed in $usr_compute s; build done $usr_build s; peak $usr_peak MB |"
     echo "| the same scene as a user writes it, cold, early start | the same with \`solver.early_start=true --background\` | first frame $usb_first s; $usb_frames frames done $usb_motion s; slowest frame $usb_slowest ms, $usb_over50 over 50 ms (those waiting for their columns); every column final $usb_columns s; peak $usb_peak MB |"
     echo
     echo "## The window's frame time"

@@ -209,10 +209,11 @@ pub enum FixedFile {
 /// Where the boundary is refined: `Auto`, `None` or `Some((edge_mm: .., within: [..]))`.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub enum RefineChoiceFile {
-    /// Where the blades reach, to a quarter of the narrowest blade's width.
+    /// Where the blades reach, to a quarter of the narrowest blade's width
+    /// (the default: a blade face then rests on tens of vertices on any mesh).
+    #[default]
     Auto,
     /// No refinement.
-    #[default]
     #[serde(rename = "None")]
     Off,
     /// Inside the given volumes, to the given edge length.
