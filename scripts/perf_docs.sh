@@ -474,7 +474,7 @@ fem_figures() {
     f_product=$(grep '^  product floor, same run:' "$b" | tail -1 | sed -n 's/^.*; mean product \([0-9.]*\) ms = .*$/\1/p')
     f_product_floor=$(grep '^  product floor, same run:' "$b" | tail -1 | sed -n 's/^.* = \([0-9.]*\) ms; mean product.*$/\1/p')
     f_stream=$(grep '^  product floor, same run:' "$b" | tail -1 | sed -n 's/^.* at \([0-9.]*\) GB\/s .*$/\1/p')
-    f_err_u=$(grab "$b" '^error vs f64 ([0-9]* constrained): displacement \([0-9.e+-]*\), reaction.*$')
+    f_err_u=$(grab "$b" '^error vs f64 ([0-9]* constrained): displacement \([0-9.e+-]*\)[ ,].*reaction.*$')
     f_err_r=$(grab "$b" '^error vs f64 ([0-9]* constrained): .*, reaction \([0-9.e+-]*\) (.*$')
     [ -n "$f_p95_300" ] && [ -n "$f_pre" ] || die "fem bench: could not read $1's frame or precompute lines ($b)"
 }
