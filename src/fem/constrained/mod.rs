@@ -78,8 +78,6 @@ pub const CONTACT_TOLERANCE_M: f64 = 1e-12;
 /// Active-set iterations in which every pulling hold is demoted at once;
 /// afterwards one at a time.
 pub const BULK_RELEASE_ITERATIONS: usize = 8;
-/// Claim group of a face-plane candidate that is a blade barrier, not a demoted hold.
-const NO_GROUP: usize = usize::MAX;
 /// Lazily computed columns kept between frames (each is 3 x free DOFs f64).
 pub const LAZY_CAPACITY: usize = 128;
 
@@ -203,21 +201,33 @@ pub struct ConstraintRow {
     pub target: f64,
 }
 
+/// A unilateral row that may engage: its node, what it keeps the node from passing, whether it is on.
 #[derive(Debug, Clone, Copy)]
 struct Candidate {
+    /// Index of its constraint in the frame's input (a demoted hold has none: `usize::MAX`).
     constraint: usize,
     node: u32,
     owner: u16,
-    center: Vec3,
-    radius: f64,
-    inside: bool,
     active: bool,
     /// Linearization point (deformed position), m.
     at: Vec3,
-    /// A face-plane row `n . u >= b`: (normal, b, group) for a tool node demoted
-    /// from held (its claim group), or group [`NO_GROUP`] for a blade barrier
-    /// (`constraint` is then its index). The sphere fields are unused.
-    plane: Option<(Vec3, f64, usize)>,
+    limit: Limit,
+}
+
+/// What a candidate row keeps its node from passing.
+#[derive(Debug, Clone, Copy)]
+enum Limit {
+    /// A skull sphere (centre, radius m): the node stays inside it or outside it.
+    Sphere { center: Vec3, radius: f64, inside: bool },
+    /// A face plane `normal . u >= b`: a blade barrier (`hold: None`), or a
+    /// tool node demoted from held (`hold: Some(its claim group)`).
+    Plane { normal: Vec3, b: f64, hold: Option<usize> },
+}
+
+impl Limit {
+    fn is_sphere(&self) -> bool {
+        matches!(self, Limit::Sphere { .. })
+    }
 }
 
 struct LazyColumn {
@@ -277,30 +287,47 @@ struct System {
 /// The tool constraints grouped by node, and which of them are held this iteration.
 #[derive(Default)]
 struct ToolClaims {
-    /// Enforced node k: rows 3k..3k+3, claimants `claims[claim_ptr[k]..claim_ptr[k+1]]`.
-    claim_ptr: Vec<usize>,
-    claims: Vec<usize>,
-    claim_owner: Vec<u16>,
-    enforced_nodes: usize,
-    enforced_targets: Vec<Vec3>,
-    /// Every node a tool claims this frame, ascending (group g), and per group:
-    /// its claims `group_claims[group_ptr[g]..group_ptr[g + 1]]` and their owners,
-    /// the mean target, the unilateral normal (None: held bilaterally), engaged or released.
+    /// Every node a tool claims this frame, ascending; `groups[g]` is node `claimed_sorted[g]`'s.
     claimed_sorted: Vec<u32>,
-    group_claims: Vec<usize>,
-    group_owner: Vec<u16>,
-    group_ptr: Vec<usize>,
-    group_targets: Vec<Vec3>,
-    group_normals: Vec<Option<Vec3>>,
-    group_engaged: Vec<bool>,
-    /// Engaged nodes ascending, and in factor order.
+    groups: Vec<ClaimGroup>,
+    /// The claims of every group in turn: (constraint index, owner).
+    claims: Vec<(usize, u16)>,
+    /// Engaged nodes ascending, and in factor order: engaged node k has rows
+    /// 3k..3k+3 and group `enforced_group[k]`.
     engaged_sorted: Vec<u32>,
     perm_nodes: Vec<u32>,
-    /// Group of each engaged slot.
     enforced_group: Vec<usize>,
+    enforced_nodes: usize,
     /// Unilateral nodes released / sliding on their face plane in the last frame, ascending.
     released: Vec<u32>,
     sliding: Vec<u32>,
+}
+
+impl ToolClaims {
+    /// Claim group g's claims: (constraint index, owner).
+    fn claims_of(&self, g: usize) -> &[(usize, u16)] {
+        &self.claims[self.groups[g].start..self.groups[g].end]
+    }
+
+    /// Whether a tool holds `node` bilaterally this frame (pinched between
+    /// opposing faces, or claimed by an `Enforced` constraint).
+    fn holds_bilaterally(&self, node: u32) -> bool {
+        self.claimed_sorted.binary_search(&node).is_ok_and(|g| self.groups[g].normal.is_none())
+    }
+}
+
+/// One node the tools claim this frame.
+#[derive(Debug, Clone, Copy)]
+struct ClaimGroup {
+    /// Its claims: `ToolClaims::claims[start..end]`.
+    start: usize,
+    end: usize,
+    /// The mean of its claims' targets (displacement from rest, m).
+    target: Vec3,
+    /// The faces' mean outward normal for a unilateral contact; `None`: held bilaterally.
+    normal: Option<Vec3>,
+    /// Held this iteration (a demoted node is a face-plane candidate instead).
+    engaged: bool,
 }
 
 /// The unilateral rows that may engage (skull spheres, blade barriers, demoted holds), carried between frames.
@@ -533,21 +560,22 @@ impl ConstrainedSolver {
     /// `owner` (0 for a sphere row).
     fn face_row_share(&self, ci: usize, owner: u16) -> f64 {
         let c = &self.cands.candidates[ci];
-        match c.plane {
-            None => 0.0,
-            Some((_, _, g)) if g == NO_GROUP => f64::from(u8::from(c.owner == owner)),
-            Some((_, _, g)) => {
-                let owners = &self.tools.group_owner[self.tools.group_ptr[g]..self.tools.group_ptr[g + 1]];
-                owners.iter().filter(|&&o| o == owner).count() as f64 / owners.len().max(1) as f64
-            }
+        match c.limit {
+            Limit::Sphere { .. } => 0.0,
+            Limit::Plane { hold: None, .. } => f64::from(u8::from(c.owner == owner)),
+            Limit::Plane { hold: Some(g), .. } => self.group_share(g, owner),
         }
     }
 
     /// Fraction of enforced node k's reaction that belongs to `owner`.
     fn owner_share(&self, k: usize, owner: u16) -> f64 {
-        let claims = &self.tools.claim_owner[self.tools.claim_ptr[k]..self.tools.claim_ptr[k + 1]];
-        let mine = claims.iter().filter(|&&o| o == owner).count();
-        mine as f64 / claims.len().max(1) as f64
+        self.group_share(self.tools.enforced_group[k], owner)
+    }
+
+    /// Fraction of claim group g's reaction that belongs to `owner`.
+    fn group_share(&self, g: usize, owner: u16) -> f64 {
+        let claims = self.tools.claims_of(g);
+        claims.iter().filter(|&&(_, o)| o == owner).count() as f64 / claims.len().max(1) as f64
     }
 
     /// Caps the active-set loop at `cap` iterations (`None`: the default of
@@ -645,7 +673,7 @@ impl ConstrainedSolver {
             self.sys.nodes = nodes;
             ensured?;
             self.solve_rows();
-            if self.cands.candidates.is_empty() && self.tools.group_normals.iter().all(Option::is_none) {
+            if self.cands.candidates.is_empty() && self.tools.groups.iter().all(|g| g.normal.is_none()) {
                 return Ok(iterations);
             }
             let (any_add, worst_inactive, worst_active) = self.evaluate_candidates(screening);
@@ -692,7 +720,7 @@ impl ConstrainedSolver {
                 self.cands.screen.forget(ci);
                 continue;
             }
-            if c.active && c.plane.is_some() {
+            if c.active && !c.limit.is_sphere() {
                 // Held on its face plane by its row: nothing to check.
                 continue;
             }
@@ -701,25 +729,25 @@ impl ConstrainedSolver {
                 continue;
             }
             let u = self.displacement_of(c.node);
-            let (violation, tol) = match c.plane {
+            let (violation, tol) = match c.limit {
                 // Face plane: exact row, nothing to re-linearize.
-                Some((n, b, _)) => (b - n.dot(&u), CONTACT_TOLERANCE_M + CONTACT_TOLERANCE * b.abs()),
-                None => {
-                    let dist = (self.model.mesh.positions[c.node as usize] + u - c.center).norm();
-                    (if c.inside { dist - c.radius } else { c.radius - dist }, SPHERE_TOLERANCE * c.radius)
+                Limit::Plane { normal, b, .. } => (b - normal.dot(&u), CONTACT_TOLERANCE_M + CONTACT_TOLERANCE * b.abs()),
+                Limit::Sphere { center, radius, inside } => {
+                    let dist = (self.model.mesh.positions[c.node as usize] + u - center).norm();
+                    (if inside { dist - radius } else { radius - dist }, SPHERE_TOLERANCE * radius)
                 }
             };
             if !c.active && violation > tol {
                 any_add = true;
                 worst_inactive = worst_inactive.max(violation);
                 self.cands.candidates[ci].active = true;
-                if c.plane.is_none() {
+                if c.limit.is_sphere() {
                     self.cands.candidates[ci].at = self.model.mesh.positions[c.node as usize] + u;
                 }
                 self.cands.screen.forget(ci);
             } else if !c.active {
                 self.cands.screen.record(ci, tol - violation);
-            } else if c.plane.is_none() && violation.abs() > tol {
+            } else if c.limit.is_sphere() && violation.abs() > tol {
                 worst_active = worst_active.max(violation.abs());
             }
         }
@@ -749,7 +777,7 @@ impl ConstrainedSolver {
     /// way to the node's current position.
     fn relinearize_active(&mut self) {
         for ci in 0..self.cands.candidates.len() {
-            if self.cands.candidates[ci].active && self.cands.candidates[ci].plane.is_none() {
+            if self.cands.candidates[ci].active && self.cands.candidates[ci].limit.is_sphere() {
                 let node = self.cands.candidates[ci].node;
                 let x = self.model.mesh.positions[node as usize] + self.displacement_of(node);
                 let at = self.cands.candidates[ci].at;
@@ -803,13 +831,8 @@ impl ConstrainedSolver {
         }
         self.sys.order.sort_unstable();
         self.tools.claimed_sorted.clear();
-        self.tools.group_claims.clear();
-        self.tools.group_owner.clear();
-        self.tools.group_ptr.clear();
-        self.tools.group_ptr.push(0);
-        self.tools.group_targets.clear();
-        self.tools.group_normals.clear();
-        self.tools.group_engaged.clear();
+        self.tools.groups.clear();
+        self.tools.claims.clear();
         let mut k = 0;
         while k < self.sys.order.len() {
             let node = self.sys.order[k].0;
@@ -838,17 +861,14 @@ impl ConstrainedSolver {
                     }
                     _ => {}
                 }
-                self.tools.group_claims.push(i);
-                self.tools.group_owner.push(constraints[i].owner);
+                self.tools.claims.push((i, constraints[i].owner));
                 k += 1;
             }
             let normal = if unilateral && normal_sum.norm() > 0.0 { Some(normal_sum.normalize()) } else { None };
             self.tools.claimed_sorted.push(node);
-            self.tools.group_ptr.push(self.tools.group_claims.len());
-            self.tools.group_targets.push(sum / (k - start) as f64);
-            self.tools.group_normals.push(normal);
+            let end = self.tools.claims.len();
             // Every node starts held; a hold that pulls is demoted in the active-set loop.
-            self.tools.group_engaged.push(true);
+            self.tools.groups.push(ClaimGroup { start: end - (k - start), end, target: sum / (k - start) as f64, normal, engaged: true });
         }
     }
 
@@ -856,22 +876,13 @@ impl ConstrainedSolver {
     /// `wfactor`) and updates the enforced factor to them.
     fn arrange_engaged(&mut self) {
         self.tools.engaged_sorted.clear();
-        self.tools.engaged_sorted.extend(self.tools.claimed_sorted.iter().zip(&self.tools.group_engaged).filter(|(_, e)| **e).map(|(n, _)| *n));
+        self.tools.engaged_sorted.extend(self.tools.claimed_sorted.iter().zip(&self.tools.groups).filter(|(_, g)| g.engaged).map(|(n, _)| *n));
         self.sys.factor.order_for(&self.tools.engaged_sorted, &mut self.tools.perm_nodes);
-        self.tools.claims.clear();
-        self.tools.claim_owner.clear();
-        self.tools.claim_ptr.clear();
-        self.tools.claim_ptr.push(0);
-        self.tools.enforced_targets.clear();
         self.tools.enforced_group.clear();
         for &node in &self.tools.perm_nodes {
-            let Ok(g) = self.tools.claimed_sorted.binary_search(&node) else { continue };
-            let (a, b) = (self.tools.group_ptr[g], self.tools.group_ptr[g + 1]);
-            self.tools.claims.extend_from_slice(&self.tools.group_claims[a..b]);
-            self.tools.claim_owner.extend_from_slice(&self.tools.group_owner[a..b]);
-            self.tools.claim_ptr.push(self.tools.claims.len());
-            self.tools.enforced_targets.push(self.tools.group_targets[g]);
-            self.tools.enforced_group.push(g);
+            if let Ok(g) = self.tools.claimed_sorted.binary_search(&node) {
+                self.tools.enforced_group.push(g);
+            }
         }
         self.sys.nodes.clear();
         self.sys.nodes.extend_from_slice(&self.tools.perm_nodes);
@@ -899,7 +910,7 @@ impl ConstrainedSolver {
         let mut changed = false;
         for k in 0..self.tools.enforced_nodes {
             let g = self.tools.enforced_group[k];
-            let Some(n) = self.tools.group_normals[g] else { continue };
+            let Some(n) = self.tools.groups[g].normal else { continue };
             let push = self.sys.node_force[k].dot(&n);
             if push < -CONTACT_TOLERANCE * scale {
                 if iterations <= BULK_RELEASE_ITERATIONS {
@@ -911,7 +922,7 @@ impl ConstrainedSolver {
             }
         }
         if let Some((k, g, _)) = most {
-            if let Some(n) = self.tools.group_normals[g] {
+            if let Some(n) = self.tools.groups[g].normal {
                 self.demote(k, n);
                 changed = true;
             }
@@ -922,56 +933,37 @@ impl ConstrainedSolver {
     /// Moves held slot `k` to a face-plane candidate (active: it starts on the plane).
     fn demote(&mut self, k: usize, n: Vec3) {
         let g = self.tools.enforced_group[k];
-        self.tools.group_engaged[g] = false;
+        self.tools.groups[g].engaged = false;
         let node = self.tools.claimed_sorted[g];
-        let target = self.tools.group_targets[g];
-        let owner = self.tools.group_owner[self.tools.group_ptr[g]];
+        let target = self.tools.groups[g].target;
+        let owner = self.tools.claims_of(g)[0].1;
         let at = self.model.mesh.positions[node as usize] + target;
-        self.cands.candidates.push(Candidate {
-            constraint: usize::MAX,
-            node,
-            owner,
-            center: Vec3::zeros(),
-            radius: 0.0,
-            inside: false,
-            active: true,
-            at,
-            plane: Some((n, n.dot(&target), g)),
-        });
+        let limit = Limit::Plane { normal: n, b: n.dot(&target), hold: Some(g) };
+        self.cands.candidates.push(Candidate { constraint: usize::MAX, node, owner, active: true, at, limit });
     }
 
     fn collect_candidates(&mut self, constraints: &[Constraint]) {
         self.cands.candidates.clear();
         for (i, c) in constraints.iter().enumerate() {
-            let (center, radius, inside) = match c.kind {
+            let limit = match c.kind {
                 ConstraintKind::Enforced { .. } | ConstraintKind::Contact { .. } => continue,
                 ConstraintKind::Barrier { displacement, normal } => {
                     // A held node ignores it (skipped each iteration); a bilaterally held one never needs it.
-                    let bilateral = self.tools.claimed_sorted.binary_search(&c.node).is_ok_and(|g| self.tools.group_normals[g].is_none());
-                    if self.model.is_fixed(c.node) || bilateral {
+                    if self.model.is_fixed(c.node) || self.tools.holds_bilaterally(c.node) {
                         continue;
                     }
                     let n = normal.normalize();
                     let at = self.model.mesh.positions[c.node as usize] + displacement;
                     let active = self.cands.prev_barrier.binary_search(&(c.node, c.owner)).is_ok();
-                    self.cands.candidates.push(Candidate {
-                        constraint: i,
-                        node: c.node,
-                        owner: c.owner,
-                        center: Vec3::zeros(),
-                        radius: 0.0,
-                        inside: false,
-                        active,
-                        at,
-                        plane: Some((n, n.dot(&displacement), NO_GROUP)),
-                    });
+                    let limit = Limit::Plane { normal: n, b: n.dot(&displacement), hold: None };
+                    self.cands.candidates.push(Candidate { constraint: i, node: c.node, owner: c.owner, active, at, limit });
                     continue;
                 }
-                ConstraintKind::SphereInside { center, radius } => (center, radius, true),
-                ConstraintKind::SphereOutside { center, radius } => (center, radius, false),
+                ConstraintKind::SphereInside { center, radius } => Limit::Sphere { center, radius, inside: true },
+                ConstraintKind::SphereOutside { center, radius } => Limit::Sphere { center, radius, inside: false },
             };
             // A bilaterally held node takes no sphere row; a unilateral tool node does while released.
-            let bilateral = self.tools.claimed_sorted.binary_search(&c.node).is_ok_and(|g| self.tools.group_normals[g].is_none());
+            let bilateral = self.tools.holds_bilaterally(c.node);
             if self.model.is_fixed(c.node) || bilateral {
                 continue;
             }
@@ -982,8 +974,9 @@ impl ConstrainedSolver {
                 (None, Some(&k)) => rest + self.surface.held.get(k as usize).copied().unwrap_or_else(Vec3::zeros),
                 (None, None) => rest,
             };
+            let inside = matches!(limit, Limit::Sphere { inside: true, .. });
             let active = self.cands.prev_active.binary_search(&(c.node, c.owner, inside)).is_ok();
-            self.cands.candidates.push(Candidate { constraint: i, node: c.node, owner: c.owner, center, radius, inside, active, at, plane: None });
+            self.cands.candidates.push(Candidate { constraint: i, node: c.node, owner: c.owner, active, at, limit });
         }
     }
 
@@ -1005,7 +998,7 @@ impl ConstrainedSolver {
         self.sys.nodes.truncate(self.tools.enforced_nodes);
         self.sys.nodes_version += 1;
         for k in 0..self.tools.enforced_nodes {
-            let g = self.tools.enforced_targets[k];
+            let g = self.tools.groups[self.tools.enforced_group[k]].target;
             self.sys.rows.push(ConstraintRow { slot: k, dir: Vec3::x(), target: g.x });
             self.sys.rows.push(ConstraintRow { slot: k, dir: Vec3::y(), target: g.y });
             self.sys.rows.push(ConstraintRow { slot: k, dir: Vec3::z(), target: g.z });
@@ -1022,23 +1015,26 @@ impl ConstrainedSolver {
                     self.sys.nodes.len() - 1
                 }
             };
-            if let Some((n, b, _)) = c.plane {
-                self.sys.rows.push(ConstraintRow { slot, dir: n, target: b });
-                self.sys.row_candidate.push(ci);
-                continue;
-            }
+            let (center, radius, inside) = match c.limit {
+                Limit::Plane { normal, b, .. } => {
+                    self.sys.rows.push(ConstraintRow { slot, dir: normal, target: b });
+                    self.sys.row_candidate.push(ci);
+                    continue;
+                }
+                Limit::Sphere { center, radius, inside } => (center, radius, inside),
+            };
             let rest = self.model.mesh.positions[c.node as usize];
-            let radial = c.at - c.center;
+            let radial = c.at - center;
             let len = radial.norm();
             // A point at the centre has no radial direction: use the rest direction, else +z.
             let n = if len > 0.0 {
                 radial / len
             } else {
-                let r = rest - c.center;
+                let r = rest - center;
                 if r.norm() > 0.0 { r.normalize() } else { Vec3::z() }
             };
             // inside: n.(X+u-c) <= R  <=>  (-n).u >= n.(X-c) - R;  outside: n.u >= r - n.(X-c)
-            let (dir, target) = if c.inside { (-n, n.dot(&(rest - c.center)) - c.radius) } else { (n, c.radius - n.dot(&(rest - c.center))) };
+            let (dir, target) = if inside { (-n, n.dot(&(rest - center)) - radius) } else { (n, radius - n.dot(&(rest - center))) };
             self.sys.rows.push(ConstraintRow { slot, dir, target });
             self.sys.row_candidate.push(ci);
         }
@@ -1199,9 +1195,9 @@ impl ConstrainedSolver {
         out.reactions.clear();
         out.reactions.resize(constraints.len(), Vec3::zeros());
         for k in 0..self.tools.enforced_nodes {
-            let claims = &self.tools.claims[self.tools.claim_ptr[k]..self.tools.claim_ptr[k + 1]];
+            let claims = self.tools.claims_of(self.tools.enforced_group[k]);
             let share = self.sys.node_force[k] / claims.len() as f64;
-            for &c in claims {
+            for &(c, _) in claims {
                 out.reactions[c] = share;
             }
         }
@@ -1209,10 +1205,10 @@ impl ConstrainedSolver {
         for (k, &ci) in self.sys.row_candidate.iter().enumerate() {
             let row = enforced_rows + k;
             let force = self.sys.rows[row].dir * self.sys.lambda[row];
-            match self.cands.candidates[ci].plane {
-                Some((_, _, g)) if g != NO_GROUP => {
-                    let claims = &self.tools.group_claims[self.tools.group_ptr[g]..self.tools.group_ptr[g + 1]];
-                    for &c in claims {
+            match self.cands.candidates[ci].limit {
+                Limit::Plane { hold: Some(g), .. } => {
+                    let claims = self.tools.claims_of(g);
+                    for &(c, _) in claims {
                         out.reactions[c] = force / claims.len() as f64;
                     }
                 }
@@ -1229,7 +1225,7 @@ impl ConstrainedSolver {
             }
         }
         self.carry_active_set(out);
-        out.active_sphere_contacts = self.sys.row_candidate.iter().filter(|&&ci| self.cands.candidates[ci].plane.is_none()).count();
+        out.active_sphere_contacts = self.sys.row_candidate.iter().filter(|&&ci| self.cands.candidates[ci].limit.is_sphere()).count();
         let n = self.sys.rows.len();
         out.rows = n;
         out.dropped_rows = self.sys.factor.dropped().filter(|d| *d).count();
@@ -1357,14 +1353,14 @@ impl ConstrainedSolver {
     fn carry_active_set(&mut self, out: &mut FrameSolution) {
         self.cands.prev_active.clear();
         for c in &self.cands.candidates {
-            if c.active && c.plane.is_none() {
-                self.cands.prev_active.push((c.node, c.owner, c.inside));
+            if let (true, Limit::Sphere { inside, .. }) = (c.active, c.limit) {
+                self.cands.prev_active.push((c.node, c.owner, inside));
             }
         }
         self.cands.prev_active.sort_unstable();
         self.cands.prev_barrier.clear();
         for c in &self.cands.candidates {
-            if c.active && matches!(c.plane, Some((_, _, NO_GROUP))) {
+            if c.active && matches!(c.limit, Limit::Plane { hold: None, .. }) {
                 self.cands.prev_barrier.push((c.node, c.owner));
             }
         }
@@ -1373,11 +1369,11 @@ impl ConstrainedSolver {
         self.tools.sliding.clear();
         out.barrier_contacts = 0;
         for c in &self.cands.candidates {
-            match c.plane {
-                Some((_, _, NO_GROUP)) => out.barrier_contacts += usize::from(c.active && self.tools.engaged_sorted.binary_search(&c.node).is_err()),
-                Some(_) if c.active => self.tools.sliding.push(c.node),
-                Some(_) => self.tools.released.push(c.node),
-                None => {}
+            match c.limit {
+                Limit::Plane { hold: None, .. } => out.barrier_contacts += usize::from(c.active && self.tools.engaged_sorted.binary_search(&c.node).is_err()),
+                Limit::Plane { .. } if c.active => self.tools.sliding.push(c.node),
+                Limit::Plane { .. } => self.tools.released.push(c.node),
+                Limit::Sphere { .. } => {}
             }
         }
         self.tools.released.sort_unstable();
