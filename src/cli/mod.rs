@@ -109,7 +109,7 @@ pub enum Command {
         /// Output folder.
         #[arg(long)]
         out: PathBuf,
-        /// Run only this knob's sweep (repeatable; the reference always runs): source_nodes, mesh, speed, contact, substeps, backend, storage, region_of_interest, skull.
+        /// Run only this knob's sweep (repeatable; the reference always runs): source_nodes, mesh, speed, contact, substeps, backend, storage, region_of_interest, skull, refine.
         #[arg(long = "knob", value_name = "KNOB")]
         knobs: Vec<String>,
         /// A tet mesh in millimetres for the mesh sweep (repeatable, coarsest first; the last is the reference's); two bodies: the spatula enters the gap between them.

@@ -80,14 +80,7 @@ pub fn load_mesh(scenario: &Scenario) -> Result<TetMesh, BuildError> {
         RefineChoice::Off => Ok(mesh),
         RefineChoice::Given(r) => refine(scenario, r.edge, &|p: &Vec3| r.within.iter().any(|v| v.contains(p)), &mesh),
         RefineChoice::Auto => match auto_region(scenario)? {
-            Some(AutoRegion::Blades(segments)) => {
-                let edge = auto_edge(scenario);
-                let (lo, hi) = segments_box(&segments);
-                let inside = |p: &Vec3| {
-                    (0..3).all(|i| p[i] >= lo[i] && p[i] <= hi[i]) && segments.iter().any(|(a, b, r)| distance_to_segment(p, a, b) <= *r)
-                };
-                refine(scenario, edge, &inside, &mesh)
-            }
+            Some(AutoRegion::Blades(sets)) => refine_along(scenario, &mesh, &sets, AUTO_REFINE_EDGES_ACROSS),
             Some(AutoRegion::Sphere(s)) => refine(scenario, auto_edge(scenario), &|p: &Vec3| (p - s.center).norm() <= s.radius, &mesh),
             None => {
                 tracing::info!("refine Auto: the scenario has no trajectory and no region-of-interest sphere to refine around; the mesh is used as it is");
@@ -99,8 +92,8 @@ pub fn load_mesh(scenario: &Scenario) -> Result<TetMesh, BuildError> {
 
 /// Where `refine: Auto` refines.
 enum AutoRegion {
-    /// Within each (start, end, radius) of the blades' centre lines over the trajectory.
-    Blades(Vec<(Vec3, Vec3, f64)>),
+    /// The blades' poses sampled over the trajectory.
+    Blades(Vec<Vec<Pose>>),
     /// The scenario's region-of-interest sphere (a scene without a trajectory).
     Sphere(crate::scenario::Sphere),
 }
@@ -111,12 +104,7 @@ enum AutoRegion {
 fn auto_region(scenario: &Scenario) -> Result<Option<AutoRegion>, BuildError> {
     if scenario.trajectory.is_some() {
         let poses = super::replay::PoseSource::for_scenario(scenario, None)?;
-        let segments = poses
-            .samples(scenario.duration, AUTO_REFINE_SAMPLES)
-            .iter()
-            .flat_map(|set| blade_segments(scenario, set).map(|(a, b, w)| (a, b, w + AUTO_REFINE_MARGIN_M)).collect::<Vec<_>>())
-            .collect();
-        return Ok(Some(AutoRegion::Blades(segments)));
+        return Ok(Some(AutoRegion::Blades(poses.samples(scenario.duration, AUTO_REFINE_SAMPLES))));
     }
     Ok(match scenario.solver.region_of_interest {
         RegionOfInterest::Sphere(s) => Some(AutoRegion::Sphere(s)),
@@ -126,7 +114,24 @@ fn auto_region(scenario: &Scenario) -> Result<Option<AutoRegion>, BuildError> {
 
 /// `refine: Auto`'s edge length: the narrowest blade's width over [`AUTO_REFINE_EDGES_ACROSS`].
 pub fn auto_edge(scenario: &Scenario) -> f64 {
-    scenario.spatulas.iter().map(|s| s.shape.width).fold(f64::INFINITY, f64::min) / AUTO_REFINE_EDGES_ACROSS
+    narrowest_blade(scenario) / AUTO_REFINE_EDGES_ACROSS
+}
+
+fn narrowest_blade(scenario: &Scenario) -> f64 {
+    scenario.spatulas.iter().map(|s| s.shape.width).fold(f64::INFINITY, f64::min)
+}
+
+/// `mesh` refined as `refine: Auto` refines it, along the blades' reach at
+/// `pose_sets` (each a pose a spatula of `scenario`): every boundary edge
+/// within a blade's half width plus [`AUTO_REFINE_MARGIN_M`] of its centre
+/// line at one of the poses, to the narrowest blade's width over
+/// `edges_across`. The study's `refine` knob uses it with its own motion.
+pub fn refine_along(scenario: &Scenario, mesh: &TetMesh, pose_sets: &[Vec<Pose>], edges_across: f64) -> Result<TetMesh, BuildError> {
+    let segments: Vec<(Vec3, Vec3, f64)> =
+        pose_sets.iter().flat_map(|set| blade_segments(scenario, set).map(|(a, b, w)| (a, b, w + AUTO_REFINE_MARGIN_M)).collect::<Vec<_>>()).collect();
+    let (lo, hi) = segments_box(&segments);
+    let inside = |p: &Vec3| (0..3).all(|i| p[i] >= lo[i] && p[i] <= hi[i]) && segments.iter().any(|(a, b, r)| distance_to_segment(p, a, b) <= *r);
+    refine(scenario, narrowest_blade(scenario) / edges_across, &inside, mesh)
 }
 
 /// The box around every (a, b, r) segment grown by its r.

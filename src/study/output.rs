@@ -8,7 +8,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::plan::{backend_name, contact_name, skull_label, substep_label};
+use super::plan::{backend_name, contact_name, refine_label, skull_label, substep_label};
 use super::{Comparison, Knob, RunMeasure, RunRow, StudyError, StudyResults};
 use crate::sim::StageId;
 
@@ -25,7 +25,7 @@ pub const BUDGETS_MS: [f64; 3] = [1.0, 4.0, 16.0];
 
 /// Column names of `results.csv`.
 pub const CSV_HEADER: &str = "knob,label,value,reference,mesh,mesh_nodes,surface_triangles,layout,nodes_per_face,backend,culling,\
-speed_thickness_per_frame,storage,roi,contact,substep_travel,skull,status,frames,build_s,compliance_mb,compliance_cached,\
+speed_thickness_per_frame,storage,roi,contact,substep_travel,skull,refine_edges_across,status,frames,build_s,compliance_mb,compliance_cached,\
 collision_p50_ms,collision_p95_ms,solve_p50_ms,solve_p95_ms,forces_p50_ms,forces_p95_ms,monitor_p50_ms,monitor_p95_ms,\
 frame_p50_ms,frame_p95_ms,comparison,frames_compared,rms_error_mm,max_error_mm,force_rms_pct,force_max_pct,force_points,missed_contact_frames,\
 reference_contact_frames,pressure_error_mmhg,peak_pressure_mmhg,crossed_vertices,penetrating_max,penetration_max_mm,inverted_max";
@@ -73,7 +73,7 @@ pub fn csv_line(r: &RunRow) -> String {
     let m = r.outcome.as_ref().ok();
     let _ = write!(
         line,
-        "{},{},{},{},{},{},{},{:?},{},{},{},{},",
+        "{},{},{},{},{},{},{},{:?},{},{},{},{},{},",
         m.map(|m| m.mesh_nodes.to_string()).unwrap_or_default(),
         m.map(|m| m.surface_triangles.to_string()).unwrap_or_default(),
         quote(&s.layout_label()),
@@ -85,7 +85,8 @@ pub fn csv_line(r: &RunRow) -> String {
         quote(&s.roi.label()),
         contact_name(s.contact),
         s.substep_travel.map(|t| t.to_string()).unwrap_or_else(|| "none".into()),
-        skull_label(s.skull)
+        skull_label(s.skull),
+        s.refine.map(|e| e.to_string()).unwrap_or_else(|| "none".into())
     );
     let status = match &r.outcome {
         Ok(m) => m.note.clone().unwrap_or_else(|| "ok".into()),
@@ -204,7 +205,7 @@ pub fn pareto_front(rows: &[RunRow]) -> Vec<&RunRow> {
 fn settings_summary(r: &RunRow) -> String {
     let s = &r.settings;
     format!(
-        "{}, {} nodes/face ({}), {}, culling {}, {} h/frame, {:?}, ROI {}, {}, sub-steps {}, skull {}",
+        "{}, {} nodes/face ({}), {}, culling {}, {} h/frame, {:?}, ROI {}, {}, sub-steps {}, skull {}, mesh {}",
         s.mesh.label(),
         s.nodes_per_face(),
         s.layout_label(),
@@ -215,7 +216,8 @@ fn settings_summary(r: &RunRow) -> String {
         s.roi.label(),
         contact_name(s.contact),
         substep_label(s.substep_travel),
-        skull_label(s.skull)
+        skull_label(s.skull),
+        refine_label(s.refine)
     )
 }
 

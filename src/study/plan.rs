@@ -40,6 +40,9 @@ pub enum Knob {
     /// The skull's spheres (the mesh's own skull landmarks, or a sphere
     /// containing the mesh) off and on.
     Skull,
+    /// The boundary refined where the blades reach (what `refine: Auto`
+    /// does), to a blade's width over this many edges; or the mesh as it is.
+    Refine,
 }
 
 impl Knob {
@@ -55,6 +58,7 @@ impl Knob {
             Knob::Storage => "storage",
             Knob::RegionOfInterest => "region_of_interest",
             Knob::Skull => "skull",
+            Knob::Refine => "refine",
         }
     }
 
@@ -64,7 +68,7 @@ impl Knob {
     }
 
     /// Every knob, in report order.
-    pub const ALL: [Knob; 9] = [
+    pub const ALL: [Knob; 10] = [
         Knob::SourceNodes,
         Knob::Mesh,
         Knob::Speed,
@@ -74,6 +78,7 @@ impl Knob {
         Knob::Storage,
         Knob::RegionOfInterest,
         Knob::Skull,
+        Knob::Refine,
     ];
 }
 
@@ -141,6 +146,9 @@ pub struct Settings {
     pub substep_travel: Option<f64>,
     /// The skull's spheres are simulated (see [`Knob::Skull`]).
     pub skull: bool,
+    /// The boundary refined along the motion to the blade's width over this
+    /// many edges (see [`Knob::Refine`]); `None`: the mesh as it is.
+    pub refine: Option<f64>,
 }
 
 impl Settings {
@@ -236,6 +244,9 @@ pub struct PlanValues {
     pub roi_radii_m: Vec<f64>,
     /// Skull sweep (off, on) on.
     pub skull: bool,
+    /// Refinements swept (edges across a blade; `None`: the mesh as it is);
+    /// the reference takes the finest. Empty: no refine sweep.
+    pub refine: Vec<Option<f64>>,
     /// The reference's backend: `Reference` (brute force), or `Bvh` where the
     /// brute force would take hours (the tests prove them equal bit for bit).
     pub reference_backend: CollisionBackend,
@@ -350,6 +361,14 @@ impl StudyPlan {
                 .collect();
             sweeps.push(Sweep { knob: Knob::Skull, runs });
         }
+        if !v.refine.is_empty() {
+            let runs = v
+                .refine
+                .iter()
+                .map(|&r| RunSpec { label: refine_label(r), value: r.unwrap_or(0.0), settings: Settings { refine: r, ..base.clone() } })
+                .collect();
+            sweeps.push(Sweep { knob: Knob::Refine, runs });
+        }
         let mut notes = Vec::new();
         if v.reference_backend != CollisionBackend::Reference {
             notes.push(format!(
@@ -385,7 +404,7 @@ impl StudyPlan {
 /// the most source nodes, the plan's reference backend (brute force unless it
 /// would take hours), culling on, half the smallest swept speed, the finest
 /// sub-step, f64, the plan's reference region (the whole surface where it
-/// fits), the default (sliding) contact, the skull simulated.
+/// fits), the default (sliding) contact, the skull simulated, the finest refinement.
 pub fn reference_run(v: &PlanValues) -> RunSpec {
     let b = &v.base;
     let nodes = v.nodes.iter().chain(&v.backend_nodes).copied().max().map_or_else(|| b.layout.clone(), grid);
@@ -402,13 +421,15 @@ pub fn reference_run(v: &PlanValues) -> RunSpec {
         contact: SpatulaContact::default(),
         substep_travel,
         skull: true,
+        refine: v.refine.iter().flatten().copied().fold(b.refine, |a, r| Some(a.map_or(r, |a: f64| a.max(r)))),
     };
     let label = format!(
-        "{}, {} nodes/face, {} backend, {speed} h/frame, ROI {}, skull",
+        "{}, {} nodes/face, {} backend, {speed} h/frame, ROI {}, skull, mesh {}",
         settings.mesh.label(),
         settings.nodes_per_face(),
         backend_name(settings.backend),
-        settings.roi.label()
+        settings.roi.label(),
+        refine_label(settings.refine)
     );
     RunSpec { label, value: f64::NAN, settings }
 }
@@ -425,6 +446,14 @@ pub fn contact_name(c: SpatulaContact) -> &'static str {
 /// `off` / `on`.
 pub fn skull_label(on: bool) -> &'static str {
     if on { "on" } else { "off" }
+}
+
+/// `as it is` / `refined, 4 edges across` (a blade's width).
+pub fn refine_label(r: Option<f64>) -> String {
+    match r {
+        None => "as it is".into(),
+        Some(e) => format!("refined, {e} edges across"),
+    }
 }
 
 /// `none` / `0.125 h`.
@@ -456,6 +485,7 @@ pub fn base_settings(mesh: MeshChoice) -> Settings {
         contact: SpatulaContact::default(),
         substep_travel: Some(0.125),
         skull: true,
+        refine: None,
     }
 }
 
@@ -512,6 +542,7 @@ pub fn preset_plan(preset: super::StudyPreset, mesh_files: &[PathBuf]) -> StudyP
                 storage: true,
                 roi_radii_m: vec![0.015, 0.030, 0.060],
                 skull: true,
+                refine: vec![None, Some(2.0), Some(4.0)],
                 reference_backend: CollisionBackend::Reference,
                 reference_roi: RoiChoice::All,
             },
@@ -533,6 +564,7 @@ pub fn preset_plan(preset: super::StudyPreset, mesh_files: &[PathBuf]) -> StudyP
                 storage: true,
                 roi_radii_m: vec![0.015, 0.030],
                 skull: true,
+                refine: vec![None, Some(2.0), Some(4.0)],
                 reference_backend: CollisionBackend::Reference,
                 reference_roi: RoiChoice::All,
             },
@@ -557,6 +589,8 @@ pub fn preset_plan(preset: super::StudyPreset, mesh_files: &[PathBuf]) -> StudyP
                 roi_radii_m: Vec::new(),
                 // The reference simulates the skull; its sweep is the presets'.
                 skull: false,
+                // A refined mesh is another compliance precompute: presets only.
+                refine: Vec::new(),
                 reference_backend: CollisionBackend::Reference,
                 reference_roi: RoiChoice::All,
             },
@@ -579,6 +613,7 @@ pub fn preset_plan(preset: super::StudyPreset, mesh_files: &[PathBuf]) -> StudyP
                 storage: false,
                 roi_radii_m: Vec::new(),
                 skull: true,
+                refine: vec![None, Some(4.0)],
                 // Brute force at 2000 nodes a face on 67.7k triangles: seconds a frame.
                 reference_backend: CollisionBackend::Bvh,
                 // The whole surface of a real brain: tens of GB of compliance.
@@ -632,6 +667,7 @@ mod tests {
                 let s = &s.settings;
                 assert!(s.nodes_per_face() <= r.nodes_per_face(), "densest nodes");
                 assert!(s.speed > r.speed, "the reference's step is smaller than any run's");
+                assert!(s.refine.unwrap_or(0.0) <= r.refine.unwrap_or(0.0), "the finest refinement");
                 assert_ne!(s, r, "no swept run equals the reference");
             }
         }

@@ -44,6 +44,7 @@ fn knob_color(k: Option<Knob>) -> RGBColor {
         Some(Knob::Storage) => RGBColor(148, 103, 189),
         Some(Knob::RegionOfInterest) => RGBColor(140, 86, 75),
         Some(Knob::Skull) => RGBColor(188, 189, 34),
+        Some(Knob::Refine) => RGBColor(127, 127, 127),
     }
 }
 

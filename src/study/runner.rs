@@ -93,11 +93,21 @@ pub fn containing_skull(mesh: &TetMesh) -> Skull {
     Skull { containing: Some(Sphere { center, radius }), excluding: None }
 }
 
-/// Meshes loaded once per study, in metres.
+/// Meshes loaded once per study, in metres, and their refinements.
 #[derive(Default)]
 pub struct MeshStore {
     entries: Vec<(MeshChoice, StudyMesh)>,
+    /// (mesh, edges across a blade) -> the mesh refined along the motion.
+    refined: Vec<(MeshChoice, f64, TetMesh)>,
 }
+
+/// Blade speed (thicknesses a frame) of the motion the refine knob refines
+/// along: a fixed sampling of the path, so every run of a mesh and
+/// refinement gets the same refined mesh whatever its own speed.
+const REFINE_SAMPLING_SPEED: f64 = 1.0;
+
+/// At most this many pose sets of that motion are refined along.
+const REFINE_SAMPLES: usize = 200;
 
 impl MeshStore {
     /// The mesh of `choice` (generated / read on first use).
@@ -131,6 +141,24 @@ impl MeshStore {
         let mesh = StudyMesh { mesh, skull };
         self.entries.push((choice.clone(), mesh));
         Ok(&self.entries.last().expect("just pushed").1)
+    }
+
+    /// The mesh of `choice` refined along the motion of `scene` (a run's
+    /// configured scene: its spatulas where the unrefined mesh put them) to a
+    /// blade's width over `edges_across`, as `refine: Auto` refines a scene
+    /// along its trajectory (made on first use).
+    pub fn refined(&mut self, choice: &MeshChoice, edges_across: f64, scene: &Scenario, motion: &Motion) -> Result<&TetMesh, RunError> {
+        if let Some(k) = self.refined.iter().position(|(c, e, _)| c == choice && *e == edges_across) {
+            return Ok(&self.refined[k].2);
+        }
+        let initial: Vec<Pose> = scene.spatulas.iter().map(|s| s.initial_pose).collect();
+        let thickness = scene.spatulas.first().map(|s| s.shape.thickness).unwrap_or(0.001);
+        let frames = motion.frames(&initial, thickness, REFINE_SAMPLING_SPEED);
+        let stride = frames.len().div_ceil(REFINE_SAMPLES).max(1);
+        let sets: Vec<Vec<Pose>> = std::iter::once(initial).chain(frames.iter().step_by(stride).map(|f| f.poses.clone())).collect();
+        let mesh = crate::sim::build::refine_along(scene, &self.get(choice, scene)?.mesh, &sets, edges_across)?;
+        self.refined.push((choice.clone(), edges_across, mesh));
+        Ok(&self.refined.last().expect("just pushed").2)
     }
 }
 
@@ -242,7 +270,10 @@ pub fn execute(
 ) -> Result<RunTrace, RunError> {
     let study_mesh = meshes.get(&settings.mesh, base)?;
     let scene = configure(base, settings, motion, study_mesh, cache_dir);
-    let mesh = study_mesh.mesh.clone();
+    let mesh = match settings.refine {
+        None => study_mesh.mesh.clone(),
+        Some(across) => meshes.refined(&settings.mesh, across, &scene, motion)?.clone(),
+    };
     let initial: Vec<Pose> = scene.spatulas.iter().map(|s| s.initial_pose).collect();
     let thickness = scene.spatulas.first().map(|s| s.shape.thickness).unwrap_or(0.001);
     let frames = motion.frames(&initial, thickness, settings.speed);
@@ -324,5 +355,28 @@ mod tests {
         let c = containing_skull(&mesh.mesh).containing.expect("sphere");
         let far = mesh.mesh.positions.iter().map(|p| (p - c.center).norm()).fold(0.0, f64::max);
         assert!((c.radius - far - SKULL_CLEARANCE_M).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_refine_knob_refines_along_the_motion_once_for_every_speed() {
+        let scene = crate::study::load_scene(None).expect("built-in study scene");
+        let mut meshes = MeshStore::default();
+        let choice = MeshChoice::Phantom("small".into());
+        let motion = Motion::default();
+        let settings = Settings { refine: Some(4.0), ..base_settings(choice.clone()) };
+        let configured = configure(&scene, &settings, &motion, meshes.get(&choice, &scene).expect("phantom"), None);
+        let coarse = meshes.get(&choice, &scene).expect("phantom").mesh.clone();
+        let fine = meshes.refined(&choice, 4.0, &configured, &motion).expect("refined").clone();
+        assert!(fine.node_count() > coarse.node_count(), "{} -> {} nodes", coarse.node_count(), fine.node_count());
+        assert_eq!(fine.positions[..coarse.node_count()], coarse.positions[..], "every node kept, same index");
+        // New nodes only near the blade's path: none beyond its reach from the working point.
+        let blade = &configured.spatulas[0];
+        let centre = motion.working_point(&blade.initial_pose, blade.shape.length);
+        let reach = blade.shape.length + motion.insert_m + motion.open_m + blade.shape.width;
+        assert!(fine.positions[coarse.node_count()..].iter().all(|p| (p - centre).norm() < reach));
+        // Kept: a second run, at another speed, refines nothing again.
+        let again = meshes.refined(&choice, 4.0, &configured, &motion).expect("kept");
+        assert_eq!(again.positions, fine.positions);
+        assert_eq!(meshes.refined.len(), 1);
     }
 }
