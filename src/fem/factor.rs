@@ -326,46 +326,8 @@ impl SparseCholesky {
                 }
             }
         }
-        for s in 0..symbolic.n_supernodes() {
-            if forward.is_some_and(|f| !f[s]) {
-                continue;
-            }
-            let node = llt.supernode(s);
-            let (start, pattern, ls) = (node.start(), node.pattern(), node.val());
-            let size = ls.ncols();
-            let (ls_top, ls_bot) = ls.split_at_row(size);
-            let mut x_top = MatMut::from_column_major_slice_mut(&mut top[..size * k], size, k);
-            rows_to_columns(x, k, start, x_top.rb_mut());
-            faer::linalg::triangular_solve::solve_lower_triangular_in_place_with_conj(ls_top, Conj::No, x_top.rb_mut(), Par::Seq);
-            let mut update = MatMut::from_row_major_slice_mut(&mut below[..pattern.len() * k], pattern.len(), k);
-            faer::linalg::matmul::matmul_with_conj(update.rb_mut(), Accum::Replace, ls_bot, Conj::No, x_top.rb(), Conj::No, 1.0, Par::Seq);
-            columns_to_rows(x_top.rb(), x, k, start);
-            for (idx, &i) in pattern.iter().enumerate() {
-                let row = &mut x[i * k..][..k];
-                for (v, u) in row.iter_mut().zip(&below[idx * k..][..k]) {
-                    *v -= u;
-                }
-            }
-        }
-        for s in (0..symbolic.n_supernodes()).rev() {
-            if backward.is_some_and(|b| !b[s]) {
-                continue;
-            }
-            let node = llt.supernode(s);
-            let (start, pattern, ls) = (node.start(), node.pattern(), node.val());
-            let size = ls.ncols();
-            let (ls_top, ls_bot) = ls.split_at_row(size);
-            let depth = pattern.len();
-            for (idx, &i) in pattern.iter().enumerate() {
-                below[idx * k..][..k].copy_from_slice(&x[i * k..][..k]);
-            }
-            let gathered = MatRef::from_row_major_slice(&below[..depth * k], depth, k);
-            let mut x_top = MatMut::from_column_major_slice_mut(&mut top[..size * k], size, k);
-            rows_to_columns(x, k, start, x_top.rb_mut());
-            faer::linalg::matmul::matmul_with_conj(x_top.rb_mut(), Accum::Add, ls_bot.transpose(), Conj::Yes, gathered, Conj::No, -1.0, Par::Seq);
-            faer::linalg::triangular_solve::solve_upper_triangular_in_place_with_conj(ls_top.transpose(), Conj::Yes, x_top.rb_mut(), Par::Seq);
-            columns_to_rows(x_top.rb(), x, k, start);
-        }
+        forward_substitution(&llt, x, top, below, k, forward);
+        backward_substitution(&llt, x, top, below, k, backward);
         // rhs[old, j] = x[inv[old], j]
         for first in (0..n).step_by(ROW_BLOCK) {
             let last = (first + ROW_BLOCK).min(n);
@@ -393,6 +355,57 @@ pub const ROW_MAJOR_MIN_RHS: usize = 8;
 /// Rows moved between layouts a block at a time (the block of a 96-column
 /// row-major matrix stays in the core's cache).
 const ROW_BLOCK: usize = 32;
+
+/// `L y = x` over the row-major right-hand sides `x` (n x k), in place: the
+/// supernodes in order, those `forward` marks (all when `None`); `top` and
+/// `below` are scratch of the widest and deepest supernode.
+fn forward_substitution(llt: &SupernodalLltRef<'_, usize, f64>, x: &mut [f64], top: &mut [f64], below: &mut [f64], k: usize, forward: Option<&[bool]>) {
+    for s in 0..llt.symbolic().n_supernodes() {
+        if forward.is_some_and(|f| !f[s]) {
+            continue;
+        }
+        let node = llt.supernode(s);
+        let (start, pattern, ls) = (node.start(), node.pattern(), node.val());
+        let size = ls.ncols();
+        let (ls_top, ls_bot) = ls.split_at_row(size);
+        let mut x_top = MatMut::from_column_major_slice_mut(&mut top[..size * k], size, k);
+        rows_to_columns(x, k, start, x_top.rb_mut());
+        faer::linalg::triangular_solve::solve_lower_triangular_in_place_with_conj(ls_top, Conj::No, x_top.rb_mut(), Par::Seq);
+        let mut update = MatMut::from_row_major_slice_mut(&mut below[..pattern.len() * k], pattern.len(), k);
+        faer::linalg::matmul::matmul_with_conj(update.rb_mut(), Accum::Replace, ls_bot, Conj::No, x_top.rb(), Conj::No, 1.0, Par::Seq);
+        columns_to_rows(x_top.rb(), x, k, start);
+        for (idx, &i) in pattern.iter().enumerate() {
+            let row = &mut x[i * k..][..k];
+            for (v, u) in row.iter_mut().zip(&below[idx * k..][..k]) {
+                *v -= u;
+            }
+        }
+    }
+}
+
+/// `L^T z = y` in place, the supernodes in reverse order, those `backward`
+/// marks (all when `None`); scratch as [`forward_substitution`]'s.
+fn backward_substitution(llt: &SupernodalLltRef<'_, usize, f64>, x: &mut [f64], top: &mut [f64], below: &mut [f64], k: usize, backward: Option<&[bool]>) {
+    for s in (0..llt.symbolic().n_supernodes()).rev() {
+        if backward.is_some_and(|b| !b[s]) {
+            continue;
+        }
+        let node = llt.supernode(s);
+        let (start, pattern, ls) = (node.start(), node.pattern(), node.val());
+        let size = ls.ncols();
+        let (ls_top, ls_bot) = ls.split_at_row(size);
+        let depth = pattern.len();
+        for (idx, &i) in pattern.iter().enumerate() {
+            below[idx * k..][..k].copy_from_slice(&x[i * k..][..k]);
+        }
+        let gathered = MatRef::from_row_major_slice(&below[..depth * k], depth, k);
+        let mut x_top = MatMut::from_column_major_slice_mut(&mut top[..size * k], size, k);
+        rows_to_columns(x, k, start, x_top.rb_mut());
+        faer::linalg::matmul::matmul_with_conj(x_top.rb_mut(), Accum::Add, ls_bot.transpose(), Conj::Yes, gathered, Conj::No, -1.0, Par::Seq);
+        faer::linalg::triangular_solve::solve_upper_triangular_in_place_with_conj(ls_top.transpose(), Conj::Yes, x_top.rb_mut(), Par::Seq);
+        columns_to_rows(x_top.rb(), x, k, start);
+    }
+}
 
 /// The most columns and the most rows below the diagonal block of any supernode.
 fn supernode_extent(symbolic: &SymbolicSupernodalCholesky<usize>) -> (usize, usize) {
