@@ -571,7 +571,7 @@ impl Scenario {
             RefineChoiceFile::Given(r) => {
                 let edge = c.positive("refine.edge_mm", r.edge_mm)? * MM;
                 if r.within.is_empty() {
-                    return Err(c.invalid("refine.within", "give at least one volume (or `refine: Auto`, or leave `refine` out)"));
+                    return Err(c.invalid("refine.within", "give at least one volume (or leave `refine` out for `Auto`, or `refine: None`)"));
                 }
                 let mut within = Vec::with_capacity(r.within.len());
                 for (i, v) in r.within.iter().enumerate() {
