@@ -163,7 +163,7 @@ fn refine(scenario: &Scenario, edge: f64, inside: &dyn Fn(&Vec3) -> bool, mesh: 
 }
 
 /// Loads the scene's mesh in metres, as its file or preset has it.
-fn load_unrefined(scenario: &Scenario) -> Result<TetMesh, BuildError> {
+pub fn load_unrefined(scenario: &Scenario) -> Result<TetMesh, BuildError> {
     match &scenario.mesh {
         MeshSource::Phantom { preset } => {
             let p: crate::mesh::phantom::Preset = preset

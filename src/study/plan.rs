@@ -85,7 +85,7 @@ impl Knob {
 /// Which mesh a run uses.
 #[derive(Debug, Clone, PartialEq)]
 pub enum MeshChoice {
-    /// The scene's own mesh.
+    /// The scene's own mesh, as its file or preset has it (unrefined: the refine knob refines).
     Scene,
     /// A procedural phantom preset ("small", "paper-9k", "paper-12k").
     Phantom(String),

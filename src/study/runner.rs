@@ -117,7 +117,8 @@ impl MeshStore {
         }
         let fail = |message: String| RunError::Mesh { mesh: choice.label(), message };
         let (mesh, skull) = match choice {
-            MeshChoice::Scene => (crate::sim::build::load_mesh(scene)?, scene.skull.clone()),
+            // As its file has it: the study's refine knob decides what is refined.
+            MeshChoice::Scene => (crate::sim::build::load_unrefined(scene)?, scene.skull.clone()),
             MeshChoice::Phantom(name) => {
                 use crate::mesh::phantom::{Landmarks, Preset, UnknownPreset, generate};
                 let preset: Preset = name.parse().map_err(|e: UnknownPreset| fail(e.to_string()))?;
@@ -374,7 +375,8 @@ mod tests {
         let centre = motion.working_point(&blade.initial_pose, blade.shape.length);
         let reach = blade.shape.length + motion.insert_m + motion.open_m + blade.shape.width;
         assert!(fine.positions[coarse.node_count()..].iter().all(|p| (p - centre).norm() < reach));
-        // Kept: a second run, at another speed, refines nothing again.
+        // Kept: asked again (by a run at any speed: the refinement samples the
+        // path at its own fixed speed), nothing is refined again.
         let again = meshes.refined(&choice, 4.0, &configured, &motion).expect("kept");
         assert_eq!(again.positions, fine.positions);
         assert_eq!(meshes.refined.len(), 1);
