@@ -31,7 +31,8 @@ fn cause(stderr: &str) -> String {
 
 /// Fields of a scene on the `small` phantom (region 3 is its brain stem), each
 /// overridable by a case: two blades above the inter-hemispheric fissure
-/// (entry (0, 0, 36.7) mm, normal +x), pointing down.
+/// (entry (0, 0, 36.7) mm, normal +x), pointing down; the mesh as it is
+/// (`refine: None`), so the counts a refusal quotes are the phantom's own.
 struct Scene {
     mesh: String,
     material: String,
@@ -72,7 +73,7 @@ impl Scene {
             )
         };
         format!(
-            "(\n    name: \"corpus\",\n    mesh: {},\n    material: {},\n    fixed: [{}],\n    skull: {},\n    spatulas: [\n    {},\n    {},\n    ],\n    \
+            "(\n    name: \"corpus\",\n    mesh: {},\n    refine: None,\n    material: {},\n    fixed: [{}],\n    skull: {},\n    spatulas: [\n    {},\n    {},\n    ],\n    \
              effects: [{}],\n    gravity_m_s2: {},\n    density_kg_m3: {},\n    time_step_s: {},\n    duration_s: 1.0,\n    trajectory: {},\n    \
              solver: (region_of_interest: Auto, cache_dir: None, substep_travel: {}),\n)\n",
             self.mesh,

@@ -509,8 +509,8 @@ fn the_pose_filter_defaults_to_the_tracker_and_refuses_non_physical_parameters()
 /// trajectory, every boundary edge is at most a quarter of the narrowest
 /// blade's width; away from them the mesh is as it was; the refined mesh is
 /// the same from one load to the next, and `refine: None` leaves the mesh
-/// untouched. A scene with no trajectory and no region-of-interest sphere is
-/// not refined.
+/// untouched. A scene with no trajectory and no region-of-interest sphere (one
+/// driven by hand) is refined along the reach from the blades' first poses.
 #[test]
 fn refine_auto_refines_where_the_trajectory_takes_the_blades() {
     use fissure::sim::build::{AUTO_REFINE_EDGES_ACROSS, auto_edge, load_mesh};
@@ -556,7 +556,31 @@ fn refine_auto_refines_where_the_trajectory_takes_the_blades() {
         }
     }
     assert!(near > 10 && longest_far > 1.5 * edge, "{near} edges under the blades; longest 5 cm away {} mm", longest_far * 1e3);
-    // No trajectory and no sphere: nothing to refine around.
+    // No trajectory and no sphere: refined where the blades can go from their
+    // first poses (the tips pushed on by half a length), not elsewhere.
     let bare = Scenario::load(&path, &["refine=Auto".into(), "trajectory=None".into(), "spatulas[0].input=Keyboard".into(), "spatulas[1].input=Keyboard".into()]).expect("no trajectory");
-    assert_eq!(load_mesh(&bare).expect("bare").node_count(), off.node_count());
+    let by_hand = load_mesh(&bare).expect("bare");
+    assert!(by_hand.node_count() > off.node_count(), "{} -> {} nodes", off.node_count(), by_hand.node_count());
+    assert_eq!(by_hand.positions[..off.node_count()], off.positions[..], "every input node kept, same index");
+    let start: Vec<(Vec3, Vec3, f64)> = bare
+        .spatulas
+        .iter()
+        .map(|s| {
+            let p = s.initial_pose;
+            let tip = p.transform_point(&Vec3::new(s.shape.length, 0.0, 0.0));
+            (tip, p.transform_point(&Vec3::new(1.5 * s.shape.length, 0.0, 0.0)), 0.5 * s.shape.width)
+        })
+        .collect();
+    let surface = by_hand.boundary();
+    let mut under = 0;
+    for t in &surface.triangles {
+        for (i, j) in [(0, 1), (1, 2), (2, 0)] {
+            let (p, q) = (by_hand.positions[surface.vertices[t[i] as usize] as usize], by_hand.positions[surface.vertices[t[j] as usize] as usize]);
+            if start.iter().any(|b| distance(&((p + q) * 0.5), b) <= b.2) {
+                under += 1;
+                assert!((p - q).norm() <= edge + 1e-12, "an edge ahead of a blade's first pose is {} mm", (p - q).norm() * 1e3);
+            }
+        }
+    }
+    assert!(under > 10, "{under} edges ahead of the blades' first poses");
 }

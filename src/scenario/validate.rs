@@ -145,7 +145,9 @@ pub struct Refinement {
 pub enum RefineChoice {
     /// The mesh as it is.
     Off,
-    /// Where the blades reach along the scenario's trajectory, to a quarter of the narrowest blade's width.
+    /// Where the blades reach (along the scenario's trajectory, else in its
+    /// region-of-interest sphere, else from their first poses), to a quarter
+    /// of the narrowest blade's width.
     Auto,
     /// The given volumes and edge length.
     Given(Refinement),

@@ -82,10 +82,7 @@ pub fn load_mesh(scenario: &Scenario) -> Result<TetMesh, BuildError> {
         RefineChoice::Auto => match auto_region(scenario)? {
             Some(AutoRegion::Blades(sets)) => refine_along(scenario, &mesh, &sets, AUTO_REFINE_EDGES_ACROSS),
             Some(AutoRegion::Sphere(s)) => refine(scenario, auto_edge(scenario), &|p: &Vec3| (p - s.center).norm() <= s.radius, &mesh),
-            None => {
-                tracing::info!("refine Auto: the scenario has no trajectory and no region-of-interest sphere to refine around; the mesh is used as it is");
-                Ok(mesh)
-            }
+            None => refine_along(scenario, &mesh, &reach_from_start(scenario), AUTO_REFINE_EDGES_ACROSS),
         },
     }
 }
@@ -100,7 +97,9 @@ enum AutoRegion {
 
 /// The region `refine: Auto` refines: the blades' reach along the scenario's
 /// own trajectory (its initial poses, then the trajectory sampled over the
-/// run), else its region-of-interest sphere, else nothing.
+/// run), else its region-of-interest sphere, else (a scene driven only by a
+/// keyboard, a gamepad or a tracker) `None`: the reach from the blades' first
+/// poses ([`reach_from_start`]).
 fn auto_region(scenario: &Scenario) -> Result<Option<AutoRegion>, BuildError> {
     if scenario.trajectory.is_some() {
         let poses = super::replay::PoseSource::for_scenario(scenario, None)?;
@@ -110,6 +109,48 @@ fn auto_region(scenario: &Scenario) -> Result<Option<AutoRegion>, BuildError> {
         RegionOfInterest::Sphere(s) => Some(AutoRegion::Sphere(s)),
         _ => None,
     })
+}
+
+/// How far `refine: Auto` expects a blade of a scene with no trajectory to be
+/// pushed on along its axis from its first pose, in blade lengths: a
+/// retraction enters a fissure by a fraction of the blade (the shipped
+/// openings go 18-19 mm deep with 60 mm blades).
+pub const AUTO_REACH_ADVANCE_LENGTHS: f64 = 0.5;
+
+/// How far `refine: Auto` expects such a blade to move along its face
+/// normal, either way, in blade widths: a retraction spreads the fissure by
+/// about a blade's width a side (the shipped openings: 7-13.5 mm with 8 mm blades).
+pub const AUTO_REACH_SPREAD_WIDTHS: f64 = 1.5;
+
+/// Steps sampled along each of the reach's two directions.
+const AUTO_REACH_STEPS: usize = 8;
+
+/// The pose sets a blade driven by hand can be expected to visit from its
+/// first pose: pushed on along its axis by up to [`AUTO_REACH_ADVANCE_LENGTHS`]
+/// of its length and moved along its face normal by up to
+/// [`AUTO_REACH_SPREAD_WIDTHS`] of its width either way (each blade by its
+/// own shape; the sets are a grid over the two).
+pub fn reach_from_start(scenario: &Scenario) -> Vec<Vec<Pose>> {
+    let steps = AUTO_REACH_STEPS;
+    let mut sets = Vec::with_capacity((steps + 1) * (2 * steps + 1));
+    for a in 0..=steps {
+        for s in 0..=2 * steps {
+            let (advance, spread) = (a as f64 / steps as f64, (s as f64 - steps as f64) / steps as f64);
+            sets.push(
+                scenario
+                    .spatulas
+                    .iter()
+                    .map(|sp| {
+                        let p = sp.initial_pose;
+                        let along = p.rotation * Vec3::x() * (advance * AUTO_REACH_ADVANCE_LENGTHS * sp.shape.length);
+                        let normal = p.rotation * Vec3::z() * (spread * AUTO_REACH_SPREAD_WIDTHS * sp.shape.width);
+                        Pose { position: p.position + along + normal, ..p }
+                    })
+                    .collect(),
+            );
+        }
+    }
+    sets
 }
 
 /// `refine: Auto`'s edge length: the narrowest blade's width over [`AUTO_REFINE_EDGES_ACROSS`].

@@ -114,7 +114,9 @@ impl Scene {
         }
     }
 
-    /// The validated scenario (the mesh is written into `dir`).
+    /// The validated scenario (the mesh is written into `dir`), on the mesh
+    /// exactly as given (`refine: None`): each hard case is built on its
+    /// geometry, vertex for vertex.
     pub fn scenario(&self, dir: &Path) -> Scenario {
         let path = super::write_mesh(dir, "scene.msh", &self.mesh);
         let mut spatulas = String::new();
@@ -133,6 +135,7 @@ impl Scene {
             r#"(
     name: "hard case",
     mesh: File(path: "{}", units: Millimetres),
+    refine: None,
     material: (young_modulus_pa: {:?}, poisson_ratio: {:?}, regions: [{}]),
     fixed: [{}],
     skull: {},
