@@ -28,9 +28,30 @@ if [[ " $parts " == *" 1 "* ]]; then
     cargo bench --quiet --bench fem -- audit "${models[@]}" 2>/dev/null | grep -E '^(== |audit)'
 fi
 if [[ " $parts " == *" 2 "* ]]; then
-    echo "== 2. huge pages (FISSURE_FEM_OFF=huge-pages cargo bench --bench fem -- audit paper): the same lines without them"
-    FISSURE_FEM_OFF=huge-pages cargo bench --quiet --bench fem -- audit paper 2>/dev/null \
-        | grep -E '^audit (kept-product-rows|fused-columns|row-chunks|avx2-product)' | sed 's/^audit /audit without huge pages: /'
+    # Huge pages are taken when the compliance is computed, so on and off are
+    # two processes: ROUNDS rounds, alternating which goes first. The figure is
+    # the surface product with every other switch on (the first number of
+    # each product line), held / growing / sliding.
+    echo "== 2. huge pages, $rounds rounds alternating (cargo bench --bench fem -- audit paper, with and without FISSURE_FEM_OFF=huge-pages): surface product held / growing / sliding, ms"
+    products() { # OFF -> "held growing sliding" (medians over the four product switches' 'on' runs)
+        FISSURE_FEM_OFF="$1" cargo bench --quiet --bench fem -- audit paper 2>/dev/null \
+            | grep -E '^audit (kept-product-rows|fused-columns|row-chunks|avx2-product)' \
+            | python3 -c '
+import re, statistics, sys
+v = {}
+for line in sys.stdin:
+    m = re.match(r"audit +[a-z0-9-]+ +([a-z]+) *:.*surface product ([0-9.]+) ->", line)
+    if m:
+        v.setdefault(m[1], []).append(float(m[2]))
+print(" / ".join(f"{statistics.median(v[k]):.2f}" if k in v else "n/a" for k in ("held", "growing", "sliding")))'
+    }
+    for ((r = 0; r < rounds; r++)); do
+        if ((r % 2 == 0)); then
+            echo "   with huge pages   : $(products "")"; echo "   without huge pages: $(products huge-pages)"
+        else
+            echo "   without huge pages: $(products huge-pages)"; echo "   with huge pages   : $(products "")"
+        fi
+    done
 fi
 [[ " $parts " == *" 3 "* ]] || exit 0
 
