@@ -25,6 +25,33 @@ fn check_accepts_every_shipped_scene() {
     }
 }
 
+/// `check` says what `refine: Auto` added and where: along the trajectory's
+/// reach, or, for a scene driven by hand, from the blades' first poses; a
+/// scene that says `refine: None` adds nothing and says nothing of it.
+#[test]
+fn check_says_what_refinement_added_and_where() {
+    let added = |args: &[&str]| {
+        let out = fissure(args);
+        assert!(out.status.success(), "check {args:?}: {}", text(&out.stderr));
+        let summary = text(&out.stdout);
+        let line = summary.lines().find(|l| l.trim_start().starts_with("refined:")).map(str::to_string);
+        let nodes = |key: &str| -> usize {
+            let l = summary.lines().find(|l| l.trim_start().starts_with(key)).unwrap_or_else(|| panic!("{key} in {summary}"));
+            l.split_whitespace().nth(1).and_then(|n| n.parse().ok()).unwrap_or_else(|| panic!("a count in {l}"))
+        };
+        (line, nodes("built:"))
+    };
+    let (none, file) = added(&["check", "config/sylvian.ron"]);
+    assert_eq!(none, None, "refine: None adds nothing");
+    let (traj, along) = added(&["check", "config/sylvian.ron", "--set", "refine=Auto"]);
+    let traj = traj.expect("a refined line");
+    assert!(traj.contains(&format!("{} nodes added to the file's {file}", along - file)) && traj.contains("over the trajectory"), "{traj}");
+    let by_hand = ["--set", "trajectory=None", "--set", "spatulas[0].input=Keyboard", "--set", "spatulas[1].input=Keyboard"];
+    let (hand, _) = added(&[&["check", "config/sylvian.ron", "--set", "refine=Auto"][..], &by_hand[..]].concat());
+    let hand = hand.expect("a refined line");
+    assert!(hand.contains("from their first poses") && hand.contains("to 2.00 mm edges"), "{hand}");
+}
+
 #[test]
 fn check_rejects_a_bad_scene_naming_file_line_and_field() {
     let dir = tempfile::tempdir().expect("tmp");

@@ -95,6 +95,18 @@ enum AutoRegion {
     Sphere(crate::scenario::Sphere),
 }
 
+/// Where `refine: Auto` refines `scenario`, in words (`fissure check` says it).
+pub fn auto_region_words(scenario: &Scenario) -> String {
+    let where_ = if scenario.trajectory.is_some() {
+        "along the blades' reach over the trajectory"
+    } else if matches!(scenario.solver.region_of_interest, RegionOfInterest::Sphere(_)) {
+        "inside the region-of-interest sphere"
+    } else {
+        "along the blades' reach from their first poses (no trajectory: driven by hand)"
+    };
+    format!("{where_}, to {:.2} mm edges", auto_edge(scenario) * 1e3)
+}
+
 /// The region `refine: Auto` refines: the blades' reach along the scenario's
 /// own trajectory (its initial poses, then the trajectory sampled over the
 /// run), else its region-of-interest sphere, else (a scene driven only by a
