@@ -73,19 +73,61 @@ pub const AUTO_REFINE_MARGIN_M: f64 = 0.003;
 /// Pose sets sampled over the scenario's trajectory for `refine: Auto`.
 const AUTO_REFINE_SAMPLES: usize = 200;
 
-/// Loads the scene's mesh in metres, refined where the scenario's `refine` asks.
+/// Loads the scene's mesh in metres, refined where the scenario's `refine`
+/// asks; what `refine: Auto` had to give up is logged as a warning.
 pub fn load_mesh(scenario: &Scenario) -> Result<TetMesh, BuildError> {
+    let (mesh, notes) = load_mesh_noting(scenario)?;
+    for n in notes {
+        tracing::warn!("{}", scenario.warning("refine", n));
+    }
+    Ok(mesh)
+}
+
+/// [`load_mesh`], with what `refine: Auto` had to give up (each a warning
+/// on the `refine` field; the preflight reports them with its own).
+pub fn load_mesh_noting(scenario: &Scenario) -> Result<(TetMesh, Vec<String>), BuildError> {
     let mesh = load_unrefined(scenario)?;
     match &scenario.refine {
-        RefineChoice::Off => Ok(mesh),
-        RefineChoice::Given(r) => refine(scenario, r.edge, &|p: &Vec3| r.within.iter().any(|v| v.contains(p)), &mesh),
-        RefineChoice::Auto => match auto_region(scenario)? {
-            Some(AutoRegion::Blades(sets)) => refine_along(scenario, &mesh, &sets, AUTO_REFINE_EDGES_ACROSS),
-            Some(AutoRegion::Sphere(s)) => refine(scenario, auto_edge(scenario), &|p: &Vec3| (p - s.center).norm() <= s.radius, &mesh),
-            None => refine_along(scenario, &mesh, &reach_from_start(scenario), AUTO_REFINE_EDGES_ACROSS),
-        },
+        RefineChoice::Off => Ok((mesh, Vec::new())),
+        RefineChoice::Given(r) => Ok((refine(scenario, r.edge, &|p: &Vec3| r.within.iter().any(|v| v.contains(p)), &mesh)?, Vec::new())),
+        RefineChoice::Auto => refine_auto(scenario, mesh),
     }
 }
+
+/// `refine: Auto`: [`AUTO_REFINE_EDGES_ACROSS`] edges across the narrowest
+/// blade where the blades reach; where that would pass the node limit (a
+/// small mesh under a wide reach), half as many, with a warning; where that
+/// too would, the mesh as it is, with a warning. A default never refuses a
+/// scene that says nothing about refinement.
+fn refine_auto(scenario: &Scenario, mesh: TetMesh) -> Result<(TetMesh, Vec<String>), BuildError> {
+    let inside: Box<dyn Fn(&Vec3) -> bool> = match auto_region(scenario)? {
+        Some(AutoRegion::Blades(sets)) => Box::new(along_inside(scenario, &sets)),
+        Some(AutoRegion::Sphere(s)) => Box::new(move |p: &Vec3| (p - s.center).norm() <= s.radius),
+        None => Box::new(along_inside(scenario, &reach_from_start(scenario))),
+    };
+    let mut passed = Vec::new();
+    for across in [AUTO_REFINE_EDGES_ACROSS, AUTO_REFINE_EDGES_ACROSS / 2.0] {
+        let edge = narrowest_blade(scenario) / across;
+        match refine_boundary(edge, &*inside, &mesh) {
+            Ok(refined) if passed.is_empty() => return Ok((refined, Vec::new())),
+            Ok(refined) => {
+                let note = format!("Auto refined to {:.3} mm edges ({across} across the narrowest blade), not {}: {}", edge * 1e3, passed.join(", not "), TOO_MANY);
+                return Ok((refined, vec![note]));
+            }
+            Err(crate::mesh::refine::RefineError::TooManyNodes { edge_mm, .. }) => passed.push(format!("{edge_mm:.3} mm")),
+            Err(e) => return Err(BuildError::Scenario(scenario.invalid("refine", e.to_string()))),
+        }
+    }
+    let note = format!(
+        "Auto left the mesh as it is: refining to {} edges {TOO_MANY}; say `refine: None` to silence this, or give \
+         `refine: Some((edge_mm: .., within: [..]))` a larger edge or a smaller volume",
+        passed.join(" or ")
+    );
+    Ok((mesh, vec![note]))
+}
+
+/// Why `refine: Auto` gave up a refinement.
+const TOO_MANY: &str = "would pass the node limit (four times the mesh's nodes, or 10,000 more)";
 
 /// Where `refine: Auto` refines.
 enum AutoRegion {
@@ -96,15 +138,14 @@ enum AutoRegion {
 }
 
 /// Where `refine: Auto` refines `scenario`, in words (`fissure check` says it).
-pub fn auto_region_words(scenario: &Scenario) -> String {
-    let where_ = if scenario.trajectory.is_some() {
+pub fn auto_region_words(scenario: &Scenario) -> &'static str {
+    if scenario.trajectory.is_some() {
         "along the blades' reach over the trajectory"
     } else if matches!(scenario.solver.region_of_interest, RegionOfInterest::Sphere(_)) {
         "inside the region-of-interest sphere"
     } else {
         "along the blades' reach from their first poses (no trajectory: driven by hand)"
-    };
-    format!("{where_}, to {:.2} mm edges", auto_edge(scenario) * 1e3)
+    }
 }
 
 /// The region `refine: Auto` refines: the blades' reach along the scenario's
@@ -180,11 +221,16 @@ fn narrowest_blade(scenario: &Scenario) -> f64 {
 /// line at one of the poses, to the narrowest blade's width over
 /// `edges_across`. The study's `refine` knob uses it with its own motion.
 pub fn refine_along(scenario: &Scenario, mesh: &TetMesh, pose_sets: &[Vec<Pose>], edges_across: f64) -> Result<TetMesh, BuildError> {
+    refine(scenario, narrowest_blade(scenario) / edges_across, &along_inside(scenario, pose_sets), mesh)
+}
+
+/// Whether a point lies within a blade's half width plus
+/// [`AUTO_REFINE_MARGIN_M`] of its centre line at one of `pose_sets`.
+fn along_inside(scenario: &Scenario, pose_sets: &[Vec<Pose>]) -> impl Fn(&Vec3) -> bool + use<> {
     let segments: Vec<(Vec3, Vec3, f64)> =
         pose_sets.iter().flat_map(|set| blade_segments(scenario, set).map(|(a, b, w)| (a, b, w + AUTO_REFINE_MARGIN_M)).collect::<Vec<_>>()).collect();
     let (lo, hi) = segments_box(&segments);
-    let inside = |p: &Vec3| (0..3).all(|i| p[i] >= lo[i] && p[i] <= hi[i]) && segments.iter().any(|(a, b, r)| distance_to_segment(p, a, b) <= *r);
-    refine(scenario, narrowest_blade(scenario) / edges_across, &inside, mesh)
+    move |p: &Vec3| (0..3).all(|i| p[i] >= lo[i] && p[i] <= hi[i]) && segments.iter().any(|(a, b, r)| distance_to_segment(p, a, b) <= *r)
 }
 
 /// The box around every (a, b, r) segment grown by its r.
@@ -199,10 +245,14 @@ fn segments_box(segments: &[(Vec3, Vec3, f64)]) -> (Vec3, Vec3) {
 
 /// The scene's boundary refined to `edge` (m) where `inside`; at most four times the nodes.
 fn refine(scenario: &Scenario, edge: f64, inside: &dyn Fn(&Vec3) -> bool, mesh: &TetMesh) -> Result<TetMesh, BuildError> {
+    refine_boundary(edge, inside, mesh).map_err(|e| BuildError::Scenario(scenario.invalid("refine", e.to_string())))
+}
+
+/// [`crate::mesh::refine::refine_boundary`] with the scene's node limit, logged.
+fn refine_boundary(edge: f64, inside: &dyn Fn(&Vec3) -> bool, mesh: &TetMesh) -> Result<TetMesh, crate::mesh::refine::RefineError> {
     let t = std::time::Instant::now();
     let limit = (4 * mesh.node_count()).max(mesh.node_count() + 10_000);
-    let (refined, stats) = crate::mesh::refine::refine_boundary(mesh, edge, inside, limit)
-        .map_err(|e| BuildError::Scenario(scenario.invalid("refine", e.to_string())))?;
+    let (refined, stats) = crate::mesh::refine::refine_boundary(mesh, edge, inside, limit)?;
     tracing::info!(
         "refined the boundary to {:.2} mm edges: {} nodes added ({} on the boundary), {} -> {} tetrahedra, {:.0} ms",
         edge * 1e3,

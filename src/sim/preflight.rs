@@ -29,7 +29,7 @@
 
 use std::path::Path;
 
-use super::build::{BuildError, fixed_nodes, load_mesh};
+use super::build::{BuildError, fixed_nodes, load_mesh_noting};
 use super::pipeline::FrameInput;
 use super::replay::PoseSource;
 use crate::fem::{self, FemError};
@@ -135,11 +135,13 @@ impl Preflight {
 /// Loads the scene's mesh and runs every check of this module (see the
 /// module's docs); `trajectory` replaces the scenario's own.
 pub fn preflight(scenario: &Scenario, trajectory: Option<&Path>) -> Result<Preflight, BuildError> {
-    let mesh = load_mesh(scenario).map_err(|e| match e {
+    let (mesh, notes) = load_mesh_noting(scenario).map_err(|e| match e {
         BuildError::MeshFile(source) => BuildError::Scenario(scenario.invalid(mesh_field(scenario), source.to_string())),
         other => other,
     })?;
-    preflight_with_mesh(scenario, mesh, trajectory)
+    let mut checked = preflight_with_mesh(scenario, mesh, trajectory)?;
+    checked.warnings.extend(notes.into_iter().map(|n| scenario.warning("refine", n)));
+    Ok(checked)
 }
 
 /// [`preflight`] on a mesh already loaded (metres).
