@@ -58,6 +58,22 @@ fn reduced_study_writes_its_outputs_and_accuracy_behaves() {
         assert!(svg.starts_with("<svg") && svg.contains("</svg>"), "{stem}.svg is an SVG document");
     }
 
+    // Each ordered knob's runs against the sweep's finest (the knob alone):
+    // the finest reads exact, the report says it under the sweep.
+    for knob in [Knob::SourceNodes, Knob::Speed] {
+        let rows: Vec<&RunRow> = results.rows.iter().filter(|r| r.knob == Some(knob)).collect();
+        let finest = knob.finest(&rows.iter().map(|r| r.value).collect::<Vec<_>>()).expect("an ordered knob");
+        for (i, r) in rows.iter().enumerate() {
+            let e = r.outcome.as_ref().ok().and_then(|m| m.against_finest).unwrap_or_else(|| panic!("{} against the sweep's finest", r.label));
+            assert!(e.0 >= 0.0 && e.0 <= e.1, "{}: {e:?}", r.label);
+            if i == finest {
+                assert_eq!(e, (0.0, 0.0), "the finest against itself");
+            }
+        }
+        assert!(report.contains(&format!("finest setting ({})", rows[finest].label)), "report.md names the {} sweep's finest", knob.name());
+    }
+    assert!(results.rows.iter().filter(|r| r.knob == Some(Knob::Backend)).all(|r| r.outcome.as_ref().is_ok_and(|m| m.against_finest.is_none())), "backends have no order");
+
     // Accuracy: one reference, exact against itself, and no other run equals it.
     let references: Vec<&RunRow> = results.rows.iter().filter(|r| r.is_reference()).collect();
     assert_eq!(references.len(), 1, "one reference for the whole study");

@@ -100,20 +100,34 @@ fn force_at(path: &[(i64, Vec3)], s: i64) -> Option<Vec3> {
     Some(lo.1 + (hi.1 - lo.1) * t)
 }
 
-/// (RMS, max, points) of |F - F_ref| over the reference's frames, the run's
-/// force interpolated along the path; in N.
-fn force_error(reference: &RunTrace, run: &RunTrace, motion: &Motion) -> (f64, f64, usize) {
-    let path: Vec<(i64, Vec3)> = run.frames.iter().map(|f| (motion.path_position_nm(f.key), f.force)).collect();
+/// The force on the tissue along the path: (path position nm, F in N) a
+/// frame, in path order.
+pub fn force_along(trace: &RunTrace, motion: &Motion) -> Vec<(i64, Vec3)> {
+    trace.frames.iter().map(|f| (motion.path_position_nm(f.key), f.force)).collect()
+}
+
+/// (RMS, max, points) of |F - F_ref| at every point of `reference`'s path
+/// within `run`'s, the run's force interpolated along the path; in N.
+fn force_error(reference: &[(i64, Vec3)], run: &[(i64, Vec3)]) -> (f64, f64, usize) {
     let (mut sum2, mut max, mut n) = (0.0, 0.0_f64, 0usize);
-    for f in &reference.frames {
-        if let Some(force) = force_at(&path, motion.path_position_nm(f.key)) {
-            let e = (f.force - force).norm();
+    for &(s, f) in reference {
+        if let Some(force) = force_at(run, s) {
+            let e = (f - force).norm();
             sum2 += e * e;
             max = max.max(e);
             n += 1;
         }
     }
     (if n > 0 { (sum2 / n as f64).sqrt() } else { 0.0 }, max, n)
+}
+
+/// (RMS, max) of `run`'s force against `reference`'s along the path, % of
+/// the reference's peak |F| (0 without force): how a sweep's runs approach
+/// its finest setting, the same measure as [`compare`]'s force columns.
+pub fn force_error_pct(reference: &[(i64, Vec3)], run: &[(i64, Vec3)]) -> (f64, f64) {
+    let peak = reference.iter().map(|p| p.1.norm()).fold(0.0, f64::max);
+    let (rms, max, _) = force_error(reference, run);
+    if peak > 0.0 { (100.0 * rms / peak, 100.0 * max / peak) } else { (0.0, 0.0) }
 }
 
 /// Compares `run` with `reference` (both with displacements, both along `motion`).
@@ -167,7 +181,7 @@ pub fn compare(reference: &RunTrace, run: &RunTrace, same_mesh: bool, motion: &M
         }
     }
     let peak_force = reference.frames.iter().map(|f| f.force.norm()).fold(0.0, f64::max);
-    let (force_rms, force_max, force_points) = force_error(reference, run, motion);
+    let (force_rms, force_max, force_points) = force_error(&force_along(reference, motion), &force_along(run, motion));
     let pct = |e: f64| if peak_force > 0.0 { 100.0 * e / peak_force } else { 0.0 };
     let pressure_error = pairs.iter().map(|&(r, k)| (reference.frames[r].pressure_mmhg - run.frames[k].pressure_mmhg).abs()).fold(0.0, f64::max);
     let reference_contact_frames = pairs.iter().filter(|&&(r, _)| reference.frames[r].contact > 0).count();
@@ -260,6 +274,21 @@ mod tests {
         assert_eq!(b.force_points, 5, "keys 2 to 6");
         assert!((b.force_max_pct - 100.0).abs() < 1e-9, "{b:?}");
         assert!((b.force_rms_pct - 100.0 / 5f64.sqrt()).abs() < 1e-9, "{b:?}");
+    }
+
+    /// Against a sweep's finest run: the same measure as the reference's
+    /// force columns, in % of the finest run's peak.
+    #[test]
+    fn force_error_pct_is_the_compare_force_measure() {
+        let m = Motion::default();
+        let keys: Vec<i64> = (1..=8).collect();
+        let fine = trace(&keys, &[0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
+        let coarse = trace(&[2, 5, 8], &[1.0, 3.0, 8.0]);
+        let (rms, max) = force_error_pct(&force_along(&fine, &m), &force_along(&coarse, &m));
+        let a = compare(&fine, &coarse, true, &m);
+        assert_eq!((rms, max), (a.force_rms_pct, a.force_max_pct));
+        assert!(max > 0.0 && rms > 0.0 && rms <= max);
+        assert_eq!(force_error_pct(&force_along(&fine, &m), &force_along(&fine, &m)), (0.0, 0.0));
     }
 
     #[test]

@@ -35,6 +35,7 @@ pub use motion::{FrameKey, Motion};
 pub use plan::{Knob, MeshChoice, RoiChoice, RunSpec, Settings, StudyPlan, Sweep};
 pub use runner::{RunError, RunTrace};
 
+use crate::math::Vec3;
 use crate::scenario::{Scenario, ScenarioError};
 use crate::sim::StageId;
 
@@ -160,6 +161,13 @@ pub struct RunMeasure {
     /// The force on the tissue along the path: (path position mm, |F| N) a
     /// frame, for the force-vs-path plot.
     pub force_path: Vec<(f64, f64)>,
+    /// The same force as (path position nm, F N), for the comparison with
+    /// the sweep's finest run.
+    pub force_along: Vec<(i64, Vec3)>,
+    /// Force RMS / max error against this sweep's finest setting
+    /// ([`Knob::finest`]), % of its peak: the knob's own convergence, with
+    /// every other knob at the base. `None` for a knob without an order.
+    pub against_finest: Option<(f64, f64)>,
 }
 
 impl RunMeasure {
@@ -283,6 +291,8 @@ fn measure(trace: &RunTrace, motion: &Motion) -> RunMeasure {
         inverted_max: trace.frames.iter().map(|f| f.inverted).max().unwrap_or(0),
         peak_pressure_mmhg: trace.frames.iter().map(|f| f.pressure_mmhg).fold(0.0, f64::max),
         force_path: trace.frames.iter().map(|f| (motion.path_position_nm(f.key) as f64 * 1e-6, f.force.norm())).collect(),
+        force_along: accuracy::force_along(trace, motion),
+        against_finest: None,
     }
 }
 
@@ -341,6 +351,16 @@ fn reference_trace(
     Ok((trace, None))
 }
 
+/// Each run of a sweep against the sweep's finest run (`finest`, an index
+/// into `rows`): its force along the path, as the reference's force columns
+/// compare it. Nothing when the finest run failed or there is no order.
+fn against_finest(rows: &mut [RunRow], finest: Option<usize>) {
+    let Some(fine) = finest.and_then(|f| rows.get(f)).and_then(|r| r.outcome.as_ref().ok()).map(|m| m.force_along.clone()) else { return };
+    for m in rows.iter_mut().filter_map(|r| r.outcome.as_mut().ok()) {
+        m.against_finest = Some(accuracy::force_error_pct(&fine, &m.force_along));
+    }
+}
+
 fn run_plan_inner(
     plan: &StudyPlan,
     scene: &Scenario,
@@ -380,6 +400,7 @@ fn run_plan_inner(
     });
     let mut done = 1;
     for sweep in &plan.sweeps {
+        let first = rows.len();
         for spec in &sweep.runs {
             progress(StudyProgress { done, total, label: format!("{}: {}", sweep.knob.name(), spec.label) });
             interrupted |= stopped();
@@ -399,6 +420,7 @@ fn run_plan_inner(
             });
             rows.push(RunRow { knob: Some(sweep.knob), label: spec.label.clone(), value: spec.value, settings: spec.settings.clone(), outcome });
         }
+        against_finest(&mut rows[first..], sweep.knob.finest(&sweep.runs.iter().map(|r| r.value).collect::<Vec<_>>()));
     }
     progress(StudyProgress { done: total, total, label: "writing the report".into() });
     let mut results = StudyResults {

@@ -28,7 +28,8 @@ pub const CSV_HEADER: &str = "knob,label,value,reference,mesh,mesh_nodes,surface
 speed_thickness_per_frame,storage,roi,contact,substep_travel,skull,refine_edges_across,status,frames,build_s,compliance_mb,compliance_cached,\
 collision_p50_ms,collision_p95_ms,solve_p50_ms,solve_p95_ms,forces_p50_ms,forces_p95_ms,monitor_p50_ms,monitor_p95_ms,\
 frame_p50_ms,frame_p95_ms,comparison,frames_compared,rms_error_mm,max_error_mm,force_rms_pct,force_max_pct,force_points,missed_contact_frames,\
-reference_contact_frames,pressure_error_mmhg,peak_pressure_mmhg,crossed_vertices,penetrating_max,penetration_max_mm,inverted_max";
+reference_contact_frames,pressure_error_mmhg,peak_pressure_mmhg,crossed_vertices,penetrating_max,penetration_max_mm,inverted_max,\
+finest_force_rms_pct,finest_force_max_pct";
 
 fn quote(s: &str) -> String {
     format!("\"{}\"", s.replace('"', "\"\""))
@@ -125,7 +126,13 @@ pub fn csv_line(r: &RunRow) -> String {
         }
         None => line.push_str(",,,,,,,,,,"),
     }
-    let _ = write!(line, "{:.4},{},{},{:.6},{}", m.peak_pressure_mmhg, m.crossed_total, m.penetrating_max, m.penetration_max_m * 1e3, m.inverted_max);
+    let _ = write!(line, "{:.4},{},{},{:.6},{},", m.peak_pressure_mmhg, m.crossed_total, m.penetrating_max, m.penetration_max_m * 1e3, m.inverted_max);
+    match m.against_finest {
+        Some((rms, max)) => {
+            let _ = write!(line, "{rms:.4},{max:.4}");
+        }
+        None => line.push(','),
+    }
     line
 }
 
@@ -266,6 +273,27 @@ pub fn accuracy_cells(report: &str) -> Vec<(String, String, Vec<String>)> {
         }
     }
     out
+}
+
+/// The knob alone: each run's force against the sweep's finest run (the
+/// one that reads exact), when the knob has an order.
+fn write_against_finest(t: &mut String, knob: Knob, rows: &[&RunRow]) {
+    let Some(finest) = knob.finest(&rows.iter().map(|r| r.value).collect::<Vec<_>>()).map(|f| &rows[f].label) else { return };
+    let cells: Vec<(String, (f64, f64))> =
+        rows.iter().filter_map(|r| r.outcome.as_ref().ok().and_then(|m| m.against_finest).map(|e| (r.label.clone(), e))).collect();
+    if cells.len() < 2 {
+        return;
+    }
+    let _ = write!(
+        t,
+        "\nThis knob alone, every other at the base: each run's force against this sweep's finest setting ({finest}) along the path, \
+         RMS / max % of its peak: "
+    );
+    let parts: Vec<String> = cells
+        .iter()
+        .map(|(label, (rms, max))| if (*rms, *max) == (0.0, 0.0) { format!("{label} exact") } else { format!("{label} {rms:.2} / {max:.2}") })
+        .collect();
+    let _ = writeln!(t, "{}.", parts.join("; "));
 }
 
 fn run_table_row(t: &mut String, r: &RunRow) {
@@ -512,9 +540,10 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         }
         let _ = writeln!(t, "## Sweep: {}\n", knob.name());
         t.push_str(RUN_TABLE_HEADER);
-        for r in rows {
+        for r in &rows {
             run_table_row(&mut t, r);
         }
+        write_against_finest(&mut t, knob, &rows);
         if knob == Knob::Contact {
             t.push_str("\n![Culling under both contact models](speed_vs_error.png)\n");
         }

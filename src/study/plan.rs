@@ -62,6 +62,30 @@ impl Knob {
         }
     }
 
+    /// Which of a sweep's runs of this knob (by their [`RunSpec::value`]s) is
+    /// its finest setting, the one
+    /// each run's own convergence is judged against: the most source nodes,
+    /// the finest mesh (meshes come coarsest first), the slowest blade, the
+    /// shortest sub-step, the most edges across a blade. `None` for a knob
+    /// whose settings are not coarser and finer versions of one another
+    /// (contact law and culling, backend, storage, region, skull).
+    pub fn finest(self, values: &[f64]) -> Option<usize> {
+        let pick = |finer: fn(f64, f64) -> bool| {
+            let mut best: Option<usize> = None;
+            for (i, &v) in values.iter().enumerate() {
+                if best.is_none_or(|b| finer(v, values[b])) {
+                    best = Some(i);
+                }
+            }
+            best
+        };
+        match self {
+            Knob::SourceNodes | Knob::Mesh | Knob::Refine => pick(|a, b| a > b),
+            Knob::Speed | Knob::Substeps => pick(|a, b| a < b),
+            Knob::Contact | Knob::Backend | Knob::Storage | Knob::RegionOfInterest | Knob::Skull => None,
+        }
+    }
+
     /// The knob of a [`Knob::name`].
     pub fn from_name(name: &str) -> Option<Knob> {
         Knob::ALL.into_iter().find(|k| k.name() == name)
