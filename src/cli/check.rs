@@ -31,13 +31,8 @@ pub fn run(path: &Path, overrides: &[String], trajectory: Option<&Path>) -> anyh
         m.fixed_nodes,
         if m.fixed_nodes == 1 { "" } else { "s" }
     );
-    if scenario.refine != fissure::scenario::RefineChoice::Off {
-        let file = fissure::sim::build::load_unrefined(&scenario).with_context(|| format!("scenario {} is not valid", path.display()))?.node_count();
-        let how = match &scenario.refine {
-            fissure::scenario::RefineChoice::Auto => format!("Auto: {}", fissure::sim::build::auto_region_words(&scenario)),
-            _ => "the given volumes".to_string(),
-        };
-        println!("  refined:   {} nodes added to the file's {file} ({how})", m.nodes.saturating_sub(file));
+    if let Some(how) = m.refined {
+        println!("  refined:   {} nodes added to the file's {} ({how})", m.nodes.saturating_sub(m.file_nodes), m.file_nodes);
     }
     if let Some(v) = m.surface_vertices {
         let clearance = |c: Option<f64>| c.map_or_else(|| "none".to_string(), |g| format!("{:.2} mm", g / MM));

@@ -17,6 +17,7 @@ use crate::fem::{self, BodyForce, Compliance, ConstrainedSolver, FemModel, FemOp
 use crate::geometry::Pose;
 use crate::math::Vec3;
 use crate::mesh::TetMesh;
+use crate::mesh::refine::RefineError;
 use crate::mesh::quality::components;
 use crate::scenario::{
     CollisionBackend, ComplianceStorage as ScenarioStorage, Effect, FixedRegion, MeshSource, RefineChoice, RegionOfInterest, Scenario,
@@ -76,34 +77,54 @@ const AUTO_REFINE_SAMPLES: usize = 200;
 /// Loads the scene's mesh in metres, refined where the scenario's `refine`
 /// asks; what `refine: Auto` had to give up is logged as a warning.
 pub fn load_mesh(scenario: &Scenario) -> Result<TetMesh, BuildError> {
-    let (mesh, notes) = load_mesh_noting(scenario)?;
-    for n in notes {
+    let loaded = load_mesh_noting(scenario)?;
+    for n in loaded.notes {
         tracing::warn!("{}", scenario.warning("refine", n));
     }
-    Ok(mesh)
+    Ok(loaded.mesh)
 }
 
-/// [`load_mesh`], with what `refine: Auto` had to give up (each a warning
-/// on the `refine` field; the preflight reports them with its own).
-pub fn load_mesh_noting(scenario: &Scenario) -> Result<(TetMesh, Vec<String>), BuildError> {
+/// A scene's mesh as [`load_mesh_noting`] loaded it.
+pub struct LoadedMesh {
+    /// The mesh, metres.
+    pub mesh: TetMesh,
+    /// Nodes of the file or preset (a refined mesh keeps them first, in order).
+    pub file_nodes: usize,
+    /// Where the boundary was refined, in words; `None` with `refine: None`.
+    pub refined: Option<&'static str>,
+    /// What `refine: Auto` had to give up, each a warning on `refine` (the
+    /// preflight reports them with its own).
+    pub notes: Vec<String>,
+}
+
+/// [`load_mesh`], saying where it refined and what `refine: Auto` gave up.
+pub fn load_mesh_noting(scenario: &Scenario) -> Result<LoadedMesh, BuildError> {
     let mesh = load_unrefined(scenario)?;
+    let file_nodes = mesh.node_count();
+    let loaded = |mesh, refined, notes| LoadedMesh { mesh, file_nodes, refined, notes };
     match &scenario.refine {
-        RefineChoice::Off => Ok((mesh, Vec::new())),
-        RefineChoice::Given(r) => Ok((refine(scenario, r.edge, &|p: &Vec3| r.within.iter().any(|v| v.contains(p)), &mesh)?, Vec::new())),
-        RefineChoice::Auto => refine_auto(scenario, mesh),
+        RefineChoice::Off => Ok(loaded(mesh, None, Vec::new())),
+        RefineChoice::Given(r) => {
+            let mesh = refine(scenario, r.edge, &|p: &Vec3| r.within.iter().any(|v| v.contains(p)), &mesh)?;
+            Ok(loaded(mesh, Some("inside the given volumes"), Vec::new()))
+        }
+        RefineChoice::Auto => {
+            let region = auto_region(scenario)?;
+            let (mesh, notes) = refine_auto(scenario, &region, mesh)?;
+            Ok(loaded(mesh, Some(region.words()), notes))
+        }
     }
 }
 
-/// `refine: Auto`: [`AUTO_REFINE_EDGES_ACROSS`] edges across the narrowest
-/// blade where the blades reach; where that would pass the node limit (a
-/// small mesh under a wide reach), half as many, with a warning; where that
-/// too would, the mesh as it is, with a warning. A default never refuses a
-/// scene that says nothing about refinement.
-fn refine_auto(scenario: &Scenario, mesh: TetMesh) -> Result<(TetMesh, Vec<String>), BuildError> {
-    let inside: Box<dyn Fn(&Vec3) -> bool> = match auto_region(scenario)? {
-        Some(AutoRegion::Blades(sets)) => Box::new(along_inside(scenario, &sets)),
-        Some(AutoRegion::Sphere(s)) => Box::new(move |p: &Vec3| (p - s.center).norm() <= s.radius),
-        None => Box::new(along_inside(scenario, &reach_from_start(scenario))),
+/// `refine: Auto` over `region`: [`AUTO_REFINE_EDGES_ACROSS`] edges across
+/// the narrowest blade; where that would pass the node limit (a small mesh
+/// under a wide reach), half as many, with a note; where that too would, the
+/// mesh as it is, with a note. A default never refuses a scene that says
+/// nothing about refinement.
+fn refine_auto(scenario: &Scenario, region: &AutoRegion, mesh: TetMesh) -> Result<(TetMesh, Vec<String>), BuildError> {
+    let inside: Box<dyn Fn(&Vec3) -> bool + '_> = match region {
+        AutoRegion::Trajectory(sets) | AutoRegion::FirstPoses(sets) => Box::new(along_inside(scenario, sets)),
+        AutoRegion::Sphere(s) => Box::new(move |p: &Vec3| (p - s.center).norm() <= s.radius),
     };
     let mut passed = Vec::new();
     for across in [AUTO_REFINE_EDGES_ACROSS, AUTO_REFINE_EDGES_ACROSS / 2.0] {
@@ -111,56 +132,55 @@ fn refine_auto(scenario: &Scenario, mesh: TetMesh) -> Result<(TetMesh, Vec<Strin
         match refine_boundary(edge, &*inside, &mesh) {
             Ok(refined) if passed.is_empty() => return Ok((refined, Vec::new())),
             Ok(refined) => {
-                let note = format!("Auto refined to {:.3} mm edges ({across} across the narrowest blade), not {}: {}", edge * 1e3, passed.join(", not "), TOO_MANY);
+                let note = format!("Auto refined to {:.3} mm edges ({across} across the narrowest blade), not {}", edge * 1e3, passed.join(", not "));
                 return Ok((refined, vec![note]));
             }
-            Err(crate::mesh::refine::RefineError::TooManyNodes { edge_mm, .. }) => passed.push(format!("{edge_mm:.3} mm")),
-            Err(e) => return Err(BuildError::Scenario(scenario.invalid("refine", e.to_string()))),
+            Err(RefineError::TooManyNodes { edge_mm, limit, .. }) => passed.push(format!("{edge_mm:.3} mm: that would pass {limit} nodes")),
+            Err(e) => return Err(refine_refused(scenario, e)),
         }
     }
     let note = format!(
-        "Auto left the mesh as it is: refining to {} edges {TOO_MANY}; say `refine: None` to silence this, or give \
+        "Auto left the mesh as it is, not {}; say `refine: None` to silence this, or give \
          `refine: Some((edge_mm: .., within: [..]))` a larger edge or a smaller volume",
-        passed.join(" or ")
+        passed.join(", not ")
     );
     Ok((mesh, vec![note]))
 }
 
-/// Why `refine: Auto` gave up a refinement.
-const TOO_MANY: &str = "would pass the node limit (four times the mesh's nodes, or 10,000 more)";
-
 /// Where `refine: Auto` refines.
 enum AutoRegion {
-    /// The blades' poses sampled over the trajectory.
-    Blades(Vec<Vec<Pose>>),
+    /// The blades' poses sampled over the scenario's trajectory.
+    Trajectory(Vec<Vec<Pose>>),
     /// The scenario's region-of-interest sphere (a scene without a trajectory).
     Sphere(crate::scenario::Sphere),
+    /// The reach from the blades' first poses ([`reach_from_start`]): a scene
+    /// driven only by hand.
+    FirstPoses(Vec<Vec<Pose>>),
 }
 
-/// Where `refine: Auto` refines `scenario`, in words (`fissure check` says it).
-pub fn auto_region_words(scenario: &Scenario) -> &'static str {
-    if scenario.trajectory.is_some() {
-        "along the blades' reach over the trajectory"
-    } else if matches!(scenario.solver.region_of_interest, RegionOfInterest::Sphere(_)) {
-        "inside the region-of-interest sphere"
-    } else {
-        "along the blades' reach from their first poses (no trajectory: driven by hand)"
+impl AutoRegion {
+    /// In words (`fissure check` says it).
+    fn words(&self) -> &'static str {
+        match self {
+            AutoRegion::Trajectory(_) => "Auto, along the blades' reach over the trajectory",
+            AutoRegion::Sphere(_) => "Auto, inside the region-of-interest sphere",
+            AutoRegion::FirstPoses(_) => "Auto, along the blades' reach from their first poses (no trajectory: driven by hand)",
+        }
     }
 }
 
 /// The region `refine: Auto` refines: the blades' reach along the scenario's
 /// own trajectory (its initial poses, then the trajectory sampled over the
 /// run), else its region-of-interest sphere, else (a scene driven only by a
-/// keyboard, a gamepad or a tracker) `None`: the reach from the blades' first
-/// poses ([`reach_from_start`]).
-fn auto_region(scenario: &Scenario) -> Result<Option<AutoRegion>, BuildError> {
+/// keyboard, a gamepad or a tracker) the reach from the blades' first poses.
+fn auto_region(scenario: &Scenario) -> Result<AutoRegion, BuildError> {
     if scenario.trajectory.is_some() {
         let poses = super::replay::PoseSource::for_scenario(scenario, None)?;
-        return Ok(Some(AutoRegion::Blades(poses.samples(scenario.duration, AUTO_REFINE_SAMPLES))));
+        return Ok(AutoRegion::Trajectory(poses.samples(scenario.duration, AUTO_REFINE_SAMPLES)));
     }
     Ok(match scenario.solver.region_of_interest {
-        RegionOfInterest::Sphere(s) => Some(AutoRegion::Sphere(s)),
-        _ => None,
+        RegionOfInterest::Sphere(s) => AutoRegion::Sphere(s),
+        _ => AutoRegion::FirstPoses(reach_from_start(scenario)),
     })
 }
 
@@ -245,11 +265,16 @@ fn segments_box(segments: &[(Vec3, Vec3, f64)]) -> (Vec3, Vec3) {
 
 /// The scene's boundary refined to `edge` (m) where `inside`; at most four times the nodes.
 fn refine(scenario: &Scenario, edge: f64, inside: &dyn Fn(&Vec3) -> bool, mesh: &TetMesh) -> Result<TetMesh, BuildError> {
-    refine_boundary(edge, inside, mesh).map_err(|e| BuildError::Scenario(scenario.invalid("refine", e.to_string())))
+    refine_boundary(edge, inside, mesh).map_err(|e| refine_refused(scenario, e))
+}
+
+/// A refinement's failure as the scenario's error on `refine`.
+fn refine_refused(scenario: &Scenario, e: RefineError) -> BuildError {
+    BuildError::Scenario(scenario.invalid("refine", e.to_string()))
 }
 
 /// [`crate::mesh::refine::refine_boundary`] with the scene's node limit, logged.
-fn refine_boundary(edge: f64, inside: &dyn Fn(&Vec3) -> bool, mesh: &TetMesh) -> Result<TetMesh, crate::mesh::refine::RefineError> {
+fn refine_boundary(edge: f64, inside: &dyn Fn(&Vec3) -> bool, mesh: &TetMesh) -> Result<TetMesh, RefineError> {
     let t = std::time::Instant::now();
     let limit = (4 * mesh.node_count()).max(mesh.node_count() + 10_000);
     let (refined, stats) = crate::mesh::refine::refine_boundary(mesh, edge, inside, limit)?;

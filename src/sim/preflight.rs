@@ -79,6 +79,10 @@ pub struct MeshFacts {
     pub containing_clearance: Option<f64>,
     /// Smallest gap at rest between the surface and the excluding sphere, m.
     pub excluding_clearance: Option<f64>,
+    /// Nodes of the file or preset before any refinement.
+    pub file_nodes: usize,
+    /// Where the boundary was refined, in words; `None` when it was not.
+    pub refined: Option<&'static str>,
 }
 
 /// The largest travel of one blade in one time step of the played motion.
@@ -135,12 +139,13 @@ impl Preflight {
 /// Loads the scene's mesh and runs every check of this module (see the
 /// module's docs); `trajectory` replaces the scenario's own.
 pub fn preflight(scenario: &Scenario, trajectory: Option<&Path>) -> Result<Preflight, BuildError> {
-    let (mesh, notes) = load_mesh_noting(scenario).map_err(|e| match e {
+    let loaded = load_mesh_noting(scenario).map_err(|e| match e {
         BuildError::MeshFile(source) => BuildError::Scenario(scenario.invalid(mesh_field(scenario), source.to_string())),
         other => other,
     })?;
-    let mut checked = preflight_with_mesh(scenario, mesh, trajectory)?;
-    checked.warnings.extend(notes.into_iter().map(|n| scenario.warning("refine", n)));
+    let mut checked = preflight_with_mesh(scenario, loaded.mesh, trajectory)?;
+    (checked.mesh.facts.file_nodes, checked.mesh.facts.refined) = (loaded.file_nodes, loaded.refined);
+    checked.warnings.extend(loaded.notes.into_iter().map(|n| scenario.warning("refine", n)));
     Ok(checked)
 }
 
@@ -319,7 +324,7 @@ pub fn check_mesh(scenario: &Scenario, mesh: TetMesh) -> Result<CheckedMesh, Bui
             other => BuildError::Fem(other),
         });
     }
-    let mut facts = MeshFacts { nodes: mesh.node_count(), tets: mesh.tets.len(), components: comps.count, fixed_nodes: fixed_count, ..Default::default() };
+    let mut facts = MeshFacts { nodes: mesh.node_count(), tets: mesh.tets.len(), components: comps.count, fixed_nodes: fixed_count, file_nodes: mesh.node_count(), ..Default::default() };
     if let Some(skull) = scenario.skull.filter(|_| scenario.effects.contains(Effect::SkullSpheres)) {
         let surface = mesh.boundary();
         facts.surface_vertices = Some(surface.vertices.len());

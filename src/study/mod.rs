@@ -158,11 +158,9 @@ pub struct RunMeasure {
     pub inverted_max: u32,
     /// Highest mean contact pressure of the run, mmHg.
     pub peak_pressure_mmhg: f64,
-    /// The force on the tissue along the path: (path position mm, |F| N) a
-    /// frame, for the force-vs-path plot.
-    pub force_path: Vec<(f64, f64)>,
-    /// The same force as (path position nm, F N), for the comparison with
-    /// the sweep's finest run.
+    /// The force on the tissue along the path: (path position nm, F N) a
+    /// frame, for the force-vs-path plot and the comparison with the sweep's
+    /// finest run.
     pub force_along: Vec<(i64, Vec3)>,
     /// Force RMS / max error against this sweep's finest setting
     /// ([`Knob::finest`]), % of its peak: the knob's own convergence, with
@@ -290,7 +288,6 @@ fn measure(trace: &RunTrace, motion: &Motion) -> RunMeasure {
         penetration_max_m: trace.frames.iter().map(|f| f.max_penetration_m).fold(0.0, f64::max),
         inverted_max: trace.frames.iter().map(|f| f.inverted).max().unwrap_or(0),
         peak_pressure_mmhg: trace.frames.iter().map(|f| f.pressure_mmhg).fold(0.0, f64::max),
-        force_path: trace.frames.iter().map(|f| (motion.path_position_nm(f.key) as f64 * 1e-6, f.force.norm())).collect(),
         force_along: accuracy::force_along(trace, motion),
         against_finest: None,
     }

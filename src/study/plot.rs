@@ -251,7 +251,10 @@ fn draw_knobs<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &Study
 /// own scale and shows the part of the path where its forces are.
 fn draw_force_path<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &StudyResults) -> Res {
     root.fill(&WHITE).map_err(err)?;
-    let path_of = |r: &RunRow| r.outcome.as_ref().ok().map(|m| m.force_path.clone()).filter(|p| !p.is_empty());
+    let path_of = |r: &RunRow| {
+        let mm_newton = |m: &super::RunMeasure| m.force_along.iter().map(|(s, f)| (*s as f64 * 1e-6, f.norm())).collect::<Vec<_>>();
+        r.outcome.as_ref().ok().map(mm_newton).filter(|p| !p.is_empty())
+    };
     let reference = results.rows.iter().find(|r| r.is_reference()).and_then(path_of);
     let knobs: Vec<Knob> = Knob::ALL.into_iter().filter(|k| results.rows.iter().any(|r| r.knob == Some(*k) && path_of(r).is_some())).collect();
     let root = root.titled("Force on the tissue along the path: each knob's runs against the reference (black)", (FONT, 26)).map_err(err)?;
