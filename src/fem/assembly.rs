@@ -1,13 +1,10 @@
 //! Assembly of the global stiffness over the free degrees of freedom.
 //!
-//! In: a [`TetMesh`], per-tet Lamé parameters, the per-node fixed flags.
-//! Out: a [`DofMap`] (node -> free DOF block), the lower triangle of `K_FF` in
-//! compressed sparse columns (faer layout), a lumped body-force vector, and the
-//! connected-component check that turns a would-be singular factorization into
-//! a named error.
-//! Stays true: DOF `3 * free_index(node) + component`; assembly visits tets in
-//! index order, so the values are bitwise reproducible; fixed nodes and nodes
-//! used by no tet carry no DOF (their displacement is zero).
+//! In: a [`TetMesh`], per-tet Lamé parameters, the per-node fixed flags. Out: a [`DofMap`] (node -> free DOF
+//! block), the lower triangle of `K_FF` in compressed sparse columns (faer layout), a lumped body-force vector, and
+//! the connected-component check that turns a would-be singular factorization into a named error.
+//! Stays true: DOF `3 * free_index(node) + component`; assembly visits tets in index order, so the values are
+//! bitwise reproducible; fixed nodes and nodes used by no tet carry no DOF (their displacement is zero).
 
 use super::FemError;
 use super::element::tet_stiffness;
@@ -216,9 +213,8 @@ pub fn assemble_lower(mesh: &TetMesh, lame: &[(f64, f64)], dofs: &DofMap) -> Low
     LowerCsc { dim, col_ptr, row_idx, values }
 }
 
-/// Adds every tetrahedron's stiffness into `values`, the lower CSC laid out
-/// by [`assemble_lower`] (`row_nodes[node_ptr[j]..]`: the row nodes of column
-/// node `j`, itself first; `col_ptr`: the DOF columns' starts).
+/// Adds every tetrahedron's stiffness into `values`, the lower CSC laid out by [`assemble_lower`]
+/// (`row_nodes[node_ptr[j]..]`: column node `j`'s row nodes, itself first; `col_ptr`: the DOF columns' starts).
 fn add_element_stiffness(mesh: &TetMesh, lame: &[(f64, f64)], dofs: &DofMap, row_nodes: &[u32], node_ptr: &[usize], col_ptr: &[usize], values: &mut [f64]) {
     for (t, tet) in mesh.tets.iter().enumerate() {
         let f = tet.map(|n| dofs.free_index[n as usize]);
@@ -256,9 +252,8 @@ fn add_element_stiffness(mesh: &TetMesh, lame: &[(f64, f64)], dofs: &DofMap, row
     }
 }
 
-/// Full stiffness of ALL nodes (fixed or not) as sorted (row, col, value)
-/// triplets with duplicates summed: DOF `3 * node + component`. For tests and
-/// direct reference solves; not on any per-frame path.
+/// Full stiffness of ALL nodes (fixed or not) as sorted (row, col, value) triplets with duplicates summed, DOF
+/// `3 * node + component`. For tests and direct reference solves; not on any per-frame path.
 pub fn assemble_full_triplets(mesh: &TetMesh, lame: &[(f64, f64)]) -> Vec<(usize, usize, f64)> {
     let mut trip: Vec<(usize, usize, f64)> = Vec::with_capacity(mesh.tets.len() * 144);
     for (t, tet) in mesh.tets.iter().enumerate() {
@@ -286,8 +281,8 @@ pub fn assemble_full_triplets(mesh: &TetMesh, lame: &[(f64, f64)]) -> Vec<(usize
     out
 }
 
-/// Lumped body force (N) per free DOF: each tet's weight `density * V * g` split
-/// equally over its four nodes. `density` kg/m^3, `acceleration` m/s^2.
+/// Lumped body force (N) per free DOF: each tet's weight `density * V * g` split equally over its four nodes.
+/// `density` kg/m^3, `acceleration` m/s^2.
 pub fn body_force(mesh: &TetMesh, dofs: &DofMap, density: f64, acceleration: Vec3) -> Vec<f64> {
     let mut f = vec![0.0; dofs.dof_count()];
     for tet in &mesh.tets {

@@ -1,20 +1,13 @@
-//! Every node's displacement, and per-tet stress when asked, on a background
-//! thread: for a display that wants the strain colour without the scene's
-//! synchronous StressField stage, or the surface beyond the working region
-//! (no compliance rows) up to date.
+//! Every node's displacement, and per-tet stress when asked, on a background thread: for a display that wants
+//! strain colour without the synchronous StressField stage, or the surface beyond the working region up to date.
 //!
-//! In: after a frame, that frame's nodal forces on the tissue
-//! ([`super::ConstrainedSolver::last_forces`]) and whether stress is wanted.
-//! Out: now and then, every node's displacement (and the stress of every
-//! tet) for the newest frame the worker finished (one interior sparse solve
-//! and the stress pass, about 20 ms on paper-12k, on the other core).
-//! Stays true: the simulation never waits for it (a newer request replaces one
-//! not yet started, so the worker is never more than one solve behind); values
-//! equal what [`super::element_stress`] gives for the same forces; buffers go
-//! back and forth, so a steady state allocates nothing; a worker
-//! that fails reports it once and stops; dropping this ends the thread after
-//! its current solve without waiting for it. Not for replays: which frames get
-//! stress depends on timing (replays use the StressField stage).
+//! In: after a frame, its nodal forces on the tissue ([`super::ConstrainedSolver::last_forces`]) and whether stress
+//! is wanted. Out: now and then, every node's displacement (and every tet's stress) for the newest frame the worker
+//! finished (one interior sparse solve and the stress pass, on the other core).
+//! Stays true: the simulation never waits for it (a newer request replaces one not yet started, so the worker is
+//! at most one solve behind); values equal [`super::element_stress`]'s for the same forces; buffers go back and
+//! forth, so a steady state allocates nothing; a failing worker reports once and stops; dropping this ends the
+//! thread after its current solve. Not for replays: which frames get stress depends on timing.
 
 use super::assembly::DofMap;
 use super::model::displacements_from_forces;
@@ -38,13 +31,13 @@ struct Inputs {
 struct Exchange {
     /// The newest frame's forces not yet taken by the worker, and whether stress is wanted.
     request: Option<(u64, Vec<(u32, Vec3)>, bool)>,
-    /// The newest finished frame, its stress (empty unless asked) and every node's displacement, until taken.
+    /// The newest finished frame ([`Solved`]), until taken.
     result: Option<Solved>,
     /// Set when the owner is dropped.
     closed: bool,
     /// Set (with the reason) when the worker failed.
     failed: Option<String>,
-    /// Buffers handed back for reuse, so that a steady state allocates nothing.
+    /// Buffers handed back for reuse.
     spare_forces: Vec<(u32, Vec3)>,
     spare_stress: Vec<ElementStress>,
     spare_nodes: Vec<Vec3>,
@@ -72,8 +65,7 @@ impl std::fmt::Debug for StressWorker {
 }
 
 impl StressWorker {
-    /// Starts the worker thread for `model` (a copy of its mesh and materials,
-    /// the shared factor). Err when the thread cannot start.
+    /// Starts the worker thread for `model` (a copy of its mesh and materials, the shared factor); Err if it cannot.
     pub fn start(model: &FemModel) -> Result<Self, FemError> {
         let inputs = Inputs {
             chol: Arc::clone(&model.chol),
@@ -91,9 +83,8 @@ impl StressWorker {
         Ok(Self { shared, failure_reported: false })
     }
 
-    /// Asks for the displacement (and with `stress`, the stress) of frame
-    /// `frame` with these forces; replaces a request the worker has not
-    /// started. Never waits for the worker.
+    /// Asks for the displacement (and with `stress`, the stress) of frame `frame` with these forces, replacing a
+    /// request the worker has not started. Never waits.
     pub fn post(&self, frame: u64, forces: &[(u32, Vec3)], stress: bool) {
         let mut x = lock(&self.shared);
         match x.request.as_mut() {
@@ -114,9 +105,8 @@ impl StressWorker {
         self.shared.1.notify_one();
     }
 
-    /// Moves the newest finished stress (empty unless asked) and node
-    /// displacements into `stress` and `nodes` and returns its frame; `None`
-    /// when nothing new has finished since the last call.
+    /// Moves the newest finished stress (empty unless asked) and node displacements into `stress` and `nodes` and
+    /// returns its frame; `None` when nothing new has finished since the last call.
     pub fn take(&self, stress: &mut Vec<ElementStress>, nodes: &mut Vec<Vec3>) -> Option<u64> {
         let mut x = lock(&self.shared);
         let solved = x.result.take()?;
@@ -133,9 +123,8 @@ impl StressWorker {
         Some(reason)
     }
 
-    /// Waits until the worker has finished frame `frame` or a later one and
-    /// moves its results as [`Self::take`] does (tests and tools; the frame
-    /// loop never waits). `None` when the worker failed.
+    /// Waits until the worker has finished frame `frame` or a later one and moves its results as [`Self::take`]
+    /// does (tests and tools; the frame loop never waits). `None` when the worker failed.
     pub fn wait_for(&self, frame: u64, stress: &mut Vec<ElementStress>, nodes: &mut Vec<Vec3>) -> Option<u64> {
         let mut x = lock(&self.shared);
         loop {

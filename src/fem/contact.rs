@@ -1,17 +1,12 @@
 //! Contact area and mean retraction pressure per spatula.
 //!
-//! In: the boundary surface, surface-vertex positions (m; the deformed ones
-//! for the contact as it is), the frame's constraints and their reactions (N).
-//! Out: per spatula owner the contact area (m^2), total force (N) and mean
-//! pressure `|force| / area` in Pa and mmHg (1 mmHg = 133.322 Pa).
-//! Contact area = the lumped area (a third of each adjacent triangle's) of the
-//! surface vertices that spatula pushes this frame: a row with a non-zero
-//! reaction (an enforced displacement of the paper's bilateral contact always
-//! counts). A row the solver left inactive is no contact: a released vertex
-//! leaves the face, and a blade barrier row only guards a vertex near the
-//! blade, up to a couple of millimetres away. A vertex pushed by two spatulas
-//! counts for neither. Stays true: owners ascending; area 0 gives
-//! pressure 0 (reported as such, never Inf/NaN).
+//! In: the boundary surface, surface-vertex positions (m; deformed for the contact as it is), the frame's
+//! constraints and their reactions (N). Out: per spatula owner the contact area (m^2), total force (N) and mean
+//! pressure `|force| / area` in Pa and mmHg.
+//! Contact area: the lumped area (a third of each adjacent triangle's) of the vertices the spatula pushes this
+//! frame, i.e. with a non-zero reaction (an enforced displacement always counts); an inactive row (a released
+//! vertex, a blade barrier guarding a nearby vertex) is no contact. A vertex pushed by two spatulas counts for
+//! neither. Stays true: owners ascending; area 0 gives pressure 0 (never Inf/NaN).
 
 use super::constrained::{Constraint, ConstraintKind};
 use crate::math::Vec3;
@@ -29,8 +24,7 @@ pub struct ContactPatch {
     pub owner: u16,
     /// Lumped area of the pushed surface vertices, m^2.
     pub area: f64,
-    /// How many surface vertices this spatula alone pushes (the patch's size in
-    /// vertices: a few dots or a patch).
+    /// How many surface vertices this spatula alone pushes (a few dots or a patch).
     pub vertices: u32,
     /// Sum of the reactions of this owner's enforced constraints (force on the tissue), N.
     pub force: Vec3,
@@ -40,12 +34,8 @@ pub struct ContactPatch {
     pub mean_pressure_mmhg: f64,
 }
 
-/// Scratch of [`contact_patches`] for one surface, reused between frames:
-/// the triangles around each surface vertex (built once, from the surface it
-/// is made for), each vertex's owner this frame and the vertices and
-/// triangles that have one. A frame then reads only the triangles around the
-/// pushed vertices instead of the whole surface (67.7k triangles on the fine
-/// brain for a patch of a hundred vertices).
+/// Scratch of [`contact_patches`] for one surface, reused between frames: the triangles around each vertex and this
+/// frame's vertex owners, so a frame reads only the triangles around the pushed vertices.
 #[derive(Debug, Default)]
 pub struct ContactScratch {
     /// Triangles around surface vertex v: `around[start[v]..start[v + 1]]`, ascending.
@@ -79,10 +69,8 @@ impl ContactScratch {
 const NONE: u32 = u32::MAX;
 const MANY: u32 = u32::MAX - 1;
 
-/// Computes one [`ContactPatch`] per spatula owner present in `constraints`.
-/// `scratch` serves one surface: made for it ([`ContactScratch::for_surface`])
-/// or default (built on the first call); its adjacency is rebuilt when the
-/// surface's vertex or triangle count differs from the one it was built for.
+/// One [`ContactPatch`] per spatula owner in `constraints`. `scratch` serves one surface (made for it by
+/// [`ContactScratch::for_surface`], or default and built on first use); it is rebuilt when the surface's counts change.
 pub fn contact_patches(
     surface: &BoundarySurface,
     positions: &[Vec3],
@@ -129,8 +117,7 @@ pub fn contact_patches(
             out[i].vertices += 1;
         }
     }
-    // The triangles with an owned vertex, in ascending order: the areas add
-    // up in the order of a pass over every triangle.
+    // The triangles with an owned vertex, ascending: the areas add up in the order of a pass over all triangles.
     scratch.triangles.clear();
     for &v in &scratch.touched {
         if vertex_owner[v as usize] != MANY {
@@ -195,7 +182,7 @@ mod tests {
         assert!((out[0].area - 1e-6).abs() < 1e-18, "area {}", out[0].area);
     }
 
-    /// The plain pass over every triangle, as the function did before it kept an adjacency.
+    /// The plain pass over every triangle: the reference the adjacency must match.
     fn plain_areas(surface: &BoundarySurface, positions: &[Vec3], constraints: &[Constraint], reactions: &[Vec3]) -> Vec<(u16, f64, u32)> {
         let mut owner = vec![NONE; surface.vertices.len()];
         for (c, r) in constraints.iter().zip(reactions) {

@@ -1,12 +1,11 @@
 //! Small dense symmetric positive (semi-)definite solves for the constraint system.
 //!
-//! In: `W` (n x n, column major, lower triangle read). Out: its Cholesky factor
-//! in place and the number of rows dropped as linearly dependent.
-//! Stays true: never produces NaN for a symmetric positive semi-definite input.
-//! A row whose pivot falls below `DEPENDENT_PIVOT * W_ii` is dropped: its row and
-//! column of L are zeroed, its diagonal set to 1, and its unknown solves to 0
-//! (the constraint is redundant with the rows before it). Rows are visited in
-//! order, so the earlier of two dependent rows is kept (deterministic).
+//! In: `W` (n x n, column major, lower triangle read). Out: its Cholesky factor in place and the number of rows
+//! dropped as linearly dependent.
+//! Stays true: never NaN for a symmetric positive semi-definite input. A row whose pivot falls below
+//! `DEPENDENT_PIVOT * W_ii` is dropped: its row and column of L are zeroed, its diagonal set to 1, and its unknown
+//! solves to 0 (the constraint is redundant with the rows before it). Rows are visited in order, so the earlier of
+//! two dependent rows is kept (deterministic).
 
 use faer::dyn_stack::MemStack;
 use faer::linalg::cholesky::llt::factor::{LltRegularization, cholesky_in_place};
@@ -37,18 +36,16 @@ impl DenseWorkspace {
     }
 }
 
-/// Factors `w` (n x n, column major, full symmetric) into `l`: `W = L L^T`,
-/// L in the lower triangle of `l` (resized to n x n). Marks dependent rows in
-/// `ws.dropped`; returns how many were dropped.
+/// Factors `w` (n x n, column major, full symmetric) into `l` (resized to n x n): `W = L L^T`, L in the lower
+/// triangle. Marks dependent rows in `ws.dropped`; returns how many were dropped.
 pub fn factor(w: &[f64], l: &mut Vec<f64>, n: usize, ws: &mut DenseWorkspace) -> usize {
     ws.diag.clear();
     ws.diag.extend((0..n).map(|i| w[i * n + i]));
     factor_impl(w, l, n, ws)
 }
 
-/// As [`factor`], with the dependent-row test relative to `reference_diag`
-/// instead of W's own diagonal (used when W is a Schur complement: the
-/// reference is the diagonal of the original rows).
+/// As [`factor`], with the dependent-row test relative to `reference_diag` instead of W's own diagonal (for a
+/// Schur complement: the diagonal of the original rows).
 pub fn factor_with_reference(w: &[f64], l: &mut Vec<f64>, n: usize, reference_diag: &[f64], ws: &mut DenseWorkspace) -> usize {
     ws.diag.clear();
     ws.diag.extend_from_slice(&reference_diag[..n]);
@@ -123,8 +120,7 @@ fn factor_pivot_drop(w: &mut [f64], n: usize, dropped: &mut [bool], diag: &[f64]
     count
 }
 
-/// Solves `L L^T x = b` in place with the factor from [`factor`];
-/// dropped rows get x = 0.
+/// Solves `L L^T x = b` in place with the factor from [`factor`]; dropped rows get x = 0.
 pub fn solve_in_place(l: &[f64], n: usize, dropped: &[bool], b: &mut [f64]) {
     for (i, d) in dropped.iter().enumerate() {
         if *d {
@@ -155,8 +151,7 @@ pub fn solve_in_place(l: &[f64], n: usize, dropped: &[bool], b: &mut [f64]) {
     }
 }
 
-/// Cheap conditioning estimate of W from its factor: `(max L_ii / min L_ii)^2`
-/// over kept rows (a lower bound of cond_2(W)).
+/// Cheap estimate of cond_2(W) from its factor, a lower bound: `(max L_ii / min L_ii)^2` over kept rows.
 pub fn conditioning_estimate(l: &[f64], n: usize, dropped: &[bool]) -> f64 {
     let mut lo = f64::INFINITY;
     let mut hi: f64 = 0.0;

@@ -1,10 +1,9 @@
 //! Constant-strain tetrahedra and isotropic linear elastic materials.
 //!
-//! In: four node positions (m) and a [`Material`] (E in Pa, nu). Out: the
-//! 12x12 element stiffness `V * B^T D B` (N/m), the shape-function gradients,
-//! the element strain of a displacement field.
-//! Stays true: the element stiffness is symmetric, positive semi-definite with
-//! exactly the six rigid-body modes in its kernel when the tet has volume > 0.
+//! In: four node positions (m) and a [`Material`] (E in Pa, nu). Out: the 12x12 element stiffness `V * B^T D B`
+//! (N/m), the shape-function gradients, the element strain of a displacement field.
+//! Stays true: the element stiffness is symmetric, positive semi-definite with exactly the six rigid-body modes in
+//! its kernel when the tet has volume > 0.
 
 use super::FemError;
 use crate::math::{Matrix3, Vec3};
@@ -101,8 +100,7 @@ pub fn shape_gradients(p: &[Vec3; 4]) -> ([Vec3; 4], f64) {
     ([g0, g1, g2, g3], volume)
 }
 
-/// Element stiffness (N/m), row/column `3 * local_node + component`.
-///
+/// Element stiffness (N/m), row/column `3 * local_node + component`:
 /// `K_ab = V (lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I)`.
 pub fn tet_stiffness(p: &[Vec3; 4], lambda: f64, mu: f64) -> [[f64; 12]; 12] {
     let (g, v) = shape_gradients(p);

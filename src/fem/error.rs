@@ -1,9 +1,8 @@
 //! Errors of the FEM stage.
 //!
-//! In: nothing. Out: [`FemError`], a small enum whose variants carry the data a
-//! user needs to find the cause (region, node, component, pivot, file).
-//! Stays true: no variant is produced by a panic path; every fallible public
-//! function of `crate::fem` returns one of these.
+//! In: nothing. Out: [`FemError`], whose variants carry the data a user needs to find the cause (region, node,
+//! component, pivot, file). Stays true: no variant comes from a panic path; every fallible public function of
+//! `crate::fem` returns one.
 
 use std::path::PathBuf;
 
@@ -46,8 +45,7 @@ pub enum FemError {
     /// Writing the compliance cache failed (reading failures rebuild instead).
     #[error("compliance cache {path}: {reason}")]
     Cache { path: PathBuf, reason: String },
-    /// The compliance for the requested region would not fit in memory
-    /// (checked before allocating it).
+    /// The compliance for the requested region would not fit in memory (checked before allocating it).
     #[error(
         "the compliance for a region of interest of {cols} nodes ({rows} stored rows, {storage}) needs {need_mb} MB with the precompute's working space, more than the {available_mb} MB this machine has available; choose a smaller region of interest (region_of_interest: Auto, a smaller radius, or fewer nodes) or the smaller storage (F32)"
     )]
@@ -55,8 +53,7 @@ pub enum FemError {
     /// A memory request could not be met.
     #[error("out of memory while allocating {what} ({bytes} bytes)")]
     OutOfMemory { what: &'static str, bytes: usize },
-    /// The columns being computed in the background could not be completed
-    /// (out of memory, a failed thread); a frame that needed one stops with this.
+    /// Background-filled compliance columns could not be completed; a frame that needed one stops with this.
     #[error("the compliance columns being computed in the background are not available: {reason}")]
     ComplianceIncomplete { reason: String },
     /// A background thread could not be started.

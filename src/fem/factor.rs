@@ -1,11 +1,9 @@
-//! Sparse Cholesky of the free-DOF stiffness (faer, supernodal; AMD or nested
-//! dissection ordering, see [`super::ordering`]).
+//! Sparse Cholesky of the free-DOF stiffness (faer, supernodal; AMD or nested dissection, [`super::ordering`]).
 //!
-//! In: the lower triangle of `K_FF` ([`LowerCsc`]). Out: a [`SparseCholesky`]
-//! that solves `K_FF X = B` in place for any number of right-hand sides.
-//! Stays true: symbolic analysis happens once, the numeric factor once per
-//! material set; solves run on one core (`Par::Seq`: on this class of 2-core machine two threads made sparse solves slower, and the other core runs background work or rendering) and allocate
-//! only the scratch sized for their column count.
+//! In: the lower triangle of `K_FF` ([`LowerCsc`]). Out: a [`SparseCholesky`] solving `K_FF X = B` in place.
+//! Stays true: symbolic analysis once, the numeric factor once per material set; solves run on one core
+//! (`Par::Seq`: on a 2-core machine two threads made sparse solves slower, and the other core runs background work
+//! or rendering) and allocate only the scratch sized for their column count.
 
 use super::FemError;
 use super::assembly::{DofMap, LowerCsc};
@@ -19,26 +17,21 @@ use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, Conj, MatMut, MatRef, Par, Side, Spec};
 use std::time::Instant;
 
-/// Supernode amalgamation (faer's rule: merge two adjacent supernodes of `n`
-/// columns in all when the merged one has a fraction of zeros below `z`, for
-/// the first `(n, z)` with `n` at most its bound). Coarser than faer's default
-/// `[(4, 1.0), (16, 0.8), (48, 0.1), (MAX, 0.05)]`: the precompute's 96-column
-/// solves run dense kernels per supernode, and on the coarse brain this made a
-/// nested-dissection solve 1.38x AMD's become 0.99x (`cargo bench --bench fem
-/// -- coarse`, "ordering" lines) for 9 % more stored entries.
+/// Supernode amalgamation (faer's rule: merge two adjacent supernodes of `n` columns in all when the merged one has
+/// a fraction of zeros below `z`, for the first `(n, z)` with `n` at most its bound). Coarser than faer's default
+/// `[(4, 1.0), (16, 0.8), (48, 0.1), (MAX, 0.05)]`: the precompute's 96-column solves run dense kernels per
+/// supernode, which pays for the extra stored entries (`cargo bench --bench fem -- coarse`, "ordering" lines).
 const SUPERNODE_RELAX: &[(usize, f64)] = &[(32, 1.0), (96, 0.8), (256, 0.2), (usize::MAX, 0.05)];
 
 /// A factored `K_FF`.
 pub struct SparseCholesky {
     symbolic: SymbolicCholesky<usize>,
     values: Vec<f64>,
-    /// Supernodal factor: the supernode of each (permuted) row, and each
-    /// supernode's parent in the supernodal elimination tree (`u32::MAX`
-    /// at a root): what [`Self::solve_sparse_in_place`] prunes along.
+    /// Supernodal factor: the supernode of each (permuted) row, and each supernode's parent in the elimination tree
+    /// (`u32::MAX` at a root): what [`Self::solve_sparse_in_place`] prunes along.
     row_supernode: Vec<u32>,
     parent: Vec<u32>,
-    /// Solves run row major ([`Self::solve_row_major`]) where they can:
-    /// `fem::tuning`'s switch, taken when the factor is made.
+    /// Solves run row major ([`Self::solve_row_major`]) where they can: `fem::tuning`'s switch at construction.
     row_major: bool,
     /// Seconds spent in the symbolic analysis.
     pub symbolic_seconds: f64,
@@ -55,8 +48,7 @@ impl std::fmt::Debug for SparseCholesky {
 }
 
 impl SparseCholesky {
-    /// Analyzes and factors `k`. A non-positive pivot is reported with the free
-    /// DOF (in the caller's numbering) and its node.
+    /// Analyzes and factors `k`; a non-positive pivot is reported with its free DOF (caller's numbering) and node.
     pub fn new(k: &LowerCsc, dofs: &DofMap, ordering: FillOrdering) -> Result<Self, FemError> {
         Self::with_names(k, ordering, &|dof| (dofs.free_nodes.get(dof / 3).copied().unwrap_or(u32::MAX), dof % 3))
     }
@@ -85,8 +77,7 @@ impl SparseCholesky {
                 None => (analyse(SymmetricOrdering::Amd)?, FillOrdering::Amd),
             },
             FillOrdering::Best => {
-                // Both analyses are cheap next to the numeric factor; keep the
-                // one with less fill (every solve streams all of L).
+                // Both analyses are cheap next to the numeric factor; keep the one with less fill (solves stream L).
                 let by_amd = analyse(SymmetricOrdering::Amd)?;
                 match nd()? {
                     Some(by_nd) if by_nd.len_val() < by_amd.len_val() => (by_nd, FillOrdering::NestedDissection),
@@ -130,10 +121,8 @@ impl SparseCholesky {
         self.values.len()
     }
 
-    /// Entries of L counted exactly (the column counts of the same ordering,
-    /// without the explicit zeros that relaxed supernodes store): the figure
-    /// CHOLMOD reports as `lnz`, to compare orderings across libraries.
-    /// `k` is the matrix this factor was made from.
+    /// Entries of L counted exactly (column counts of the same ordering, without the explicit zeros of relaxed
+    /// supernodes): CHOLMOD's `lnz`, to compare orderings across libraries. `k` is the matrix this was made from.
     pub fn exact_nnz_l(&self, k: &LowerCsc) -> Result<usize, FemError> {
         use faer::sparse::linalg::SupernodalThreshold;
         let mut params = CholeskySymbolicParams::default();
@@ -147,8 +136,7 @@ impl SparseCholesky {
         Ok(simplicial.len_val())
     }
 
-    /// Switches the row-major solve on or off for this factor's later solves
-    /// (the bench's audit; the answers are the same bits either way).
+    /// Switches the row-major solve on or off for later solves (the bench's audit; the answers are the same bits).
     pub fn set_row_major(&mut self, on: bool) {
         self.row_major = on;
     }
@@ -159,10 +147,8 @@ impl SparseCholesky {
         MemBuffer::try_new(req).map_err(|_| FemError::OutOfMemory { what: "solve scratch", bytes: req.size_bytes() })
     }
 
-    /// Solves `K_FF X = B` in place (`rhs` is dim x k, column major).
-    /// With [`ROW_MAJOR_MIN_RHS`] or more columns and a supernodal factor the
-    /// solve runs on a row-major copy ([`Self::solve_row_major`]); the answer
-    /// is bit for bit faer's.
+    /// Solves `K_FF X = B` in place (`rhs` dim x k, column major). With [`ROW_MAJOR_MIN_RHS`] or more columns and a
+    /// supernodal factor it runs [`Self::solve_row_major`], bit for bit faer's answer.
     pub fn solve_in_place(&self, rhs: MatMut<'_, f64>, scratch: &mut MemBuffer) {
         if rhs.ncols() >= ROW_MAJOR_MIN_RHS
             && self.row_major
@@ -175,19 +161,11 @@ impl SparseCholesky {
         llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(scratch));
     }
 
-    /// As [`Self::solve_in_place`] for right-hand sides that are zero outside
-    /// `nonzero_rows` (the caller's promise; any order, repeats allowed), with
-    /// the same answer bit for bit. The forward substitution visits only the
-    /// supernodes on the elimination-tree paths from those rows to the roots:
-    /// below them every entry stays an exact zero, so skipping them adds and
-    /// subtracts nothing (a unit column of a real brain's ROI node touches a
-    /// fraction of the factor on its way down). Row major whenever the factor
-    /// is supernodal, also for a few columns (the pruning is what pays there).
-    ///
-    /// `wanted` ([`Self::supernodes_above`] of the rows the caller reads):
-    /// the backward substitution visits only those supernodes, so the
-    /// answer is exact (bit for bit) at the rows it was made from and
-    /// meaningless at the others. `None`: every row.
+    /// As [`Self::solve_in_place`] for right-hand sides zero outside `nonzero_rows` (the caller's promise; any order,
+    /// repeats allowed), with the same answer bit for bit: the forward substitution visits only the supernodes on
+    /// the elimination-tree paths from those rows to the roots, since below them every entry stays an exact zero.
+    /// `wanted` ([`Self::supernodes_above`] of the rows the caller reads; `None`: all): the backward substitution
+    /// visits only those, so the answer is exact at those rows and meaningless elsewhere.
     pub fn solve_sparse_in_place(&self, rhs: MatMut<'_, f64>, nonzero_rows: &[usize], wanted: Option<&[bool]>, scratch: &mut MemBuffer) {
         if self.row_major
             && let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw()
@@ -199,19 +177,16 @@ impl SparseCholesky {
         self.solve_in_place(rhs, scratch);
     }
 
-    /// The supernodes on the elimination-tree paths from `rows` (any order,
-    /// repeats allowed) to the roots: those a forward substitution from
-    /// right-hand sides nonzero only at `rows` visits, and those a backward
-    /// substitution needs for the answer at `rows` (a supernode's answer
-    /// reads only its ancestors'). `None` when the factor is not supernodal.
+    /// The supernodes on the elimination-tree paths from `rows` (any order, repeats allowed) to the roots: those a
+    /// forward substitution from right-hand sides nonzero only at `rows` visits, and those a backward substitution
+    /// needs for the answer at `rows`. `None` when the factor is not supernodal.
     pub fn supernodes_above(&self, rows: &[usize]) -> Option<Vec<bool>> {
         let mut reached = Vec::new();
         self.supernodes_above_into(rows, &mut reached).then_some(reached)
     }
 
-    /// As [`Self::supernodes_above`], into `reached` (reused: nothing is
-    /// allocated once it has grown); false (and `reached` empty) when the
-    /// factor is not supernodal.
+    /// As [`Self::supernodes_above`], into `reached` (no allocation once grown); false (and `reached` empty) when
+    /// the factor is not supernodal.
     pub fn supernodes_above_into(&self, rows: &[usize], reached: &mut Vec<bool>) -> bool {
         reached.clear();
         let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw() else { return false };
@@ -223,8 +198,7 @@ impl SparseCholesky {
                 reached[s as usize] = true;
             }
         }
-        // Children come before their parents: one ascending pass closes
-        // the set under "parent of".
+        // Children come before their parents: one ascending pass closes the set under "parent of".
         for s in 0..reached.len() {
             if reached[s] && let Some(&p) = self.parent.get(s).filter(|&&p| p != u32::MAX) {
                 reached[p as usize] = true;
@@ -233,13 +207,10 @@ impl SparseCholesky {
         true
     }
 
-    /// Solves `K_FF X = B` in place visiting, forward, only the supernodes
-    /// `forward` marks (`B` is zero at every other supernode's rows: the
-    /// caller's promise) and, backward, only those `backward` marks (the
-    /// answer is read only at their rows), both made by
-    /// [`Self::supernodes_above_into`]; `None`: all. The answer is
-    /// [`Self::solve_in_place`]'s bit for bit where it is read. A factor
-    /// that is not supernodal solves in full.
+    /// Solves `K_FF X = B` in place, visiting forward only the supernodes `forward` marks (`B` is zero at the
+    /// others' rows: the caller's promise) and backward only those `backward` marks (the answer is read only at
+    /// their rows), both from [`Self::supernodes_above_into`]; `None`: all. Bit for bit [`Self::solve_in_place`]'s
+    /// answer where read; a factor that is not supernodal solves in full.
     pub fn solve_pruned_in_place(&self, rhs: MatMut<'_, f64>, forward: Option<&[bool]>, backward: Option<&[bool]>, scratch: &mut MemBuffer) {
         if self.row_major
             && let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw()
@@ -250,11 +221,9 @@ impl SparseCholesky {
         self.solve_in_place(rhs, scratch);
     }
 
-    /// Columns of `K_FF^-1`: column `3 b + c` of `rhs` (dim x 3 nodes) is
-    /// solved for the unit right-hand side at DOF `first_dofs[b] + c`, pruned
-    /// as [`Self::solve_sparse_in_place`] prunes. The one way the compliance
-    /// and the lazy columns turn nodes into columns.
-    /// `wanted` as in [`Self::solve_sparse_in_place`].
+    /// Columns of `K_FF^-1`: column `3 b + c` of `rhs` (dim x 3 nodes) solves the unit right-hand side at DOF
+    /// `first_dofs[b] + c`, pruned as [`Self::solve_sparse_in_place`] (`wanted` likewise). The one way the
+    /// compliance and the lazy columns turn nodes into columns.
     pub fn solve_unit_columns(&self, first_dofs: &[usize], mut rhs: MatMut<'_, f64>, wanted: Option<&[bool]>, scratch: &mut MemBuffer) {
         rhs.fill(0.0);
         let mut rows = Vec::with_capacity(3 * first_dofs.len());
@@ -267,35 +236,22 @@ impl SparseCholesky {
         self.solve_sparse_in_place(rhs.subcols_mut(0, 3 * first_dofs.len()), &rows, wanted, scratch);
     }
 
-    /// Scratch of [`Self::solve_row_major`] for `k` columns: the permuted
-    /// right-hand sides (row major), one supernode's diagonal rows of them and
-    /// its rows below the diagonal block (both column major).
+    /// Scratch of [`Self::solve_row_major`] for `k` columns: the permuted right-hand sides (row major), and one
+    /// supernode's diagonal rows and rows below the diagonal block (column major).
     fn row_major_scratch(&self, k: usize) -> StackReq {
         let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw() else { return StackReq::EMPTY };
         let (widest, deepest) = supernode_extent(symbolic);
         StackReq::new::<f64>(self.dim() * k).and(StackReq::new::<f64>(widest * k)).and(StackReq::new::<f64>(deepest * k))
     }
 
-    /// faer's supernodal solve (`SupernodalLltRef::solve_in_place_with_conj`)
-    /// with the right-hand sides held row major. What changes is memory: an
-    /// update from a supernode's rows below its diagonal block touches one row
-    /// of all `k` right-hand sides, a single run, where column major it
-    /// touches `k` entries a column apart. With 96 columns (the precompute's
-    /// batch) faer's scatter, gather and permutation were a third of its
-    /// solve on the coarse real brain (perf); this solve takes 0.74x its time
-    /// there (eight 96-column solves, 4.55 s against 6.12 s; the precompute
-    /// 0.85-0.89x on the fine brain: docs/design-notes.md).
-    /// The arithmetic is faer's, in faer's order: the same triangular solves
-    /// on a column-major copy of the supernode's rows; the same product below
-    /// the diagonal block (into a row-major block: the product kernel sums
-    /// each entry in the same order whatever the layout); each entry of it
-    /// subtracted once. So the answer is faer's bit for bit; the test
-    /// `row_major_solve_is_faers_bit_for_bit` checks it where it runs, and
-    /// the shipped scenes' final states are unchanged.
-    /// `forward`: the supernodes the forward substitution must visit (the
-    /// others' rows are zero and stay zero); `backward`: those the backward
-    /// substitution visits (the rest of the answer is left unfinished);
-    /// `None`: all.
+    /// faer's supernodal solve with the right-hand sides held row major, so an update from a supernode's rows below
+    /// its diagonal block touches one contiguous row of all `k` right-hand sides, not `k` entries a column apart
+    /// (with the precompute's 96 columns, faer's scatter, gather and permutation took a third of its time). The
+    /// arithmetic is faer's, in faer's order: the same triangular solves on a column-major copy of the supernode's
+    /// rows, the same product below the diagonal block (its kernel sums each entry in the same order whatever the
+    /// layout), each entry subtracted once; so the answer is faer's bit for bit. `forward`: the supernodes the
+    /// forward substitution must visit (the others' rows are zero and stay zero); `backward`: those the backward
+    /// substitution visits (the rest of the answer is left unfinished); `None`: all.
     fn solve_row_major(
         &self,
         symbolic: &SymbolicSupernodalCholesky<usize>,
@@ -313,8 +269,7 @@ impl SparseCholesky {
         let top: &mut [f64] = &mut top;
         let (mut below, _) = stack.make_with::<f64>(deepest * k, |_| 0.0);
         let below: &mut [f64] = &mut below;
-        // x[inv[old], j] = rhs[old, j]: a block of rhs's rows at a time, so
-        // both sides are read and written in runs
+        // x[inv[old], j] = rhs[old, j], a block of rows at a time so both sides are read and written in runs
         let inv = self.symbolic.perm().map(|p| p.arrays().1);
         let new_row = |old: usize| inv.map_or(old, |v| v[old]);
         for first in (0..n).step_by(ROW_BLOCK) {
@@ -348,17 +303,14 @@ impl SparseCholesky {
     }
 }
 
-/// Right-hand sides from which [`SparseCholesky::solve_in_place`] runs row
-/// major (a single column gains nothing from it).
+/// Right-hand sides from which [`SparseCholesky::solve_in_place`] runs row major (one column gains nothing).
 pub const ROW_MAJOR_MIN_RHS: usize = 8;
 
-/// Rows moved between layouts a block at a time (the block of a 96-column
-/// row-major matrix stays in the core's cache).
+/// Rows moved between layouts a block at a time (a 96-column row-major block stays in the core's cache).
 const ROW_BLOCK: usize = 32;
 
-/// `L y = x` over the row-major right-hand sides `x` (n x k), in place: the
-/// supernodes in order, those `forward` marks (all when `None`); `top` and
-/// `below` are scratch of the widest and deepest supernode.
+/// `L y = x` over the row-major right-hand sides `x` (n x k), in place: the supernodes in order, those `forward`
+/// marks (all when `None`); `top` and `below` are scratch of the widest and deepest supernode.
 fn forward_substitution(llt: &SupernodalLltRef<'_, usize, f64>, x: &mut [f64], top: &mut [f64], below: &mut [f64], k: usize, forward: Option<&[bool]>) {
     for s in 0..llt.symbolic().n_supernodes() {
         if forward.is_some_and(|f| !f[s]) {
@@ -383,8 +335,7 @@ fn forward_substitution(llt: &SupernodalLltRef<'_, usize, f64>, x: &mut [f64], t
     }
 }
 
-/// `L^T z = y` in place, the supernodes in reverse order, those `backward`
-/// marks (all when `None`); scratch as [`forward_substitution`]'s.
+/// `L^T z = y` in place, as [`forward_substitution`] but in reverse order over the supernodes `backward` marks.
 fn backward_substitution(llt: &SupernodalLltRef<'_, usize, f64>, x: &mut [f64], top: &mut [f64], below: &mut [f64], k: usize, backward: Option<&[bool]>) {
     for s in (0..llt.symbolic().n_supernodes()).rev() {
         if backward.is_some_and(|b| !b[s]) {
@@ -413,8 +364,8 @@ fn supernode_extent(symbolic: &SymbolicSupernodalCholesky<usize>) -> (usize, usi
     (0..symbolic.n_supernodes()).fold((0, 0), |(w, d), s| (w.max(end[s] - begin[s]), d.max(symbolic.supernode(s).pattern().len())))
 }
 
-/// The supernode of every row and the parent of every supernode (the
-/// supernode of the first row below its diagonal block; `u32::MAX` at a root).
+/// The supernode of every row and the parent of every supernode (the supernode of the first row below its
+/// diagonal block; `u32::MAX` at a root).
 fn elimination_tree(symbolic: &SymbolicSupernodalCholesky<usize>) -> (Vec<u32>, Vec<u32>) {
     let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
     let mut row_supernode = vec![0u32; symbolic.nrows()];
@@ -449,14 +400,10 @@ fn columns_to_rows(src: MatRef<'_, f64>, x: &mut [f64], k: usize, start: usize) 
 
 /// The factor of `K_FF`, made on first use or on a background thread.
 ///
-/// In: `K_FF` (lower) and the DOF names, moved in. Out: the factor, or the
-/// error its build gave, to every caller of [`LazyFactor::get`] (which waits
-/// while it is made). Stays true: it is made once, by one thread, exactly as
-/// [`SparseCholesky::new`] makes it; so every answer is the same whether it
-/// was made at the start, in the background, or by the first caller. A scene
-/// whose compliance comes from a valid cache starts without it (the cache
-/// holds every column a frame reads); the lazy columns, interior
-/// displacements and a rebuilt cache batch wait for it.
+/// In: `K_FF` (lower) and the DOF names, moved in. Out: the factor, or its build's error, to every caller of
+/// [`LazyFactor::get`] (which waits while it is made). Stays true: made once, by one thread, exactly as
+/// [`SparseCholesky::new`] makes it, so answers never depend on when. A scene whose compliance comes from a valid
+/// cache starts without it; lazy columns, interior displacements and rebuilt cache batches wait for it.
 pub struct LazyFactor {
     cell: std::sync::OnceLock<Result<SparseCholesky, FemError>>,
     k: LowerCsc,
@@ -492,9 +439,8 @@ impl LazyFactor {
         &self.k
     }
 
-    /// Starts making the factor on its own thread (once; nothing when it is
-    /// made or being made). If the thread cannot start, the first caller of
-    /// [`Self::get`] makes it.
+    /// Starts making the factor on its own thread (once; nothing when made or being made). If the thread cannot
+    /// start, the first caller of [`Self::get`] makes it.
     pub(crate) fn start_background(self: &std::sync::Arc<Self>) {
         if self.is_ready() || self.started.swap(true, std::sync::atomic::Ordering::AcqRel) {
             return;
@@ -527,8 +473,7 @@ mod tests {
         (assemble_lower(mesh, &lame, &dofs), dofs)
     }
 
-    /// The row-major solve against faer's own supernodal solve on the same
-    /// factor: every entry the same bits, with each ordering and with column
+    /// The row-major solve against faer's own on the same factor: the same bits for each ordering and for column
     /// counts below, at and above the switch (and the precompute's 96).
     #[test]
     fn row_major_solve_is_faers_bit_for_bit() {
@@ -570,10 +515,9 @@ mod tests {
         }
     }
 
-    /// Unit columns solved pruned along the elimination tree are the full
-    /// solve's bit for bit, for one node and for a batch spread over the
-    /// mesh, on a mesh of two bodies `K` does not couple (the second's
-    /// entries are exact zeros either way), with each ordering.
+    /// Unit columns solved pruned along the elimination tree are the full solve's bit for bit, for one node and a
+    /// batch spread over the mesh, on two bodies `K` does not couple (the second's entries are exact zeros either
+    /// way), with each ordering.
     #[test]
     fn pruned_unit_columns_are_the_full_solve_bit_for_bit_where_read() {
         let axis = fixtures::linspace(0.0, 0.04, 9);

@@ -1,20 +1,16 @@
 //! Structured tetrahedral meshes for verification tests and benchmarks.
 //!
-//! In: grid coordinates (m). Out: a validated [`TetMesh`]: a box (each hex of a
-//! tensor grid split into 6 tets, Kuhn split, conforming) or a hollow sphere
-//! shell (cube-sphere: the lattice on a cube's surface projected radially,
-//! layered between two radii). Stays true: node numbering is deterministic;
-//! every tet has positive volume.
+//! In: grid coordinates (m). Out: a validated [`TetMesh`]: a box (each hex of a tensor grid split into 6 tets, Kuhn
+//! split, conforming) or a hollow sphere shell (cube-sphere: the lattice on a cube's surface projected radially,
+//! layered between two radii). Stays true: node numbering is deterministic; every tet has positive volume.
 
 use crate::math::Vec3;
 use crate::mesh::{MeshError, TetMesh};
 
-/// The 6 tets of the Kuhn split of a hex whose corner `b` has local
-/// coordinates (b & 1, (b >> 1) & 1, (b >> 2) & 1).
+/// The 6 tets of the Kuhn split of a hex whose corner `b` is at local (b & 1, (b >> 1) & 1, (b >> 2) & 1).
 const KUHN: [[usize; 4]; 6] = [[0, 1, 3, 7], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 4, 6, 7]];
 
-/// A box on the tensor grid `xs x ys x zs` (each ascending, m). Node
-/// `i + nx (j + ny k)` is at `(xs[i], ys[j], zs[k])`.
+/// A box on the tensor grid `xs x ys x zs` (each ascending, m); node `i + nx (j + ny k)` is at `(xs[i], ys[j], zs[k])`.
 pub fn box_mesh(xs: &[f64], ys: &[f64], zs: &[f64]) -> Result<TetMesh, MeshError> {
     let (nx, ny, nz) = (xs.len(), ys.len(), zs.len());
     let mut positions = Vec::with_capacity(nx * ny * nz);
@@ -45,9 +41,8 @@ pub fn linspace(a: f64, b: f64, n: usize) -> Vec<f64> {
     (0..=n).map(|i| a + (b - a) * i as f64 / n as f64).collect()
 }
 
-/// A hollow sphere shell centred at the origin, radii `inner < outer` (m),
-/// `n` cells along each cube edge and `layers` cells through the thickness.
-/// Radial spacing is uniform. Node `l * m + s` is surface-lattice point s on layer l.
+/// A hollow sphere shell centred at the origin, radii `inner < outer` (m), `n` cells along each cube edge and
+/// `layers` uniform cells through the thickness. Node `l * m + s` is surface-lattice point s on layer l.
 pub fn sphere_shell(inner: f64, outer: f64, n: usize, layers: usize) -> Result<TetMesh, MeshError> {
     // Lattice points on the surface of the cube [0, n]^3, numbered in (k, j, i) order.
     let side = n + 1;
@@ -106,9 +101,8 @@ pub fn select_nodes(mesh: &TetMesh, pred: impl Fn(&Vec3) -> bool) -> Vec<u32> {
     (0..mesh.node_count() as u32).filter(|&n| pred(&mesh.positions[n as usize])).collect()
 }
 
-/// Clamps each connected piece of `mesh` at its bottom: the nodes within
-/// `depth` (m) of the piece's lowest z (the benchmarks' boundary condition on
-/// a brain whose hemispheres are stored apart).
+/// Clamps each connected piece of `mesh` at its bottom: the nodes within `depth` (m) of the piece's lowest z (the
+/// benchmarks' boundary condition on a brain whose hemispheres are stored apart).
 pub fn fix_bottom_of_each_component(mesh: &TetMesh, depth: f64) -> Vec<bool> {
     let comps = crate::mesh::quality::components(mesh);
     let mut min_z = vec![f64::INFINITY; comps.count];

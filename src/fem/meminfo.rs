@@ -1,6 +1,5 @@
-//! What the kernel says about memory (Linux `/proc`; `None` elsewhere):
-//! the compliance checks a region fits before allocating it, and the
-//! benchmarks and probes report their peak.
+//! What the kernel says about memory (Linux `/proc`; `None` elsewhere): the compliance checks a region fits before
+//! allocating it, and the benchmarks and probes report their peak.
 
 /// Memory a new allocation can take without swapping (`MemAvailable`), bytes.
 pub fn available_bytes() -> Option<u64> {

@@ -1,16 +1,13 @@
-//! The FEM stage: linear tetrahedral elasticity solved exactly with enforced
-//! displacements, skull spheres and reaction forces, in real time.
+//! The FEM stage: linear tetrahedral elasticity solved exactly with enforced displacements, skull spheres and
+//! reaction forces, in real time.
 //!
-//! In: a [`crate::mesh::TetMesh`] (m), materials per region, fixed nodes; each
-//! frame a list of [`Constraint`]s. Out: per frame a [`FrameSolution`]
-//! (surface displacements, reactions per constraint and per owner); on demand
+//! In: a [`crate::mesh::TetMesh`] (m), materials per region, fixed nodes; each frame a list of [`Constraint`]s.
+//! Out: per frame a [`FrameSolution`] (surface displacements, reactions per constraint and per owner); on demand
 //! interior displacements and per-tet stress.
-//! Stays true: `K_FF` is factored once ([`FemModel`]); the surface compliance
-//! is precomputed once ([`Compliance`], cached on disk); a frame is a gather,
-//! a small dense Cholesky and one dense product (see ARCHITECTURE.md,
-//! "One frame"). Phases, one file each: `element` (tet stiffness) ->
-//! `assembly` -> `factor` -> `model` -> `compliance` -> `constrained`
-//! (+ `dense`, skull rows inside) -> `stress`, `contact`.
+//! Stays true: `K_FF` is factored once ([`FemModel`]); the surface compliance is precomputed once ([`Compliance`],
+//! cached on disk); a frame is a gather, a small dense Cholesky and one dense product (ARCHITECTURE.md, "One
+//! frame"). Phases, one file each: `element` (tet stiffness) -> `assembly` -> `factor` -> `model` -> `compliance`
+//! -> `constrained` (+ `dense`, skull rows inside) -> `stress`, `contact`.
 
 pub mod assembly;
 pub mod background_stress;

@@ -1,10 +1,9 @@
 //! The assembled and factored FEM model.
 //!
-//! In: a [`TetMesh`] (m), [`RegionMaterials`], per-node fixed flags, [`FemOptions`].
-//! Out: a [`FemModel`] holding `K_FF` (lower), its Cholesky factor (made at the
-//! build, or on first use: [`FemModel::new_deferred`]), the boundary
-//! surface, the optional gravity displacement `u0 = K^-1 f`, build statistics and
-//! a fingerprint (blake3 of mesh, materials and fixed set) that keys caches.
+//! In: a [`TetMesh`] (m), [`RegionMaterials`], per-node fixed flags, [`FemOptions`]. Out: a [`FemModel`] holding
+//! `K_FF` (lower), its Cholesky factor (made at the build, or on first use: [`FemModel::new_deferred`]), the
+//! boundary surface, the optional gravity displacement `u0 = K^-1 f`, build statistics and a fingerprint (blake3
+//! of mesh, materials and fixed set) that keys caches.
 //! Stays true: immutable after `new`; every solve is exact up to round-off.
 
 use super::FemError;
@@ -67,22 +66,17 @@ pub struct FemModel {
 }
 
 impl FemModel {
-    /// Builds and factors the model.
-    ///
-    /// Errors: wrong `fixed` length, invalid material, a connected component
-    /// with no fixed node ([`FemError::UnfixedComponent`]), no free DOF, a
-    /// non-positive pivot, invalid gravity.
+    /// Builds and factors the model. Errors: wrong `fixed` length, invalid material or gravity, a connected
+    /// component with no fixed node ([`FemError::UnfixedComponent`]), no free DOF, a non-positive pivot.
     pub fn new(mesh: &TetMesh, materials: &RegionMaterials, fixed: &[bool], options: &FemOptions) -> Result<Self, FemError> {
         let model = Self::new_deferred(mesh, materials, fixed, options)?;
         model.chol.get()?;
         Ok(model)
     }
 
-    /// As [`FemModel::new`], without making the factor of `K_FF` (unless
-    /// gravity needs it now): the first solve makes it, or a thread started
-    /// by [`FemModel::start_factor`]. What a scene whose compliance comes
-    /// from a cache uses: its first frame reads no factor. A factor that
-    /// fails (a non-positive pivot) fails that first solve instead of the build.
+    /// As [`FemModel::new`], without making the factor of `K_FF` unless gravity needs it: the first solve makes it,
+    /// or a thread started by [`FemModel::start_factor`]. For a scene whose compliance comes from a cache (its first
+    /// frame reads no factor); a failing factor fails that first solve instead of the build.
     pub fn new_deferred(mesh: &TetMesh, materials: &RegionMaterials, fixed: &[bool], options: &FemOptions) -> Result<Self, FemError> {
         if fixed.len() != mesh.node_count() {
             return Err(FemError::FixedLength { expected: mesh.node_count(), got: fixed.len() });
@@ -124,8 +118,7 @@ impl FemModel {
         Ok(Self { surface: mesh.boundary(), mesh: mesh.clone(), dofs, lame, chol: std::sync::Arc::new(chol), body_force: body, u0, fingerprint, stats })
     }
 
-    /// Starts making the factor of `K_FF` on its own thread, if it is not made
-    /// yet (a model from [`FemModel::new_deferred`]); the first solve waits for it.
+    /// Starts making the factor of `K_FF` on its own thread if it is not made yet; the first solve waits for it.
     pub fn start_factor(&self) {
         self.chol.start_background();
     }
@@ -181,8 +174,7 @@ impl FemModel {
         self.chol.stiffness()
     }
 
-    /// Solves `K u = f` for nodal forces `f` (N, one per node; fixed nodes'
-    /// entries are ignored) and returns nodal displacements (m), gravity included.
+    /// Solves `K u = f` for nodal forces (N, one per node; fixed ones ignored): displacements (m), gravity included.
     pub fn solve_nodal_forces(&self, forces: &[Vec3]) -> Result<Vec<Vec3>, FemError> {
         if forces.len() != self.mesh.node_count() {
             return Err(FemError::LengthMismatch { what: "nodal forces", expected: self.mesh.node_count(), got: forces.len() });
@@ -235,9 +227,8 @@ fn fingerprint(mesh: &TetMesh, sorted: &[(u32, super::Material)], materials: &Re
     *h.finalize().as_bytes()
 }
 
-/// The right-hand side of `K u = f` for nodal `forces` plus the body force
-/// (`body_force` empty: none), in free DOFs, into `rhs`; the DOFs a force
-/// lands on are appended to `forced` when given.
+/// The right-hand side of `K u = f` in free DOFs for nodal `forces` plus the body force (`body_force` empty: none),
+/// into `rhs`; the DOFs a force lands on are appended to `forced` when given.
 pub(crate) fn force_rhs((dofs, body_force): (&DofMap, &[f64]), forces: &[(u32, Vec3)], rhs: &mut Vec<f64>, mut forced: Option<&mut Vec<usize>>) {
     rhs.clear();
     if body_force.is_empty() {
@@ -257,11 +248,9 @@ pub(crate) fn force_rhs((dofs, body_force): (&DofMap, &[f64]), forces: &[(u32, V
     }
 }
 
-/// Every node's displacement (m) for nodal `forces` (N, on free nodes) plus the
-/// body force: one sparse solve with the factor of `K_FF`; fixed nodes get 0.
-/// `rhs` and `scratch` are reused between calls. What
-/// [`FemModel::solve_nodal_forces`], `ConstrainedSolver::interior_displacements`
-/// and the background stress worker compute.
+/// Every node's displacement (m) for nodal `forces` (N, on free nodes) plus the body force: one sparse solve; fixed
+/// nodes get 0. `rhs` and `scratch` are reused between calls. Shared by [`FemModel::solve_nodal_forces`],
+/// `ConstrainedSolver::interior_displacements` and the background stress worker.
 pub(crate) fn displacements_from_forces(
     (chol, dofs, body_force): (&SparseCholesky, &DofMap, &[f64]),
     node_count: usize,

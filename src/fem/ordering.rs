@@ -1,14 +1,12 @@
 //! Fill-reducing ordering of `K_FF`: AMD (faer) or nested dissection (METIS).
 //!
-//! In: the lower triangle of `K_FF` (3 DOFs a free node, DOF `3 i + c`). Out: a
-//! DOF permutation (`fwd[new] = old`) that keeps each node's three DOFs
-//! together: METIS orders the node graph (a third of the size of the DOF
-//! graph, and its separators cut through nodes, not single DOFs).
-//! Nested dissection keeps the factor of a 3-D mesh near `n^(4/3)` entries
-//! where minimum degree grows faster; which wins on a mesh is measured, not
-//! assumed ([`FillOrdering::Best`], and `benches/fem.rs` prints both).
-//! Stays true: the result is a permutation of `0..dim`; it depends only on the
-//! matrix pattern (METIS runs with a fixed seed: deterministic).
+//! In: the lower triangle of `K_FF` (3 DOFs a free node, DOF `3 i + c`). Out: a DOF permutation (`fwd[new] = old`)
+//! that keeps each node's three DOFs together: METIS orders the node graph (a third of the DOF graph's size, and
+//! its separators cut through nodes, not single DOFs). Nested dissection keeps the factor of a 3-D mesh near
+//! `n^(4/3)` entries where minimum degree grows faster; which wins on a mesh is measured, not assumed
+//! ([`FillOrdering::Best`]; `benches/fem.rs` prints both).
+//! Stays true: the result is a permutation of `0..dim` that depends only on the matrix pattern (METIS runs with a
+//! fixed seed).
 
 use super::assembly::LowerCsc;
 
@@ -24,9 +22,8 @@ pub enum FillOrdering {
 }
 
 impl FillOrdering {
-    /// `FISSURE_ORDERING=amd|nd` forces one ordering (to compare them on a
-    /// whole run); unset, [`FillOrdering::Best`]. Another value is named in a
-    /// warning and ignored.
+    /// `FISSURE_ORDERING=amd|nd` forces one ordering (to compare them on a whole run); unset, [`FillOrdering::Best`].
+    /// Another value is named in a warning and ignored.
     pub fn from_env() -> Self {
         match std::env::var("FISSURE_ORDERING").as_deref() {
             Err(_) | Ok("") | Ok("best") => Self::Best,
@@ -75,9 +72,8 @@ impl Graph {
     }
 }
 
-/// The DOF permutation (`fwd[new] = old`) of `k` by METIS's nested
-/// dissection (`METIS_NodeND`) of its node graph; `None` when METIS fails
-/// (the caller falls back to AMD).
+/// The DOF permutation (`fwd[new] = old`) of `k` by METIS's nested dissection (`METIS_NodeND`) of its node graph;
+/// `None` when METIS fails (the caller falls back to AMD).
 pub fn nested_dissection(k: &LowerCsc) -> Option<Vec<usize>> {
     use metis_sys::idx_t;
     let n = k.dim / 3;
@@ -95,11 +91,9 @@ pub fn nested_dissection(k: &LowerCsc) -> Option<Vec<usize>> {
     // Fixed seed: the same mesh always gets the same ordering (deterministic replays).
     options[metis_sys::moptions_et_METIS_OPTION_SEED as usize] = 7;
     let (mut perm, mut iperm) = (vec![0 as idx_t; n], vec![0 as idx_t; n]);
-    // METIS seeds one process-wide random state (libc's srand/rand, as
-    // metis-sys builds GKlib) at each call: two calls at
-    // once (tests on parallel threads, a study building several models) would
-    // draw from each other's sequence and order the same mesh differently,
-    // breaking bitwise replays. One call at a time.
+    // METIS seeds one process-wide random state (libc's srand/rand, as metis-sys builds GKlib) at each call: two
+    // calls at once (parallel tests, a study building several models) would draw from each other's sequence and
+    // order the same mesh differently, breaking bitwise replays. One call at a time.
     static METIS: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let _one_at_a_time = METIS.lock().unwrap_or_else(|e| e.into_inner());
     // SAFETY: xadj has n + 1 entries, adjncy xadj[n], perm and iperm n each;
@@ -111,8 +105,7 @@ pub fn nested_dissection(k: &LowerCsc) -> Option<Vec<usize>> {
         tracing::warn!("METIS nested dissection failed (status {status}); using AMD");
         return None;
     }
-    // METIS's `perm[new] = old`: row i of the permuted matrix is row perm[i]
-    // (`iperm` is its inverse, `iperm[old] = new`).
+    // METIS's `perm[new] = old` (row i of the permuted matrix is row perm[i]); `iperm[old] = new`.
     let mut fwd = Vec::with_capacity(3 * n);
     for &v in &perm {
         for c in 0..3 {

@@ -1,11 +1,9 @@
 //! Direct reference solver: prescribed DOFs eliminated, `K_FF` factored anew.
 //!
-//! In: a mesh, per-tet Lamé parameters, prescribed values per global DOF
-//! (`3 * node + component`, m) and optional nodal forces (N). Out: all nodal
-//! displacements and the reaction (N) at every prescribed DOF.
-//! This is the accuracy reference for the fast path (and the
-//! vehicle of the closed-form verification tests, which need roller conditions
-//! the node-level `fixed` set cannot express). Not for per-frame use.
+//! In: a mesh, per-tet Lamé parameters, prescribed values per global DOF (`3 * node + component`, m) and optional
+//! nodal forces (N). Out: all nodal displacements and the reaction (N) at every prescribed DOF. The accuracy
+//! reference for the fast path, and the vehicle of the closed-form verification tests (which need roller
+//! conditions the node-level `fixed` set cannot express). Not for per-frame use.
 //! Stays true: exact up to round-off; a singular system is a typed error.
 
 use super::FemError;
@@ -23,8 +21,7 @@ pub struct DirectSolution {
     pub reactions: Vec<f64>,
 }
 
-/// Solves `K u = f` with `u[dof] = value` for every `(dof, value)` in `prescribed`.
-/// A DOF listed twice keeps its first value.
+/// Solves `K u = f` with `u[dof] = value` for every `(dof, value)` in `prescribed` (a repeated DOF keeps its first).
 pub fn solve_direct(mesh: &TetMesh, lame: &[(f64, f64)], prescribed: &[(usize, f64)], forces: &[Vec3]) -> Result<DirectSolution, FemError> {
     let n = 3 * mesh.node_count();
     let mut fixed_value: Vec<Option<f64>> = vec![None; n];

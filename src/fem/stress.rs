@@ -1,9 +1,8 @@
 //! Per-tet stress and strain on demand.
 //!
-//! In: the model (positions, tets, Lamé parameters per tet) and one displacement
-//! per node (m, e.g. from `ConstrainedSolver::interior_displacements`).
-//! Out: per tet the von Mises stress (Pa) and the largest principal strain.
-//! Stays true: constant within a tet (linear elements); zero for a rigid motion.
+//! In: the model (positions, tets, Lamé parameters per tet) and one displacement per node (m, e.g. from
+//! `ConstrainedSolver::interior_displacements`). Out: per tet the von Mises stress (Pa) and the largest principal
+//! strain. Stays true: constant within a tet (linear elements); zero for a rigid motion.
 
 use super::FemError;
 use super::element::{shape_gradients, strain, stress};
@@ -19,12 +18,9 @@ pub struct ElementStress {
     pub max_principal_strain: f64,
 }
 
-/// Largest eigenvalue of a symmetric 3x3 matrix, in closed form (the
-/// trigonometric solution of the characteristic cubic, Smith 1961). Its error
-/// is a few ulps of the matrix's largest entry, degenerate spectra included
-/// (unit test against nalgebra's iterative solver). Several times faster than
-/// the iterative solver; the stress pass runs over every tet each frame the
-/// scene shows stress.
+/// Largest eigenvalue of a symmetric 3x3 matrix in closed form (the trigonometric solution of the characteristic
+/// cubic, Smith 1961), within a few ulps of the largest entry, degenerate spectra included (tested against
+/// nalgebra's iterative solver, which is several times slower; the stress pass runs over every tet each frame).
 pub fn largest_symmetric_eigenvalue(a: &Matrix3<f64>) -> f64 {
     let off = a[(0, 1)] * a[(0, 1)] + a[(0, 2)] * a[(0, 2)] + a[(1, 2)] * a[(1, 2)];
     let q = a.trace() / 3.0;
@@ -50,8 +46,7 @@ pub fn element_stress(model: &FemModel, displacement: &[Vec3], out: &mut Vec<Ele
     tet_stress(model.mesh(), model.lame(), displacement, out)
 }
 
-/// [`element_stress`] from the mesh and the Lame parameters per tet (what a
-/// background worker keeps of a model).
+/// [`element_stress`] from the mesh and the Lamé parameters per tet (what a background worker keeps of a model).
 pub fn tet_stress(mesh: &crate::mesh::TetMesh, lame: &[(f64, f64)], displacement: &[Vec3], out: &mut Vec<ElementStress>) -> Result<(), FemError> {
     if lame.len() != mesh.tets.len() {
         return Err(FemError::LengthMismatch { what: "Lame parameters", expected: mesh.tets.len(), got: lame.len() });

@@ -1,17 +1,11 @@
-//! One switch a measured optimisation of fem/, so that each one's gain can be
-//! measured again on today's code and machine (docs/design-notes.md, "What
-//! each fem/ optimisation buys"; `cargo bench --bench fem -- audit` and
-//! `scripts/fem_audit.sh`).
+//! One switch per measured optimisation of fem/, so each one's gain can be measured again on today's code and
+//! machine (`cargo bench --bench fem -- audit`, `scripts/fem_audit.sh`; docs/design-notes.md).
 //!
-//! In: `FISSURE_FEM_OFF=name,name` (read once; names in [`Optimisation::ALL`],
-//! `all` turns every one off), or [`set_enabled`] from a test. Out: a
-//! [`Tuning`], taken by value when a solver, a product workspace or a factor
-//! is made ([`Tuning::current`]) and read from there: no hot loop reads the
-//! process-wide switches, and a bench turns one off on a built solver
-//! (`ConstrainedSolver::set_tuning`). Off runs the plain path the
-//! optimisation replaced. Answers stay the same bit for bit unless the
-//! switch's doc says otherwise; a diagnostic, not a setting: scenes cannot
-//! name these.
+//! In: `FISSURE_FEM_OFF=name,name` (read once; names in [`Optimisation::ALL`], `all` turns every one off), or
+//! [`set_enabled`] from a test. Out: a [`Tuning`], taken by value when a solver, product workspace or factor is
+//! made ([`Tuning::current`]), so no hot loop reads the process-wide switches and a bench can turn one off on a
+//! built solver (`ConstrainedSolver::set_tuning`). Off runs the plain path the optimisation replaced. Answers stay
+//! the same bit for bit unless the switch's doc says otherwise. A diagnostic, not a setting: scenes cannot name these.
 
 use std::sync::Once;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -19,34 +13,25 @@ use std::sync::atomic::{AtomicU32, Ordering};
 /// A measured optimisation of fem/ that can be switched off.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Optimisation {
-    /// The AVX2 build of the surface product's kernel (`compliance/product.rs`;
-    /// off: the portable build, which rounds the same).
+    /// The AVX2 build of the surface product's kernel (`compliance/product.rs`; off: the portable build, same bits).
     Avx2Product,
-    /// Eight columns at a time in the surface product's kernel
-    /// (`compliance/product.rs`; off: one at a time, adding in the same order).
+    /// Eight columns at a time in the surface product (`compliance/product.rs`; off: one at a time, same order).
     FusedColumns,
-    /// The surface product in chunks of 512 rows whose partial sums stay in
-    /// the CPU's cache (`compliance/product.rs`; off: a component's rows in
-    /// one pass, each row's sums unchanged).
+    /// The surface product in cache-sized chunks of 512 rows (off: a component's rows in one pass, same sums).
     RowChunks,
-    /// The gathered rows of the forced columns kept from one frame to the next
-    /// (`compliance/product.rs`; off: gathered again every frame).
+    /// The forced columns' gathered rows kept from frame to frame (`compliance/product.rs`; off: gathered again).
     KeptProductRows,
-    /// The contact matrix W's factor kept across frames and updated
-    /// (`wfactor.rs`; off: factored in full every time; the answers differ
-    /// in the last bits, as an incremental factor does from a full one).
+    /// W's factor kept across frames and updated (`wfactor.rs`; off: factored in full every time, which differs in
+    /// the last bits as an incremental factor does).
     WFactorReuse,
-    /// The contact candidates' K^-1 blocks kept between frames
-    /// (`constrained/blocks.rs`, for a compliance over 64 MB; off: read from
-    /// the compliance every time).
+    /// The contact candidates' K^-1 blocks kept between frames (`constrained/blocks.rs`, compliance over 64 MB; off:
+    /// read from the compliance every time).
     CandidateBlocks,
-    /// The row-major multi-column sparse solve (`factor.rs`; off: faer's
-    /// column-major supernodal solve).
+    /// The row-major multi-column sparse solve (`factor.rs`; off: faer's column-major supernodal solve).
     RowMajorSolve,
     /// Huge pages under a computed compliance (`compliance/mod.rs`).
     HugePages,
-    /// The active-set loop skips the inactive candidates that cannot have
-    /// reached their constraint since they were last evaluated
+    /// Skipping the inactive candidates that cannot have reached their constraint since last evaluated
     /// (`constrained/screen.rs`; off: every candidate at every iteration).
     CandidateScreen,
 }
@@ -134,8 +119,7 @@ impl Default for Tuning {
     }
 }
 
-/// Switches `o` on or off for the whole process: the default of every solver,
-/// workspace and factor made afterwards (tests).
+/// Switches `o` for the whole process: the default of every solver, workspace and factor made afterwards (tests).
 pub fn set_enabled(o: Optimisation, on: bool) {
     off_mask();
     if on {

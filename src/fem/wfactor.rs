@@ -1,26 +1,20 @@
 //! Persistent Cholesky factor of the contact compliance `W = C K^-1 C^T` across frames.
 //!
-//! In: each frame the enforced (spatula) nodes, sorted; a function giving the
-//! 3x3 block `K^-1[p, q]`; per active-set iteration the sphere rows. Out: a
-//! factor `W = L L^T` of the frame's rows and solves with it.
+//! In: each frame the enforced (spatula) nodes, sorted; a function giving the 3x3 block `K^-1[p, q]`; per
+//! active-set iteration the sphere rows. Out: a factor `W = L L^T` of the frame's rows and solves with it.
 //!
-//! Order rule (deterministic, a function of the frame history only): the
-//! enforced nodes that persist from the previous frame keep their relative
-//! order; nodes new this frame are appended in ascending node index. Then
-//! - same set: W and L are reused as they are (only the right-hand side changes);
-//! - nodes only added: the new rows are gathered and L is extended by block
-//!   Cholesky (`L21 = W21 L11^-T`, `L22 L22^T = W22 - L21 L21^T`);
-//! - nodes removed: W is compacted; the leading block of L before the first
-//!   removed node is kept (rows of kept nodes in those columns are unchanged),
-//!   and the trailing block is refactored from `W22 - L21 L21^T`.
-//! Sphere rows come after the enforced rows and are re-appended each active-set
-//! iteration the same way (block extension of the enforced factor).
-//! The rule for linearly dependent rows is that of [`super::dense`]: a pivot
-//! below `DEPENDENT_PIVOT * W_ii` drops the row (earlier rows kept). When a
-//! pivot fails in an incremental step, the whole enforced block is refactored
-//! with the pivot-dropping kernel, so the result is the one of a full factorization.
-//! Stays true: no allocation once buffers have grown to the frame size; fixed
-//! iteration order.
+//! Order rule (deterministic, a function of the frame history only): enforced nodes that persist from the previous
+//! frame keep their relative order; new ones are appended in ascending node index. Then
+//! - same set: W and L are reused (only the right-hand side changes);
+//! - nodes only added: the new rows are gathered and L is extended by block Cholesky (`L21 = W21 L11^-T`,
+//!   `L22 L22^T = W22 - L21 L21^T`);
+//! - nodes removed: W is compacted; L's leading block before the first removed node is kept (its kept rows are
+//!   unchanged) and the trailing block is refactored from `W22 - L21 L21^T`.
+//! Sphere rows come after the enforced rows and are re-appended each active-set iteration the same way.
+//! Dependent rows follow [`super::dense`]: a pivot below `DEPENDENT_PIVOT * W_ii` drops the row (earlier rows
+//! kept). When a pivot fails in an incremental step, the whole enforced block is refactored with the
+//! pivot-dropping kernel, so the result is that of a full factorization.
+//! Stays true: no allocation once buffers have grown to the frame size; fixed iteration order.
 
 use super::dense::{self, DEPENDENT_PIVOT, DenseWorkspace};
 use crate::math::Matrix3;
@@ -106,16 +100,14 @@ impl ContactFactor {
         self.s = 0;
     }
 
-    /// The persistent order for this frame's enforced nodes (`sorted`, ascending,
-    /// distinct): persisting nodes in their previous order, then new ones ascending.
+    /// The persistent order (see the module doc) for this frame's enforced nodes (`sorted`: ascending, distinct).
     pub fn order_for(&self, sorted: &[u32], out: &mut Vec<u32>) {
         out.clear();
         out.extend(self.nodes.iter().copied().filter(|n| sorted.binary_search(n).is_ok()));
         out.extend(sorted.iter().copied().filter(|n| self.nodes_sorted.binary_search(n).is_err()));
     }
 
-    /// Updates the enforced factor to `order` (from [`Self::order_for`]).
-    /// `block(p, q)` returns `K^-1[p, q]`.
+    /// Updates the enforced factor to `order` (from [`Self::order_for`]); `block(p, q)` returns `K^-1[p, q]`.
     pub fn update_enforced(&mut self, order: &[u32], block: &dyn Fn(u32, u32) -> Matrix3<f64>) {
         self.s = 0;
         let m = order.len();
@@ -169,9 +161,8 @@ impl ContactFactor {
         }
     }
 
-    /// Moves the kept nodes' rows of W (and of L in its first `q` columns)
-    /// to their new places (`kept`: the kept nodes in their new order, a
-    /// subsequence of the old), growing the storage to `n` rows if needed.
+    /// Moves the kept nodes' rows of W (and of L in its first `q` columns) to their new places (`kept`: in new
+    /// order, a subsequence of the old), growing the storage to `n` rows if needed.
     fn compact(&mut self, kept: &[u32], q: usize, n: usize) {
         // row map of the kept rows (new row -> old row)
         self.compact_rows.clear();
@@ -218,8 +209,7 @@ impl ContactFactor {
         }
     }
 
-    /// Gathers the rows of W of the new nodes `order[kept..]` against every
-    /// node up to themselves.
+    /// Gathers the rows of W of the new nodes `order[kept..]` against every node up to themselves.
     fn gather_new(&mut self, order: &[u32], kept: usize, block: &dyn Fn(u32, u32) -> Matrix3<f64>) {
         let ld = self.ld;
         for a in kept..order.len() {
@@ -234,10 +224,8 @@ impl ContactFactor {
         }
     }
 
-    /// Refactors the enforced block from column `q` on (`q` = 0: in full):
-    /// the new nodes' rows (from `new_start`) in the kept leading columns,
-    /// `L21 = W21 L11^-T`, then the trailing block. False when the Cholesky
-    /// of the trailing block fails.
+    /// Refactors the enforced block from column `q` on (`q` = 0: in full): the new nodes' rows (from `new_start`) in
+    /// the kept leading columns, `L21 = W21 L11^-T`, then the trailing block. False when its Cholesky fails.
     fn refactor_from(&mut self, q: usize, new_start: usize, n: usize) -> bool {
         let ld = self.ld;
         // rows of new nodes in the kept leading columns: L21 = W21 L11^-T
@@ -315,9 +303,8 @@ impl ContactFactor {
         self.any_dropped = self.dropped.iter().any(|d| *d);
     }
 
-    /// Appends `s` sphere rows: `w_es` (enforced rows x s, column major: column
-    /// t holds `W[enforced, sphere t]`) and `w_ss` (s x s, column major, full
-    /// symmetric). Factors `S = W_SS - Y^T Y`, `Y = L_EE^-1 W_ES`, dropping
+    /// Appends `s` sphere rows: `w_es` (enforced rows x s, column major: column t holds `W[enforced, sphere t]`) and
+    /// `w_ss` (s x s, column major, full symmetric). Factors `S = W_SS - Y^T Y`, `Y = L_EE^-1 W_ES`, dropping
     /// dependent rows relative to the diagonal of `W_SS`.
     pub fn set_sphere_rows(&mut self, s: usize, w_es: &[f64], w_ss: &[f64]) {
         let n = self.enforced_rows();
@@ -338,8 +325,7 @@ impl ContactFactor {
         }
         self.w_ss.clear();
         self.w_ss.extend_from_slice(&w_ss[..s * s]);
-        // S = W_SS - Y^T Y (symmetric: each dot once, the same sum for both
-        // halves); the diagonal of W_SS is the reference of the dependent-row test
+        // S = W_SS - Y^T Y (symmetric: each dot once, the same sum for both halves)
         for a in 0..s {
             let ya = &self.w_es[a * n..a * n + n];
             for b in 0..=a {
@@ -410,8 +396,7 @@ impl ContactFactor {
         }
     }
 
-    /// Cheap conditioning estimate `(max L_ii / min L_ii)^2` over kept rows
-    /// (the sphere block's diagonal is that of its Schur complement factor).
+    /// Cheap conditioning estimate `(max L_ii / min L_ii)^2` over kept rows (the sphere block's from its Schur factor).
     pub fn conditioning_estimate(&self) -> f64 {
         let n = self.enforced_rows();
         let mut lo = f64::INFINITY;
@@ -439,8 +424,7 @@ impl ContactFactor {
         MatRef::from_column_major_slice_with_stride(&self.l[..], self.ld, n, self.ld).submatrix(0, 0, n, n)
     }
 
-    /// Copies the enforced block of W (enforced rows, column major, full
-    /// symmetric) into `out` with leading dimension `t` (>= enforced rows).
+    /// Copies W's enforced block (full symmetric) into `out`, column major with leading dimension `t` (>= its rows).
     pub fn copy_enforced_w(&self, out: &mut [f64], t: usize) {
         let n = self.enforced_rows();
         for j in 0..n {

@@ -1,12 +1,9 @@
-//! The compliance's cache files: the key that names one, writing them whole
-//! (into a temporary file renamed over the old one), reading them back with
-//! their checksums, and keeping the folder under its budget.
+//! The compliance's cache files: the key that names one, writing them whole (a temporary file renamed over the
+//! old one), reading them back with their checksums, and keeping the folder under its budget.
 //!
-//! A file is used only when its key (blake3 of the model's fingerprint, the
-//! factor's ordering, the ROI, the storage) matches, batch by batch, each
-//! batch only when its own checksum matches ([`super::Compliance`] decides
-//! what to do with a mismatch: compute, warn, rewrite). Stays true: a reader
-//! never sees half a file; failing to write one loses nothing computed.
+//! A file is used only when its key (blake3 of the model's fingerprint, the factor's ordering, the ROI, the
+//! storage) matches, each batch only when its own checksum does. Stays true: a reader never sees half a file;
+//! failing to write one loses nothing computed, so it is no error.
 
 use super::fill::{Dense, Fill};
 use super::{CACHE_VERSION, ComplianceStorage, Layout};
@@ -15,12 +12,9 @@ use crate::fem::model::FemModel;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-/// Writes a dense cache file: header, row nodes, the batch table (count,
-/// first columns, one blake3 a batch over its entries then its corrections),
-/// the blake3 of all that, then the entries and the corrections. A reader
-/// checks the table once and each batch as it reads it, so a batch can be
-/// used before the rest of the file is read, and a corrupt batch costs only
-/// its own columns. Into a temporary file renamed at the end.
+/// Writes a dense cache file ([`write_file`]): header, row nodes, the batch table (count, first columns, one blake3
+/// a batch over its entries then its corrections), the blake3 of all that, then the entries and the corrections.
+/// A reader checks the table once and each batch as it reads it, so a corrupt batch costs only its own columns.
 ///
 /// # Safety
 /// Every batch is final.
@@ -52,8 +46,7 @@ pub(super) unsafe fn write_dense_cache<T: bytemuck::Pod>(path: &Path, header: &[
     write_file(path, &[header, bytemuck::cast_slice(row_nodes), &table, v, lo])
 }
 
-/// A dense cache file whose header, rows and batch table matched
-/// ([`super::Compliance`] opens it); its batches are read as the columns fill.
+/// A dense cache file whose header, rows and batch table matched; its batches are read as the columns fill.
 #[derive(Debug)]
 pub(super) struct CacheSource {
     pub(super) file: std::fs::File,
@@ -69,8 +62,7 @@ pub(super) struct CacheSource {
     pub(super) failed: std::sync::atomic::AtomicBool,
 }
 
-/// Fills `buf` from `file` at byte `at`, without moving a shared cursor (the
-/// filling threads read batches at once).
+/// Fills `buf` from `file` at byte `at` without moving a shared cursor (the filling threads read at once).
 pub(super) fn read_at(file: &std::fs::File, buf: &mut [u8], at: u64) -> std::io::Result<()> {
     if buf.is_empty() {
         return Ok(());
@@ -102,9 +94,7 @@ pub(super) fn read_at(file: &std::fs::File, buf: &mut [u8], at: u64) -> std::io:
     }
 }
 
-/// After a cache file was written: prunes the folder; after a failure:
-/// removes the half-written file and warns (the cache only saves time next
-/// run: a failure to write it loses nothing computed, so it is no error).
+/// After a cache file was written, prunes the folder; after a failure, removes the half-written file and warns.
 pub(super) fn finish_write(path: &Path, written: Result<(), FemError>) {
     match written {
         Ok(()) => prune_cache_dir(path, CACHE_DIR_BUDGET_BYTES),
@@ -122,8 +112,7 @@ pub(super) fn mark_used(path: &Path) {
     }
 }
 
-/// Writes `parts` one after the other into a temporary file renamed to
-/// `path` at the end, so a reader never sees half a file.
+/// Writes `parts` in turn into a temporary file renamed to `path` at the end, so a reader never sees half a file.
 pub(super) fn write_file(path: &Path, parts: &[&[u8]]) -> Result<(), FemError> {
     let err = |e: std::io::Error| FemError::Cache { path: path.to_path_buf(), reason: e.to_string() };
     if let Some(dir) = path.parent() {
@@ -147,10 +136,8 @@ pub(super) fn cache_key(model: &FemModel, roi: &[u32], storage: ComplianceStorag
     h.update(b"fissure-compliance");
     h.update(&CACHE_VERSION.to_le_bytes());
     h.update(&model.fingerprint);
-    // The factor's ordering moves the last bits of every column: a replay
-    // reading a cache must see the bits a fresh precompute would give.
-    // The ordering asked for (a fixed function of the matrix resolves `Best`),
-    // so the key is known before the factor is made.
+    // The ordering moves the last bits of every column, and a cache must give a fresh precompute's bits. The
+    // ordering asked for (`Best` resolves as a fixed function of the matrix), so the key is known before the factor.
     h.update(format!("{:?}", model.chol.requested).as_bytes());
     h.update(&(roi.len() as u64).to_le_bytes());
     h.update(bytemuck::cast_slice(roi));
@@ -167,12 +154,10 @@ pub(super) fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// A cache directory keeps its compliance files under this many bytes: after a
-/// new file is written, the least recently used others (modification time;
-/// a load marks a file as used) are removed until the rest fit.
+/// A cache directory keeps its compliance files under this many bytes: after a new file is written, the least
+/// recently used others (modification time; a load marks a file used) are removed until the rest fit.
 pub const CACHE_DIR_BUDGET_BYTES: u64 = 4 << 30;
-/// Half-written files (`compliance-*.tmp<pid>`) older than this are removed
-/// when the directory is pruned (a run that died while writing left them).
+/// Half-written files (`compliance-*.tmp<pid>`, left by a run that died) older than this are pruned.
 pub(super) const STALE_TMP_SECS: u64 = 3600;
 
 /// The file a cache is written to before it is renamed into place.
@@ -180,10 +165,8 @@ pub(super) fn tmp_path(path: &Path) -> PathBuf {
     path.with_extension(format!("tmp{}", std::process::id()))
 }
 
-/// Removes the least recently used compliance files of `kept`'s directory
-/// until those left (with `kept`, which always stays) fit in `budget` bytes,
-/// and stale half-written files. Touches only files named `compliance-*`;
-/// failures are logged, never errors (the cache only saves time).
+/// Removes the least recently used compliance files of `kept`'s directory until those left (with `kept`, which
+/// always stays) fit in `budget` bytes, and stale half-written files; only `compliance-*`, failures only logged.
 pub fn prune_cache_dir(kept: &Path, budget: u64) {
     let Some(dir) = kept.parent() else { return };
     let Ok(entries) = std::fs::read_dir(dir) else { return };

@@ -1,27 +1,19 @@
-//! Filling the dense compliance batch after batch (each read from the cache
-//! file, or solved with the factor), on the caller's thread (a build that
-//! waits) or in the background (the first frame comes right after the
-//! storage is allocated, [`super::ComputeOptions::background`]).
+//! Filling the dense compliance batch after batch (each read from the cache file, or solved with the factor), on
+//! the caller's thread (a build that waits) or in the background ([`super::ComputeOptions::background`]).
 //!
-//! In: the storage, allocated once and never moved ([`Buf`]); the batches of
-//! columns in column order and the order to solve them in. Out: per free
-//! component, how many of its leading columns are final ([`Fill::ready`]).
-//! Stays true: a batch is solved by one thread, exactly as a build that
-//! waits solves it (or read from a file such a build wrote, checked against
-//! its checksum), so the values never depend on timing; a reader only ever
-//! sees a component's final leading columns (a column's entries above the
-//! diagonal are the rows of earlier columns of its component, so a column is
-//! usable once every column before it in its component is), and waits for a
-//! column that is not final yet.
+//! In: the storage, allocated once and never moved ([`Buf`]); the batches of columns in column order and the order
+//! to solve them in. Out: per free component, how many of its leading columns are final ([`Fill::ready`]).
+//! Stays true: a batch is solved by one thread exactly as a build that waits solves it (or read, checked, from a
+//! file such a build wrote), so values never depend on timing. A reader sees only a component's final leading
+//! columns (a column's upper entries are rows of the earlier ones) and waits for a column not yet final.
 
 use super::Layout;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Condvar, Mutex};
 
-/// A heap buffer written by the threads that fill it (each into its own
-/// batch's columns) and read, in the parts [`Fill`] says are final, by every
-/// other thread. Owns the allocation of the `Vec` it was made from.
+/// A heap buffer written by the filling threads (each into its own batch's columns) and read, where [`Fill`] says
+/// it is final, by any thread. Owns the allocation of the `Vec` it was made from.
 pub(super) struct Buf<T> {
     ptr: *mut T,
     len: usize,
@@ -76,8 +68,7 @@ impl<T> std::fmt::Debug for Buf<T> {
     }
 }
 
-/// Dense entries (column after column, [`Layout`]) and, for f32 storage, the
-/// corrections of the ROI x ROI entries (empty otherwise).
+/// Dense entries (column after column, [`Layout`]) and, for f32 storage, the ROI x ROI corrections (else empty).
 #[derive(Debug)]
 pub(super) struct Dense<T> {
     pub(super) v: Buf<T>,
@@ -112,7 +103,7 @@ pub(super) struct Fill {
     computed: AtomicUsize,
     state: Mutex<FillState>,
     changed: Condvar,
-    /// Batches in the order they are solved (column order unless [`Self::solved_in`] says); the filling threads take them in this order.
+    /// Batches in solving order (column order unless [`Self::solved_in`] says), as the filling threads take them.
     order: Vec<usize>,
 }
 
@@ -154,11 +145,9 @@ impl Fill {
         self
     }
 
-    /// Waits until `enough(done, columns_done, seconds)` says so, asked
-    /// again after each batch is final (`done`: per batch, final;
-    /// `seconds`: from the filling's start to the latest final batch).
-    /// `Ok(true)` when it did, `Ok(false)` when every batch is final first,
-    /// `Err` when the filling failed or was stopped.
+    /// Waits until `enough(done, columns_done, seconds)` holds, asked again after each final batch (`done`: per
+    /// batch, final; `seconds`: from the start to the latest final batch). `Ok(true)` when it did, `Ok(false)` when
+    /// every batch is final first, `Err` when the filling failed or was stopped.
     pub(super) fn wait_until(&self, mut enough: impl FnMut(&[bool], usize, f64) -> bool) -> Result<bool, String> {
         let mut state = self.lock();
         loop {
@@ -241,8 +230,7 @@ impl Fill {
         self.lock().seconds
     }
 
-    /// Waits until component `k` has `need` final leading columns; `Err` when
-    /// the filling failed or was stopped first.
+    /// Waits until component `k` has `need` final leading columns; `Err` when the filling failed or stopped first.
     pub(super) fn wait(&self, k: usize, need: usize) -> Result<(), String> {
         if self.ready(k) >= need {
             return Ok(());
@@ -309,8 +297,7 @@ impl Fill {
     }
 }
 
-/// Held by every clone of a [`super::Compliance`] that fills in the
-/// background: when the last one goes, the filling stops.
+/// Held by every clone of a background-filling [`super::Compliance`]: when the last one goes, the filling stops.
 #[derive(Debug)]
 pub(super) struct FillOwner(pub(super) std::sync::Arc<Fill>);
 

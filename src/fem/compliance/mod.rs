@@ -1,28 +1,20 @@
-//! Precomputed compliance: `K^-1` restricted to the surface (rows) and a region
-//! of interest (columns), stored once per model and reused every frame.
+//! Precomputed compliance: `K^-1` restricted to the surface (rows) and a region of interest (columns), stored once
+//! per model and reused every frame.
 //!
-//! In: a [`FemModel`], the ROI nodes, a storage precision, an optional cache
-//! folder. Out: a [`Compliance`] that returns the 3x3 block `K^-1[node_i, node_j]`
-//! for a surface (or ROI) node i and a ROI node j, and accumulates
+//! In: a [`FemModel`], the ROI nodes, a storage precision, an optional cache folder. Out: a [`Compliance`] that
+//! returns the 3x3 block `K^-1[node_i, node_j]` for a surface (or ROI) node i and a ROI node j, and accumulates
 //! `u_rows += K^-1[rows, cols] F` for a few nodal forces.
 //!
-//! Layout (symmetric storage): rows are the free ROI nodes followed by every
-//! other free surface node, each group sorted by free component (the bodies
-//! `K` does not couple, such as the two hemispheres) and then Morton order;
-//! columns are the ROI nodes. Only the blocks with row >= column and both nodes
-//! in one component are stored (`K^-1` between components is exactly zero),
-//! column after column, each 3x3 block column-major (see [`Layout`]; with one
-//! component, block `(i, j)` sits at `j n - j (j-1) / 2 + i - j`). A ROI x ROI
-//! block above the diagonal is the transpose of its mirror.
-//! Stays true: entries are `K^-1` to round-off (f64) or rounded once to f32;
-//! ROI x ROI blocks are exactly symmetric in both storages; a cache file is
-//! used only when its key (blake3 of model fingerprint, factor ordering, ROI,
-//! storage) matches, batch by batch, each batch only when its own checksum
-//! matches (a batch that does not is computed, the file rewritten).
+//! Layout (`Layout`): rows are the free ROI nodes, then the other free surface nodes, each group by free
+//! component (bodies `K` does not couple), then Morton order; columns are the ROI nodes. Only blocks with row >=
+//! column within one component are stored, column after column, each 3x3 block column-major; a ROI x ROI block
+//! above the diagonal is the transpose of its mirror.
+//! Stays true: entries are `K^-1` to round-off (f64) or rounded once to f32; ROI x ROI blocks are exactly symmetric
+//! in both storages; a cache file is used only when its key matches, each batch only when its checksum does (a
+//! batch that does not is computed and the file rewritten; see `cache`).
 //!
-//! Precompute here and in `fill` (the batches of columns, on every core or in
-//! the background); the cache files in `cache`; the per-frame surface product
-//! in `product`.
+//! Precompute here and in `fill` (batches of columns, on every core or in the background); cache files in `cache`;
+//! the per-frame surface product in `product`.
 
 mod cache;
 mod fill;
@@ -56,12 +48,9 @@ const ROW_CHUNK: usize = 512;
 pub enum ComplianceStorage {
     /// 8 bytes an entry; the fast path matches a direct solve to about 1e-12.
     F64,
-    /// 4 bytes an entry for the surface product, plus 2 bytes of correction
-    /// on each ROI x ROI entry (the ones `W` is gathered from: f32 rounding
-    /// there, times cond(W), made reactions err by 2e-5 on paper-12k), so `W`
-    /// is exact to about 1e-12; the surface displacement carries the f32
-    /// rounding (about 1e-6 relative). Measured in `tests/fem_fast_path.rs`
-    /// and `cargo bench --bench fem`.
+    /// 4 bytes an entry for the surface product, plus 2 bytes of correction on each ROI x ROI entry (those `W` is
+    /// gathered from, where f32 rounding times cond(W) would spoil the reactions), so `W` is exact to about 1e-12;
+    /// the surface displacement carries the f32 rounding (about 1e-6 relative). See `tests/fem_fast_path.rs`.
     F32,
 }
 
@@ -78,8 +67,7 @@ impl ComplianceStorage {
 #[derive(Debug, Clone)]
 enum Values {
     F64(Arc<Dense<f64>>),
-    /// f32 entries and, for the ROI x ROI entries ([`Layout::lo_offset`]), the
-    /// rest `x - f32(x)` in units of 2^-15 of the f32's ulp ([`split_f32`]).
+    /// f32 entries and, for the ROI x ROI entries ([`Layout::lo_offset`]), the rest `x - f32(x)` ([`split_f32`]).
     F32(Arc<Dense<f32>>),
 }
 
@@ -89,22 +77,16 @@ pub struct ComputeOptions<'a> {
     pub storage: ComplianceStorage,
     /// Folder of the disk cache; `None`: no cache.
     pub cache_dir: Option<&'a Path>,
-    /// Dense storage: per mesh node, how soon a tool reaches it (lower:
-    /// sooner). The ROI columns of each free component are then ordered by it
-    /// (Morton order among equals) and solved in that order, in batches that
-    /// never straddle two components, so the columns a frame needs first are
-    /// the first to be final. `None`: Morton order. Part of the cache key.
+    /// Dense storage: per mesh node, how soon a tool reaches it (lower: sooner). Each free component's ROI columns
+    /// are ordered by it (Morton among equals) and solved in that order, in batches within one component, so the
+    /// columns a frame needs first are final first. `None`: Morton order. Part of the cache key.
     pub reach: Option<&'a [u32]>,
-    /// Dense storage: return as soon as the storage is allocated (and the
-    /// cache file's batch table checked) and read or solve the columns on
-    /// background threads at a lower priority. A read of a column that is
-    /// not final yet waits for it; the values are those of a build that
-    /// waits, bit for bit.
+    /// Dense storage: return once the storage is allocated (and the cache's batch table checked), and read or solve
+    /// the columns on lower-priority background threads. Reading a column not yet final waits for it; the values
+    /// are bit for bit those of a build that waits.
     pub background: bool,
-    /// The surface nodes stored as rows besides the ROI's (the working
-    /// region: what a frame's physics reads); `None`: every free surface
-    /// node. Part of the cache key. A surface node without a row is brought
-    /// up to date by a sparse solve where something reads it
+    /// The surface nodes stored as rows besides the ROI's (the working region); `None`: every free surface node.
+    /// Part of the cache key. A surface node without a row is updated by a sparse solve where something reads it
     /// ([`crate::fem::ConstrainedSolver::track`], `whole_surface`).
     pub rows: Option<&'a [u32]>,
 }
@@ -147,15 +129,11 @@ pub struct Compliance {
     stats: ComplianceStats,
 }
 
-/// Which rows of a column dense storage holds. `K` couples only nodes joined
-/// by a chain of tets through free nodes, so `K^-1` is block diagonal over the
-/// connected components of the free-node graph (the real brain's two
-/// hemispheres are two bodies): a block between components is exactly zero and
-/// is not stored. Rows are grouped by component (ROI rows of component 0, of
-/// component 1, ..., then the other rows the same way), so column `j` of
-/// component `k` stores two runs of consecutive rows: ROI rows `j..roi_end(k)`
-/// and the other rows of `k`. With one component this is the plain packed
-/// lower triangle (`offset(j) = j n - j (j-1) / 2`).
+/// Which rows of a column dense storage holds. `K` couples only nodes joined by a chain of tets through free nodes,
+/// so `K^-1` is block diagonal over the components of the free-node graph; a block between components is exactly
+/// zero and not stored. Rows are grouped by component (ROI rows of component 0, 1, ..., then the other rows
+/// likewise), so column `j` of component `k` stores two runs: ROI rows `j..roi_end(k)` and the other rows of `k`.
+/// With one component this is the packed lower triangle (`offset(j) = j n - j (j-1) / 2`).
 #[derive(Debug, Clone, Default)]
 struct Layout {
     /// Component of each row (0.. in the order the rows are grouped).
@@ -213,8 +191,7 @@ impl Layout {
         (self.row_comp[row] == k && row < self.spans[k as usize][1]).then(|| self.lo_off[col] + row - col)
     }
 
-    /// Block offset of `(row, col)`, `row >= col`, or `None` when the two are
-    /// in different components (the block is exactly zero).
+    /// Block offset of `(row, col)`, `row >= col`; `None` across components (the block is exactly zero).
     #[inline]
     fn offset(&self, row: usize, col: usize) -> Option<usize> {
         let k = self.row_comp[col];
@@ -240,8 +217,7 @@ impl Layout {
     }
 }
 
-/// Component of every free node in the graph of tets through free nodes
-/// (`u32::MAX` for fixed or unused nodes), numbered by lowest node: deterministic.
+/// Component of every free node in the graph of tets through free nodes (`u32::MAX`: none), numbered by lowest node.
 fn free_components(model: &FemModel) -> Vec<u32> {
     let n = model.mesh.node_count();
     let mut parent: Vec<u32> = (0..n as u32).collect();
@@ -272,8 +248,7 @@ fn free_components(model: &FemModel) -> Vec<u32> {
 }
 
 impl Compliance {
-    /// Computes (or loads from `cache_dir`) the compliance for `roi_nodes`.
-    /// Fixed nodes in the ROI are skipped; duplicates are ignored.
+    /// Computes (or loads from `cache_dir`) the compliance for `roi_nodes` (fixed ones skipped, duplicates ignored).
     /// `progress(done, total)` is called after every batch of columns.
     pub fn compute(
         model: &FemModel,
@@ -285,9 +260,8 @@ impl Compliance {
         Self::compute_with(model, roi_nodes, ComputeOptions { cache_dir, ..ComputeOptions::new(storage) }, progress)
     }
 
-    /// As [`Self::compute`], with the column order and the background filling
-    /// of [`ComputeOptions`]. With `background`, `progress` is called once
-    /// with `(0, total)`; [`Self::fill_progress`] says how far the filling is.
+    /// As [`Self::compute`], with [`ComputeOptions`]. With `background`, `progress` is called once with
+    /// `(0, total)`; [`Self::fill_progress`] says how far the filling is.
     pub fn compute_with(model: &FemModel, roi_nodes: &[u32], options: ComputeOptions<'_>, progress: &mut dyn FnMut(usize, usize)) -> Result<Self, FemError> {
         let ComputeOptions { storage, cache_dir, reach, background, rows } = options;
         let reach = reach.filter(|r| r.len() == model.mesh.node_count());
@@ -296,8 +270,7 @@ impl Compliance {
         this.fill_from(model, storage, path, background, reach, progress)
     }
 
-    /// The rows, columns and layout for `roi_nodes` (fixed ones skipped,
-    /// duplicates ignored) and the surface `rows` (`None`: all); nothing computed yet.
+    /// The rows, columns and layout for `roi_nodes` and the surface `rows` (`None`: all); nothing computed yet.
     fn laid_out(model: &FemModel, roi_nodes: &[u32], storage: ComplianceStorage, reach: Option<&[u32]>, rows: Option<&[u32]>) -> Result<Self, FemError> {
         let count = model.mesh.node_count();
         let mut roi: Vec<u32> = Vec::with_capacity(roi_nodes.len());
@@ -319,12 +292,10 @@ impl Compliance {
         let stored = |n: u32| wanted.as_ref().is_none_or(|w| w.binary_search(&n).is_ok());
         let mut others: Vec<u32> =
             model.surface.vertices.iter().copied().filter(|&n| !model.is_fixed(n) && roi.binary_search(&n).is_err() && stored(n)).collect();
-        // Spatial (Morton) order: a spatula's contact patch maps to a few runs of
-        // consecutive columns, so the per-frame product streams through memory.
+        // Morton order: a spatula's contact patch maps to a few runs of consecutive columns, so the product streams.
         morton_sort(&mut roi, &model.mesh.positions);
         morton_sort(&mut others, &model.mesh.positions);
-        // Rows are grouped by free component (see [`Layout`]); the sorts are
-        // stable, so each component keeps its reach and Morton order.
+        // Rows grouped by free component ([`Layout`]); stable sorts keep each component's reach and Morton order.
         if let Some(reach) = reach {
             roi.sort_by_key(|&n| reach[n as usize]);
         }
@@ -352,8 +323,7 @@ impl Compliance {
         })
     }
 
-    /// Fills a compliance [`Self::laid_out`]: from the cache file at `path`
-    /// where its batches check, else solved; in the background or here.
+    /// Fills a compliance from [`Self::laid_out`]: from the cache file at `path` where its batches check, else solved.
     fn fill_from(
         self,
         model: &FemModel,
@@ -381,9 +351,8 @@ impl Compliance {
             }
         }
         if job.source.is_some() {
-            // Every column a frame reads is in the file: the factor is made
-            // beside the frames, for the lazy columns, interior displacements
-            // and any batch that fails its check.
+            // Every column a frame reads is in the file: the factor is made beside the frames (for lazy columns,
+            // interior displacements and any batch that fails its check).
             model.start_factor();
         } else {
             // Made here, so a matrix that cannot be factored fails the build.
@@ -439,10 +408,8 @@ impl Compliance {
         self.layout.blocks() * 9
     }
 
-    /// Allocates the dense storage (after checking it fits) and lays out its
-    /// batches: 32 columns each, cut at component starts when `reach` orders
-    /// the columns (then solved in the order of their first column's reach),
-    /// else straight through the columns (solved in column order).
+    /// Allocates the dense storage (after checking it fits) and lays out batches of [`BATCH_NODES`] columns, cut at
+    /// component starts and ordered by their first column's reach when `reach` is given, else in column order.
     fn prepare_fill(&self, model: &FemModel, storage: ComplianceStorage, reach: Option<&[u32]>, background: bool) -> Result<FillJob, FemError> {
         let len = self.entry_count();
         let n_free = model.dofs.dof_count();
@@ -493,9 +460,8 @@ impl Compliance {
         s
     }
 
-    /// While the columns are still being computed in the background
-    /// ([`ComputeOptions::background`]): `(final columns, all columns)`.
-    /// `None` once every column is final (or when none was left to compute).
+    /// While the columns fill in the background ([`ComputeOptions::background`]): `(final columns, all columns)`;
+    /// `None` once every column is final.
     pub fn fill_progress(&self) -> Option<(usize, usize)> {
         let f = &self.fill.as_ref()?.0;
         (!f.is_complete()).then(|| (f.columns_done(), self.n_cols))
@@ -510,20 +476,15 @@ impl Compliance {
         Ok(())
     }
 
-    /// With the columns filling in the background: waits until the rest of
-    /// the filling, at the rate measured so far slowed by
-    /// [`AHEAD_SLOWDOWN`] (the frames share the machine with it), is
-    /// predicted to make every column readable before `due_s(node)` seconds
-    /// from now, when a blade is first expected to read it. A scene whose
-    /// first frame starts then never waits for a column its expected motion
-    /// reaches. `progress(done, total)` on each final batch; at once when
-    /// nothing is filling.
+    /// With the columns filling in the background: waits until the rest of the filling, at the rate measured so far
+    /// slowed by [`AHEAD_SLOWDOWN`], is predicted to make every column readable before `due_s(node)` seconds from
+    /// now, when a blade is first expected to read it; a scene starting then never waits for a column.
+    /// `progress(done, total)` on each final batch; returns at once when nothing is filling.
     pub fn wait_until_ahead(&self, due_s: &dyn Fn(u32) -> f64, progress: &mut dyn FnMut(usize, usize)) -> Result<(), FemError> {
         let Some(owner) = &self.fill else { return Ok(()) };
         let f = &owner.0;
-        // A column is readable once its component's columns before it are
-        // final: a batch is due when the earliest of its own and its
-        // component's later columns is.
+        // A column is readable once its component's columns before it are final: a batch is due when the earliest
+        // of its own and its component's later columns is.
         let mut due = vec![f64::INFINITY; f.batch_count()];
         for s in &self.layout.spans {
             let mut earliest = f64::INFINITY;
@@ -536,8 +497,7 @@ impl Compliance {
         let n_cols = self.n_cols;
         let ahead = |done: &[bool], columns_done: usize, seconds: f64| {
             progress(columns_done, n_cols);
-            // The rate is measured over a few batches (the first ones also
-            // wait for the threads to start).
+            // Trust the rate only after a few batches (the first ones also wait for the threads to start).
             if done.iter().filter(|&&d| d).count() < AHEAD_MIN_BATCHES || seconds <= 0.0 {
                 return false;
             }
@@ -551,8 +511,7 @@ impl Compliance {
         f.wait_until(ahead).map(|_| ()).map_err(|reason| FemError::ComplianceIncomplete { reason })
     }
 
-    /// Waits until column `col` can be read (its component's columns up to
-    /// it are final): at once unless the columns are computed in the background.
+    /// Waits until column `col` is readable (its component's columns up to it are final); at once unless filling.
     #[inline]
     pub fn wait_column(&self, col: usize) -> Result<(), FemError> {
         let Some(f) = &self.fill else { return Ok(()) };
@@ -563,9 +522,8 @@ impl Compliance {
         f.0.wait(k, col + 1 - self.layout.spans[k][0]).map_err(|reason| FemError::ComplianceIncomplete { reason })
     }
 
-    /// The final leading columns of component `k`: their entries from block
-    /// `col_off[first column]` on, and their ROI corrections (f32 storage)
-    /// from block `lo_off[first column]` on.
+    /// The final leading columns of component `k`: their entries from block `col_off[first column]` on, and their
+    /// ROI corrections (f32 storage) from block `lo_off[first column]` on.
     #[inline]
     fn region<'a, T>(&'a self, d: &'a Dense<T>, k: usize) -> Region<'a, T> {
         let s = &self.layout.spans[k];
@@ -632,10 +590,9 @@ impl Compliance {
         self.row_of(node).filter(|&r| r < self.n_cols)
     }
 
-    /// `K^-1[row node, col node]` by row and column index (`col < column_count()`).
-    /// While the columns are computed in the background it waits for the ones
-    /// it reads (a frame asks [`Self::wait_column`] first, which can fail;
-    /// here a failed filling reads as zero).
+    /// `K^-1[row node, col node]` by row and column index (`col < column_count()`). While the columns fill in the
+    /// background it waits for those it reads (a frame asks [`Self::wait_column`] first, which can fail; here a
+    /// failed filling reads as zero).
     #[inline]
     pub fn block(&self, row: usize, col: usize) -> Matrix3<f64> {
         if row >= col {
@@ -645,8 +602,7 @@ impl Compliance {
         }
     }
 
-    /// The block as the surface product reads it: for f32 storage the f32
-    /// entries without their ROI x ROI correction; otherwise [`Self::block`].
+    /// The block as the surface product reads it: f32 storage without the ROI x ROI correction, else [`Self::block`].
     pub fn product_block(&self, row: usize, col: usize) -> Matrix3<f64> {
         let (r, c, transpose) = if row >= col { (row, col, false) } else { (col, row, true) };
         let m = match (&self.values, self.layout.offset(r, c)) {
@@ -705,9 +661,8 @@ impl Compliance {
         h
     }
 
-    /// Opens a dense cache file ([`write_dense_cache`]) for `fill`'s batches:
-    /// checks its size, header, rows and batch table (against its checksum
-    /// and `fill`'s batches). Its entries are read later, batch by batch.
+    /// Opens a dense cache file ([`write_dense_cache`]) for `fill`'s batches: checks its size, header, rows and batch
+    /// table (checksum and batches). Its entries are read later, batch by batch.
     fn open_dense(&self, path: &Path, storage: ComplianceStorage, fill: &Fill) -> Result<CacheSource, String> {
         let (mut file, _) = crate::fsio::open_regular(path, crate::fsio::Cap::COMPLIANCE_CACHE).map_err(|e| e.to_string())?;
         let width = match storage {
@@ -761,9 +716,8 @@ impl Compliance {
     }
 }
 
-/// `x` as an f32 and the rest `x - f32(x)` in units of 2^-15 of that f32's
-/// ulp (the rest is at most half an ulp, so it fits an i16): [`join_f32`]
-/// gives `x` back to about 2^-39 relative.
+/// `x` as an f32 and the rest `x - f32(x)` in units of 2^-15 of that f32's ulp (at most half an ulp, so it fits an
+/// i16): [`join_f32`] gives `x` back to about 2^-39 relative.
 #[inline]
 fn split_f32(x: f64) -> (f32, i16) {
     let hi = x as f32;
@@ -785,15 +739,10 @@ fn f32_unit(hi: f32) -> f64 {
     f64::from_bits((exp + 1023 - 165) << 52)
 }
 
-/// Asks Linux for transparent huge pages under a large buffer (the per-frame
-/// product touches a few hundred columns of up to a megabyte each: with 4 KiB
-/// pages that is a TLB miss every page; measured on paper-12k at 100
-/// constrained: product 2.2 -> 1.9 ms). A hint: refusal changes nothing but
-/// speed. Given before the first write when the buffer is computed (faults
-/// then take huge pages, 0.45 s for a 1.1 GB reload when they are free, but
-/// 1-2 s when the kernel must compact memory first), and after the read when
-/// it is loaded, so a reload never waits on compaction (0.8 s, steady) and
-/// the kernel may collapse the pages later in the background.
+/// Asks Linux for transparent huge pages under a large buffer: the per-frame product touches a few hundred columns
+/// of up to a megabyte each, a TLB miss every 4 KiB page otherwise. A hint: refusal changes only speed. Given
+/// before the first write when the buffer is computed (faults then take huge pages), and after the read when it
+/// is loaded, so a reload never waits on the kernel compacting memory.
 fn advise_huge_pages<T>(v: &mut [T]) {
     #[cfg(target_os = "linux")]
     if crate::fem::tuning::Tuning::current().enabled(crate::fem::tuning::Optimisation::HugePages) {
@@ -808,14 +757,12 @@ fn advise_huge_pages<T>(v: &mut [T]) {
     }
 }
 
-/// How much slower the background filling is assumed to run once the
-/// frames share the machine with it ([`Compliance::wait_until_ahead`]).
+/// How much slower the background filling is assumed to run beside the frames ([`Compliance::wait_until_ahead`]).
 pub const AHEAD_SLOWDOWN: f64 = 1.25;
 /// Final batches before the filling's rate is trusted ([`Compliance::wait_until_ahead`]).
 const AHEAD_MIN_BATCHES: usize = 4;
 
-/// Refuses a compliance of `need` bytes when the machine has less
-/// `available` (unknown: allowed), naming the region and what to change.
+/// Refuses a compliance of `need` bytes when the machine has less `available` (unknown: allowed).
 fn region_fits(cols: usize, rows: usize, storage: ComplianceStorage, need: u64, available: Option<u64>) -> Result<(), FemError> {
     match available {
         Some(available) if need > available => Err(FemError::RegionTooLarge {
@@ -852,7 +799,7 @@ struct FillJob {
     n_free: usize,
     /// First free DOF of every stored row.
     row_dofs: Vec<usize>,
-    /// The supernodes above the stored rows ([`super::factor::SparseCholesky::supernodes_above`]), made by the first batch solved.
+    /// The supernodes above the stored rows, made by the first batch solved.
     wanted: std::sync::OnceLock<Option<Vec<bool>>>,
     layout: Arc<Layout>,
     values: Values,
@@ -860,14 +807,12 @@ struct FillJob {
     threads: usize,
     /// Filling beside the frames: its threads run at a lower priority.
     background: bool,
-    /// A cache file whose batches are read (each checked against its own
-    /// checksum) instead of solved; a batch that fails its check is solved.
+    /// A cache file whose batches are read (each checked against its checksum) instead of solved.
     source: Option<CacheSource>,
 }
 
 impl FillJob {
-    /// Solves every batch on `threads` threads (scoped: returns when all are
-    /// final, or at the first error); `progress(done, total)` after each.
+    /// Fills every batch on `threads` scoped threads until all are final or one fails; `progress` after each.
     fn run(&self, progress: &mut dyn FnMut(usize, usize)) -> Result<(), FemError> {
         let t = Instant::now();
         let n_cols = self.layout.col_off.len() - 1;
@@ -881,7 +826,7 @@ impl FillJob {
                         lower_thread_priority();
                     }
                     let work = || -> Result<(), FemError> {
-                        // The right-hand sides (145 MB a thread on the fine brain) only once a batch is solved.
+                        // The right-hand sides are allocated only once a batch is solved.
                         let mut solver: Option<(faer::Mat<f64>, faer::dyn_stack::MemBuffer)> = None;
                         loop {
                             if self.fill.is_cancelled() {
@@ -936,8 +881,7 @@ impl FillJob {
         result
     }
 
-    /// Reads batch `b` from the cache file into `piece` (its storage) when
-    /// there is one and the batch's bytes match their checksum.
+    /// Reads batch `b` from the cache file into `piece` when there is one and the bytes match their checksum.
     fn read_batch(&self, b: usize, piece: &mut Piece<'_>) -> bool {
         let Some(src) = &self.source else { return false };
         let (v, lo): (&mut [u8], &mut [u8]) = match piece {
@@ -970,8 +914,7 @@ impl FillJob {
         }
     }
 
-    /// Fills in the background; the cache `(path, header, row nodes)` is
-    /// written once every column is final, unless every batch came from it.
+    /// Fills in the background, then writes the cache `(path, header, row nodes)` unless every batch came from it.
     /// `Err(self)` when no thread starts.
     fn spawn(self, cache: Option<(PathBuf, Vec<u8>, Vec<u32>)>) -> Result<(), Self> {
         let job = Arc::new(self);
@@ -1022,8 +965,7 @@ impl FillJob {
         }
     }
 
-    /// Solves columns `cols` (3 right-hand sides a node) and writes their
-    /// stored rows into `piece`, the storage of exactly those columns.
+    /// Solves columns `cols` (3 right-hand sides a node) and writes their stored rows into `piece`, their storage.
     fn solve_batch(
         &self,
         chol: &super::factor::SparseCholesky,
@@ -1059,9 +1001,8 @@ impl FillJob {
     }
 }
 
-/// Makes the calling thread yield to the frames: Linux nice 10 for this
-/// thread alone (on Linux a thread's nice value is its own). A hint: where it
-/// is refused, or elsewhere, the thread keeps the default priority.
+/// Makes the calling thread yield to the frames: Linux nice 10 for this thread alone. A hint: where refused, or on
+/// other systems, the thread keeps the default priority.
 pub(crate) fn lower_thread_priority() {
     #[cfg(target_os = "linux")]
     {
@@ -1076,9 +1017,8 @@ pub(crate) fn lower_thread_priority() {
     }
 }
 
-/// Threads for the precompute: one a core, as many as the memory for their
-/// right-hand sides allows (each holds `n_free x 3 BATCH_NODES` f64, 145 MB on
-/// the fine brain) within [`PRECOMPUTE_RHS_BUDGET`], at least one, at most one a batch.
+/// Threads for the precompute: one a core, as many as [`PRECOMPUTE_RHS_BUDGET`] allows for their right-hand sides
+/// (`n_free x 3 BATCH_NODES` f64 each), at least one, at most one a batch.
 fn precompute_threads(n_free: usize, batches: usize) -> usize {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let per_thread = n_free * 3 * BATCH_NODES * 8;
@@ -1097,8 +1037,7 @@ fn fill_column<T: Copy>(out: &mut [T], row_dofs: &[usize], cols: &[&[f64]; 3], c
     }
 }
 
-/// Sorts nodes by the Morton code of their position in the nodes' bounding
-/// box (21 bits an axis), ties by node index: deterministic.
+/// Sorts nodes by Morton code in their bounding box (21 bits an axis), ties by node index: deterministic.
 fn morton_sort(nodes: &mut [u32], positions: &[Vec3]) {
     if nodes.is_empty() {
         return;

@@ -1,15 +1,11 @@
-//! The per-frame surface product `u_rows += K^-1[rows, forced columns] F`
-//! over a dense compliance ([`super::Compliance::accumulate`]).
+//! The per-frame surface product `u_rows += K^-1[rows, forced columns] F` over a dense compliance
+//! ([`super::Compliance::accumulate`]).
 //!
-//! In: the stored lower triangle (a region of columns at a time, through a
-//! closure), the forced ROI columns with their forces, a
-//! [`ProductWorkspace`]. Out: the displacement of every stored row.
-//! The entries above the diagonal of a forced column are a row of the stored
-//! triangle; the workspace gathers that row once while the column stays
-//! forced ([`RowStore`]), so a frame streams contiguous memory: eight forced
-//! columns at a time into 9 partial sums a row, a chunk of rows at a time
-//! (AVX2 when the CPU has it). Stays true: nothing is allocated once the
-//! workspace has grown; the sums run in a fixed order (bitwise replays).
+//! In: the stored lower triangle (a region of columns at a time, through a closure), the forced ROI columns with
+//! their forces, a [`ProductWorkspace`]. Out: the displacement of every stored row. The workspace keeps each forced
+//! column's upper entries as a contiguous row ([`RowStore`]), so a frame streams contiguous memory: eight forced
+//! columns at a time into 9 partial sums a row, a chunk of rows at a time (AVX2 when the CPU has it).
+//! Stays true: nothing is allocated once the workspace has grown; the sums run in a fixed order (bitwise replays).
 
 use super::{Compliance, Layout, ROW_CHUNK, Values};
 use crate::fem::tuning::{Optimisation, Tuning};
@@ -17,13 +13,10 @@ use std::time::Instant;
 use crate::math::Vec3;
 
 impl Compliance {
-    /// `u[row] += sum_k K^-1[row, col_k] F_k` over every row, for forces
-    /// `(col, F)` sorted by ascending column. `workspace` is reused between
-    /// calls (for dense storage it keeps the rows `K^-1[c, s..c]` of the forced
-    /// columns, see [`ProductWorkspace`]); once it has grown, nothing is allocated.
-    /// While the columns are computed in the background it waits for the
-    /// forced ones; if their filling failed it adds nothing (a frame asks
-    /// [`Self::wait_column`] for its columns first and stops there).
+    /// `u[row] += sum_k K^-1[row, col_k] F_k` over every row, for forces `(col, F)` sorted by ascending column.
+    /// `workspace` is reused between calls; once it has grown, nothing is allocated. While the columns fill in the
+    /// background it waits for the forced ones; if their filling failed it adds nothing (a frame asks
+    /// [`Self::wait_column`] first and stops there).
     pub fn accumulate(&self, forces: &[(usize, Vec3)], u: &mut [Vec3], workspace: &mut ProductWorkspace) {
         workspace.gathered = 0;
         workspace.gather_seconds = 0.0;
@@ -83,14 +76,10 @@ impl Entry for f32 {
 
 /// Reusable memory of [`Compliance::accumulate`].
 ///
-/// Dense storage keeps only the lower triangle, so the entries `K^-1[i, c]`
-/// with `i < c` of a forced ROI column `c` are row `c` of the stored triangle,
-/// one 3x3 block in each earlier column: a strided read. The workspace gathers
-/// that row once, when `c` first carries a force, and keeps it while `c` stays
-/// forced, so each frame streams contiguous memory (a contact that persists
-/// over frames pays the strided read once). Rows of columns no longer forced
-/// go to a spare list and are reused. Keyed by the compliance's key: used
-/// with another compliance it starts over.
+/// Dense storage keeps only the lower triangle, so the entries `K^-1[i, c]` with `i < c` of a forced ROI column `c`
+/// are row `c` of the stored triangle, one 3x3 block in each earlier column: a strided read. The workspace gathers
+/// that row when `c` first carries a force and keeps it while `c` stays forced, so a persisting contact pays the
+/// strided read once. Rows of columns no longer forced are reused. With another compliance (key) it starts over.
 #[derive(Debug, Default)]
 pub struct ProductWorkspace {
     /// Partial sums (9 f64 a row of a chunk).
@@ -107,15 +96,13 @@ pub struct ProductWorkspace {
 }
 
 impl ProductWorkspace {
-    /// Rows `K^-1[c, s..c]` gathered from the strided storage in the last
-    /// [`Compliance::accumulate`] (forced columns that were not forced in the call before).
+    /// Rows `K^-1[c, s..c]` gathered in the last [`Compliance::accumulate`] (columns newly forced).
     pub fn rows_gathered(&self) -> usize {
         self.gathered
     }
 
-    /// A workspace whose product runs in chunks of `rows` rows instead of
-    /// [`ROW_CHUNK`]: for tests that need many chunks on a small mesh (the
-    /// result is bitwise the same for any chunk size).
+    /// A workspace whose product runs in chunks of `rows` rows instead of [`ROW_CHUNK`], for tests that need many
+    /// chunks on a small mesh (the result is bitwise the same for any chunk size).
     #[doc(hidden)]
     pub fn with_chunk_rows(rows: usize) -> Self {
         Self { chunk_rows: rows.max(1), ..Self::default() }
@@ -136,15 +123,14 @@ impl ProductWorkspace {
         self.gather_seconds
     }
 
-    /// Bytes reserved (partial sums, kept and spare rows): flat once the
-    /// frames' force sets have been seen.
+    /// Bytes reserved (partial sums, kept and spare rows): flat once the frames' force sets have been seen.
     pub fn bytes(&self) -> usize {
         8 * self.acc.capacity() + self.rows32.bytes() + self.rows64.bytes()
     }
 }
 
-/// Rows `K^-1[c, s..c]` (`s` = [`Layout::upper_start`]; blocks of 9 entries, the
-/// storage's block layout) of the forced columns of the last call, in the order of its forces.
+/// Rows `K^-1[c, s..c]` (`s` = [`Layout::upper_start`]; 3x3 blocks as stored) of the last call's forced columns,
+/// in the order of its forces.
 #[derive(Debug, Default)]
 struct RowStore<T> {
     cols: Vec<usize>,
@@ -184,9 +170,8 @@ impl<T: Copy> RowStore<T> {
         best.map(|k| self.spare.swap_remove(k)).unwrap_or_default()
     }
 
-    /// Makes `rows[k]` the row of `forces[k].0` (ascending): kept rows are moved,
+    /// Makes `rows[k]` the row of `forces[k].0` (ascending): rows kept from the last call are moved (when `keep`),
     /// missing ones gathered. Returns how many were gathered.
-    /// `keep`: rows kept from the call before are reused (else all gathered).
     fn prepare<'a>(&mut self, region: &impl Fn(usize) -> (&'a [T], usize), layout: &Layout, forces: &[(usize, Vec3)], keep: bool) -> usize
     where
         T: 'a,
@@ -213,8 +198,7 @@ impl<T: Copy> RowStore<T> {
                 let mut row = self.take_spare(len);
                 row.clear();
                 if row.capacity() < len {
-                    // Power-of-two capacities: a spare fits most later rows, so
-                    // gathering stops allocating once the pool has grown.
+                    // Power-of-two capacities: a spare fits most later rows, so the pool stops allocating.
                     row.reserve_exact(len.next_power_of_two());
                 }
                 let (v, base) = region(layout.row_comp[c] as usize);
@@ -236,17 +220,12 @@ impl<T: Copy> RowStore<T> {
     }
 }
 
-/// `out[e] += run_k[e] * p_k[e % 9]` for `k = 0..N` in order, over runs of
-/// whole 3x3 blocks: `p_k` is the force of column `k` laid out as
-/// `f[(e % 9) / 3]` (lower part: the block column's force component) or
-/// `f[e % 3]` (upper part: the transposed block). Each `out[e]` receives its N
-/// products one after the other, exactly as N calls with one run would add
-/// them, so the bits do not depend on N; a larger N keeps `out[e]` in a
-/// register across N columns and streams N columns at once (the product was
-/// bound by the stream switches of one column at a time: a throwaway probe
-/// over 300 f32 columns of 7,281 rows took 11.9 ms one at a time and 5.2 ms
-/// eight at a time, in chunks of 512 rows). A flat loop the compiler vectorizes (the pattern
-/// repeats every 9 entries, so it is unrolled to 72 = lcm(9, 8)).
+/// `out[e] += run_k[e] * p_k[e % 9]` for `k = 0..N` in order, over runs of whole 3x3 blocks: `p_k` is column `k`'s
+/// force laid out as `f[(e % 9) / 3]` (lower part: the block column's force component) or `f[e % 3]` (upper part:
+/// the transposed block). Each `out[e]` receives its N products one after the other, as N calls with one run
+/// would, so the bits do not depend on N; a larger N keeps `out[e]` in a register and streams N columns at once
+/// (one column at a time, the product is bound by switching streams). A flat loop the compiler vectorizes (the
+/// pattern repeats every 9 entries, so it is unrolled to 72 = lcm(9, 8)).
 #[inline(always)]
 fn add_scaled_runs<T: Entry, const N: usize>(out: &mut [f64], runs: [&[T]; N], pattern9: [[f64; 9]; N]) {
     let mut pattern = [[0.0f64; 72]; N];
@@ -282,8 +261,7 @@ fn add_scaled_runs<T: Entry, const N: usize>(out: &mut [f64], runs: [&[T]; N], p
 /// Columns streamed together by the surface product (see [`add_scaled_runs`]).
 const FUSED_COLUMNS: usize = 8;
 
-/// Adds `count` columns in order (`run(i)` covers all of `out`, `pattern(i)` its
-/// force pattern): groups of [`FUSED_COLUMNS`], then one by one.
+/// Adds `count` columns in order (`run(i)` covering `out`, `pattern(i)`): groups of [`FUSED_COLUMNS`], then singly.
 #[inline(always)]
 fn add_columns<'a, T: Entry + 'a>(out: &mut [f64], count: usize, fused: bool, run: impl Fn(usize) -> &'a [T], pattern: impl Fn(usize) -> [f64; 9]) {
     let mut i = 0;
@@ -325,21 +303,14 @@ fn upper_pattern(f: &Vec3) -> [f64; 9] {
     [f.x, f.y, f.z, f.x, f.y, f.z, f.x, f.y, f.z]
 }
 
-/// The surface product kernel, per component (forced columns of another
-/// component add nothing to its rows). Lower part (rows `i >= c` of each
-/// forced column `c`: its two runs of 3x3 blocks, see [`Layout::runs`]):
-/// every stored entry is multiplied by the force component of its block column
-/// and added into a per-row buffer of 9 partial products
-/// (`acc[9 i + e] += v[e] f[e / 3]`); the 9 partials are summed into `u` at
-/// the end of a chunk of rows. Upper part (ROI rows `upper_start(c) <= i < c`):
-/// the transposed blocks `(c, i)^T` from the gathered row of `c` (`rows[k]`
-/// for `forces[k]`, see [`ProductWorkspace`]), the same way with `f[e % 3]`.
-/// Rows go in chunks of [`ROW_CHUNK`] inside one component's ROI rows or
-/// other rows; in a chunk, the columns that cover all of it stream together
-/// ([`add_columns`]) and the few whose diagonal falls inside go one by one, in
-/// the order that keeps every row's sum over the forces in ascending column
-/// order. Plain multiplies and adds (no fused multiply-add): the SIMD and
-/// scalar builds give the same bits.
+/// The surface product kernel, per component (forced columns of another component add nothing to its rows).
+/// Lower part (rows `i >= c` of each forced column `c`, its two runs of 3x3 blocks, [`Layout::runs`]): each entry
+/// times its block column's force component goes into 9 partials a row (`acc[9 i + e] += v[e] f[e / 3]`), summed
+/// into `u` at the end of a chunk of rows. Upper part (ROI rows `upper_start(c) <= i < c`): the transposed blocks
+/// from the gathered row of `c` (`rows[k]` for `forces[k]`), likewise with `f[e % 3]`. Rows go in chunks of
+/// [`ROW_CHUNK`] within one component's ROI or other rows; in a chunk, the columns covering all of it stream
+/// together ([`add_columns`]) and those whose diagonal falls inside go one by one, so every row sums its forces
+/// in ascending column order. No fused multiply-add: SIMD and scalar builds give the same bits.
 #[inline(always)]
 fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
     let Product { region, layout, forces, rows, tuning } = p;
@@ -404,11 +375,10 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
     }
 }
 
-/// The upper part of one component's product: ROI rows `s0 <= i < c` of
-/// each forced column `c`, from the gathered rows `rows_k` (those of `fk`).
+/// The upper part of one component's product (ROI rows `s0 <= i < c` of each forced column `c`) from `rows_k`.
 #[inline(always)]
 fn add_upper<T: Entry>(fk: &[(usize, Vec3)], rows_k: &[Vec<T>], s0: usize, u: &mut [Vec3], acc: &mut [f64], chunk: usize, fused: bool) {
-    // Upper part: ROI rows s0 <= i < c; columns r0 < c < r1 cover [r0, c), c >= r1 the chunk.
+    // Columns r0 < c < r1 cover [r0, c); columns c >= r1 the whole chunk.
     let top = fk[fk.len() - 1].0;
     let mut r0 = s0;
     while r0 < top {
@@ -436,10 +406,8 @@ unsafe fn accumulate_avx2<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p
     accumulate_kernel(p, u, acc, chunk)
 }
 
-/// What the surface product reads: each component's storage (`region(k)`:
-/// its final columns and the block offset of their first entry), the layout,
-/// the forces `(column, F)` ascending, and the gathered upper rows of the
-/// forced columns (`rows[k]` for `forces[k]`).
+/// What the surface product reads: each component's storage (`region(k)`: its final columns and their first
+/// block's offset), the layout, the forces `(column, F)` ascending, and `rows[k]`, the gathered row of `forces[k]`.
 struct Product<'p, R, T> {
     region: &'p R,
     layout: &'p Layout,
@@ -455,9 +423,8 @@ impl<R, T> Clone for Product<'_, R, T> {
 }
 impl<R, T> Copy for Product<'_, R, T> {}
 
-/// Dispatches the kernel to an AVX2 build when the CPU has it (runtime
-/// detection; no `RUSTFLAGS` needed). Both builds round identically. (An
-/// AVX-512 build measured no faster: the kernel waits on memory.)
+/// Dispatches the kernel to an AVX2 build when the CPU has it (runtime detection, no `RUSTFLAGS`); both builds
+/// round identically. (AVX-512 is no faster: the kernel waits on memory.)
 fn accumulate_impl<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") && p.tuning.enabled(Optimisation::Avx2Product) {

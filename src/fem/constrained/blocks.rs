@@ -1,29 +1,20 @@
-//! The K^-1 blocks of the contact candidates against the W nodes, kept
-//! between frames ([`CandidateBlocks`]): what the active-set loop reads most
-//! on a wide contact of a large model, read from the compliance once for as
-//! long as both nodes stay.
+//! The K^-1 blocks of the contact candidates against the W nodes, kept between frames ([`CandidateBlocks`]): what
+//! the active-set loop reads most on a wide contact of a large model, read once for as long as both nodes stay.
 
 use super::*;
 
-/// A compliance above this size (bytes) keeps its candidates' blocks between
-/// frames (a last-level cache is at most a few tens of megabytes).
+/// A compliance above this many bytes keeps its candidates' blocks (a last-level cache is a few tens of MB at most).
 pub(super) const CANDIDATE_BLOCKS_FROM_BYTES: usize = 64 << 20;
 
-/// Whether a solver on a compliance that is `large` (over
-/// [`CANDIDATE_BLOCKS_FROM_BYTES`]) keeps its candidates' blocks.
+/// Whether a solver on a `large` compliance (over [`CANDIDATE_BLOCKS_FROM_BYTES`]) keeps its candidates' blocks.
 pub(super) fn wanted(large: bool, tuning: Tuning) -> bool {
     large && tuning.enabled(Optimisation::CandidateBlocks)
 }
 
-/// The K^-1 blocks of the contact candidates against the nodes of the W
-/// rows, kept between frames (see `ConstrainedSolver::candidate_blocks`): a
-/// row a candidate, a column a W node, in two flat arrays of `stride`
-/// columns a row, so it allocates only when the candidates or the W nodes
-/// pass their high-water mark. A W node keeps its column from frame to frame
-/// whatever its slot in the frame's node list (the held set is reordered for
-/// the factor every frame), so a block is read from the compliance once for
-/// as long as both nodes stay. A row or a column not used this frame or the
-/// last is given to another node.
+/// The kept blocks: a row per candidate node, a column per W node, in two flat arrays of `stride` columns a row,
+/// so it allocates only when the candidates or W nodes pass their high-water mark. A W node keeps its column
+/// whatever its slot in the frame's node list (the held set is reordered for the factor every frame), so a block
+/// is read once for as long as both nodes stay. A row or column unused this frame and the last is reused.
 #[derive(Debug, Default)]
 pub(super) struct CandidateBlocks {
     /// Candidate node -> row.
@@ -49,8 +40,7 @@ pub(super) struct CandidateBlocks {
     blocks: Vec<Matrix3<f64>>,
 }
 
-/// Frees the entries of `index` (node -> slot) whose slot was last used
-/// before the frame before `frame`.
+/// Frees the entries of `index` (node -> slot) whose slot was last used before the frame before `frame`.
 pub(super) fn hand_on_unused(index: &mut std::collections::HashMap<u32, u32>, last_used: &[u64], free: &mut Vec<u32>, frame: u64) {
     index.retain(|_, k| {
         let keep = last_used[*k as usize] + 1 >= frame;
@@ -62,9 +52,8 @@ pub(super) fn hand_on_unused(index: &mut std::collections::HashMap<u32, u32>, la
 }
 
 impl CandidateBlocks {
-    /// Ready for `frame`, the lazy columns at `generation` and the W nodes
-    /// `slots` (the node list at `version`): frees the rows and columns not
-    /// used in this frame or the last, and gives every slot a column.
+    /// Ready for `frame`, the lazy columns at `generation` and the W nodes `slots` (the node list at `version`):
+    /// frees the rows and columns unused this frame and the last, and gives every slot a column.
     pub(super) fn prepare(&mut self, frame: u64, generation: u64, slots: &[u32], version: u64) {
         if generation != self.generation {
             // Other lazy columns: start again (a cache).
@@ -147,8 +136,7 @@ impl CandidateBlocks {
 }
 
 impl ConstrainedSolver {
-    /// `K^-1[p, nodes[slot]]` through the kept blocks: `base` is `p`'s row
-    /// (after [`CandidateBlocks::prepare`] for the current node list).
+    /// `K^-1[p, nodes[slot]]` through the kept blocks; `base` is `p`'s row (after [`CandidateBlocks::prepare`]).
     #[inline]
     pub(super) fn kept_block(&self, kept: &mut CandidateBlocks, base: usize, p: u32, slot: usize) -> Matrix3<f64> {
         let q = self.sys.nodes[slot];

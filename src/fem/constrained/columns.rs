@@ -1,18 +1,15 @@
-//! The solver's K^-1 columns outside the region of interest ("lazy"
-//! columns: solved in the frame that first needs them, that frame's missing
-//! nodes in one batch; about [`LAZY_CAPACITY`] kept, the least recently used
-//! out first) and the block read that picks a ROI column or a lazy one
-//! ([`ConstrainedSolver::kinv`]).
+//! The solver's K^-1 columns outside the region of interest ("lazy": solved in the frame that first needs them,
+//! its missing nodes in one batch; about [`LAZY_CAPACITY`] kept, least recently used out first) and the block read
+//! that picks a ROI or a lazy column ([`ConstrainedSolver::kinv`]).
 
 use super::*;
 use crate::fem::assembly::DofMap;
 use crate::fem::factor::SparseCholesky;
 
 impl ConstrainedSolver {
-    /// K^-1 block between two nodes (both free; lazy columns ensured). A node
-    /// outside the ROI reads its lazy column (f64 from a sparse solve) even when
-    /// the other is a ROI column, since the compliance keeps ROI x other-surface
-    /// entries only to f32 (for the product) and W must be exact.
+    /// K^-1 block between two nodes (both free; lazy columns ensured). A node outside the ROI reads its lazy column
+    /// (f64) even when the other is a ROI column: the compliance keeps ROI x other-surface entries only to f32 (for
+    /// the product), and W must be exact.
     pub(super) fn kinv(&self, p: u32, q: u32) -> Matrix3<f64> {
         let (cp, cq) = (self.compliance.col_of(p), self.compliance.col_of(q));
         if let (Some(cp), Some(cq)) = (cp, cq) {
@@ -37,9 +34,8 @@ impl ConstrainedSolver {
         Matrix3::zeros()
     }
 
-    /// Computes K^-1 columns for the listed nodes that are not ROI columns:
-    /// joins the background batches holding any of them (waiting if needed),
-    /// then solves the rest in one batch.
+    /// Makes sure the listed nodes have K^-1 columns: waits for ROI columns still filling, solves the missing lazy
+    /// ones in one batch.
     pub(super) fn ensure_lazy(&mut self, nodes: &[u32]) -> Result<(), FemError> {
         let t = std::time::Instant::now();
         let result = self.ensure_lazy_untimed(nodes);
@@ -80,8 +76,7 @@ impl ConstrainedSolver {
         Ok(())
     }
 
-    /// Evicts least recently used columns last used before frame `keep_from`
-    /// until `count` more fit (or none is left to evict).
+    /// Evicts least recently used columns last used before frame `keep_from` until `count` more fit (or none can go).
     pub(super) fn make_room(&mut self, count: usize, keep_from: u64) {
         while self.columns.lazy.len() + count > LAZY_CAPACITY {
             let victim = self
@@ -126,10 +121,8 @@ impl ConstrainedSolver {
 /// Columns of one node: 3 x free DOFs, column major.
 pub(super) type NodeColumns = (u32, Vec<f64>);
 
-/// Solves the 3 columns of each node in one sparse solve with
-/// `3 * nodes.len()` right-hand sides; fixed nodes get zero columns. A
-/// solve's last bits depend on which right-hand sides share it, so a frame
-/// solves exactly the nodes it is missing, ascending: replays agree to the bit.
+/// Solves the 3 columns of each node in one sparse solve (fixed nodes get zero columns). A solve's last bits depend
+/// on which right-hand sides share it, so a frame solves exactly its missing nodes, ascending: replays agree.
 pub(super) fn solve_columns(chol: &SparseCholesky, dofs: &DofMap, nodes: &[u32]) -> Result<Vec<NodeColumns>, FemError> {
     let n_free = dofs.dof_count();
     let first_dofs: Vec<usize> = nodes.iter().filter_map(|&n| dofs.dof(n)).collect();

@@ -1,55 +1,40 @@
 //! The per-frame exact constrained solve (Schur complement on the constraint rows).
 //!
-//! In: a [`FemModel`], its [`Compliance`], and each frame a slice of
-//! [`Constraint`]s (enforced vertex displacements from the spatulas; unilateral
-//! skull-sphere candidates). Out: a [`FrameSolution`]: displacement of every
-//! surface vertex, reaction per constraint, force per spatula and per sphere.
+//! In: a [`FemModel`], its [`Compliance`], and each frame a slice of [`Constraint`]s (enforced vertex
+//! displacements from the spatulas; unilateral skull-sphere candidates). Out: a [`FrameSolution`]: displacement of
+//! every surface vertex, reaction per constraint, force per spatula and per sphere.
 //!
-//! Method: `K u = f + C^T lambda`, `C u = g`. With `u0 = K^-1 f` (gravity) and
-//! `W = C K^-1 C^T` gathered from the compliance, `lambda = W^-1 (g - C u0)` and
-//! `u = u0 + K^-1 C^T lambda`. Exact (no penalty) up to round-off and the
-//! compliance storage precision. `C^T lambda` is the force ON the tissue.
+//! Method: `K u = f + C^T lambda`, `C u = g`. With `u0 = K^-1 f` (gravity) and `W = C K^-1 C^T` gathered from the
+//! compliance, `lambda = W^-1 (g - C u0)` and `u = u0 + K^-1 C^T lambda`: exact (no penalty) up to round-off and
+//! the compliance's storage precision. `C^T lambda` is the force ON the tissue.
 //!
-//! Conflict rules (documented, deterministic):
+//! Conflict rules (deterministic):
 //! - a constraint on a fixed node is ignored; its reaction is zero;
-//! - several enforced constraints on one node (two spatulas): one 3-row block
-//!   with the mean of their targets; the node's reaction is split equally among them;
-//! - an enforced node also claimed by a sphere: the enforced displacement wins,
-//!   the sphere row is not used (reaction zero);
-//! - rows that are still linearly dependent (e.g. two spheres with a common
-//!   centre at one node) are dropped by the pivoting fallback of
-//!   [`super::dense`] (the earlier row is kept) and counted in
-//!   [`FrameSolution::dropped_rows`]; their reaction is zero. Never NaN.
+//! - several enforced constraints on one node: one 3-row block with the mean of their targets; the node's
+//!   reaction is split equally among them;
+//! - an enforced node also claimed by a sphere: the enforced displacement wins, the sphere row is unused;
+//! - rows still linearly dependent (two spheres with a common centre at one node) are dropped by
+//!   [`super::dense`] (the earlier row is kept) and counted in [`FrameSolution::dropped_rows`]; reaction zero,
+//!   never NaN.
 //!
-//! Tool contacts (`ConstraintKind::Contact`, what the pipeline makes of the
-//! spatulas' targets) are unilateral. Each frame every such node starts held
-//! (three rows: it sticks to the face, as in the paper); a hold whose reaction
-//! pulls (`F . n < 0`, n the face's outward normal) is demoted to one row on
-//! the face plane, `n . u >= n . g`, which the active set treats like a sphere
-//! row: active (the node slides on the face, pushed along n only) or inactive
-//! (released: zero force, not behind the plane). A node is never promoted back
-//! within a frame, so the loop terminates. A node claimed by faces with opposing
-//! normals (pinched between the blades), or by any bilateral `Enforced`
-//! constraint, stays held bilaterally. A sphere row applies to a tool node only
-//! once it is demoted.
+//! Tool contacts (`ConstraintKind::Contact`) are unilateral. Each frame every such node starts held (three rows:
+//! it sticks to the face, as in the paper); a hold whose reaction pulls (`F . n < 0`, n the face's outward normal)
+//! is demoted to one face-plane row `n . u >= n . g`, handled like a sphere row: active (sliding on the face,
+//! pushed along n only) or inactive (released). A node is never promoted back within a frame, so the loop ends.
+//! A node pinched between opposing faces or claimed by `Enforced` stays held bilaterally. A sphere row applies to
+//! a tool node only once it is demoted.
 //!
-//! Blade barriers (`ConstraintKind::Barrier`, from `sim::barrier` for vertices
-//! near a blade that no ray claimed) are face-plane rows of the same kind as a
-//! demoted hold, inactive until the solution would pass the plane; a held node
-//! ignores them. The set active at the end of a frame is where the next frame
-//! starts (a still scene solves in one iteration).
+//! Blade barriers (`ConstraintKind::Barrier`) are face-plane rows like a demoted hold, inactive until the
+//! solution would pass the plane; a held node ignores them. The active set at the end of a frame is where the next
+//! one starts (a still scene solves in one iteration).
 //!
-//! Skull spheres: a row `d . u >= b` with `d` the feasible radial direction,
-//! linearized at the node's current position; active-set loop: add violated
-//! candidates, else drop the most adhesive active row (lambda < 0), else
-//! re-linearize active rows whose true distance misses the sphere, until no
-//! candidate is outside by more than `1e-9 R` and no active force pulls.
+//! Skull spheres: a row `d . u >= b`, `d` the feasible radial direction at the node's current position. The loop
+//! adds violated candidates, else drops the most adhesive active row (lambda < 0), else re-linearizes active rows
+//! that miss the sphere, until no candidate is outside by more than `1e-9 R` and no active force pulls.
 //!
-//! Stays true: no allocation once the scratch has grown to the frame size
-//! (except lazily computed columns); fixed iteration order everywhere.
-//!
-//! The frame is here; the candidates' K^-1 blocks kept between frames in
-//! `blocks`; the K^-1 columns outside the ROI (lazy) in `columns`.
+//! Stays true: no allocation once the scratch has grown to the frame size (except lazily computed columns); fixed
+//! iteration order everywhere. Submodules: `blocks` (candidates' K^-1 blocks kept between frames), `columns` (K^-1
+//! columns outside the ROI), `screen` (skipping candidates that cannot be violated).
 
 mod blocks;
 mod columns;
@@ -65,18 +50,15 @@ use crate::math::{Matrix3, Vec3, is_finite3};
 
 /// Relative tolerance of a sphere constraint (times its radius).
 pub const SPHERE_TOLERANCE: f64 = 1e-9;
-/// Under-relaxation of the linearization point of active sphere rows (damps the
-/// period-2 oscillation that soft tissue under large contact forces shows).
+/// Under-relaxation of active sphere rows' linearization point (damps a period-2 oscillation under large forces).
 pub const RELINEARIZE_RELAXATION: f64 = 0.5;
-/// Relative tolerance of a tool contact: a held node is demoted when its
-/// push `F . n` is below `-CONTACT_TOLERANCE` times the largest nodal tool force;
-/// a released node's plane row is activated when it lies behind its face plane
-/// by more than `CONTACT_TOLERANCE_M + CONTACT_TOLERANCE |n . g|`.
+/// Relative tolerance of a tool contact: a hold is demoted when its push `F . n` is below `-CONTACT_TOLERANCE`
+/// times the largest nodal tool force; a face-plane row activates when its node is behind the plane by more than
+/// `CONTACT_TOLERANCE_M + CONTACT_TOLERANCE |n . g|`.
 pub const CONTACT_TOLERANCE: f64 = 1e-9;
 /// Absolute part of the contact gap tolerance, m.
 pub const CONTACT_TOLERANCE_M: f64 = 1e-12;
-/// Active-set iterations in which every pulling hold is demoted at once;
-/// afterwards one at a time.
+/// Active-set iterations that demote every pulling hold at once; later ones demote one at a time.
 pub const BULK_RELEASE_ITERATIONS: usize = 8;
 /// Lazily computed columns kept between frames (each is 3 x free DOFs f64).
 pub const LAZY_CAPACITY: usize = 128;
@@ -86,19 +68,14 @@ pub const LAZY_CAPACITY: usize = 128;
 pub enum ConstraintKind {
     /// Displacement from rest (m): three bilateral rows.
     Enforced { displacement: Vec3 },
-    /// A rigid tool face holding the node (spatula contact): the node is held at
-    /// `displacement` (m, from rest; three rows: it sticks while held) as long as
-    /// the reaction pushes the tissue along `normal` (the face's outward unit
-    /// normal; any finite non-zero vector, normalized here): `F . n >= 0`.
-    /// Where holding it would pull, the node is released; a released node may
-    /// not end behind the face plane through its target: `(u - displacement) . n >= 0`.
+    /// A rigid tool face holding the node (spatula contact) at `displacement` (m, from rest; three rows) while the
+    /// reaction pushes along `normal` (the face's outward normal; finite, non-zero, normalized here): `F . n >= 0`.
+    /// Where holding would pull, the node is released, but may not pass the face plane through its target:
+    /// `(u - displacement) . n >= 0`.
     Contact { displacement: Vec3, normal: Vec3 },
-    /// A rigid tool face the node must not pass (a blade's non-penetration row
-    /// for a surface vertex near it that no ray claimed): `(u - displacement) . n >= 0`,
-    /// `displacement` (m, from rest) any point of the face plane, `normal` the
-    /// face's outward normal (finite, non-zero; normalized here). Unilateral: zero
-    /// force while the node is in front, a push along `n` only when it would pass.
-    /// Ignored while the node is held by a tool.
+    /// A rigid tool face the node must not pass (a blade's row for a nearby surface vertex no ray claimed):
+    /// `(u - displacement) . n >= 0`, `displacement` (m, from rest) a point of the face plane, `normal` as for
+    /// `Contact`. Unilateral: zero force while the node is in front. Ignored while a tool holds the node.
     Barrier { displacement: Vec3, normal: Vec3 },
     /// The node stays inside the sphere (centre m, radius m > 0): one unilateral radial row.
     SphereInside { center: Vec3, radius: f64 },
@@ -115,8 +92,7 @@ impl ConstraintKind {
         }
     }
 
-    /// True for tool constraints (Enforced, Contact or Barrier); their owner is a
-    /// spatula and their reactions add to its force.
+    /// True for tool constraints (Enforced, Contact, Barrier): their reactions add to their spatula's force.
     pub fn is_tool(&self) -> bool {
         matches!(self, ConstraintKind::Enforced { .. } | ConstraintKind::Contact { .. } | ConstraintKind::Barrier { .. })
     }
@@ -147,14 +123,11 @@ pub struct FrameSolution {
     pub active_sphere_contacts: usize,
     /// Unilateral tool contacts released this frame (their hold would have pulled).
     pub released_contacts: usize,
-    /// Blade barrier rows active at the end of the frame (an unclaimed vertex kept
-    /// on a face plane it would otherwise have passed).
+    /// Blade barrier rows active at the end of the frame (an unclaimed vertex kept on a face plane).
     pub barrier_contacts: usize,
-    /// Unilateral tool contacts that ended on their face plane with only a normal
-    /// push (holding them fully would have pulled; released they would penetrate).
+    /// Unilateral tool contacts that ended sliding on their face plane (normal push only).
     pub sliding_contacts: usize,
-    /// Largest surface displacement in the working region (every vertex with
-    /// a compliance row, and the far ones a blade is near), m.
+    /// Largest surface displacement in the working region (vertices with a compliance row, tracked far ones), m.
     pub max_displacement: f64,
     /// Estimate of cond(W) (`(max L_ii / min L_ii)^2`, a lower bound).
     pub conditioning: f64,
@@ -179,14 +152,11 @@ pub struct PhaseTimings {
     pub candidates: f64,
     /// Candidate evaluations the screen skipped (`constrained/screen.rs`), a count.
     pub screened: usize,
-    /// The surface product `u = u0 + K^-1 C^T lambda` over every surface row
-    /// (`surface_gather` included).
+    /// The surface product `u = u0 + K^-1 C^T lambda` over every surface row (`surface_gather` included).
     pub surface: f64,
     /// Part of `surface`: gathering the rows `K^-1[c, ..c]` of newly forced columns.
     pub surface_gather: f64,
-    /// Columns outside the ROI: joining background batches (waiting for the
-    /// worker when it is late) and sparse solves in the frame; and waiting for
-    /// ROI columns still computed in the background ([`crate::fem::ComputeOptions::background`]).
+    /// Sparse solves of columns outside the ROI, and waits for ROI columns still filling in the background.
     pub lazy: f64,
 }
 
@@ -219,8 +189,7 @@ struct Candidate {
 enum Limit {
     /// A skull sphere (centre, radius m): the node stays inside it or outside it.
     Sphere { center: Vec3, radius: f64, inside: bool },
-    /// A face plane `normal . u >= b`: a blade barrier (`hold: None`), or a
-    /// tool node demoted from held (`hold: Some(its claim group)`).
+    /// A face plane `normal . u >= b`: a blade barrier (`hold: None`) or a demoted tool hold (`Some(claim group)`).
     Plane { normal: Vec3, b: f64, hold: Option<usize> },
 }
 
@@ -238,34 +207,26 @@ struct LazyColumn {
 }
 
 
-/// Exact constrained solver; holds the model, the compliance and all scratch,
-/// in parts with one job each.
+/// Exact constrained solver; holds the model, the compliance and all scratch, in parts with one job each.
 pub struct ConstrainedSolver {
     model: FemModel,
     compliance: Compliance,
     frame: u64,
     /// Replaces the active-set loop's iteration cap (tests of the capped path).
     iteration_cap: Option<usize>,
-    /// The measured optimisations this solver uses (`fem::tuning`; taken
-    /// when it is made, changed only by [`Self::set_tuning`]).
+    /// The optimisations this solver uses (`fem::tuning`), changed only by [`Self::set_tuning`].
     tuning: Tuning,
     timings: PhaseTimings,
-    /// The frame's constraint system: its nodes and rows, W's factor and the solution.
     sys: System,
-    /// The tool constraints grouped by node, and which of them are held this iteration.
     tools: ToolClaims,
-    /// The unilateral rows that may engage (skull spheres, blade barriers, demoted holds), carried between frames.
     cands: Candidates,
-    /// The K^-1 columns solved in a frame for nodes outside the ROI, kept between frames.
     columns: LazyColumns,
-    /// The surface product: displacement of every stored row, and what it reads.
     surface: SurfaceUpdate,
 }
 
 /// The frame's constraint system: its nodes and rows, W's factor and the solution.
 #[derive(Default)]
 struct System {
-    // --- per frame scratch ---
     order: Vec<(u32, usize)>,
     /// Distinct constrained nodes of the frame (enforced first, then active spheres).
     nodes: Vec<u32>,
@@ -292,8 +253,7 @@ struct ToolClaims {
     groups: Vec<ClaimGroup>,
     /// The claims of every group in turn: (constraint index, owner).
     claims: Vec<(usize, u16)>,
-    /// Engaged nodes ascending, and in factor order: engaged node k has rows
-    /// 3k..3k+3 and group `enforced_group[k]`.
+    /// Engaged nodes ascending, and in factor order: engaged node k has rows 3k..3k+3 and group `enforced_group[k]`.
     engaged_sorted: Vec<u32>,
     perm_nodes: Vec<u32>,
     enforced_group: Vec<usize>,
@@ -309,8 +269,7 @@ impl ToolClaims {
         &self.claims[self.groups[g].start..self.groups[g].end]
     }
 
-    /// Whether a tool holds `node` bilaterally this frame (pinched between
-    /// opposing faces, or claimed by an `Enforced` constraint).
+    /// Whether a tool holds `node` bilaterally this frame (pinched between opposing faces, or `Enforced`).
     fn holds_bilaterally(&self, node: u32) -> bool {
         self.claimed_sorted.binary_search(&node).is_ok_and(|g| self.groups[g].normal.is_none())
     }
@@ -338,19 +297,10 @@ struct Candidates {
     prev_barrier: Vec<(u32, u16)>,
     /// Which inactive candidates need no evaluation ([`screen::Screen`]).
     screen: screen::Screen,
-    /// Per candidate node, the K^-1 blocks against the W rows' nodes that
-    /// [`Self::displacement_of`] and the face and sphere rows of W read, by a
-    /// column each W node keeps while it stays in W: a candidate is
-    /// evaluated against every held node at every iteration of every frame,
-    /// and a block read from the compliance is a cache miss into a matrix of
-    /// up to a gigabyte. The compliance and the lazy columns never change, so
-    /// a kept block is the block read again, bit for bit. (Kept by slot, as
-    /// before, the held set's reordering each frame re-read 20-30k blocks a
-    /// frame at the end of the fine-brain Sylvian spread; by node, 0.2-0.7k.)
+    /// Per candidate node, its K^-1 blocks against the W nodes ([`CandidateBlocks`]), read at every iteration, where
+    /// a compliance read is a cache miss. A kept block equals a re-read one, bit for bit.
     candidate_blocks: std::cell::RefCell<CandidateBlocks>,
-    /// The compliance is larger than [`CANDIDATE_BLOCKS_FROM_BYTES`]: its
-    /// blocks miss the CPU's caches (a smaller one is read as fast as the
-    /// kept blocks). Fixed at construction.
+    /// The compliance is over [`CANDIDATE_BLOCKS_FROM_BYTES`] (its blocks miss the CPU caches); fixed when made.
     large_compliance: bool,
 }
 
@@ -359,10 +309,8 @@ struct Candidates {
 struct LazyColumns {
     lazy: Vec<LazyColumn>,
     lazy_computed: usize,
-    /// Counts the changes of `lazy`: a block [`Self::kinv`] reads for a
-    /// node with a lazy column is that column's (exact), else the
-    /// compliance's rows (f32 beyond the ROI), so a kept block is good only
-    /// while `lazy` is as it was.
+    /// Counts the changes of `lazy`: [`ConstrainedSolver::kinv`] reads a node's lazy column (exact) when there is
+    /// one, else the compliance (f32 beyond the ROI), so a kept block is valid only while `lazy` is unchanged.
     lazy_generation: u64,
 }
 
@@ -373,22 +321,17 @@ struct SurfaceUpdate {
     col_forces: Vec<(usize, Vec3)>,
     /// Scratch of the surface product (partial sums, gathered rows of forced columns).
     product: ProductWorkspace,
-    /// The compliance row of each surface vertex (`u32::MAX`: none, a fixed
-    /// vertex), read in order when the frame's surface displacement is written.
+    /// The compliance row of each surface vertex (`u32::MAX`: none), read when the frame's surface is written.
     vertex_rows: Vec<u32>,
     /// Nodal forces of the last frame (node, force) for interior displacements.
     last_forces: Vec<(u32, Vec3)>,
-    /// The surface vertices (indices into `model.surface().vertices`) that
-    /// have no compliance row although free: beyond the working region.
+    /// Free surface vertices (indices into `model.surface().vertices`) without a compliance row.
     far: Vec<u32>,
-    /// Per surface vertex: a far vertex's displacement when it was last
-    /// brought up to date (gravity's at first; unused for the others).
+    /// Per surface vertex: a far vertex's displacement when last brought up to date (gravity's at first).
     held: Vec<Vec3>,
-    /// Far vertices a blade is near ([`ConstrainedSolver::track`]), ascending:
-    /// each frame brings them up to date with one sparse solve.
+    /// Far vertices a blade is near ([`ConstrainedSolver::track`]), ascending: brought up to date each frame.
     tracked: Vec<u32>,
-    /// Scratch of the solves (right-hand side, every node's displacement;
-    /// the rows a tracked solve reads and is nonzero at, its supernodes).
+    /// Scratch of the sparse solves: right-hand side, every node's displacement, a tracked solve's rows and marks.
     solve_rhs: Vec<f64>,
     solve_u: Vec<Vec3>,
     solve_rows: Vec<usize>,
@@ -451,8 +394,7 @@ impl ConstrainedSolver {
         &self.model
     }
 
-    /// How the enforced block of W's factor was updated in the last frame
-    /// (see [`super::wfactor`] for the order rule).
+    /// How the enforced block of W's factor was updated in the last frame ([`super::wfactor`]).
     pub fn factor_update(&self) -> super::wfactor::FactorUpdate {
         self.sys.factor.last_update()
     }
@@ -467,14 +409,12 @@ impl ConstrainedSolver {
         &self.compliance
     }
 
-    /// Unilateral tool nodes released in the last frame (their hold would have
-    /// pulled the tissue), ascending; their reactions are zero.
+    /// Unilateral tool nodes released in the last frame (their hold would have pulled), ascending; zero reaction.
     pub fn released_nodes(&self) -> &[u32] {
         &self.tools.released
     }
 
-    /// Unilateral tool nodes that ended the last frame on their face plane with a
-    /// normal push only (ascending): full holding pulled, release penetrated.
+    /// Unilateral tool nodes that ended the last frame sliding on their face plane, ascending.
     pub fn sliding_nodes(&self) -> &[u32] {
         &self.tools.sliding
     }
@@ -489,9 +429,8 @@ impl ConstrainedSolver {
         &self.sys.nodes
     }
 
-    /// Copies `W = C K^-1 C^T` of the last frame into `out` (n x n column
-    /// major, full symmetric), n = `constraint_rows().len()`. For a haptic
-    /// thread that wants its own copy.
+    /// Copies the last frame's `W = C K^-1 C^T` into `out` (n x n, column major, full symmetric), n =
+    /// `constraint_rows().len()`; for a haptic thread that wants its own copy.
     pub fn contact_compliance(&self, out: &mut Vec<f64>) {
         let n = self.sys.rows.len();
         let e = 3 * self.tools.enforced_nodes;
@@ -510,12 +449,10 @@ impl ConstrainedSolver {
         }
     }
 
-    /// Change of the force ON the tissue from spatula `owner` when it moves
-    /// by `delta` (m) and the active set stays as in the last frame: its held
-    /// vertices move by `delta`, its active face rows' planes by `n . delta`;
-    /// `delta_lambda = W^-1 delta_g`. Exact for the linear model; costs two
-    /// triangular solves (O(rows^2)), no allocation once `scratch` has grown.
-    /// The haptic force on the tool is the negative of this.
+    /// Change of the force ON the tissue from spatula `owner` when it moves by `delta` (m) and the active set stays
+    /// as in the last frame: its held vertices move by `delta`, its active face rows' planes by `n . delta`;
+    /// `delta_lambda = W^-1 delta_g`. Exact for the linear model; two triangular solves, no allocation once
+    /// `scratch` has grown. The haptic force on the tool is its negative.
     pub fn spatula_force_delta(&self, owner: u16, delta: Vec3, scratch: &mut Vec<f64>) -> Vec3 {
         let n = self.sys.rows.len();
         scratch.clear();
@@ -556,8 +493,7 @@ impl ConstrainedSolver {
         f
     }
 
-    /// Fraction of candidate `ci`'s face-row reaction that belongs to spatula
-    /// `owner` (0 for a sphere row).
+    /// Fraction of candidate `ci`'s face-row reaction that belongs to spatula `owner` (0 for a sphere row).
     fn face_row_share(&self, ci: usize, owner: u16) -> f64 {
         let c = &self.cands.candidates[ci];
         match c.limit {
@@ -578,23 +514,19 @@ impl ConstrainedSolver {
         claims.iter().filter(|&&(_, o)| o == owner).count() as f64 / claims.len().max(1) as f64
     }
 
-    /// Caps the active-set loop at `cap` iterations (`None`: the default of
-    /// 100 + 2 x (candidates + claimed vertices); `Some(0)`: every frame fails
-    /// as if capped). For tests of what a frame does when the cap is hit.
+    /// Caps the active-set loop at `cap` iterations (`None`: 100 + 2 x (candidates + claimed vertices);
+    /// `Some(0)`: every frame fails as capped). For tests of the capped path.
     pub fn set_iteration_cap(&mut self, cap: Option<usize>) {
         self.iteration_cap = cap;
     }
 
-    /// Switches this solver's measured optimisations (`fem::tuning`), its
-    /// surface product's included, from the next frame on (benches measure
-    /// each on and off on one solver).
+    /// Switches this solver's optimisations (`fem::tuning`, the surface product's included) from the next frame on.
     pub fn set_tuning(&mut self, tuning: Tuning) {
         self.tuning = tuning;
         self.surface.product.tuning = tuning;
     }
 
-    /// Whether the candidates' blocks are kept between frames: a large
-    /// compliance, and the optimisation not switched off in `tuning`.
+    /// Whether the candidates' blocks are kept between frames (a large compliance, the optimisation on).
     fn keep_candidate_blocks(&self) -> bool {
         blocks::wanted(self.cands.large_compliance, self.tuning)
     }
@@ -622,15 +554,13 @@ impl ConstrainedSolver {
         Ok(())
     }
 
-    /// The frame's claims and candidates, with every K^-1 column they read
-    /// available, and the held nodes in the factor.
+    /// The frame's claims and candidates, every K^-1 column they read available, and the held nodes in the factor.
     fn prepare(&mut self, constraints: &[Constraint]) -> Result<(), FemError> {
         self.group_claims(constraints);
         self.collect_candidates(constraints);
         self.touch_candidate_columns();
-        // ROI candidates need their columns final (a W entry between two ROI
-        // nodes is read from the earlier column): at once unless they are
-        // still computed in the background.
+        // ROI candidates need their columns final (a W entry between two ROI nodes is read from the earlier
+        // column); this waits only while they are computed in the background.
         let t = std::time::Instant::now();
         for c in &self.cands.candidates {
             if let Some(col) = self.compliance.col_of(c.node) {
@@ -654,9 +584,8 @@ impl ConstrainedSolver {
         Ok(())
     }
 
-    /// The active-set loop: solve the rows, add violated candidates, demote
-    /// pulling holds, release the most adhesive row, re-linearize spheres,
-    /// until none of these applies. Returns the iterations it took.
+    /// The active-set loop: solve, then add violated candidates, demote pulling holds, release the most adhesive
+    /// row or re-linearize spheres, until none applies. Returns the iterations it took.
     fn solve_active_set(&mut self) -> Result<usize, FemError> {
         let max_iterations = self.iteration_cap.unwrap_or(100 + 2 * (self.cands.candidates.len() + self.tools.claimed_sorted.len()));
         if max_iterations == 0 {
@@ -681,7 +610,6 @@ impl ConstrainedSolver {
             if any_add {
                 cap(self, worst_inactive)?;
             } else if self.demote_pulling_holds(iterations) {
-                // Tool contacts: a held node whose hold pulls goes to its face plane.
                 cap(self, worst_active)?;
                 self.arrange_engaged();
             } else if self.release_most_adhesive()
@@ -697,10 +625,8 @@ impl ConstrainedSolver {
         }
     }
 
-    /// Evaluates every candidate at the current solution (but those the
-    /// screen shows cannot have reached their constraint); activates the
-    /// violated ones. Returns (any activated, largest violation of an
-    /// inactive one, largest miss of an active sphere row).
+    /// Evaluates every candidate the screen cannot skip at the current solution and activates the violated ones.
+    /// Returns (any activated, largest violation of an inactive one, largest miss of an active sphere row).
     fn evaluate_candidates(&mut self, screening: bool) -> (bool, f64, f64) {
         let evaluated = std::time::Instant::now();
         if screening {
@@ -755,8 +681,7 @@ impl ConstrainedSolver {
         (any_add, worst_inactive, worst_active)
     }
 
-    /// Releases the most adhesive active candidate row (lambda < 0 pulls the
-    /// tissue toward the skull or the face). Returns whether one was released.
+    /// Releases the most adhesive active candidate row (lambda < 0 pulls the tissue); returns whether it did.
     fn release_most_adhesive(&mut self) -> bool {
         let enforced_rows = 3 * self.tools.enforced_nodes;
         let scale = self.sys.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()));
@@ -773,8 +698,7 @@ impl ConstrainedSolver {
         true
     }
 
-    /// Moves the linearization point of every active sphere row part of the
-    /// way to the node's current position.
+    /// Moves each active sphere row's linearization point part of the way to its node's current position.
     fn relinearize_active(&mut self) {
         for ci in 0..self.cands.candidates.len() {
             if self.cands.candidates[ci].active && self.cands.candidates[ci].limit.is_sphere() {
@@ -818,10 +742,8 @@ impl ConstrainedSolver {
         Ok(())
     }
 
-    /// Groups the tool constraints by node (ascending), averaging their targets,
-    /// and decides which nodes are unilateral (every claim a `Contact`, normals
-    /// pairwise agreeing: `n_i . n_j > 0`); a node pinched between opposing faces,
-    /// or claimed by a bilateral `Enforced`, is held bilaterally.
+    /// Groups the tool constraints by node (ascending), averaging their targets. A node is unilateral when every
+    /// claim is a `Contact` and their normals pairwise agree (`n_i . n_j > 0`); otherwise it is held bilaterally.
     fn group_claims(&mut self, constraints: &[Constraint]) {
         self.sys.order.clear();
         for (i, c) in constraints.iter().enumerate() {
@@ -867,13 +789,11 @@ impl ConstrainedSolver {
             let normal = if unilateral && normal_sum.norm() > 0.0 { Some(normal_sum.normalize()) } else { None };
             self.tools.claimed_sorted.push(node);
             let end = self.tools.claims.len();
-            // Every node starts held; a hold that pulls is demoted in the active-set loop.
             self.tools.groups.push(ClaimGroup { start: end - (k - start), end, target: sum / (k - start) as f64, normal, engaged: true });
         }
     }
 
-    /// Arranges the engaged tool nodes in the factor's persistent order (see
-    /// `wfactor`) and updates the enforced factor to them.
+    /// Puts the engaged tool nodes in the factor's persistent order ([`super::wfactor`]) and updates the factor.
     fn arrange_engaged(&mut self) {
         self.tools.engaged_sorted.clear();
         self.tools.engaged_sorted.extend(self.tools.claimed_sorted.iter().zip(&self.tools.groups).filter(|(_, g)| g.engaged).map(|(n, _)| *n));
@@ -898,12 +818,8 @@ impl ConstrainedSolver {
         self.timings.factor += t.elapsed().as_secs_f64();
     }
 
-    /// Held tool nodes whose hold pulls the tissue (`F . n < 0`) leave the held
-    /// set for a row on their face plane (`n . u >= n . g`, unilateral, handled
-    /// with the sphere rows: active = sliding on the face, inactive = released).
-    /// All of them in the first `BULK_RELEASE_ITERATIONS` iterations, then the
-    /// most adhesive one per iteration. A node never returns to held within a
-    /// frame, so this terminates. Returns whether any node was demoted.
+    /// Demotes held tool nodes whose hold pulls (`F . n < 0`) to a face-plane row (see the module doc): all of them
+    /// in the first [`BULK_RELEASE_ITERATIONS`], then the most adhesive one per iteration. Returns whether any was.
     fn demote_pulling_holds(&mut self, iterations: usize) -> bool {
         let scale = self.sys.node_force[..self.tools.enforced_nodes].iter().fold(0.0_f64, |m, f| m.max(f.norm()));
         let mut most: Option<(usize, usize, f64)> = None;
@@ -980,9 +896,8 @@ impl ConstrainedSolver {
         }
     }
 
-    /// Marks the cached lazy columns of this frame's candidates (skull, barrier)
-    /// as used, so a guess never evicts the column of a vertex that may engage
-    /// in this frame's active-set solve.
+    /// Marks the cached lazy columns of this frame's candidates as used, so this frame never evicts the column of
+    /// a vertex that may engage.
     fn touch_candidate_columns(&mut self) {
         let frame = self.frame;
         for c in &self.cands.candidates {
@@ -1040,8 +955,7 @@ impl ConstrainedSolver {
         }
     }
 
-    /// Gathers the sphere rows of W, extends the enforced factor with them,
-    /// solves for lambda and the nodal forces.
+    /// Gathers the candidate rows of W, extends the enforced factor with them, solves for lambda and the nodal forces.
     fn solve_rows(&mut self) {
         let t = std::time::Instant::now();
         let n = self.sys.rows.len();
@@ -1059,9 +973,8 @@ impl ConstrainedSolver {
         for t in 0..s {
             let ri = self.sys.rows[e + t];
             let pi = self.sys.nodes[ri.slot];
-            // A sphere or face row's node is a candidate: its blocks against
-            // the W nodes are kept (K^-1[q, p] is K^-1[p, q] transposed, bit
-            // for bit, unless both have lazy columns: then each reads its own).
+            // A sphere or face row's node is a candidate: its blocks against the W nodes are kept (K^-1[q, p] is
+            // K^-1[p, q] transposed, bit for bit, unless both have lazy columns: then each reads its own).
             let mut row = kept.as_mut().map(|k| (k.row(pi), self.columns.lazy.binary_search_by_key(&pi, |c| c.node).is_ok()));
             for l in 0..self.tools.enforced_nodes {
                 let q = self.sys.nodes[l];
@@ -1104,8 +1017,7 @@ impl ConstrainedSolver {
         }
     }
 
-    /// `sqrt(|K^-1[node, node]|_F)` for the screen, when the node has a
-    /// column (ROI or lazy) to read it from; kept once read.
+    /// `sqrt(|K^-1[node, node]|_F)` for the screen, when the node has a ROI or lazy column; kept once read.
     fn screen_root(&mut self, node: u32) -> Option<f64> {
         if let Some(r) = self.cands.screen.root(node) {
             return Some(r);
@@ -1186,10 +1098,8 @@ impl ConstrainedSolver {
                 None => *held,
             }
         }));
-        // sqrt is monotonic and correctly rounded: the largest norm is the
-        // root of the largest squared norm, bit for bit.
-        // Over the working region (the vertices with rows, and the far ones
-        // brought up to date this frame): the far surface is as it was.
+        // Over the working region (rows and tracked far vertices). sqrt is monotonic and correctly rounded: the
+        // root of the largest squared norm is the largest norm, bit for bit.
         let tracked = self.surface.tracked.iter().map(|&k| &out.displacement_surface[k as usize]);
         out.max_displacement = self.surface.prev_u_rows.iter().chain(tracked).fold(0.0_f64, |m, u| m.max(u.norm_squared())).sqrt();
         out.reactions.clear();
@@ -1241,11 +1151,9 @@ impl ConstrainedSolver {
         }
     }
 
-    /// Brings the tracked far vertices up to date: one sparse solve with
-    /// this frame's forces, when there are any, pruned at both ends (forward
-    /// from the forced rows, backward to the tracked ones; a body force is
-    /// nonzero everywhere, so with gravity the forward pass is whole). The
-    /// tracked vertices' answer is the whole solve's bit for bit.
+    /// Brings the tracked far vertices up to date: one sparse solve with this frame's forces, pruned forward from
+    /// the forced rows (not with gravity: a body force is nonzero everywhere) and backward to the tracked ones.
+    /// Their answer is the full solve's bit for bit.
     fn update_tracked(&mut self) -> Result<(), FemError> {
         if self.surface.tracked.is_empty() {
             return Ok(());
@@ -1301,16 +1209,13 @@ impl ConstrainedSolver {
         )
     }
 
-    /// The free surface vertices without a compliance row (indices into
-    /// `model.surface().vertices`, ascending): beyond the working region, so
-    /// a frame leaves them as they were last brought up to date unless
-    /// [`Self::track`] names them.
+    /// The free surface vertices without a compliance row (indices into `model.surface().vertices`, ascending): a
+    /// frame leaves them as last brought up to date unless [`Self::track`] names them.
     pub fn far_vertices(&self) -> &[u32] {
         &self.surface.far
     }
 
-    /// The far vertices (surface indices) the next frames bring up to date:
-    /// those a blade is near. Others in `vertices` are ignored.
+    /// The far vertices (surface indices) the next frames bring up to date: those a blade is near; others ignored.
     pub fn track(&mut self, vertices: &[u32]) {
         let s = &mut self.surface;
         s.tracked.clear();
@@ -1319,11 +1224,9 @@ impl ConstrainedSolver {
         s.tracked.dedup();
     }
 
-    /// Writes the far vertices' displacement for the last frame's forces into
-    /// `displacement_surface` (per surface vertex, as a frame's solution):
-    /// the whole surface up to date, for an output that shows or hashes it.
-    /// Changes nothing the next frame reads. Nothing to do (no solve) when
-    /// every surface vertex has a row.
+    /// Writes the far vertices' displacement for the last frame's forces into `displacement_surface` (per surface
+    /// vertex), for an output that shows or hashes the whole surface. Changes nothing the next frame reads; no
+    /// solve when every surface vertex has a row.
     pub fn whole_surface(&mut self, displacement_surface: &mut [Vec3]) -> Result<(), FemError> {
         let forces = std::mem::take(&mut self.surface.last_forces);
         let done = self.whole_surface_for(&forces, displacement_surface);
@@ -1331,8 +1234,7 @@ impl ConstrainedSolver {
         done
     }
 
-    /// As [`Self::whole_surface`] for a frame whose nodal forces
-    /// ([`Self::last_forces`]) were kept: the same bits, at a later time.
+    /// As [`Self::whole_surface`] for a frame's kept nodal forces ([`Self::last_forces`]): the same bits, later.
     pub fn whole_surface_for(&mut self, forces: &[(u32, Vec3)], displacement_surface: &mut [Vec3]) -> Result<(), FemError> {
         if self.surface.far.is_empty() {
             return Ok(());
@@ -1347,9 +1249,8 @@ impl ConstrainedSolver {
         Ok(())
     }
 
-    /// Keeps the rows active at the end of the frame for the next one (the
-    /// sphere rows, the blade barriers) and lists the released and sliding
-    /// tool nodes; counts them into `out`.
+    /// Keeps the rows active at the end of the frame (sphere rows, blade barriers) for the next one, lists the
+    /// released and sliding tool nodes, and counts them into `out`.
     fn carry_active_set(&mut self, out: &mut FrameSolution) {
         self.cands.prev_active.clear();
         for c in &self.cands.candidates {
@@ -1382,8 +1283,8 @@ impl ConstrainedSolver {
         out.sliding_contacts = self.tools.sliding.len();
     }
 
-    /// Displacement of every node (m) for the last frame's forces: one sparse
-    /// solve. Fixed nodes get zero. Errors only when the solve scratch cannot be allocated.
+    /// Displacement of every node (m) for the last frame's forces: one sparse solve; fixed nodes get zero. Errors
+    /// only when the solve scratch cannot be allocated.
     pub fn interior_displacements(&mut self, out: &mut Vec<Vec3>) -> Result<(), FemError> {
         self.solve_last_forces()?;
         std::mem::swap(out, &mut self.surface.solve_u);

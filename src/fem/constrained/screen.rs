@@ -1,51 +1,36 @@
-//! Screening the active-set loop's inactive candidates ([`Screen`]): a
-//! candidate whose last evaluation left it far from its constraint is not
-//! evaluated again until the forces have changed enough to reach it.
+//! Screening the active-set loop's inactive candidates ([`Screen`]): a candidate whose last evaluation left it far
+//! from its constraint is not evaluated again until the forces have changed enough to reach it.
 //!
-//! In: the nodal forces after each solve of W, the diagonal K^-1 blocks of
-//! the nodes. Out: per candidate, whether its evaluation can be skipped.
-//! Stays true: a skipped candidate would have been found not violated, so
-//! the loop makes the same decisions and the frame the same bits as
-//! evaluating every candidate (`tests/fem_tuning.rs` checks it with the
-//! switch off).
+//! In: the nodal forces after each solve of W, the diagonal K^-1 blocks of the nodes. Out: per candidate, whether
+//! its evaluation can be skipped. Stays true: a skipped candidate would have been found not violated, so the loop
+//! makes the same decisions and the frame the same bits (`tests/fem_tuning.rs` checks it with the switch off).
 //!
-//! The bound: K^-1 is symmetric positive definite, so each of its 3x3 blocks
-//! satisfies `|K^-1[p, q]| <= sqrt(|K^-1[p, p]| |K^-1[q, q]|)` (spectral
-//! norms; the Frobenius norm of the diagonal blocks bounds them from
-//! above). The displacement of `p` between two evaluations therefore moves
-//! by at most `r_p * sum_q r_q |dF_q|`, with `r = sqrt(|K^-1 diagonal|)`,
-//! summed over every node's force change in between. A candidate's
-//! violation (a plane's `b - n . u`, a sphere's distance to its surface) is
-//! 1-Lipschitz in `u`, so while that bound stays below the tolerance minus
-//! the violation found at its last evaluation, the candidate stays inside.
-//! A wide contact evaluates 200-300 candidates, each against every W node,
-//! at each of up to a dozen iterations; most of them lie well inside.
+//! The bound: K^-1 is symmetric positive definite, so each 3x3 block satisfies
+//! `|K^-1[p, q]| <= sqrt(|K^-1[p, p]| |K^-1[q, q]|)` (spectral norms, bounded above by the diagonal blocks'
+//! Frobenius norms). Between two evaluations the displacement of `p` moves by at most `r_p * sum_q r_q |dF_q|`,
+//! `r = sqrt(|K^-1 diagonal|)`, summed over every force change in between. A violation (a plane's `b - n . u`, a
+//! sphere's distance to its surface) is 1-Lipschitz in `u`, so while that bound stays below the margin (tolerance
+//! minus violation) found at the last evaluation, the candidate stays inside. A wide contact evaluates 200-300
+//! candidates against every W node at up to a dozen iterations; most lie well inside.
 
 use crate::math::Vec3;
 
-/// Factor on the summed bound: covers the stored compliance being K^-1
-/// rounded (f32 entries beyond 1e-7, lazy columns beyond 1e-10) by far.
+/// Factor on the summed bound: covers by far the stored compliance's rounding (f32 1e-7, lazy columns 1e-10).
 const SAFETY: f64 = 1.01;
-/// Absolute slack (m): far above the rounding of a displacement or a
-/// distance at the scale of a head (1e-16 m), far below any tolerance a
-/// decision uses.
+/// Absolute slack (m): far above a head-scale displacement's rounding (1e-16 m), far below any decision's tolerance.
 const ABS_SLACK_M: f64 = 1e-12;
 
-/// Per frame: the summed force change since the frame began, and for each
-/// candidate the sum at its last evaluation and the margin it then had.
+/// Per frame: the summed force change so far, and per candidate the sum and margin at its last evaluation.
 #[derive(Debug, Default)]
 pub(super) struct Screen {
-    /// `sqrt(|K^-1[n, n]|_F)` per mesh node, NaN until read (the compliance
-    /// never changes); sized once, so a frame allocates nothing for it.
+    /// `sqrt(|K^-1[n, n]|_F)` per mesh node, NaN until read; sized once, so a frame allocates nothing for it.
     roots: Vec<f64>,
     /// Forces (node, F) at the last solve, ascending by node.
     prev: Vec<(u32, Vec3)>,
     cur: Vec<(u32, Vec3)>,
-    /// `SAFETY * sum_iterations sum_q r_q |dF_q|` since the frame began
-    /// (infinite once a node's root was unknown).
+    /// `SAFETY * sum_iterations sum_q r_q |dF_q|` since the frame began (infinite once a root was unknown).
     drift: f64,
-    /// Per candidate: `drift` at its last evaluation as an inactive
-    /// candidate, and its margin then (tolerance minus violation; -inf: none).
+    /// Per candidate: `drift` and its margin (tolerance minus violation; -inf: none) at its last inactive evaluation.
     at: Vec<f64>,
     margin: Vec<f64>,
 }
@@ -76,10 +61,8 @@ impl Screen {
         }
     }
 
-    /// The forces of a new solve (`nodes[k]` carries `forces[k]`): adds
-    /// their change since the last solve to the drift, each weighted by its
-    /// node's root (a node without one makes the drift infinite: nothing is
-    /// skipped any more this frame).
+    /// The forces of a new solve (`nodes[k]` carries `forces[k]`): adds their change since the last solve, each
+    /// weighted by its node's root, to the drift (a node without a root makes it infinite: nothing more is skipped).
     pub(super) fn advance(&mut self, nodes: &[u32], forces: &[Vec3]) {
         self.cur.clear();
         self.cur.extend(nodes.iter().copied().zip(forces.iter().copied()));
@@ -120,8 +103,7 @@ impl Screen {
         std::mem::swap(&mut self.cur, &mut self.prev);
     }
 
-    /// Whether candidate `ci` (root `root`) cannot have reached its
-    /// constraint since its last evaluation.
+    /// Whether candidate `ci` (root `root`) cannot have reached its constraint since its last evaluation.
     pub(super) fn can_skip(&self, ci: usize, root: f64) -> bool {
         match (self.margin.get(ci), self.at.get(ci)) {
             (Some(&m), Some(&at)) => root * (self.drift - at) + ABS_SLACK_M < m,
