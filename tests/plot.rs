@@ -98,6 +98,25 @@ fn a_real_replay_and_a_two_blade_run_overlay_into_a_png_of_the_asked_size() {
 }
 
 #[test]
+fn later_runs_force_is_printed_against_the_first_runs() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (first, stronger, other) = (dir.path().join("fine"), dir.path().join("stronger"), dir.path().join("other_blades"));
+    two_blade_run(&first);
+    // The same blades 10 % stronger on the temporal one: its difference peaks at 10 % of its peak.
+    write_run(&stronger, "Sylvian fissure, two spatulas", &["frontal", "temporal"], 300, |k| vec![blade(k, 300, 0.25, 14.0), blade(k, 300, 0.44, 27.0)]);
+    write_run(&other, "one blade", &["spatula"], 10, |k| vec![blade(k, 10, 0.1, 5.0)]);
+    let png = dir.path().join("runs.png");
+    let out = fissure(&["plot", &s(&first), &s(&stronger), &s(&other), "-o", &s(&png)]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "plot: {}", text(&out.stderr));
+    assert!(stdout.contains("force against fine, at its frames"), "{stdout}");
+    let compared = stdout.split("force against").nth(1).unwrap_or_default();
+    let line = compared.lines().find(|l| l.trim_start().starts_with("stronger:")).unwrap_or_else(|| panic!("{stdout}"));
+    assert!(line.contains("frontal 0.00 / 0.00 % of 0.2") && line.contains("temporal") && line.contains("/ 10.00 % of 0.4"), "{line}");
+    assert!(compared.contains("other_blades: no blade in common"), "{stdout}");
+}
+
+#[test]
 fn values_that_are_nan_are_skipped_and_a_single_frame_is_drawn() {
     let dir = tempfile::tempdir().expect("temp dir");
     let gappy = dir.path().join("gappy");

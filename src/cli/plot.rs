@@ -2,12 +2,13 @@
 //! against time, three panels on one time axis (force, mean contact pressure
 //! with the 20 mmHg line, contact vertices), a colour a run, a line style a
 //! blade. The reading and drawing are [`fissure::study::runs_plot`]'s; this
-//! only names the command in the error and prints what was drawn.
+//! only names the command in the error and prints what was drawn, with each
+//! later run's force against the first's.
 
 use std::path::PathBuf;
 
 use anyhow::Context;
-use fissure::study::runs_plot::plot_runs;
+use fissure::study::runs_plot::{force_against, plot_runs};
 
 /// `fissure plot`'s arguments.
 #[derive(Debug, clap::Args)]
@@ -32,6 +33,16 @@ pub fn run(args: &PlotArgs) -> anyhow::Result<()> {
         let blades: Vec<&str> = run.blades.iter().map(|b| b.name.as_str()).collect();
         let (t0, t1) = run.time_span().unwrap_or((0.0, 0.0));
         println!("  {}: {} frames, t = {t0:.2} to {t1:.2} s, blades {}", run.label, run.time_s.len(), blades.join(", "));
+    }
+    if let Some((first, rest)) = runs.split_first().filter(|(_, rest)| !rest.is_empty()) {
+        println!("force against {}, at its frames (RMS / max, % of its peak):", first.label);
+        for run in rest {
+            let d: Vec<String> = force_against(first, run)
+                .iter()
+                .map(|d| format!("{} {:.2} / {:.2} % of {:.4} N ({} frames)", d.blade, d.rms_pct, d.max_pct, d.peak_n, d.frames))
+                .collect();
+            println!("  {}: {}", run.label, if d.is_empty() { "no blade in common".to_string() } else { d.join("; ") });
+        }
     }
     Ok(())
 }

@@ -10,7 +10,8 @@
 //! ends in `.svg`, with three panels stacked on one time axis: the force on
 //! each blade (N), its mean contact pressure (mmHg) with the
 //! [`RETRACTION_DANGER_MMHG`] line drawn and labelled, and its contact vertices;
-//! a colour a run, a line style a blade, a legend beside each panel.
+//! a colour a run, a line style a blade, a legend beside each panel; and each
+//! later run's force against the first's ([`force_against`]).
 //! Stays true: a value that is not finite (NaN) is left out and breaks its
 //! line, never drawn as 0; the legends stand beside the panels, never over the
 //! data; a directory or file that cannot be read, or a row that does not parse,
@@ -120,6 +121,59 @@ impl RunSeries {
     /// First and last finite time, s.
     pub fn time_span(&self) -> Option<(f64, f64)> {
         finite_span(self.time_s.iter().copied())
+    }
+}
+
+/// One blade's force in a run against the same blade in another (the first
+/// run named): the run's force magnitude interpolated linearly in time at
+/// each of the other's frames inside both runs' spans (so runs at another
+/// frame rate are compared at the same instants), as % of the other's peak.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ForceDifference {
+    pub blade: String,
+    /// RMS and largest |F - F_first| over the compared frames, % of the first run's peak force.
+    pub rms_pct: f64,
+    pub max_pct: f64,
+    /// The first run's peak force on this blade, N.
+    pub peak_n: f64,
+    /// Frames of the first run compared (both values finite).
+    pub frames: usize,
+}
+
+/// Each blade of `run` that `first` has too (by name), its force against
+/// `first`'s ([`ForceDifference`]); a blade without a finite peak or without a
+/// frame in common is left out.
+pub fn force_against(first: &RunSeries, run: &RunSeries) -> Vec<ForceDifference> {
+    let mut out = Vec::new();
+    for a in &first.blades {
+        let Some(b) = run.blades.iter().find(|b| b.name == a.name) else { continue };
+        let peak = a.force_n.iter().copied().filter(|f| f.is_finite()).fold(0.0_f64, f64::max);
+        let samples: Vec<(f64, f64)> = run.time_s.iter().zip(&b.force_n).map(|(&t, &f)| (t, f)).filter(|(t, f)| t.is_finite() && f.is_finite()).collect();
+        let (mut sum2, mut max, mut frames) = (0.0, 0.0_f64, 0);
+        for (&t, &f) in first.time_s.iter().zip(&a.force_n) {
+            let Some(g) = interpolate(&samples, t) else { continue };
+            if !f.is_finite() {
+                continue;
+            }
+            let d = (g - f).abs();
+            (sum2, max, frames) = (sum2 + d * d, max.max(d), frames + 1);
+        }
+        if frames > 0 && peak > 0.0 {
+            let pct = 100.0 / peak;
+            out.push(ForceDifference { blade: a.name.clone(), rms_pct: (sum2 / frames as f64).sqrt() * pct, max_pct: max * pct, peak_n: peak, frames });
+        }
+    }
+    out
+}
+
+/// The value at `t` of the piecewise linear series `samples` (time ascending),
+/// `None` outside its span.
+fn interpolate(samples: &[(f64, f64)], t: f64) -> Option<f64> {
+    let k = samples.partition_point(|(s, _)| *s < t);
+    match (k.checked_sub(1).and_then(|i| samples.get(i)), samples.get(k)) {
+        (_, Some(&(s, v))) if s == t => Some(v),
+        (Some(&(s0, v0)), Some(&(s1, v1))) => Some(v0 + (v1 - v0) * (t - s0) / (s1 - s0)),
+        _ => None,
     }
 }
 
@@ -639,6 +693,31 @@ mod tests {
         assert!(Panel::Pressure.y_range(&[run(2.0)]).end > RETRACTION_DANGER_MMHG);
         assert!(Panel::Pressure.y_range(&[run(50.0)]).end > 50.0);
         assert!(Panel::Contact.y_range(&[run(2.0)]).end >= 5.0);
+    }
+
+    #[test]
+    fn a_run_is_compared_with_the_first_at_the_first_runs_instants() {
+        let run = |t: Vec<f64>, f: Vec<f64>| RunSeries {
+            dir: "r".into(),
+            label: "r".into(),
+            scenario: None,
+            interrupted: false,
+            blades: vec![BladeSeries { name: "a".into(), force_n: f.clone(), pressure_mmhg: vec![0.0; f.len()], contact_vertices: vec![0.0; f.len()] }],
+            time_s: t,
+        };
+        // The first: 0, 1, 2 N at 0, 1, 2 s (peak 2 N). The other, half the frame rate, 0.5 N above it
+        // where it has frames and on a line between them: 0.5 N off at every instant of the first.
+        let first = run(vec![0.0, 1.0, 2.0], vec![0.0, 1.0, 2.0]);
+        let other = run(vec![0.0, 2.0], vec![0.5, 2.5]);
+        let d = force_against(&first, &other);
+        assert_eq!(d.len(), 1);
+        assert_eq!((d[0].frames, d[0].peak_n), (3, 2.0));
+        assert!((d[0].rms_pct - 25.0).abs() < 1e-12 && (d[0].max_pct - 25.0).abs() < 1e-12, "{d:?}");
+        // Outside the other's span, or NaN in it: not compared.
+        let short = run(vec![0.0, 1.0], vec![0.0, f64::NAN]);
+        assert_eq!(force_against(&first, &short)[0].frames, 1);
+        assert!(force_against(&first, &run(vec![5.0, 6.0], vec![1.0, 1.0])).is_empty());
+        assert_eq!(force_against(&first, &first)[0].max_pct, 0.0);
     }
 
     #[test]
