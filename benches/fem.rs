@@ -31,7 +31,7 @@ use fissure::fem::{
     RegionMaterials, element_stress,
 };
 use fissure::fem::factor::SparseCholesky;
-use fissure::fem::fixtures;
+use fissure::mesh::fixtures;
 use fissure::fem::ordering::FillOrdering;
 use fissure::math::Vec3;
 use fissure::mesh::TetMesh;
@@ -39,7 +39,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 fn peak_rss_mb() -> f64 {
-    fissure::fem::meminfo::peak_resident_bytes().map_or(f64::NAN, |b| b as f64 / (1024.0 * 1024.0))
+    fissure::meminfo::peak_resident_bytes().map_or(f64::NAN, |b| b as f64 / (1024.0 * 1024.0))
 }
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {

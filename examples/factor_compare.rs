@@ -6,7 +6,8 @@
 //! The mesh file is in mm.
 use fissure::fem::factor::SparseCholesky;
 use fissure::fem::ordering::FillOrdering;
-use fissure::fem::{FemModel, FemOptions, Material, RegionMaterials, fixtures};
+use fissure::fem::{FemModel, FemOptions, Material, RegionMaterials};
+use fissure::mesh::fixtures;
 use std::io::Write;
 use std::time::Instant;
 

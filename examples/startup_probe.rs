@@ -13,7 +13,7 @@ use std::path::Path;
 use std::time::Instant;
 
 fn peak_rss_mb() -> f64 {
-    fissure::fem::meminfo::peak_resident_bytes().map_or(f64::NAN, |b| b as f64 / (1024.0 * 1024.0))
+    fissure::meminfo::peak_resident_bytes().map_or(f64::NAN, |b| b as f64 / (1024.0 * 1024.0))
 }
 
 fn main() {

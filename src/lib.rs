@@ -14,6 +14,7 @@ pub mod fsio;
 pub mod geometry;
 pub mod input;
 pub mod math;
+pub mod meminfo;
 pub mod mesh;
 pub mod render;
 pub mod scenario;

@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use fissure::fem::fixtures::{box_mesh, linspace};
+use fissure::mesh::fixtures::{box_mesh, linspace};
 use fissure::math::Vec3;
 use fissure::mesh::TetMesh;
 use fissure::mesh::io::{self, Field, FieldData};

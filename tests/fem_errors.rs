@@ -5,7 +5,7 @@
 mod common;
 
 use common::*;
-use fissure::fem::fixtures::{box_mesh, linspace};
+use fissure::mesh::fixtures::{box_mesh, linspace};
 use fissure::fem::{
     Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemError, FemModel, FemOptions, FrameSolution, Material,
     RegionMaterials,

@@ -148,7 +148,7 @@ fn repeated_steps_are_bitwise_deterministic() {
 fn surface_product_reuses_gathered_rows_and_matches_the_block_sum() {
     // One body, and two (a fixed wall splits a longer block): the layout with two runs a column.
     let one = block(5, 4, 3);
-    let two = fissure::fem::fixtures::box_mesh(&fissure::fem::fixtures::linspace(0.0, 0.12, 12), &fissure::fem::fixtures::linspace(0.0, 0.04, 4), &fissure::fem::fixtures::linspace(0.0, 0.03, 3)).unwrap();
+    let two = fissure::mesh::fixtures::box_mesh(&fissure::mesh::fixtures::linspace(0.0, 0.12, 12), &fissure::mesh::fixtures::linspace(0.0, 0.04, 4), &fissure::mesh::fixtures::linspace(0.0, 0.03, 3)).unwrap();
     let wall = |m: &TetMesh| -> Vec<bool> { m.positions.iter().map(|p| p.z.abs() < 1e-12 || (p.x - 0.05).abs() < 1e-9).collect() };
     for (mesh, fixed) in [(one.clone(), bottom_fixed(&one)), (two.clone(), wall(&two))] {
     let model = FemModel::new(&mesh, &uniform(BRAIN), &fixed, &FemOptions::default()).unwrap();

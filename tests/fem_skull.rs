@@ -5,7 +5,7 @@
 mod common;
 
 use common::*;
-use fissure::fem::fixtures::sphere_shell;
+use fissure::mesh::fixtures::sphere_shell;
 use fissure::fem::{Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution};
 use fissure::math::Vec3;
 use fissure::mesh::TetMesh;

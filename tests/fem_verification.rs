@@ -5,7 +5,7 @@
 mod common;
 
 use common::*;
-use fissure::fem::fixtures::{box_mesh, linspace, sphere_shell};
+use fissure::mesh::fixtures::{box_mesh, linspace, sphere_shell};
 use fissure::fem::reference::solve_direct;
 use fissure::fem::{
     Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, Material,

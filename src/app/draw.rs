@@ -501,7 +501,7 @@ mod tests {
     /// triangles; no stress (or too little) gives no field, never a panic.
     #[test]
     fn surface_strain_averages_the_boundary_tets_of_each_vertex() {
-        let mesh = crate::fem::fixtures::box_mesh(&[0.0, 1.0, 2.0], &[0.0, 1.0], &[0.0, 1.0]).unwrap();
+        let mesh = crate::mesh::fixtures::box_mesh(&[0.0, 1.0, 2.0], &[0.0, 1.0], &[0.0, 1.0]).unwrap();
         let surface = crate::mesh::BoundarySurface::of(&mesh);
         let stress: Vec<crate::fem::ElementStress> =
             (0..mesh.tets.len()).map(|t| crate::fem::ElementStress { von_mises: 0.0, max_principal_strain: 0.01 * (t as f64 + 1.0) }).collect();

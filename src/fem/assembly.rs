@@ -136,21 +136,6 @@ impl LowerCsc {
         let sym = faer::sparse::SymbolicSparseColMatRef::new_checked(self.dim, self.dim, &self.col_ptr, None, &self.row_idx);
         faer::sparse::SparseColMatRef::new(sym, &self.values)
     }
-
-    /// y = K x using the symmetric lower storage.
-    pub fn mul_vec(&self, x: &[f64], y: &mut [f64]) {
-        y.iter_mut().for_each(|v| *v = 0.0);
-        for j in 0..self.dim {
-            for p in self.col_ptr[j]..self.col_ptr[j + 1] {
-                let i = self.row_idx[p];
-                let v = self.values[p];
-                y[i] += v * x[j];
-                if i != j {
-                    y[j] += v * x[i];
-                }
-            }
-        }
-    }
 }
 
 /// Assembles `K_FF` (lower triangle). `lame[t]` = (lambda, mu) of tet t.

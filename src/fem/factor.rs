@@ -463,7 +463,7 @@ impl LazyFactor {
 mod tests {
     use super::*;
     use crate::fem::assembly::assemble_lower;
-    use crate::fem::fixtures;
+    use crate::mesh::fixtures;
 
     /// `K_FF` of `mesh` (one soft material) with its nodes at z = 0 held, and its DOFs.
     fn held_at_the_bottom(mesh: &crate::mesh::TetMesh) -> (LowerCsc, DofMap) {

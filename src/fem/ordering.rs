@@ -119,7 +119,7 @@ pub fn nested_dissection(k: &LowerCsc) -> Option<Vec<usize>> {
 mod tests {
     use super::*;
     use crate::fem::assembly::{DofMap, assemble_lower};
-    use crate::fem::fixtures;
+    use crate::mesh::fixtures;
 
     #[test]
     fn nested_dissection_is_a_node_blocked_permutation() {

@@ -7,6 +7,7 @@
 //! Stays true: indices are in range, coordinates are finite, volumes are > 0.
 
 pub mod brain;
+pub mod fixtures;
 pub mod io;
 pub mod phantom;
 pub mod quality;

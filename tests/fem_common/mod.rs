@@ -2,7 +2,7 @@
 //! materials, and relative error measures.
 #![allow(dead_code)]
 
-use fissure::fem::fixtures::{box_mesh, linspace};
+use fissure::mesh::fixtures::{box_mesh, linspace};
 use fissure::fem::{Material, RegionMaterials};
 use fissure::math::Vec3;
 use fissure::mesh::TetMesh;

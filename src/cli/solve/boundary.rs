@@ -406,7 +406,7 @@ fn direction(v: Vec3) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fissure::fem::fixtures::{box_mesh, linspace};
+    use fissure::mesh::fixtures::{box_mesh, linspace};
 
     fn fixed_of(json: &str) -> Result<Vec<FixedEntry>, serde_json::Error> {
         serde_json::from_str(json)

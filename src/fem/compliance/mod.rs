@@ -427,7 +427,7 @@ impl Compliance {
         let need = len * entry_bytes
             + self.layout.lo_blocks() * 9 * 2 * usize::from(storage == ComplianceStorage::F32)
             + threads * n_free * 3 * BATCH_NODES * 8;
-        region_fits(self.n_cols, self.row_nodes.len(), storage, need as u64, super::meminfo::available_bytes())?;
+        region_fits(self.n_cols, self.row_nodes.len(), storage, need as u64, crate::meminfo::available_bytes())?;
         let values = match storage {
             ComplianceStorage::F64 => {
                 let mut v: Vec<f64> = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| FemError::OutOfMemory { what: "compliance", bytes: len * 8 })?;

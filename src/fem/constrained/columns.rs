@@ -111,11 +111,6 @@ impl ConstrainedSolver {
     pub fn is_roi_column(&self, node: u32) -> bool {
         self.compliance.col_of(node).is_some()
     }
-
-    /// Nodes whose columns are cached (lazy, outside the ROI), ascending.
-    pub fn cached_lazy_nodes(&self) -> impl Iterator<Item = u32> + '_ {
-        self.columns.lazy.iter().map(|c| c.node)
-    }
 }
 
 /// Columns of one node: 3 x free DOFs, column major.

@@ -424,11 +424,6 @@ impl ConstrainedSolver {
         &self.sys.rows
     }
 
-    /// Nodes of the last frame's system (`ConstraintRow::slot` indexes this).
-    pub fn constraint_nodes(&self) -> &[u32] {
-        &self.sys.nodes
-    }
-
     /// Copies the last frame's `W = C K^-1 C^T` into `out` (n x n, column major, full symmetric), n =
     /// `constraint_rows().len()`; for a haptic thread that wants its own copy.
     pub fn contact_compliance(&self, out: &mut Vec<f64>) {

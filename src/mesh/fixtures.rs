@@ -96,11 +96,6 @@ pub fn sphere_shell(inner: f64, outer: f64, n: usize, layers: usize) -> Result<T
     TetMesh::new(positions, tets, vec![])
 }
 
-/// Nodes whose position satisfies `pred`, ascending.
-pub fn select_nodes(mesh: &TetMesh, pred: impl Fn(&Vec3) -> bool) -> Vec<u32> {
-    (0..mesh.node_count() as u32).filter(|&n| pred(&mesh.positions[n as usize])).collect()
-}
-
 /// Clamps each connected piece of `mesh` at its bottom: the nodes within `depth` (m) of the piece's lowest z (the
 /// benchmarks' boundary condition on a brain whose hemispheres are stored apart).
 pub fn fix_bottom_of_each_component(mesh: &TetMesh, depth: f64) -> Vec<bool> {
