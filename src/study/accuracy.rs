@@ -107,8 +107,10 @@ pub fn force_along(trace: &RunTrace, motion: &Motion) -> Vec<(i64, Vec3)> {
 }
 
 /// (RMS, max, points) of |F - F_ref| at every point of `reference`'s path
-/// within `run`'s, the run's force interpolated along the path; in N.
-fn force_error(reference: &[(i64, Vec3)], run: &[(i64, Vec3)]) -> (f64, f64, usize) {
+/// within `run`'s, the run's force interpolated along the path; in N. The
+/// abscissa is any key that grows along both series (`fissure plot` passes
+/// time in nanoseconds).
+pub fn force_error(reference: &[(i64, Vec3)], run: &[(i64, Vec3)]) -> (f64, f64, usize) {
     let (mut sum2, mut max, mut n) = (0.0, 0.0_f64, 0usize);
     for &(s, f) in reference {
         if let Some(force) = force_at(run, s) {

@@ -125,9 +125,10 @@ impl RunSeries {
 }
 
 /// One blade's force in a run against the same blade in another (the first
-/// run named): the run's force magnitude interpolated linearly in time at
-/// each of the other's frames inside both runs' spans (so runs at another
-/// frame rate are compared at the same instants), as % of the other's peak.
+/// run named), as the study measures a run against its reference
+/// ([`super::accuracy::force_error`]): at each of the first run's frames
+/// inside the other's span, the other's force magnitude interpolated linearly
+/// in time (so runs at another frame rate are compared at the same instants).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ForceDifference {
     pub blade: String,
@@ -141,40 +142,28 @@ pub struct ForceDifference {
 }
 
 /// Each blade of `run` that `first` has too (by name), its force against
-/// `first`'s ([`ForceDifference`]); a blade without a finite peak or without a
-/// frame in common is left out.
+/// `first`'s ([`ForceDifference`]); a blade without a positive peak or without
+/// a frame in common is left out.
 pub fn force_against(first: &RunSeries, run: &RunSeries) -> Vec<ForceDifference> {
+    // (time in ns, |F| as a vector) at the finite values: the study's force series.
+    let series = |time: &[f64], force: &[f64]| -> Vec<(i64, crate::math::Vec3)> {
+        time.iter()
+            .zip(force)
+            .filter(|(t, f)| t.is_finite() && f.is_finite())
+            .map(|(&t, &f)| ((t * 1e9).round() as i64, crate::math::Vec3::new(f, 0.0, 0.0)))
+            .collect()
+    };
     let mut out = Vec::new();
     for a in &first.blades {
         let Some(b) = run.blades.iter().find(|b| b.name == a.name) else { continue };
-        let peak = a.force_n.iter().copied().filter(|f| f.is_finite()).fold(0.0_f64, f64::max);
-        let samples: Vec<(f64, f64)> = run.time_s.iter().zip(&b.force_n).map(|(&t, &f)| (t, f)).filter(|(t, f)| t.is_finite() && f.is_finite()).collect();
-        let (mut sum2, mut max, mut frames) = (0.0, 0.0_f64, 0);
-        for (&t, &f) in first.time_s.iter().zip(&a.force_n) {
-            let Some(g) = interpolate(&samples, t) else { continue };
-            if !f.is_finite() {
-                continue;
-            }
-            let d = (g - f).abs();
-            (sum2, max, frames) = (sum2 + d * d, max.max(d), frames + 1);
-        }
+        let reference = series(&first.time_s, &a.force_n);
+        let peak = reference.iter().map(|(_, f)| f.norm()).fold(0.0, f64::max);
+        let (rms, max, frames) = super::accuracy::force_error(&reference, &series(&run.time_s, &b.force_n));
         if frames > 0 && peak > 0.0 {
-            let pct = 100.0 / peak;
-            out.push(ForceDifference { blade: a.name.clone(), rms_pct: (sum2 / frames as f64).sqrt() * pct, max_pct: max * pct, peak_n: peak, frames });
+            out.push(ForceDifference { blade: a.name.clone(), rms_pct: 100.0 * rms / peak, max_pct: 100.0 * max / peak, peak_n: peak, frames });
         }
     }
     out
-}
-
-/// The value at `t` of the piecewise linear series `samples` (time ascending),
-/// `None` outside its span.
-fn interpolate(samples: &[(f64, f64)], t: f64) -> Option<f64> {
-    let k = samples.partition_point(|(s, _)| *s < t);
-    match (k.checked_sub(1).and_then(|i| samples.get(i)), samples.get(k)) {
-        (_, Some(&(s, v))) if s == t => Some(v),
-        (Some(&(s0, v0)), Some(&(s1, v1))) => Some(v0 + (v1 - v0) * (t - s0) / (s1 - s0)),
-        _ => None,
-    }
 }
 
 /// What the plot is written as, by the output's extension.
