@@ -30,9 +30,9 @@ use fissure::fem::{
     Compliance, ComplianceStorage, ComputeOptions, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, Material,
     RegionMaterials, element_stress,
 };
-use fissure::fem::factor::SparseCholesky;
+use fissure::linalg::SparseCholesky;
 use fissure::mesh::fixtures;
-use fissure::fem::ordering::FillOrdering;
+use fissure::linalg::FillOrdering;
 use fissure::math::Vec3;
 use fissure::mesh::TetMesh;
 use std::path::{Path, PathBuf};
@@ -264,7 +264,7 @@ fn ordering_lines(model: &FemModel) {
     let mut base: Option<(f64, f64)> = None;
     for ordering in [FillOrdering::Amd, FillOrdering::NestedDissection] {
         let t = Instant::now();
-        let chol = match SparseCholesky::new(k, dofs, ordering) {
+        let chol = match SparseCholesky::new(k, ordering, &|d| dofs.name(d)) {
             Ok(c) => c,
             Err(e) => {
                 println!("ordering {ordering:?}: factor failed: {e}");
@@ -692,7 +692,7 @@ fn write_audit(name: &str, count: usize, bars: &[AuditBar], dir: &Path) -> Resul
 /// solve and with faer's, alternating, best of three each.
 fn row_major_audit(model: &FemModel) {
     let k = model.stiffness();
-    let mut chol = match SparseCholesky::new(k, model.dofs(), FillOrdering::Best) {
+    let mut chol = match SparseCholesky::new(k, FillOrdering::Best, &|d| model.dofs().name(d)) {
         Ok(c) => c,
         Err(e) => {
             println!("audit row-major-solve: factor failed: {e}");

@@ -1,6 +1,6 @@
 //! How fast faer's dense Cholesky (the W factor of the constrained solve) runs
 //! here, in f64 and f32, on one thread and on two: the floor under a frame that
-//! must refactor its contact compliance W (`src/fem/wfactor.rs`). Numbers in
+//! must refactor its contact compliance W (`src/linalg/kept_factor.rs`). Numbers in
 //! docs/design-notes.md. Run: `cargo run --release --example dense_llt`.
 
 use faer::dyn_stack::{MemBuffer, MemStack};

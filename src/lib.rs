@@ -13,6 +13,7 @@ pub mod fem;
 pub mod fsio;
 pub mod geometry;
 pub mod input;
+pub mod linalg;
 pub mod math;
 pub mod meminfo;
 pub mod mesh;

@@ -7,9 +7,9 @@ mod common;
 
 use common::*;
 use fissure::fem::{
-    Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, StressWorker,
-    element_stress,
+    Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, element_stress,
 };
+use fissure::app::stress_worker::StressWorker;
 use fissure::math::Vec3;
 
 #[test]

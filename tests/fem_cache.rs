@@ -7,8 +7,8 @@ mod common;
 use common::*;
 use fissure::fem::{
     Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, Material,
-    ContactScratch, contact_patches, PA_PER_MMHG,
 };
+use fissure::sim::contact::{ContactScratch, PA_PER_MMHG, contact_patches};
 use fissure::math::Vec3;
 
 fn model(e: f64) -> FemModel {

@@ -1,4 +1,4 @@
-//! The persistent factor of W (`fem::wfactor`): a frame history that grows,
+//! The persistent factor of W (`linalg::kept_factor`): a frame history that grows,
 //! repeats, drops nodes at the front and in the middle, and adds sphere rows,
 //! must give what a fresh solver (full factorization) gives, to round-off, and
 //! match the direct re-factorization to 1e-8; replays are bitwise deterministic.
@@ -8,7 +8,7 @@ mod common;
 
 use common::*;
 use fissure::fem::reference::solve_direct;
-use fissure::fem::wfactor::FactorUpdate;
+use fissure::linalg::kept_factor::FactorUpdate;
 use fissure::fem::{Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution};
 use fissure::math::Vec3;
 use fissure::mesh::TetMesh;

@@ -108,3 +108,13 @@ fn the_bitwise_switches_leave_every_bit() {
         assert!(one == on, "{} switched off alone changes the answers", o.name());
     }
 }
+
+#[test]
+fn every_switch_is_listed_once_in_declaration_order() {
+    let mut names = std::collections::BTreeSet::new();
+    for (i, (o, name)) in Optimisation::ALL.into_iter().enumerate() {
+        assert_eq!(o as usize, i, "{name} is listed out of order");
+        assert!(names.insert(name), "{name} is listed twice");
+        assert_eq!(o.name(), name);
+    }
+}

@@ -1,5 +1,7 @@
 //! Verification against closed forms: patch test, Lamé thick sphere, Sneddon
-//! flat punch. Sizes stay small for CI; observed orders are printed.
+//! flat punch; the element's own identities (shape gradients, rigid modes,
+//! material ranges) and the stress pass's closed-form eigenvalue. Sizes stay
+//! small for CI; observed orders are printed.
 
 #[path = "fem_common/mod.rs"]
 mod common;
@@ -11,7 +13,9 @@ use fissure::fem::{
     Compliance, ComplianceStorage, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, Material,
     element_stress,
 };
-use fissure::math::Vec3;
+use fissure::fem::element::{shape_gradients, tet_stiffness};
+use fissure::fem::stress::largest_symmetric_eigenvalue;
+use fissure::math::{Matrix3, Vec3};
 
 #[test]
 fn patch_test_uniaxial_bar_is_exact() {
@@ -183,4 +187,84 @@ fn sneddon_flat_punch_converges() {
     println!("Sneddon punch: observed order {order:.2} (cells 12 -> 16), reference {sneddon:.5e} N");
     assert!(errors[0] > errors[1] && errors[1] > errors[2], "the force must approach Sneddon's value with refinement: {errors:?}");
     assert!(errors[2] < 0.3, "finest level within 30 % (finite 20a block with a fixed base, staircase punch edge, edge singularity): {}", errors[2]);
+}
+
+fn unit_tet() -> [Vec3; 4] {
+    [Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::z()]
+}
+
+#[test]
+fn gradients_sum_to_zero_and_reproduce_linear_fields() {
+    let p = [Vec3::new(0.1, 0.0, 0.0), Vec3::new(1.2, 0.1, 0.0), Vec3::new(0.2, 0.9, 0.1), Vec3::new(0.0, 0.3, 1.1)];
+    let (g, v) = shape_gradients(&p);
+    assert!(v > 0.0, "positively oriented tet has positive volume, got {v}");
+    assert!((g[0] + g[1] + g[2] + g[3]).norm() < 1e-13, "partition of unity: gradients sum to 0");
+    // sum_a x_a g_a^T = I for the coordinate field
+    let mut m = Matrix3::zeros();
+    for a in 0..4 {
+        m += p[a] * g[a].transpose();
+    }
+    assert!((m - Matrix3::identity()).norm() < 1e-12, "gradient of x must be I, got {m}");
+}
+
+#[test]
+fn element_stiffness_is_symmetric_and_rigid_modes_have_zero_force() {
+    let (l, m) = Material { young_modulus: 3e3, poisson_ratio: 0.45 }.lame();
+    let k = tet_stiffness(&unit_tet(), l, m);
+    for i in 0..12 {
+        for j in 0..12 {
+            assert!((k[i][j] - k[j][i]).abs() < 1e-9 * k[0][0].abs(), "K not symmetric at ({i},{j})");
+        }
+    }
+    // rotation about z: u = w x p
+    let w = Vec3::new(0.3, -0.2, 1.0);
+    let u: Vec<f64> = unit_tet().iter().flat_map(|p| { let r = w.cross(p); [r.x, r.y, r.z] }).collect();
+    for i in 0..12 {
+        let f: f64 = (0..12).map(|j| k[i][j] * u[j]).sum();
+        assert!(f.abs() < 1e-9 * k[0][0].abs(), "infinitesimal rotation gives force {f} at row {i}");
+    }
+}
+
+#[test]
+fn material_ranges_are_checked() {
+    assert!(Material { young_modulus: 0.0, poisson_ratio: 0.3 }.validate(None).is_err());
+    assert!(Material { young_modulus: -1.0, poisson_ratio: 0.3 }.validate(Some(2)).is_err());
+    assert!(Material { young_modulus: 1.0, poisson_ratio: 0.5 }.validate(None).is_err());
+    assert!(Material { young_modulus: 1.0, poisson_ratio: -1.0 }.validate(None).is_err());
+    assert!(Material { young_modulus: 1.0, poisson_ratio: f64::NAN }.validate(None).is_err());
+    assert!(Material { young_modulus: 1.0, poisson_ratio: 0.499 }.validate(None).is_ok());
+}
+
+/// Against nalgebra's iterative eigen solver: random symmetric matrices of
+/// mixed scales, and degenerate spectra (double, triple, zero, rank one).
+#[test]
+fn largest_eigenvalue_matches_the_iterative_solver() {
+    let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut next = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let mut cases: Vec<Matrix3<f64>> = Vec::new();
+    for k in 0..2000 {
+        let scale = 10f64.powi(k % 9 - 6);
+        let m = Matrix3::from_fn(|_, _| next() * scale);
+        cases.push((m + m.transpose()) * 0.5);
+    }
+    let v = Vec3::new(0.3, -0.5, 0.8).normalize();
+    cases.push(Matrix3::zeros());
+    cases.push(Matrix3::identity() * 2.5e-3);
+    cases.push(Matrix3::from_diagonal(&Vec3::new(1e-3, 1e-3, -2e-3)));
+    cases.push(Matrix3::from_diagonal(&Vec3::new(-1e-3, -1e-3, 2e-3)));
+    cases.push(v * v.transpose() * 4e-3);
+    cases.push(v * v.transpose() * -4e-3);
+    cases.push(Matrix3::identity() * 1e-3 + v * v.transpose() * 1e-12);
+    for a in &cases {
+        let exact = a.symmetric_eigenvalues().iter().fold(f64::NEG_INFINITY, |m, &x| m.max(x));
+        let got = largest_symmetric_eigenvalue(a);
+        let norm = a.abs().max();
+        assert!((got - exact).abs() <= 1e-13 * norm.max(f64::MIN_POSITIVE), "{a}: {got} vs {exact}");
+    }
+    assert!(largest_symmetric_eigenvalue(&Matrix3::from_element(f64::NAN)).is_nan());
 }

@@ -150,7 +150,7 @@ impl LazyColumnUse {
             let sphere = matches!(c.kind, ConstraintKind::SphereInside { .. } | ConstraintKind::SphereOutside { .. });
             if sphere && f.norm() > 0.0 {
                 self.skull_contacts += 1;
-                self.skull_contacts_outside_roi += usize::from(!p.solver().is_roi_column(c.node));
+                self.skull_contacts_outside_roi += usize::from(p.solver().compliance().col_of(c.node).is_none());
             }
         }
     }

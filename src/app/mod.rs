@@ -16,4 +16,5 @@ pub mod overlay;
 pub mod progress;
 pub mod script;
 pub mod sim_thread;
+pub mod stress_worker;
 pub mod window;

@@ -366,7 +366,7 @@ fn stopped(shared: &SimShared, recording: Option<Recording>) {
     shared.recording.store(false, Ordering::Relaxed);
 }
 
-/// The background solve (`fem::StressWorker`, on the other core, never waited
+/// The background solve (`app::stress_worker::StressWorker`, on the other core, never waited
 /// for): the strain colour for a scene without the StressField stage
 /// (started when the window first asks for strain) and the surface beyond
 /// the working region, whose vertices have no compliance rows and so move
@@ -375,7 +375,7 @@ fn stopped(shared: &SimShared, recording: Option<Recording>) {
 struct BackgroundSolve {
     /// The window shows strain.
     wanted: bool,
-    worker: Option<crate::fem::StressWorker>,
+    worker: Option<super::stress_worker::StressWorker>,
     /// Set when the worker could not start or stopped: no more tries.
     failed: bool,
     /// The newest stress the worker finished (empty: none yet, or not asked).
@@ -400,7 +400,7 @@ impl BackgroundSolve {
             return false;
         }
         if self.worker.is_none() {
-            match crate::fem::StressWorker::start(pipeline.solver().model()) {
+            match super::stress_worker::StressWorker::start(pipeline.solver().model()) {
                 Ok(w) => self.worker = Some(w),
                 Err(e) => {
                     self.failed = true;

@@ -8,6 +8,7 @@
 
 use super::FemError;
 use super::element::tet_stiffness;
+use crate::linalg::LowerCsc;
 use crate::math::Vec3;
 use crate::mesh::TetMesh;
 
@@ -58,6 +59,11 @@ impl DofMap {
             Some(&k) if k != NO_DOF => Some(3 * k as usize),
             _ => None,
         }
+    }
+
+    /// The (node, component) of free DOF `dof` (node `u32::MAX` past the end): how errors name a pivot.
+    pub fn name(&self, dof: usize) -> (u32, usize) {
+        (self.free_nodes.get(dof / 3).copied().unwrap_or(u32::MAX), dof % 3)
     }
 }
 
@@ -118,24 +124,6 @@ pub fn check_components(mesh: &TetMesh, fixed: &[bool]) -> Result<(), FemError> 
         component += 1;
     }
     Ok(())
-}
-
-/// Lower triangle of the free-DOF stiffness in compressed sparse columns.
-#[derive(Debug, Clone)]
-pub struct LowerCsc {
-    /// Matrix dimension (free DOFs).
-    pub dim: usize,
-    pub col_ptr: Vec<usize>,
-    pub row_idx: Vec<usize>,
-    pub values: Vec<f64>,
-}
-
-impl LowerCsc {
-    /// A faer view of the matrix (lower triangle stored).
-    pub fn as_faer(&self) -> faer::sparse::SparseColMatRef<'_, usize, f64> {
-        let sym = faer::sparse::SymbolicSparseColMatRef::new_checked(self.dim, self.dim, &self.col_ptr, None, &self.row_idx);
-        faer::sparse::SparseColMatRef::new(sym, &self.values)
-    }
 }
 
 /// Assembles `K_FF` (lower triangle). `lame[t]` = (lambda, mu) of tet t.

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FemError {
     /// A material parameter is out of its valid range. `region` is `None` for the default material.
-    #[error("material of {} has {field} = {value}, {reason}", region_name(*.region))]
+    #[error("material of {} has {field} = {value}, {reason}", .region.map_or("the default material".into(), |r| format!("region {r}")))]
     InvalidMaterial { region: Option<u32>, field: &'static str, value: f64, reason: &'static str },
     /// The `fixed` slice does not have one entry per node.
     #[error("`fixed` has {got} entries but the mesh has {expected} nodes")]
@@ -61,9 +61,13 @@ pub enum FemError {
     ThreadStart { what: &'static str, reason: String },
 }
 
-fn region_name(region: Option<u32>) -> String {
-    match region {
-        Some(r) => format!("region {r}"),
-        None => "the default material".to_string(),
+impl From<crate::linalg::FactorError> for FemError {
+    fn from(e: crate::linalg::FactorError) -> Self {
+        use crate::linalg::FactorError as F;
+        match e {
+            F::NotPositiveDefinite { dof, node, component } => FemError::NotPositiveDefinite { dof, node, component },
+            F::Factorization { reason } => FemError::Factorization { reason },
+            F::OutOfMemory { what, bytes } => FemError::OutOfMemory { what, bytes },
+        }
     }
 }

@@ -7,10 +7,9 @@
 //! Stays true: immutable after `new`; every solve is exact up to round-off.
 
 use super::FemError;
-use super::assembly::{DofMap, LowerCsc, assemble_lower, body_force, check_components};
+use super::assembly::{DofMap, assemble_lower, body_force, check_components};
 use super::element::RegionMaterials;
-use super::factor::{LazyFactor, SparseCholesky};
-use super::ordering::FillOrdering;
+use crate::linalg::{FillOrdering, LowerCsc, SparseCholesky};
 use crate::math::{Vec3, is_finite3};
 use crate::mesh::{BoundarySurface, TetMesh};
 use std::time::Instant;
@@ -199,28 +198,20 @@ fn fingerprint(mesh: &TetMesh, sorted: &[(u32, super::Material)], materials: &Re
     let mut h = blake3::Hasher::new();
     h.update(b"fissure-fem-model-v1");
     h.update(&(mesh.positions.len() as u64).to_le_bytes());
-    for p in &mesh.positions {
-        for c in [p.x, p.y, p.z] {
-            h.update(&c.to_bits().to_le_bytes());
-        }
+    for c in mesh.positions.iter().flat_map(|p| [p.x, p.y, p.z]) {
+        h.update(&c.to_bits().to_le_bytes());
     }
     h.update(&(mesh.tets.len() as u64).to_le_bytes());
-    for t in &mesh.tets {
-        for n in t {
-            h.update(&n.to_le_bytes());
-        }
+    for n in mesh.tets.iter().flatten().chain(&mesh.regions) {
+        h.update(&n.to_le_bytes());
     }
-    for r in &mesh.regions {
-        h.update(&r.to_le_bytes());
-    }
-    fn mat(h: &mut blake3::Hasher, m: &super::Material) {
+    // The default material, then each region's followed by its number.
+    for (m, r) in std::iter::once((&materials.default, None)).chain(sorted.iter().map(|(r, m)| (m, Some(r)))) {
         h.update(&m.young_modulus.to_bits().to_le_bytes());
         h.update(&m.poisson_ratio.to_bits().to_le_bytes());
-    }
-    mat(&mut h, &materials.default);
-    for (r, m) in sorted {
-        mat(&mut h, m);
-        h.update(&r.to_le_bytes());
+        if let Some(r) = r {
+            h.update(&r.to_le_bytes());
+        }
     }
     let bits: Vec<u8> = fixed.iter().map(|&f| f as u8).collect();
     h.update(&bits);
@@ -271,4 +262,73 @@ pub(crate) fn displacements_from_forces(
         out[n as usize] = Vec3::new(rhs[3 * k], rhs[3 * k + 1], rhs[3 * k + 2]);
     }
     Ok(())
+}
+
+/// The factor of `K_FF`, made on first use or on a background thread.
+///
+/// In: `K_FF` (lower) and the DOF names, moved in. Out: the factor, or its build's error, to every caller of
+/// [`LazyFactor::get`] (which waits while it is made). Stays true: made once, by one thread, exactly as
+/// [`factor_k`] makes it, so answers never depend on when. A scene whose compliance comes from a valid
+/// cache starts without it; lazy columns, interior displacements and rebuilt cache batches wait for it.
+pub struct LazyFactor {
+    cell: std::sync::OnceLock<Result<SparseCholesky, FemError>>,
+    k: LowerCsc,
+    dofs: DofMap,
+    /// The ordering asked for ([`FillOrdering::Best`] is resolved by the factor).
+    pub(crate) requested: FillOrdering,
+    started: std::sync::atomic::AtomicBool,
+}
+
+impl std::fmt::Debug for LazyFactor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LazyFactor").field("dim", &self.k.dim).field("ready", &self.is_ready()).finish()
+    }
+}
+
+impl LazyFactor {
+    pub(crate) fn new(k: LowerCsc, dofs: DofMap, requested: FillOrdering) -> Self {
+        Self { cell: std::sync::OnceLock::new(), k, dofs, requested, started: std::sync::atomic::AtomicBool::new(false) }
+    }
+
+    /// The factor: made here if nobody has started it, else waits for the thread making it.
+    pub fn get(&self) -> Result<&SparseCholesky, FemError> {
+        self.cell.get_or_init(|| factor_k(&self.k, &self.dofs, self.requested)).as_ref().map_err(Clone::clone)
+    }
+
+    /// True once the factor (or its error) is there.
+    pub fn is_ready(&self) -> bool {
+        self.cell.get().is_some()
+    }
+
+    /// The lower triangle of `K_FF` it factors.
+    pub(crate) fn stiffness(&self) -> &LowerCsc {
+        &self.k
+    }
+
+    /// Starts making the factor on its own thread (once; nothing when made or being made). If the thread cannot
+    /// start, the first caller of [`Self::get`] makes it.
+    pub(crate) fn start_background(self: &std::sync::Arc<Self>) {
+        if self.is_ready() || self.started.swap(true, std::sync::atomic::Ordering::AcqRel) {
+            return;
+        }
+        let this = std::sync::Arc::clone(self);
+        let spawned = std::thread::Builder::new().name("fissure-factor".into()).spawn(move || {
+            let t = std::time::Instant::now();
+            match this.get() {
+                Ok(_) => tracing::debug!("factor of K_FF ready after {:.2} s in the background", t.elapsed().as_secs_f64()),
+                Err(e) => tracing::error!("factor of K_FF in the background: {e}"),
+            }
+        });
+        if let Err(e) = spawned {
+            tracing::warn!("factor thread did not start ({e}); the first solve makes the factor");
+        }
+    }
+}
+
+/// `K_FF`'s factor as every part of the FEM stage makes it: pivots named by node, the row-major solve as
+/// `fem::tuning` says.
+pub(crate) fn factor_k(k: &LowerCsc, dofs: &DofMap, ordering: FillOrdering) -> Result<SparseCholesky, FemError> {
+    let mut chol = SparseCholesky::new(k, ordering, &|d| dofs.name(d))?;
+    chol.set_row_major(super::tuning::Tuning::current().enabled(super::tuning::Optimisation::RowMajorSolve));
+    Ok(chol)
 }

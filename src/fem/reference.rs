@@ -7,8 +7,8 @@
 //! Stays true: exact up to round-off; a singular system is a typed error.
 
 use super::FemError;
-use super::assembly::{LowerCsc, assemble_full_triplets};
-use super::factor::SparseCholesky;
+use super::assembly::assemble_full_triplets;
+use crate::linalg::{FillOrdering, LowerCsc, SparseCholesky};
 use crate::math::Vec3;
 use crate::mesh::TetMesh;
 
@@ -78,7 +78,7 @@ pub fn solve_direct(mesh: &TetMesh, lame: &[(f64, f64)], prescribed: &[(usize, f
         col_ptr[j + 1] += col_ptr[j];
     }
     let k = LowerCsc { dim: nf, col_ptr, row_idx, values };
-    let chol = SparseCholesky::with_names(&k, crate::fem::ordering::FillOrdering::Amd, &|dof| ((free_dofs[dof] / 3) as u32, free_dofs[dof] % 3))?;
+    let chol = SparseCholesky::new(&k, FillOrdering::Amd, &|dof| ((free_dofs[dof] / 3) as u32, free_dofs[dof] % 3))?;
     let mut scratch = chol.scratch(1)?;
     chol.solve_vec_in_place(&mut rhs, &mut scratch);
     let mut u = vec![0.0; n];

@@ -128,19 +128,3 @@ pub fn set_enabled(o: Optimisation, on: bool) {
         OFF.fetch_or(o.bit(), Ordering::Relaxed);
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn every_switch_is_listed_once_in_declaration_order() {
-        let mut bits = 0;
-        for (i, (o, name)) in Optimisation::ALL.into_iter().enumerate() {
-            assert_eq!(o as usize, i, "{name} is listed out of order");
-            assert_eq!(bits & o.bit(), 0, "{name} shares a bit");
-            bits |= o.bit();
-            assert_eq!(o.name(), name);
-        }
-    }
-}

@@ -6,6 +6,7 @@
 
 pub mod barrier;
 pub mod build;
+pub mod contact;
 pub mod metrics;
 pub mod monitor;
 pub mod pipeline;

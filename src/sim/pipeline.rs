@@ -10,7 +10,8 @@
 use super::monitor;
 use super::report::{FrameReport, SpatulaReport, StageId};
 use crate::collision::CollisionStage;
-use crate::fem::{ConstrainedSolver, Constraint, ConstraintKind, ContactPatch, ElementStress, FrameSolution};
+use super::contact::ContactPatch;
+use crate::fem::{ConstrainedSolver, Constraint, ConstraintKind, ElementStress, FrameSolution};
 use crate::geometry::{Pose, SpatulaShape};
 use crate::math::{Vec3, is_finite3};
 use crate::mesh::{BoundarySurface, TetMesh, signed_volume};
@@ -172,7 +173,7 @@ pub struct Pipeline {
     constraints: Vec<Constraint>,
     solution: FrameSolution,
     patches: Vec<ContactPatch>,
-    contact_scratch: crate::fem::ContactScratch,
+    contact_scratch: super::contact::ContactScratch,
     /// Surface positions at the start of the current sub-step.
     previous_positions: Vec<Vec3>,
     /// Poses at the start of the current sub-step.
@@ -216,7 +217,7 @@ impl Pipeline {
     ) -> Result<Self, super::build::BuildError> {
         let surface_tets = surface_tets(&mesh, &surface, solver.far_vertices());
         let far_edge = region_edge(&surface.triangles, solver.far_vertices());
-        let contact_scratch = crate::fem::ContactScratch::for_surface(&surface);
+        let contact_scratch = super::contact::ContactScratch::for_surface(&surface);
         let n = scenario.spatulas.len();
         let contact_law = scenario.solver.spatula_contact;
         // Barrier rows keep released or sliding tissue out of a blade; the paper's bilateral hold has none.
@@ -441,7 +442,7 @@ impl Pipeline {
                 }
             }
             if self.effects.contains(Effect::ContactPressure) {
-                crate::fem::contact_patches(
+                super::contact::contact_patches(
                     &self.surface,
                     &state.surface_positions,
                     &self.constraints,

@@ -665,13 +665,9 @@ impl Compliance {
     /// table (checksum and batches). Its entries are read later, batch by batch.
     fn open_dense(&self, path: &Path, storage: ComplianceStorage, fill: &Fill) -> Result<CacheSource, String> {
         let (mut file, _) = crate::fsio::open_regular(path, crate::fsio::Cap::COMPLIANCE_CACHE).map_err(|e| e.to_string())?;
-        let width = match storage {
-            ComplianceStorage::F32 => 4,
-            _ => 8,
-        };
-        let n_lo = match storage {
-            ComplianceStorage::F32 => self.layout.lo_blocks() * 9,
-            _ => 0,
+        let (width, n_lo) = match storage {
+            ComplianceStorage::F32 => (4, self.layout.lo_blocks() * 9),
+            ComplianceStorage::F64 => (8, 0),
         };
         let n_batches = fill.batch_count();
         let want = self.header(storage);
@@ -795,7 +791,7 @@ enum Piece<'a> {
 /// Everything the threads that fill a dense compliance need ([`Compliance::prepare_fill`]).
 struct FillJob {
     /// Waited for at the first batch that is solved (none when the cache has every batch).
-    chol: Arc<super::factor::LazyFactor>,
+    chol: Arc<super::model::LazyFactor>,
     n_free: usize,
     /// First free DOF of every stored row.
     row_dofs: Vec<usize>,
@@ -968,7 +964,7 @@ impl FillJob {
     /// Solves columns `cols` (3 right-hand sides a node) and writes their stored rows into `piece`, their storage.
     fn solve_batch(
         &self,
-        chol: &super::factor::SparseCholesky,
+        chol: &crate::linalg::SparseCholesky,
         cols: std::ops::Range<usize>,
         rhs: &mut faer::Mat<f64>,
         scratch: &mut faer::dyn_stack::MemBuffer,

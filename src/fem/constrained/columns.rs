@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::fem::assembly::DofMap;
-use crate::fem::factor::SparseCholesky;
+use crate::linalg::SparseCholesky;
 
 impl ConstrainedSolver {
     /// K^-1 block between two nodes (both free; lazy columns ensured). A node outside the ROI reads its lazy column
@@ -105,11 +105,6 @@ impl ConstrainedSolver {
                 self.columns.lazy_generation += 1;
             }
         }
-    }
-
-    /// True when `node` is a column of the precomputed compliance (inside the ROI).
-    pub fn is_roi_column(&self, node: u32) -> bool {
-        self.compliance.col_of(node).is_some()
     }
 }
 

@@ -14,7 +14,7 @@
 //!   reaction is split equally among them;
 //! - an enforced node also claimed by a sphere: the enforced displacement wins, the sphere row is unused;
 //! - rows still linearly dependent (two spheres with a common centre at one node) are dropped by
-//!   [`super::dense`] (the earlier row is kept) and counted in [`FrameSolution::dropped_rows`]; reaction zero,
+//!   [`crate::linalg::dense`] (the earlier row is kept) and counted in [`FrameSolution::dropped_rows`]; reaction zero,
 //!   never NaN.
 //!
 //! Tool contacts (`ConstraintKind::Contact`) are unilateral. Each frame every such node starts held (three rows:
@@ -44,7 +44,7 @@ use blocks::{CANDIDATE_BLOCKS_FROM_BYTES, CandidateBlocks};
 use super::FemError;
 use super::compliance::{Compliance, ProductWorkspace};
 use super::tuning::{Optimisation, Tuning};
-use super::wfactor::ContactFactor;
+use crate::linalg::kept_factor::ContactFactor;
 use super::model::FemModel;
 use crate::math::{Matrix3, Vec3, is_finite3};
 
@@ -206,7 +206,6 @@ struct LazyColumn {
     last_used: u64,
 }
 
-
 /// Exact constrained solver; holds the model, the compliance and all scratch, in parts with one job each.
 pub struct ConstrainedSolver {
     model: FemModel,
@@ -235,7 +234,7 @@ struct System {
     rows: Vec<ConstraintRow>,
     /// Candidate index of each sphere row (row - enforced rows).
     row_candidate: Vec<usize>,
-    /// Persistent factor of W (see [`super::wfactor`] for the order rule).
+    /// Persistent factor of W (see [`crate::linalg::kept_factor`] for the order rule).
     factor: ContactFactor,
     /// Sphere rows of W: against the enforced rows (column per sphere row) and among themselves.
     w_es: Vec<f64>,
@@ -394,8 +393,8 @@ impl ConstrainedSolver {
         &self.model
     }
 
-    /// How the enforced block of W's factor was updated in the last frame ([`super::wfactor`]).
-    pub fn factor_update(&self) -> super::wfactor::FactorUpdate {
+    /// How the enforced block of W's factor was updated in the last frame ([`crate::linalg::kept_factor`]).
+    pub fn factor_update(&self) -> crate::linalg::kept_factor::FactorUpdate {
         self.sys.factor.last_update()
     }
 
@@ -419,13 +418,8 @@ impl ConstrainedSolver {
         &self.tools.sliding
     }
 
-    /// Rows of the last frame's constraint system.
-    pub fn constraint_rows(&self) -> &[ConstraintRow] {
-        &self.sys.rows
-    }
-
     /// Copies the last frame's `W = C K^-1 C^T` into `out` (n x n, column major, full symmetric), n =
-    /// `constraint_rows().len()`; for a haptic thread that wants its own copy.
+    /// the number of rows; for a haptic thread that wants its own copy.
     pub fn contact_compliance(&self, out: &mut Vec<f64>) {
         let n = self.sys.rows.len();
         let e = 3 * self.tools.enforced_nodes;
@@ -788,7 +782,7 @@ impl ConstrainedSolver {
         }
     }
 
-    /// Puts the engaged tool nodes in the factor's persistent order ([`super::wfactor`]) and updates the factor.
+    /// Puts the engaged tool nodes in the factor's persistent order ([`crate::linalg::kept_factor`]) and updates the factor.
     fn arrange_engaged(&mut self) {
         self.tools.engaged_sorted.clear();
         self.tools.engaged_sorted.extend(self.tools.claimed_sorted.iter().zip(&self.tools.groups).filter(|(_, g)| g.engaged).map(|(n, _)| *n));

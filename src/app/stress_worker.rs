@@ -1,19 +1,17 @@
 //! Every node's displacement, and per-tet stress when asked, on a background thread: for a display that wants
 //! strain colour without the synchronous StressField stage, or the surface beyond the working region up to date.
 //!
-//! In: after a frame, its nodal forces on the tissue ([`super::ConstrainedSolver::last_forces`]) and whether stress
+//! In: after a frame, its nodal forces on the tissue ([`crate::fem::ConstrainedSolver::last_forces`]) and whether stress
 //! is wanted. Out: now and then, every node's displacement (and every tet's stress) for the newest frame the worker
 //! finished (one interior sparse solve and the stress pass, on the other core).
 //! Stays true: the simulation never waits for it (a newer request replaces one not yet started, so the worker is
-//! at most one solve behind); values equal [`super::element_stress`]'s for the same forces; buffers go back and
+//! at most one solve behind); values equal [`crate::fem::element_stress`]'s for the same forces; buffers go back and
 //! forth, so a steady state allocates nothing; a failing worker reports once and stops; dropping this ends the
 //! thread after its current solve. Not for replays: which frames get stress depends on timing.
 
-use super::assembly::DofMap;
-use super::model::displacements_from_forces;
-use super::factor::LazyFactor;
-use super::stress::{ElementStress, tet_stress};
-use super::{FemError, FemModel};
+use crate::fem::assembly::DofMap;
+use crate::fem::model::{LazyFactor, displacements_from_forces};
+use crate::fem::{ElementStress, FemError, FemModel, tet_stress};
 use crate::math::Vec3;
 use crate::mesh::TetMesh;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
@@ -158,7 +156,7 @@ fn give(x: &mut Exchange, (frame, stress, nodes): Solved, stress_out: &mut Vec<E
 
 fn work(inputs: &Inputs, shared: &Shared) {
     // The frames come first: this thread yields to them.
-    super::compliance::lower_thread_priority();
+    crate::fem::compliance::lower_thread_priority();
     let (mut rhs, mut scratch) = (Vec::new(), None);
     loop {
         let (frame, forces, want_stress, mut stress, mut nodes) = {

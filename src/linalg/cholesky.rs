@@ -1,12 +1,12 @@
-//! Sparse Cholesky of the free-DOF stiffness (faer, supernodal; AMD or nested dissection, [`super::ordering`]).
+//! Sparse Cholesky of a symmetric positive definite matrix, here `K_FF` (faer, supernodal; AMD or nested
+//! dissection, [`super::ordering`]).
 //!
 //! In: the lower triangle of `K_FF` ([`LowerCsc`]). Out: a [`SparseCholesky`] solving `K_FF X = B` in place.
 //! Stays true: symbolic analysis once, the numeric factor once per material set; solves run on one core
 //! (`Par::Seq`: on a 2-core machine two threads made sparse solves slower, and the other core runs background work
 //! or rendering) and allocate only the scratch sized for their column count.
 
-use super::FemError;
-use super::assembly::{DofMap, LowerCsc};
+use super::{FactorError, LowerCsc};
 use super::ordering::{FillOrdering, nested_dissection};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltError, LltRegularization};
@@ -31,7 +31,7 @@ pub struct SparseCholesky {
     /// (`u32::MAX` at a root): what [`Self::solve_sparse_in_place`] prunes along.
     row_supernode: Vec<u32>,
     parent: Vec<u32>,
-    /// Solves run row major ([`Self::solve_row_major`]) where they can: `fem::tuning`'s switch at construction.
+    /// Solves run row major ([`Self::solve_row_major`]) where they can (on unless [`Self::set_row_major`] says).
     row_major: bool,
     /// Seconds spent in the symbolic analysis.
     pub symbolic_seconds: f64,
@@ -48,22 +48,18 @@ impl std::fmt::Debug for SparseCholesky {
 }
 
 impl SparseCholesky {
-    /// Analyzes and factors `k`; a non-positive pivot is reported with its free DOF (caller's numbering) and node.
-    pub fn new(k: &LowerCsc, dofs: &DofMap, ordering: FillOrdering) -> Result<Self, FemError> {
-        Self::with_names(k, ordering, &|dof| (dofs.free_nodes.get(dof / 3).copied().unwrap_or(u32::MAX), dof % 3))
-    }
-
-    /// As [`SparseCholesky::new`], naming a DOF's (node, component) with `name`.
-    pub fn with_names(k: &LowerCsc, ordering: FillOrdering, name: &dyn Fn(usize) -> (u32, usize)) -> Result<Self, FemError> {
+    /// Analyzes and factors `k`; a non-positive pivot is reported with its DOF and the (node, component) `name`
+    /// gives it (e.g. [`crate::fem::assembly::DofMap::name`]).
+    pub fn new(k: &LowerCsc, ordering: FillOrdering, name: &dyn Fn(usize) -> (u32, usize)) -> Result<Self, FactorError> {
         let a = k.as_faer();
         let t0 = Instant::now();
         let analyse = |ord: SymmetricOrdering<'_, usize>| {
             let mut params = CholeskySymbolicParams::default();
             params.supernodal_params.relax = Some(SUPERNODE_RELAX);
             factorize_symbolic_cholesky(a.symbolic(), Side::Lower, ord, params)
-                .map_err(|e| FemError::Factorization { reason: format!("symbolic analysis: {e:?}") })
+                .map_err(|e| FactorError::Factorization { reason: format!("symbolic analysis: {e:?}") })
         };
-        let nd = || -> Result<Option<SymbolicCholesky<usize>>, FemError> {
+        let nd = || -> Result<Option<SymbolicCholesky<usize>>, FactorError> {
             let Some(fwd) = nested_dissection(k) else { return Ok(None) };
             let mut inv = vec![0usize; fwd.len()];
             for (new, &old) in fwd.iter().enumerate() {
@@ -90,25 +86,24 @@ impl SparseCholesky {
         let t1 = Instant::now();
         let len = symbolic.len_val();
         let mut values = Vec::new();
-        values.try_reserve_exact(len).map_err(|_| FemError::OutOfMemory { what: "Cholesky factor", bytes: len * 8 })?;
+        values.try_reserve_exact(len).map_err(|_| FactorError::OutOfMemory { what: "Cholesky factor", bytes: len * 8 })?;
         values.resize(len, 0.0);
         let req = symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Spec::default());
-        let mut mem = MemBuffer::try_new(req).map_err(|_| FemError::OutOfMemory { what: "factorization scratch", bytes: 0 })?;
+        let mut mem = MemBuffer::try_new(req).map_err(|_| FactorError::OutOfMemory { what: "factorization scratch", bytes: 0 })?;
         let stack = MemStack::new(&mut mem);
         let result = symbolic.factorize_numeric_llt(&mut values, a, Side::Lower, LltRegularization::default(), Par::Seq, stack, Spec::default());
         if let Err(LltError::NonPositivePivot { index }) = result {
             // `index` is in the permuted order: map back to our DOF numbering.
             let dof = symbolic.perm().map(|p| p.arrays().0[index]).unwrap_or(index);
             let (node, component) = name(dof);
-            return Err(FemError::NotPositiveDefinite { dof, node, component });
+            return Err(FactorError::NotPositiveDefinite { dof, node, component });
         }
         let numeric_seconds = t1.elapsed().as_secs_f64();
         let (row_supernode, parent) = match symbolic.raw() {
             SymbolicCholeskyRaw::Supernodal(sn) => elimination_tree(sn),
             SymbolicCholeskyRaw::Simplicial(_) => (Vec::new(), Vec::new()),
         };
-        let row_major = super::tuning::Tuning::current().enabled(super::tuning::Optimisation::RowMajorSolve);
-        Ok(Self { symbolic, values, row_supernode, parent, row_major, symbolic_seconds, numeric_seconds, ordering })
+        Ok(Self { symbolic, values, row_supernode, parent, row_major: true, symbolic_seconds, numeric_seconds, ordering })
     }
 
     /// Dimension (free DOFs).
@@ -123,7 +118,7 @@ impl SparseCholesky {
 
     /// Entries of L counted exactly (column counts of the same ordering, without the explicit zeros of relaxed
     /// supernodes): CHOLMOD's `lnz`, to compare orderings across libraries. `k` is the matrix this was made from.
-    pub fn exact_nnz_l(&self, k: &LowerCsc) -> Result<usize, FemError> {
+    pub fn exact_nnz_l(&self, k: &LowerCsc) -> Result<usize, FactorError> {
         use faer::sparse::linalg::SupernodalThreshold;
         let mut params = CholeskySymbolicParams::default();
         params.supernodal_flop_ratio_threshold = SupernodalThreshold::FORCE_SIMPLICIAL;
@@ -132,7 +127,7 @@ impl SparseCholesky {
             None => SymmetricOrdering::Identity,
         };
         let simplicial = factorize_symbolic_cholesky(k.as_faer().symbolic(), Side::Lower, ordering, params)
-            .map_err(|e| FemError::Factorization { reason: format!("symbolic analysis: {e:?}") })?;
+            .map_err(|e| FactorError::Factorization { reason: format!("symbolic analysis: {e:?}") })?;
         Ok(simplicial.len_val())
     }
 
@@ -142,9 +137,9 @@ impl SparseCholesky {
     }
 
     /// Scratch a solve with `ncols` right-hand sides needs.
-    pub fn scratch(&self, ncols: usize) -> Result<MemBuffer, FemError> {
+    pub fn scratch(&self, ncols: usize) -> Result<MemBuffer, FactorError> {
         let req = self.symbolic.solve_in_place_scratch::<f64>(ncols, Par::Seq).or(self.row_major_scratch(ncols));
-        MemBuffer::try_new(req).map_err(|_| FemError::OutOfMemory { what: "solve scratch", bytes: req.size_bytes() })
+        MemBuffer::try_new(req).map_err(|_| FactorError::OutOfMemory { what: "solve scratch", bytes: req.size_bytes() })
     }
 
     /// Solves `K_FF X = B` in place (`rhs` dim x k, column major). With [`ROW_MAJOR_MIN_RHS`] or more columns and a
@@ -398,74 +393,14 @@ fn columns_to_rows(src: MatRef<'_, f64>, x: &mut [f64], k: usize, start: usize) 
     }
 }
 
-/// The factor of `K_FF`, made on first use or on a background thread.
-///
-/// In: `K_FF` (lower) and the DOF names, moved in. Out: the factor, or its build's error, to every caller of
-/// [`LazyFactor::get`] (which waits while it is made). Stays true: made once, by one thread, exactly as
-/// [`SparseCholesky::new`] makes it, so answers never depend on when. A scene whose compliance comes from a valid
-/// cache starts without it; lazy columns, interior displacements and rebuilt cache batches wait for it.
-pub struct LazyFactor {
-    cell: std::sync::OnceLock<Result<SparseCholesky, FemError>>,
-    k: LowerCsc,
-    dofs: DofMap,
-    /// The ordering asked for ([`FillOrdering::Best`] is resolved by the factor).
-    pub(crate) requested: FillOrdering,
-    started: std::sync::atomic::AtomicBool,
-}
-
-impl std::fmt::Debug for LazyFactor {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("LazyFactor").field("dim", &self.k.dim).field("ready", &self.is_ready()).finish()
-    }
-}
-
-impl LazyFactor {
-    pub(crate) fn new(k: LowerCsc, dofs: DofMap, requested: FillOrdering) -> Self {
-        Self { cell: std::sync::OnceLock::new(), k, dofs, requested, started: std::sync::atomic::AtomicBool::new(false) }
-    }
-
-    /// The factor: made here if nobody has started it, else waits for the thread making it.
-    pub fn get(&self) -> Result<&SparseCholesky, FemError> {
-        self.cell.get_or_init(|| SparseCholesky::new(&self.k, &self.dofs, self.requested)).as_ref().map_err(Clone::clone)
-    }
-
-    /// True once the factor (or its error) is there.
-    pub fn is_ready(&self) -> bool {
-        self.cell.get().is_some()
-    }
-
-    /// The lower triangle of `K_FF` it factors.
-    pub(crate) fn stiffness(&self) -> &LowerCsc {
-        &self.k
-    }
-
-    /// Starts making the factor on its own thread (once; nothing when made or being made). If the thread cannot
-    /// start, the first caller of [`Self::get`] makes it.
-    pub(crate) fn start_background(self: &std::sync::Arc<Self>) {
-        if self.is_ready() || self.started.swap(true, std::sync::atomic::Ordering::AcqRel) {
-            return;
-        }
-        let this = std::sync::Arc::clone(self);
-        let spawned = std::thread::Builder::new().name("fissure-factor".into()).spawn(move || {
-            let t = Instant::now();
-            match this.get() {
-                Ok(_) => tracing::debug!("factor of K_FF ready after {:.2} s in the background", t.elapsed().as_secs_f64()),
-                Err(e) => tracing::error!("factor of K_FF in the background: {e}"),
-            }
-        });
-        if let Err(e) = spawned {
-            tracing::warn!("factor thread did not start ({e}); the first solve makes the factor");
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fem::assembly::assemble_lower;
+    use crate::fem::assembly::{DofMap, assemble_lower};
     use crate::mesh::fixtures;
 
-    /// `K_FF` of `mesh` (one soft material) with its nodes at z = 0 held, and its DOFs.
+    /// `K_FF` of `mesh` (one soft material) with its nodes at z = 0 held, and its DOFs: the matrices these solves
+    /// are for (a grid Laplacian's factor, with other supernodes, is not bitwise faer's in its last bits).
     fn held_at_the_bottom(mesh: &crate::mesh::TetMesh) -> (LowerCsc, DofMap) {
         let fixed: Vec<bool> = mesh.positions.iter().map(|p| p.z <= 1e-12).collect();
         let dofs = DofMap::new(mesh, &fixed);
@@ -480,7 +415,7 @@ mod tests {
         let mesh = fixtures::box_mesh(&fixtures::linspace(0.0, 0.06, 13), &fixtures::linspace(0.0, 0.05, 11), &fixtures::linspace(0.0, 0.04, 9)).unwrap();
         let (k, dofs) = held_at_the_bottom(&mesh);
         for ordering in [FillOrdering::Amd, FillOrdering::NestedDissection] {
-            let chol = SparseCholesky::new(&k, &dofs, ordering).unwrap();
+            let chol = SparseCholesky::new(&k, ordering, &|d| dofs.name(d)).unwrap();
             assert!(matches!(chol.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)), "{ordering:?}: the test needs a supernodal factor");
             for ncols in [1, ROW_MAJOR_MIN_RHS - 1, ROW_MAJOR_MIN_RHS, 33, 96] {
                 let b = faer::Mat::<f64>::from_fn(k.dim, ncols, |i, j| ((i * 31 + j * 17) % 23) as f64 - 11.0 + 1e-3 * j as f64);
@@ -530,7 +465,7 @@ mod tests {
         mesh.regions.extend_from_slice(&b.regions);
         let (k, dofs) = held_at_the_bottom(&mesh);
         for ordering in [FillOrdering::Amd, FillOrdering::NestedDissection] {
-            let chol = SparseCholesky::new(&k, &dofs, ordering).unwrap();
+            let chol = SparseCholesky::new(&k, ordering, &|d| dofs.name(d)).unwrap();
             assert!(!chol.parent.is_empty(), "{ordering:?}: the test needs a supernodal factor");
             let nodes = dofs.dof_count() / 3;
             for first in [vec![0usize], vec![3 * (nodes / 2)], (0..32).map(|b| 3 * ((b * 37) % nodes)).collect()] {

@@ -8,7 +8,7 @@
 //! vertex, a blade barrier guarding a nearby vertex) is no contact. A vertex pushed by two spatulas counts for
 //! neither. Stays true: owners ascending; area 0 gives pressure 0 (never Inf/NaN).
 
-use super::constrained::{Constraint, ConstraintKind};
+use crate::fem::{Constraint, ConstraintKind};
 use crate::math::Vec3;
 use crate::mesh::BoundarySurface;
 use crate::mesh::surface::NOT_ON_SURFACE;
