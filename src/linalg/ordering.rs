@@ -118,11 +118,16 @@ pub fn nested_dissection(k: &LowerCsc) -> Option<Vec<usize>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::linalg::grid_stiffness;
+    use crate::fem::assembly::{DofMap, assemble_lower};
+    use crate::mesh::fixtures;
 
     #[test]
     fn nested_dissection_is_a_node_blocked_permutation() {
-        let k = grid_stiffness([10, 8, 6], 1);
+        let mesh = fixtures::box_mesh(&fixtures::linspace(0.0, 0.09, 10), &fixtures::linspace(0.0, 0.07, 8), &fixtures::linspace(0.0, 0.06, 7)).unwrap();
+        let fixed: Vec<bool> = mesh.positions.iter().map(|p| p.z <= 1e-12).collect();
+        let dofs = DofMap::new(&mesh, &fixed);
+        let lame = vec![(1.0e3, 1.0e4); mesh.regions.len()];
+        let k = assemble_lower(&mesh, &lame, &dofs);
         let fwd = nested_dissection(&k).expect("METIS orders a box");
         assert_eq!(fwd.len(), k.dim);
         let mut seen = vec![false; k.dim];
