@@ -250,13 +250,7 @@ fn free_components(model: &FemModel) -> Vec<u32> {
 impl Compliance {
     /// Computes (or loads from `cache_dir`) the compliance for `roi_nodes` (fixed ones skipped, duplicates ignored).
     /// `progress(done, total)` is called after every batch of columns.
-    pub fn compute(
-        model: &FemModel,
-        roi_nodes: &[u32],
-        storage: ComplianceStorage,
-        cache_dir: Option<&Path>,
-        progress: &mut dyn FnMut(usize, usize),
-    ) -> Result<Self, FemError> {
+    pub fn compute(model: &FemModel, roi_nodes: &[u32], storage: ComplianceStorage, cache_dir: Option<&Path>, progress: &mut dyn FnMut(usize, usize)) -> Result<Self, FemError> {
         Self::compute_with(model, roi_nodes, ComputeOptions { cache_dir, ..ComputeOptions::new(storage) }, progress)
     }
 
