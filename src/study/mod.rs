@@ -13,7 +13,10 @@
 //! [`StudyResults`]. Stays true: every run's accuracy is measured against one
 //! reference run for the whole study, the finest setting of every knob at
 //! once, which no swept run equals by construction (an error of exactly 0 is
-//! printed "exact", never drawn at an invented value); a run that cannot be done
+//! printed "exact", never drawn at an invented value); where that run's mesh
+//! is not the base's, the runs on the base mesh are also measured against the
+//! reference's settings on the base mesh, so the mesh's own error is told
+//! apart from the other knobs' (`StudyPlan::mesh_reference`); a run that cannot be done
 //! (no GPU adapter, a missing mesh) becomes a row that says why, never a
 //! silent gap; the simulation is deterministic, only the times vary.
 
@@ -166,6 +169,9 @@ pub struct RunMeasure {
     /// ([`Knob::finest`]), % of its peak: the knob's own convergence, with
     /// every other knob at the base. `None` for a knob without an order.
     pub against_finest: Option<(f64, f64)>,
+    /// Against the plan's mesh reference (the reference's settings on this
+    /// run's mesh), when the plan has one and this run is on its mesh.
+    pub against_mesh_reference: Option<Accuracy>,
 }
 
 impl RunMeasure {
@@ -204,6 +210,9 @@ pub struct StudyResults {
     pub motion: Motion,
     pub scene_name: String,
     pub rows: Vec<RunRow>,
+    /// The plan's mesh reference ([`StudyPlan::mesh_reference`]), against
+    /// the reference: what the mesh alone costs.
+    pub mesh_reference: Option<RunRow>,
     /// Files written, in order.
     pub files: Vec<PathBuf>,
     /// Wall time of the whole study, s.
@@ -290,6 +299,7 @@ fn measure(trace: &RunTrace, motion: &Motion) -> RunMeasure {
         peak_pressure_mmhg: trace.frames.iter().map(|f| f.pressure_mmhg).fold(0.0, f64::max),
         force_along: accuracy::force_along(trace, motion),
         against_finest: None,
+        against_mesh_reference: None,
     }
 }
 
@@ -396,6 +406,30 @@ fn run_plan_inner(
         },
     });
     let mut done = 1;
+    let mesh_reference = plan.mesh_reference.as_ref().map(|spec| {
+        progress(StudyProgress { done, total, label: format!("mesh reference: {}", spec.label) });
+        done += 1;
+        interrupted |= stopped();
+        let trace = if interrupted { Err(RunError::Interrupted) } else { reference_trace(scene, spec, plan, &mut meshes, cache) };
+        let row = RunRow {
+            knob: None,
+            label: spec.label.clone(),
+            value: spec.value,
+            settings: spec.settings.clone(),
+            outcome: match (&trace, &reference) {
+                (Ok((t, note)), Ok((r, _))) => {
+                    let mut m = measure(t, &plan.motion);
+                    m.accuracy = Some(accuracy::compare(r, t, spec.settings.mesh == plan.reference.settings.mesh, &plan.motion));
+                    m.note = note.clone();
+                    Ok(m)
+                }
+                (Ok((t, _)), Err(_)) => Ok(RunMeasure { note: Some("the reference run failed".into()), ..measure(t, &plan.motion) }),
+                (Err(e), _) => Err(e.to_string()),
+            },
+        };
+        (row, trace.ok().map(|(t, _)| t))
+    });
+    let (mesh_reference, mesh_trace) = mesh_reference.map_or((None, None), |(row, t)| (Some(row), t));
     for sweep in &plan.sweeps {
         let first = rows.len();
         for spec in &sweep.runs {
@@ -413,6 +447,11 @@ fn run_plan_inner(
                     Ok((r, _)) => m.accuracy = Some(accuracy::compare(r, &trace, spec.settings.mesh == plan.reference.settings.mesh, &plan.motion)),
                     Err(_) => m.note = Some("the reference run failed".into()),
                 }
+                if let (Some(mr), Some(mesh_spec)) = (&mesh_trace, &plan.mesh_reference)
+                    && spec.settings.mesh == mesh_spec.settings.mesh
+                {
+                    m.against_mesh_reference = Some(accuracy::compare(mr, &trace, true, &plan.motion));
+                }
                 m
             });
             rows.push(RunRow { knob: Some(sweep.knob), label: spec.label.clone(), value: spec.value, settings: spec.settings.clone(), outcome });
@@ -426,6 +465,7 @@ fn run_plan_inner(
         motion: plan.motion,
         scene_name: scene.name.clone(),
         rows,
+        mesh_reference,
         files: Vec::new(),
         elapsed_s: 0.0,
         interrupted,

@@ -29,7 +29,7 @@ speed_thickness_per_frame,storage,roi,contact,substep_travel,skull,refine_edges_
 collision_p50_ms,collision_p95_ms,solve_p50_ms,solve_p95_ms,forces_p50_ms,forces_p95_ms,monitor_p50_ms,monitor_p95_ms,\
 frame_p50_ms,frame_p95_ms,comparison,frames_compared,rms_error_mm,max_error_mm,force_rms_pct,force_max_pct,force_points,missed_contact_frames,\
 reference_contact_frames,pressure_error_mmhg,peak_pressure_mmhg,crossed_vertices,penetrating_max,penetration_max_mm,inverted_max,\
-finest_force_rms_pct,finest_force_max_pct";
+finest_force_rms_pct,finest_force_max_pct,own_mesh_force_rms_pct,own_mesh_force_max_pct,own_mesh_rms_error_mm,own_mesh_max_error_mm";
 
 fn quote(s: &str) -> String {
     format!("\"{}\"", s.replace('"', "\"\""))
@@ -62,10 +62,15 @@ fn ms(x: f64) -> String {
 
 /// One CSV line (no newline).
 pub fn csv_line(r: &RunRow) -> String {
+    csv_line_as(r, r.knob.map_or("reference", |k| k.name()))
+}
+
+/// [`csv_line`] with `kind` in the knob column (`mesh_reference` for the plan's mesh reference).
+fn csv_line_as(r: &RunRow, kind: &str) -> String {
     let s = &r.settings;
     let mut line = format!(
         "{},{},{},{},{},",
-        r.knob.map_or("reference", |k| k.name()),
+        kind,
         quote(&r.label),
         r.value,
         r.is_reference(),
@@ -129,9 +134,15 @@ pub fn csv_line(r: &RunRow) -> String {
     let _ = write!(line, "{:.4},{},{},{:.6},{},", m.peak_pressure_mmhg, m.crossed_total, m.penetrating_max, m.penetration_max_m * 1e3, m.inverted_max);
     match m.against_finest {
         Some((rms, max)) => {
-            let _ = write!(line, "{rms:.4},{max:.4}");
+            let _ = write!(line, "{rms:.4},{max:.4},");
         }
-        None => line.push(','),
+        None => line.push_str(",,"),
+    }
+    match &m.against_mesh_reference {
+        Some(a) => {
+            let _ = write!(line, "{:.4},{:.4},{:.6},{:.6}", a.force_rms_pct, a.force_max_pct, a.rms_error_m * 1e3, a.max_error_m * 1e3);
+        }
+        None => line.push_str(",,,"),
     }
     line
 }
@@ -146,6 +157,10 @@ pub fn write_csv(results: &StudyResults, path: &Path) -> Result<PathBuf, StudyEr
     text.push('\n');
     for r in &results.rows {
         text.push_str(&csv_line(r));
+        text.push('\n');
+    }
+    if let Some(r) = &results.mesh_reference {
+        text.push_str(&csv_line_as(r, "mesh_reference"));
         text.push('\n');
     }
     crate::fsio::write_atomic(path, text.as_bytes()).map_err(|e| io(path)(e.source))?;
@@ -340,6 +355,55 @@ fn run_table_row(t: &mut String, r: &RunRow) {
     }
 }
 
+/// The mesh reference's figure of a run, `force RMS / max %, RMS / max mm`.
+fn mesh_share_cell(a: &super::Accuracy) -> String {
+    if (a.force_rms_pct, a.force_max_pct, a.max_error_m) == (0.0, 0.0, 0.0) {
+        return "exact".into();
+    }
+    format!("force {:.1} / {:.1} %, {} / {} mm", a.force_rms_pct, a.force_max_pct, f_mm(a.rms_error_m), f_mm(a.max_error_m))
+}
+
+/// Where the reference's mesh is not the base's: what the mesh alone costs
+/// (the reference's settings on the base mesh against the reference) and what
+/// the budget table's rows on the base mesh cost against that mesh's own
+/// finest settings.
+fn write_mesh_share(t: &mut String, results: &StudyResults) {
+    let Some(row) = &results.mesh_reference else { return };
+    let mesh = row.settings.mesh.label();
+    let Ok(m) = &row.outcome else {
+        let _ = writeln!(t, "\nThe mesh's share could not be measured: the run of every other knob's finest setting on {mesh} failed.\n");
+        return;
+    };
+    let own = m.accuracy.filter(|a| a.comparison != Comparison::Reference).map_or_else(|| "—".into(), |a| mesh_share_cell(&a));
+    let _ = write!(
+        t,
+        "\nThe mesh's share: the reference's settings on {mesh} instead of {} differ from the reference by {own} (the mesh alone). \
+         Against that run (the finest setting of every other knob on {mesh}), the rows above on {mesh} read: ",
+        results.rows.iter().find(|r| r.is_reference()).map_or_else(|| "its mesh".into(), |r| r.settings.mesh.label()),
+    );
+    let mut parts = Vec::new();
+    for budget in BUDGETS_MS {
+        let Some(r) = best_within(&results.rows, budget) else { continue };
+        if let Some(a) = measure_of(r).and_then(|m| m.against_mesh_reference) {
+            parts.push(format!("{budget} ms ({}: {}) {}", r.knob.map_or("reference", |k| k.name()), r.label, mesh_share_cell(&a)));
+        }
+    }
+    let _ = writeln!(t, "{}.", if parts.is_empty() { "none is on that mesh".to_string() } else { parts.join("; ") });
+}
+
+/// Each run of a sweep on the mesh reference's mesh against it, force RMS / max %.
+fn write_against_mesh_reference(t: &mut String, results: &StudyResults, rows: &[&RunRow]) {
+    let Some(mesh_row) = &results.mesh_reference else { return };
+    let parts: Vec<String> = rows
+        .iter()
+        .filter_map(|r| r.outcome.as_ref().ok().and_then(|m| m.against_mesh_reference).map(|a| (r, a)))
+        .map(|(r, a)| format!("{} {}", r.label, mesh_share_cell(&a)))
+        .collect();
+    if !parts.is_empty() {
+        let _ = writeln!(t, "\nOn {} against its own finest settings ({}): {}.", mesh_row.settings.mesh.label(), mesh_row.label, parts.join("; "));
+    }
+}
+
 /// The summary the README copies: the budget table and one line a knob.
 fn write_summary(t: &mut String, results: &StudyResults) {
     let _ = writeln!(t, "{SUMMARY_BEGIN}");
@@ -350,7 +414,7 @@ fn write_summary(t: &mut String, results: &StudyResults) {
          `fissure study --preset {}`, {} runs, {:.0} s on {} logical cores ({} build).\n",
         results.rows.iter().find(|r| r.is_reference()).map(settings_summary).unwrap_or_else(|| "not run".into()),
         results.plan_name,
-        results.rows.len(),
+        results.rows.len() + usize::from(results.mesh_reference.is_some()),
         results.elapsed_s,
         cores,
         if cfg!(debug_assertions) { "debug" } else { "release" }
@@ -378,6 +442,7 @@ fn write_summary(t: &mut String, results: &StudyResults) {
             }
         }
     }
+    write_mesh_share(t, results);
     t.push_str("\n| knob | setting: frame p95 (ms), RMS error (mm), vertices pulled through |\n|---|---|\n");
     for knob in Knob::ALL {
         let cells: Vec<String> = results
@@ -453,7 +518,7 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
 
     t.push_str("## Reference\n\n");
     t.push_str(RUN_TABLE_HEADER);
-    for r in results.rows.iter().filter(|r| r.is_reference()) {
+    for r in results.rows.iter().filter(|r| r.is_reference()).chain(&results.mesh_reference) {
         run_table_row(&mut t, r);
     }
     t.push('\n');
@@ -544,6 +609,7 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
             run_table_row(&mut t, r);
         }
         write_against_finest(&mut t, knob, &rows);
+        write_against_mesh_reference(&mut t, results, &rows);
         if knob == Knob::Contact {
             t.push_str("\n![Culling under both contact models](speed_vs_error.png)\n");
         }
@@ -560,7 +626,7 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::study::plan::{MeshChoice, base_settings};
+    use crate::study::plan::{MeshChoice, Settings, base_settings};
 
     #[test]
     fn a_failed_row_has_as_many_fields_as_the_header() {
@@ -586,5 +652,83 @@ mod tests {
         assert_eq!(cells[0].0, "Sweep: speed");
         assert_eq!(cells[0].1, "0.5 h/frame");
         assert_eq!(cells[0].2, ["0.012", "0.300", "1.50", "exact", "0/10", "0", "0 (0)", "0"]);
+    }
+
+    fn accuracy(comparison: Comparison, force_rms_pct: f64, force_max_pct: f64) -> crate::study::Accuracy {
+        crate::study::Accuracy {
+            comparison,
+            frames_compared: 10,
+            rms_error_m: 1e-4,
+            max_error_m: 1e-3,
+            force_rms_pct,
+            force_max_pct,
+            force_points: 10,
+            pressure_error_mmhg: 0.5,
+            missed_contact_frames: 0,
+            reference_contact_frames: 10,
+        }
+    }
+
+    fn row(knob: Option<Knob>, label: &str, mesh: MeshChoice, frame_p95_s: f64, accuracy: crate::study::Accuracy, own: Option<crate::study::Accuracy>) -> RunRow {
+        let frame = crate::study::Percentiles { p50: frame_p95_s / 2.0, p95: frame_p95_s };
+        let measure = RunMeasure {
+            frames: 10,
+            mesh_nodes: 100,
+            surface_triangles: 200,
+            build_s: 1.0,
+            compliance_bytes: 1_000_000,
+            compliance_cached: false,
+            stages: Vec::new(),
+            frame,
+            accuracy: Some(accuracy),
+            note: None,
+            crossed_total: 0,
+            penetrating_max: 0,
+            penetration_max_m: 0.0,
+            inverted_max: 0,
+            peak_pressure_mmhg: 3.0,
+            force_along: Vec::new(),
+            against_finest: None,
+            against_mesh_reference: own,
+        };
+        RunRow { knob, label: label.into(), value: 1.0, settings: Settings { mesh, ..base_settings(MeshChoice::Scene) }, outcome: Ok(measure) }
+    }
+
+    /// A plan whose reference mesh is finer than its base says what the base
+    /// mesh alone costs and what the budget rows cost against that mesh's own
+    /// finest settings, and the CSV carries both.
+    #[test]
+    fn the_mesh_share_is_reported_where_the_reference_mesh_is_not_the_base() {
+        let (coarse, fine) = (MeshChoice::Phantom("small".into()), MeshChoice::Phantom("paper-9k".into()));
+        let results = StudyResults {
+            plan_name: "brain".into(),
+            notes: Vec::new(),
+            motion: crate::study::Motion::default(),
+            scene_name: "scene".into(),
+            rows: vec![
+                row(None, "reference", fine.clone(), 0.020, accuracy(Comparison::Reference, 0.0, 0.0), None),
+                row(Some(Knob::Speed), "0.5 h/frame", coarse.clone(), 0.010, accuracy(Comparison::Probes(50), 7.25, 17.5), Some(accuracy(Comparison::PerVertex, 0.125, 0.75))),
+            ],
+            mesh_reference: Some(row(None, "small, every other knob as the reference", coarse, 0.015, accuracy(Comparison::Probes(50), 7.0, 17.0), None)),
+            files: Vec::new(),
+            elapsed_s: 1.0,
+            interrupted: false,
+        };
+        let mut summary = String::new();
+        write_summary(&mut summary, &results);
+        assert!(summary.contains("on small instead of paper-9k differ from the reference by force 7.0 / 17.0 %"), "{summary}");
+        assert!(summary.contains("16 ms (speed: 0.5 h/frame) force 0.1 / 0.8 %"), "{summary}");
+        let dir = tempfile::tempdir().expect("temp dir");
+        let csv = std::fs::read_to_string(write_csv(&results, &dir.path().join("results.csv")).expect("csv")).expect("read");
+        let lines: Vec<&str> = csv.lines().collect();
+        assert_eq!(lines.len(), 4, "header, two rows, the mesh reference");
+        assert!(lines.iter().all(|l| separators(l) == separators(CSV_HEADER)), "{csv}");
+        assert!(lines[2].ends_with(",0.1250,0.7500,0.100000,1.000000"), "{}", lines[2]);
+        assert!(lines[3].starts_with("mesh_reference,"), "{}", lines[3]);
+
+        let without = StudyResults { mesh_reference: None, ..results };
+        let mut summary = String::new();
+        write_summary(&mut summary, &without);
+        assert!(!summary.contains("mesh's share"), "{summary}");
     }
 }

@@ -223,6 +223,11 @@ pub struct StudyPlan {
     /// What the report should say about this plan's reference (where it
     /// departs from "the finest of every knob", and why).
     pub notes: Vec<String>,
+    /// The reference's settings on the base mesh, when the reference's mesh
+    /// differs from the base's (the `brain` preset's finer brain): the runs
+    /// on the base mesh are also compared with it, which tells what the other
+    /// knobs cost on that mesh apart from what the mesh itself costs.
+    pub mesh_reference: Option<RunSpec>,
 }
 
 /// A uniform grid with about `n` nodes a face, 2:1 along:across where it divides.
@@ -408,7 +413,13 @@ impl StudyPlan {
                 v.reference_roi.label()
             ));
         }
-        StudyPlan { name: name.to_string(), motion, reference: reference_run(v), sweeps, notes }
+        let reference = reference_run(v);
+        let mesh_reference = (reference.settings.mesh != base.mesh).then(|| RunSpec {
+            label: format!("{}, every other knob as the reference", base.mesh.label()),
+            value: f64::NAN,
+            settings: Settings { mesh: base.mesh.clone(), ..reference.settings.clone() },
+        });
+        StudyPlan { name: name.to_string(), motion, reference, sweeps, notes, mesh_reference }
     }
 
     /// Keeps only the sweeps of `knobs` (all when empty); the reference stays.
@@ -420,7 +431,7 @@ impl StudyPlan {
 
     /// Runs in the plan, the reference included.
     pub fn run_count(&self) -> usize {
-        1 + self.sweeps.iter().map(|s| s.runs.len()).sum::<usize>()
+        1 + usize::from(self.mesh_reference.is_some()) + self.sweeps.iter().map(|s| s.runs.len()).sum::<usize>()
     }
 }
 
@@ -686,6 +697,13 @@ mod tests {
                 assert_eq!(r.mesh, MeshChoice::File { path: files[1].clone(), fix_height_m: FILE_FIX_HEIGHT_M }, "the finest file");
                 let sweep = plan.sweeps.iter().find(|s| s.knob == Knob::Mesh).expect("a mesh sweep");
                 assert_eq!(sweep.runs.len(), 2);
+                // The reference's settings on the base (coarsest) mesh: the mesh's share of every error.
+                let own = &plan.mesh_reference.as_ref().expect("a mesh reference when the reference's mesh is not the base's").settings;
+                assert_eq!(own.mesh, sweep.runs[0].settings.mesh, "on the base mesh");
+                assert_eq!(Settings { mesh: r.mesh.clone(), ..own.clone() }, *r, "every other knob as the reference");
+                assert_eq!(plan.run_count(), 2 + plan.sweeps.iter().map(|s| s.runs.len()).sum::<usize>());
+            } else {
+                assert!(plan.mesh_reference.is_none(), "{preset:?}: the base mesh is the reference's");
             }
             for s in plan.sweeps.iter().flat_map(|s| &s.runs) {
                 let s = &s.settings;

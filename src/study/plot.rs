@@ -256,8 +256,15 @@ fn draw_force_path<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &
         r.outcome.as_ref().ok().map(mm_newton).filter(|p| !p.is_empty())
     };
     let reference = results.rows.iter().find(|r| r.is_reference()).and_then(path_of);
+    // Where the reference's mesh is not the base's: the reference's settings on the base mesh, dashed.
+    let own_mesh = results.mesh_reference.as_ref().and_then(|r| path_of(r).map(|p| (format!("finest on {}", r.settings.mesh.label()), p)));
     let knobs: Vec<Knob> = Knob::ALL.into_iter().filter(|k| results.rows.iter().any(|r| r.knob == Some(*k) && path_of(r).is_some())).collect();
-    let root = root.titled("Force on the tissue along the path: each knob's runs against the reference (black)", (FONT, 26)).map_err(err)?;
+    let title = if own_mesh.is_some() {
+        "Force on the tissue along the path: each knob's runs against the reference (black) and the base mesh's finest (dashed)"
+    } else {
+        "Force on the tissue along the path: each knob's runs against the reference (black)"
+    };
+    let root = root.titled(title, (FONT, 26)).map_err(err)?;
     let m = &results.motion;
     let length_mm = (2.0 * m.insert_m + 2.0 * m.open_m) * 1e3;
     let columns = 2;
@@ -266,7 +273,12 @@ fn draw_force_path<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &
     for (knob, area) in knobs.iter().zip(&panels) {
         // Each panel its own scale: the path where this panel's forces are
         // above 1 % of its largest (2 mm either side), up to that force.
-        let curves: Vec<Vec<(f64, f64)>> = reference.iter().cloned().chain(results.rows.iter().filter(|r| r.knob == Some(*knob)).filter_map(path_of)).collect();
+        let curves: Vec<Vec<(f64, f64)>> = reference
+            .iter()
+            .chain(own_mesh.iter().map(|(_, p)| p))
+            .cloned()
+            .chain(results.rows.iter().filter(|r| r.knob == Some(*knob)).filter_map(path_of))
+            .collect();
         let top = curves.iter().flatten().map(|p| p.1).fold(0.0, f64::max).max(1e-6);
         let loaded = || curves.iter().flatten().filter(|p| p.1 > 0.01 * top).map(|p| p.0);
         let x0 = (loaded().fold(f64::INFINITY, f64::min) - 2.0).max(0.0);
@@ -302,6 +314,14 @@ fn draw_force_path<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, results: &
                 .map_err(err)?
                 .label("reference")
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(3)));
+        }
+        if let Some((label, p)) = &own_mesh {
+            let grey = RGBColor(90, 90, 90);
+            chart
+                .draw_series(DashedLineSeries::new(p.iter().copied().filter(|q| q.0 >= x0 && q.0 <= x1), 8, 5, grey.stroke_width(2)))
+                .map_err(err)?
+                .label(label.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], grey.stroke_width(2)));
         }
         for (i, r) in results.rows.iter().filter(|r| r.knob == Some(*knob)).enumerate() {
             let Some(p) = path_of(r) else { continue };
