@@ -123,3 +123,58 @@ fn readme_study_section_is_the_committed_quick_report() {
     let (a, b) = (summary_section(&readme).expect("README has the study summary markers"), summary_section(&quick).expect("the report has them"));
     assert_eq!(a, b, "README's study section differs from docs/study/quick/report.md: copy it again");
 }
+
+/// A plan whose reference mesh is finer than its base (what the `brain`
+/// preset does with the real brains, here with two phantoms): the reference's
+/// settings also run on the base mesh, every run on that mesh is measured
+/// against that run as well, and the report and `results.csv` say so.
+#[test]
+fn a_finer_reference_mesh_brings_the_base_meshs_own_reference() {
+    use fissure::scenario::CollisionBackend;
+    use fissure::study::plan::{MeshChoice, PlanValues, RoiChoice, base_settings};
+    use fissure::study::{Comparison, Motion, StudyPlan};
+    let small = MeshChoice::Phantom("small".into());
+    let values = PlanValues {
+        base: base_settings(small.clone()),
+        nodes: Vec::new(),
+        tip_nodes: Vec::new(),
+        meshes: vec![small.clone(), MeshChoice::Phantom("paper-9k".into())],
+        speeds: vec![5.0],
+        contact_speeds: Vec::new(),
+        substeps: Vec::new(),
+        substep_speed: 5.0,
+        backends: Vec::new(),
+        backend_nodes: Vec::new(),
+        storage: false,
+        roi_radii_m: Vec::new(),
+        skull: false,
+        refine: Vec::new(),
+        reference_backend: CollisionBackend::Bvh,
+        reference_roi: RoiChoice::Auto,
+    };
+    let mut plan = StudyPlan::from_values("two meshes", Motion { insert_m: 0.030, insert_step_m: 0.010, open_m: 0.010 }, &values);
+    plan.retain_knobs(&[Knob::Speed]);
+    assert_eq!(plan.run_count(), 3, "the reference, the mesh reference, one speed");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let results = run_plan(&plan, &load_scene(None).expect("built-in study scene"), dir.path(), &mut |_| {}).expect("study runs");
+
+    let own = results.mesh_reference.as_ref().expect("a mesh reference");
+    assert_eq!(own.settings.mesh, small);
+    let own_m = own.outcome.as_ref().expect("the mesh reference ran");
+    let own_a = own_m.accuracy.expect("compared with the reference");
+    assert!(matches!(own_a.comparison, Comparison::Probes(_)), "another mesh than the reference's: {:?}", own_a.comparison);
+    assert!(own_a.force_rms_pct > 0.0, "two meshes do not give the same force");
+    let run = find(&results.rows, Knob::Speed, "5 h/frame").outcome.as_ref().expect("the speed run");
+    let against = run.against_mesh_reference.expect("a run on the base mesh is measured against its mesh reference");
+    assert_eq!(against.comparison, Comparison::PerVertex, "the same mesh: vertex by vertex");
+    assert!(against.force_rms_pct > 0.0, "a faster blade is not the finest setting");
+    let reference = results.rows.iter().find(|r| r.is_reference()).and_then(|r| r.outcome.as_ref().ok()).expect("the reference ran");
+    assert!(reference.against_mesh_reference.is_none(), "the reference is on the finer mesh");
+
+    let report = std::fs::read_to_string(dir.path().join("report.md")).expect("report.md");
+    assert!(report.contains("The mesh's share: the reference's settings on small instead of paper-9k"), "{report}");
+    assert!(report.contains("On small against its own finest settings"), "{report}");
+    let csv = std::fs::read_to_string(dir.path().join("results.csv")).expect("results.csv");
+    assert_eq!(csv.lines().count(), plan.run_count() + 1, "header + one row a run, the mesh reference included");
+    assert!(csv.lines().any(|l| l.starts_with("mesh_reference,")), "{csv}");
+}
