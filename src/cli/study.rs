@@ -39,14 +39,15 @@ pub fn run(options: StudyOptions) -> anyhow::Result<()> {
     let interrupt = super::replay::interrupt_flag();
     let results = run_study_until(&options, &mut progress, &interrupt).with_context(|| format!("running the study into {}", out.display()))?;
     bar.finish_and_clear();
-    let done = results.rows.iter().filter(|r| r.outcome.as_ref().err().is_none_or(|e| e != NOT_RUN_INTERRUPTED)).count();
+    let runs = || results.rows.iter().chain(&results.mesh_reference);
+    let done = runs().filter(|r| r.outcome.as_ref().err().is_none_or(|e| e != NOT_RUN_INTERRUPTED)).count();
     println!("study `{}` on {}: {} runs in {:.0} s", results.plan_name, results.scene_name, done, results.elapsed_s);
     for f in &results.files {
         println!("  wrote {}", f.display());
     }
     if results.interrupted {
         return Err(super::Interrupted {
-            what: format!("after {done} of {} runs; partial results in {} (report.md says so)", results.rows.len(), out.display()),
+            what: format!("after {done} of {} runs; partial results in {} (report.md says so)", runs().count(), out.display()),
         }
         .into());
     }

@@ -368,6 +368,17 @@ fn against_finest(rows: &mut [RunRow], finest: Option<usize>) {
     }
 }
 
+/// A run's measure with its accuracy against the study's reference, or a
+/// note that the reference failed.
+fn measured_against(trace: &RunTrace, reference: &Result<(RunTrace, Option<String>), RunError>, spec: &RunSpec, plan: &StudyPlan) -> RunMeasure {
+    let mut m = measure(trace, &plan.motion);
+    match reference {
+        Ok((r, _)) => m.accuracy = Some(accuracy::compare(r, trace, spec.settings.mesh == plan.reference.settings.mesh, &plan.motion)),
+        Err(_) => m.note = Some("the reference run failed".into()),
+    }
+    m
+}
+
 fn run_plan_inner(
     plan: &StudyPlan,
     scene: &Scenario,
@@ -416,15 +427,13 @@ fn run_plan_inner(
             label: spec.label.clone(),
             value: spec.value,
             settings: spec.settings.clone(),
-            outcome: match (&trace, &reference) {
-                (Ok((t, note)), Ok((r, _))) => {
-                    let mut m = measure(t, &plan.motion);
-                    m.accuracy = Some(accuracy::compare(r, t, spec.settings.mesh == plan.reference.settings.mesh, &plan.motion));
-                    m.note = note.clone();
+            outcome: match &trace {
+                Ok((t, note)) => {
+                    let mut m = measured_against(t, &reference, spec, plan);
+                    m.note = m.note.or_else(|| note.clone());
                     Ok(m)
                 }
-                (Ok((t, _)), Err(_)) => Ok(RunMeasure { note: Some("the reference run failed".into()), ..measure(t, &plan.motion) }),
-                (Err(e), _) => Err(e.to_string()),
+                Err(e) => Err(e.to_string()),
             },
         };
         (row, trace.ok().map(|(t, _)| t))
@@ -442,11 +451,7 @@ fn run_plan_inner(
             };
             done += 1;
             let outcome = outcome.map(|trace| {
-                let mut m = measure(&trace, &plan.motion);
-                match &reference {
-                    Ok((r, _)) => m.accuracy = Some(accuracy::compare(r, &trace, spec.settings.mesh == plan.reference.settings.mesh, &plan.motion)),
-                    Err(_) => m.note = Some("the reference run failed".into()),
-                }
+                let mut m = measured_against(&trace, &reference, spec, plan);
                 if let (Some(mr), Some(mesh_spec)) = (&mesh_trace, &plan.mesh_reference)
                     && spec.settings.mesh == mesh_spec.settings.mesh
                 {

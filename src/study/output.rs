@@ -73,7 +73,7 @@ fn csv_line_as(r: &RunRow, kind: &str) -> String {
         kind,
         quote(&r.label),
         r.value,
-        r.is_reference(),
+        kind == "reference",
         quote(&s.mesh.label())
     );
     let m = r.outcome.as_ref().ok();
@@ -370,9 +370,12 @@ fn mesh_share_cell(a: &super::Accuracy) -> String {
 fn write_mesh_share(t: &mut String, results: &StudyResults) {
     let Some(row) = &results.mesh_reference else { return };
     let mesh = row.settings.mesh.label();
-    let Ok(m) = &row.outcome else {
-        let _ = writeln!(t, "\nThe mesh's share could not be measured: the run of every other knob's finest setting on {mesh} failed.\n");
-        return;
+    let m = match &row.outcome {
+        Ok(m) => m,
+        Err(why) => {
+            let _ = writeln!(t, "\nThe mesh's share could not be measured: the finest setting of every other knob on {mesh}: {why}.\n");
+            return;
+        }
     };
     let own = m.accuracy.filter(|a| a.comparison != Comparison::Reference).map_or_else(|| "—".into(), |a| mesh_share_cell(&a));
     let _ = write!(
@@ -724,7 +727,8 @@ mod tests {
         assert_eq!(lines.len(), 4, "header, two rows, the mesh reference");
         assert!(lines.iter().all(|l| separators(l) == separators(CSV_HEADER)), "{csv}");
         assert!(lines[2].ends_with(",0.1250,0.7500,0.100000,1.000000"), "{}", lines[2]);
-        assert!(lines[3].starts_with("mesh_reference,"), "{}", lines[3]);
+        assert!(lines[3].starts_with("mesh_reference,\"small, every other knob as the reference\",1,false,"), "{}", lines[3]);
+        assert!(lines[1].starts_with("reference,\"reference\",1,true,"), "{}", lines[1]);
 
         let without = StudyResults { mesh_reference: None, ..results };
         let mut summary = String::new();
