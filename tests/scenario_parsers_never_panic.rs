@@ -7,6 +7,8 @@ use fissure::scenario::{Scenario, Trajectory};
 use proptest::prelude::*;
 
 const SYLVIAN: &str = include_str!("../config/sylvian.ron");
+/// The scene with vessels and arachnoid bands: its `tethers` field is mutated too.
+const TETHERED: &str = include_str!("../config/sylvian_tethers.ron");
 
 const TRAJECTORY: &str = "# t\ntime_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0.0,0,1.5,-2.0,3.0,1.0,0.0,0.0,0.0\n\
 0.5,1,1.5,-2.0,3.0,0.7071067811865476,0.7071067811865476,0.0,0.0\n1.0,0,4.0,2.0,-1.0,0.0,0.0,1.0,0.0\n";
@@ -44,6 +46,28 @@ proptest! {
     }
 
     #[test]
+    fn corrupted_tethered_scenarios_never_panic_and_validate_only_finite_tethers(at in 0usize..TETHERED.len(), byte in any::<u8>()) {
+        let mut bytes = TETHERED.as_bytes().to_vec();
+        bytes[at] = byte;
+        let text = String::from_utf8_lossy(&bytes);
+        if let Ok(s) = Scenario::from_str(&text, origin(), &[]) {
+            for v in &s.tethers.vessels {
+                prop_assert!(v.points.iter().all(|p| p.position().iter().all(|c| c.is_finite())));
+                prop_assert!(v.axial_stiffness > 0.0 && v.warning_stretch > 1.0 && v.warning_stretch < v.rupture_stretch);
+            }
+            for b in &s.tethers.bands {
+                prop_assert!(b.stiffness > 0.0 && b.strength > 0.0 && b.slack >= 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn random_tether_overrides_never_panic(index in 0usize..3, field in "(name|kind|points_mm|diameter_mm|rupture_stretch|warning_stretch|axial_stiffness_n)", value in "[ -~]{0,24}") {
+        let arg = format!("tethers.vessels[{index}].{field}={value}");
+        let _ = Scenario::from_str(TETHERED, origin(), &[arg]);
+    }
+
+    #[test]
     fn random_overrides_never_panic(path in "[a-z_\\[\\]0-9.]{0,24}", value in "[ -~]{0,24}") {
         let arg = format!("{path}={value}");
         let _ = Scenario::from_str(SYLVIAN, origin(), &[arg]);
@@ -77,6 +101,8 @@ fn the_untouched_inputs_are_valid() {
     // The properties above mutate these; the originals must parse, or the
     // truncation property would pass for the wrong reason.
     Scenario::from_str(SYLVIAN, origin(), &[]).expect("sylvian.ron");
+    let tethered = Scenario::from_str(TETHERED, origin(), &[]).expect("sylvian_tethers.ron");
+    assert_eq!((tethered.tethers.vessels.len(), tethered.tethers.bands.len()), (2, 8));
     let t = Trajectory::parse(TRAJECTORY, Path::new("prop.csv")).expect("trajectory");
     assert_eq!(t.spatula_count(), 2);
 }

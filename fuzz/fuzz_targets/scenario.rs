@@ -18,5 +18,12 @@ fuzz_target!(|data: &[u8]| {
         for sp in &s.spatulas {
             assert!(sp.initial_pose.is_valid(), "validated pose {:?}", sp.initial_pose);
         }
+        for v in &s.tethers.vessels {
+            assert!(v.points.iter().all(|p| p.position().iter().all(|c| c.is_finite())), "validated vessel points");
+            assert!(v.axial_stiffness > 0.0 && v.warning_stretch > 1.0 && v.warning_stretch < v.rupture_stretch, "validated vessel limits");
+        }
+        for b in &s.tethers.bands {
+            assert!(b.stiffness > 0.0 && b.strength > 0.0 && b.slack >= 0.0, "validated band");
+        }
     }
 });

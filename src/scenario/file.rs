@@ -81,6 +81,9 @@ pub struct ScenarioFile {
     /// `(max_penetration_mm: 0.05, max_inverted_elements: 0, max_crossed_vertices: 0)`.
     #[serde(default)]
     pub integrity: IntegrityFile,
+    /// Vessels and arachnoid bands (used with the `Tethers` effect). Default none.
+    #[serde(default)]
+    pub tethers: super::tethers::TethersFile,
 }
 
 /// Integrity limits: `(max_penetration_mm: 0.05, max_inverted_elements: 0, max_crossed_vertices: 0)`.
@@ -96,6 +99,9 @@ pub struct IntegrityFile {
     /// Most surface vertices pulled through a blade in a frame. Default 0.
     #[serde(default)]
     pub max_crossed_vertices: u32,
+    /// Most vessels a run may tear (with the `Tethers` effect). Default 0.
+    #[serde(default)]
+    pub max_torn_vessels: u32,
 }
 
 fn default_max_penetration_mm() -> f64 {
@@ -104,7 +110,7 @@ fn default_max_penetration_mm() -> f64 {
 
 impl Default for IntegrityFile {
     fn default() -> Self {
-        Self { max_penetration_mm: default_max_penetration_mm(), max_inverted_elements: 0, max_crossed_vertices: 0 }
+        Self { max_penetration_mm: default_max_penetration_mm(), max_inverted_elements: 0, max_crossed_vertices: 0, max_torn_vessels: 0 }
     }
 }
 
@@ -454,6 +460,8 @@ pub enum Effect {
     StressField,
     /// Contact (retraction) pressure per spatula (needs `Collision`).
     ContactPressure,
+    /// Vessels and arachnoid bands that tie the tissue and tear (needs `tethers`).
+    Tethers,
 }
 
 /// Collision options: `(backend: Bvh)`.

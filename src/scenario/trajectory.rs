@@ -11,6 +11,9 @@
 //! (0..256); `x_mm,y_mm,z_mm`: origin of the spatula frame in millimetres;
 //! `qw,qx,qy,qz`: its orientation, a unit quaternion (norm within 1e-4 of 1).
 //! Rows of different spatulas may interleave; each spatula's times strictly increase.
+//! An optional tenth column, `cut` (header `...,qz,cut`), is 1 on a row where the
+//! trainee cuts with microscissors at that blade's tip (the arachnoid bands
+//! within 2 mm of it) and 0 elsewhere.
 //!
 //! In: such a file, or poses as they happen ([`TrajectoryRecorder`]). Out: a
 //! [`Trajectory`] that samples a [`Pose`] at any time (linear position, slerp
@@ -29,6 +32,8 @@ use crate::math::{Quat, Vec3};
 
 /// The header row every trajectory file has.
 pub const HEADER: &str = "time_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz";
+/// The header of a trajectory with the `cut` column.
+pub const HEADER_WITH_CUT: &str = "time_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz,cut";
 
 /// Spatula indices a trajectory accepts: 0..MAX_SPATULAS.
 pub const MAX_SPATULAS: usize = 256;
@@ -118,6 +123,8 @@ impl Sample {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Trajectory {
     tracks: Vec<Vec<Sample>>,
+    /// Per spatula, the times of its rows with `cut` = 1, increasing.
+    cuts: Vec<Vec<f64>>,
 }
 
 impl Trajectory {
@@ -145,6 +152,26 @@ impl Trajectory {
         Ok(())
     }
 
+    /// Marks the sample of `spatula` at `time_s` (its last pushed) as a cut.
+    pub fn mark_cut(&mut self, spatula: usize, time_s: f64) {
+        if self.cuts.len() <= spatula {
+            self.cuts.resize_with(spatula + 1, Vec::new);
+        }
+        if self.cuts[spatula].last().is_none_or(|&t| t < time_s) {
+            self.cuts[spatula].push(time_s);
+        }
+    }
+
+    /// Whether `spatula` cuts at some time in `(after_s, until_s]`.
+    pub fn cuts_between(&self, spatula: usize, after_s: f64, until_s: f64) -> bool {
+        self.cuts.get(spatula).is_some_and(|c| c.iter().any(|&t| t > after_s && t <= until_s))
+    }
+
+    /// Whether any row cuts.
+    pub fn has_cuts(&self) -> bool {
+        self.cuts.iter().any(|c| !c.is_empty())
+    }
+
     /// Reads a trajectory file (a regular file of at most
     /// [`crate::fsio::Cap::TRAJECTORY`]; anything else is refused unread).
     pub fn load(path: &Path) -> Result<Self, TrajectoryError> {
@@ -159,6 +186,7 @@ impl Trajectory {
     pub fn parse(text: &str, origin: &Path) -> Result<Self, TrajectoryError> {
         let mut out = Trajectory::new();
         let mut seen_header = false;
+        let mut columns = 9;
         for (i, raw) in text.lines().enumerate() {
             let line = i + 1;
             let err = |problem: String| TrajectoryError::Line { path: origin.to_path_buf(), line, problem };
@@ -168,22 +196,33 @@ impl Trajectory {
             }
             if !seen_header {
                 let cols: Vec<&str> = row.split(',').map(str::trim).collect();
-                if cols.join(",") != HEADER {
-                    return Err(err(format!("expected the header `{HEADER}`, found `{row}`")));
+                let joined = cols.join(",");
+                if joined == HEADER_WITH_CUT {
+                    columns = 10;
+                } else if joined != HEADER {
+                    return Err(err(format!("expected the header `{HEADER}` (or `{HEADER_WITH_CUT}`), found `{row}`")));
                 }
                 seen_header = true;
                 continue;
             }
+            let header = if columns == 10 { HEADER_WITH_CUT } else { HEADER };
             let mut fields = [0.0f64; 9];
             let mut count = 0;
             let mut spatula = 0usize;
+            let mut cut = false;
             for (k, cell) in row.split(',').enumerate() {
-                if k >= 9 {
-                    return Err(err(format!("expected 9 columns ({HEADER}), found more")));
+                if k >= columns {
+                    return Err(err(format!("expected {columns} columns ({header}), found more")));
                 }
                 let cell = cell.trim();
-                let name = HEADER.split(',').nth(k).unwrap_or("?");
-                if k == 1 {
+                let name = header.split(',').nth(k).unwrap_or("?");
+                if k == 9 {
+                    cut = match cell {
+                        "0" => false,
+                        "1" => true,
+                        _ => return Err(err(format!("column cut: `{cell}` must be 0 or 1"))),
+                    };
+                } else if k == 1 {
                     spatula = cell.parse().map_err(|_| err(format!("column {name}: `{cell}` is not a spatula index")))?;
                     if spatula >= MAX_SPATULAS {
                         return Err(err(format!("column spatula: index {spatula} must be below {MAX_SPATULAS}")));
@@ -197,8 +236,8 @@ impl Trajectory {
                 }
                 count += 1;
             }
-            if count != 9 {
-                return Err(err(format!("expected 9 columns ({HEADER}), found {count}")));
+            if count != columns {
+                return Err(err(format!("expected {columns} columns ({header}), found {count}")));
             }
             let sample = Sample {
                 time_s: fields[0],
@@ -209,6 +248,9 @@ impl Trajectory {
                 TrajectoryError::Sample { problem, .. } => err(problem),
                 other => other,
             })?;
+            if cut {
+                out.mark_cut(spatula, sample.time_s);
+            }
         }
         if !seen_header {
             return Err(TrajectoryError::Line {
@@ -226,7 +268,11 @@ impl Trajectory {
         let mut s = String::new();
         s.push_str("# fissure trajectory: time_s in seconds, spatula = index in the scenario's spatulas,\n");
         s.push_str("# x_mm,y_mm,z_mm = spatula-frame origin in millimetres, qw,qx,qy,qz = unit quaternion.\n");
-        s.push_str(HEADER);
+        let with_cut = self.has_cuts();
+        if with_cut {
+            s.push_str("# cut = 1: microscissors at that blade's tip on that row.\n");
+        }
+        s.push_str(if with_cut { HEADER_WITH_CUT } else { HEADER });
         s.push('\n');
         let mut cursor = vec![0usize; self.tracks.len()];
         loop {
@@ -239,7 +285,13 @@ impl Trajectory {
                 }
             }
             let Some((k, _)) = next else { break };
-            write_row(&mut s, k, &self.tracks[k][cursor[k]]);
+            let sample = &self.tracks[k][cursor[k]];
+            write_row(&mut s, k, sample);
+            if with_cut {
+                s.pop();
+                let cut = self.cuts.get(k).is_some_and(|c| c.binary_search_by(|t| t.total_cmp(&sample.time_s)).is_ok());
+                let _ = writeln!(s, ",{}", u8::from(cut));
+            }
             cursor[k] += 1;
         }
         s

@@ -211,7 +211,7 @@ pub struct EffectSet(u16);
 
 impl Effect {
     /// Every effect, in the fixed order used for iteration and display.
-    pub const ALL: [Effect; 7] = [
+    pub const ALL: [Effect; 8] = [
         Effect::Collision,
         Effect::Culling,
         Effect::SkullSpheres,
@@ -219,6 +219,7 @@ impl Effect {
         Effect::ForceOutput,
         Effect::StressField,
         Effect::ContactPressure,
+        Effect::Tethers,
     ];
 
     fn bit(self) -> u16 {
@@ -333,13 +334,15 @@ pub struct IntegrityLimits {
     pub max_inverted_elements: u32,
     /// Most surface vertices pulled through a blade in a frame.
     pub max_crossed_vertices: u32,
+    /// Most vessels a run may tear (the `Tethers` effect).
+    pub max_torn_vessels: u32,
 }
 
 impl Default for IntegrityLimits {
     /// 0.05 mm of penetration (a tenth of the thinnest shipped blade's half
     /// thickness: what a surgeon cannot see), no inverted element, no tunnelling.
     fn default() -> Self {
-        Self { max_penetration_mm: 0.05, max_inverted_elements: 0, max_crossed_vertices: 0 }
+        Self { max_penetration_mm: 0.05, max_inverted_elements: 0, max_crossed_vertices: 0, max_torn_vessels: 0 }
     }
 }
 
@@ -388,6 +391,8 @@ pub struct Scenario {
     pub display: Display,
     /// Pass/fail limits of the run's integrity verdict.
     pub integrity: IntegrityLimits,
+    /// Vessels and arachnoid bands (empty unless the scene has the `Tethers` effect).
+    pub tethers: super::tethers::Tethers,
     /// Legal but doubtful values, in the order found (`fissure check` prints
     /// them; the pipeline's build logs them).
     pub warnings: Vec<ScenarioWarning>,
@@ -777,10 +782,18 @@ impl Scenario {
                 Effect::Culling | Effect::ContactPressure if !effects.contains(Effect::Collision) => {
                     return Err(c.invalid(&field, format!("{e:?} needs the Collision effect")));
                 }
+                Effect::Tethers if file.tethers.vessels.is_empty() && file.tethers.bands.is_empty() => {
+                    return Err(c.invalid(&field, "Tethers needs `tethers` with at least one vessel or band, but none is given"));
+                }
                 _ => {}
             }
         }
 
+        let tethers = super::tethers::validate(&file.tethers, &|field, problem| c.invalid(field, problem))?;
+        if !tethers.is_empty() && !effects.contains(Effect::Tethers) {
+            c.warn("tethers", "the scene lists tethers but not the Tethers effect: they are not built (add Tethers to `effects`)");
+        }
+        let tethers = if effects.contains(Effect::Tethers) { tethers } else { Default::default() };
         let solver = SolverOptions {
             compliance_storage: file.solver.compliance_storage,
             region_of_interest: match &file.solver.region_of_interest {
@@ -878,9 +891,11 @@ impl Scenario {
                 },
                 max_inverted_elements: file.integrity.max_inverted_elements,
                 max_crossed_vertices: file.integrity.max_crossed_vertices,
+                max_torn_vessels: file.integrity.max_torn_vessels,
             },
+            tethers,
             warnings: c.warnings.take(),
-            locations: field_locations(document, file.fixed.len(), file.spatulas.len()),
+            locations: field_locations(document, file.fixed.len(), file.spatulas.len(), &file.tethers),
         })
     }
 
@@ -979,9 +994,11 @@ impl Scenario {
     }
 }
 
-fn field_locations(document: &Document, fixed: usize, spatulas: usize) -> FieldLocations {
+fn field_locations(document: &Document, fixed: usize, spatulas: usize, tethers: &super::tethers::TethersFile) -> FieldLocations {
     let mut locations = FieldLocations::default();
-    let indexed = (0..fixed).map(|i| format!("fixed[{i}]")).chain((0..spatulas).map(|i| format!("spatulas[{i}]")));
+    let vessel_points = tethers.vessels.iter().enumerate().flat_map(|(v, f)| (0..f.points_mm.len()).map(move |p| super::tethers::Tethers::vessel_point_field(v, p)));
+    let band_ends = (0..tethers.bands.len()).flat_map(|b| (0..2).map(move |e| super::tethers::Tethers::band_end_field(b, e)));
+    let indexed = (0..fixed).map(|i| format!("fixed[{i}]")).chain((0..spatulas).map(|i| format!("spatulas[{i}]"))).chain(vessel_points).chain(band_ends);
     for field in LOCATED_FIELDS.iter().map(|f| f.to_string()).chain(indexed) {
         locations.insert(&field, document.locate_path(&field));
     }

@@ -561,7 +561,7 @@ impl Pipeline {
             (model, side)
         });
         let model = model?;
-        let SurfaceSide { roi, reach, collision } = side?;
+        let SurfaceSide { roi, reach, collision, tethers } = side?;
         let surface = model.surface().clone();
         let rest: Vec<Vec3> = surface.gather_positions(&mesh.positions);
         let storage = match scenario.solver.compliance_storage {
@@ -587,7 +587,10 @@ impl Pipeline {
             let (sets, step) = (pose_sets.len(), options.expected_step_s);
             compliance.wait_until_ahead(&|n| reach_seconds(reach.get(n as usize).copied().unwrap_or(u32::MAX), sets, step), progress)?;
         }
-        let solver = ConstrainedSolver::new(model, compliance)?;
+        let mut solver = ConstrainedSolver::new(model, compliance)?;
+        if let Some(t) = &tethers {
+            solver.set_tethers(&t.solver_links(&surface))?;
+        }
         let skull = if effects.contains(Effect::SkullSpheres) {
             let skull = scenario.skull.ok_or_else(|| BuildError::Scene {
                 scenario: scenario.source_path.clone(),
@@ -597,7 +600,7 @@ impl Pipeline {
         } else {
             None
         };
-        let pipeline = Pipeline::assemble(scenario, mesh, surface, rest, solver, collision, skull)?;
+        let pipeline = Pipeline::assemble(scenario, mesh, surface, rest, solver, collision, skull, tethers)?;
         let state = pipeline.initial_state(&initial);
         Ok((pipeline, state))
     }
@@ -657,12 +660,26 @@ struct SurfaceSide {
     /// Per node, how soon a blade reaches it (empty without `early_start`).
     reach: Vec<u32>,
     collision: Option<CollisionStage>,
+    /// The tethers snapped to the surface (the `Tethers` effect).
+    tethers: Option<super::tethers::TetherStage>,
 }
 
 /// The region of interest, the reach ranks and the collision stage, from the
 /// mesh's boundary `surface` (the model's, computed apart).
 fn surface_side(scenario: &Scenario, mesh: &TetMesh, surface: &crate::mesh::BoundarySurface, pose_sets: &[Vec<Pose>], early: bool) -> Result<SurfaceSide, BuildError> {
-    let roi = region_of_interest(scenario, mesh, &surface.vertices, pose_sets);
+    let mut roi = region_of_interest(scenario, mesh, &surface.vertices, pose_sets);
+    // The tethers' nodes join the region of interest: their rows read K^-1 between them and every row of W,
+    // which a ROI column answers exactly without a sparse solve in the frame.
+    let tethers = scenario.effects.contains(Effect::Tethers).then(|| {
+        let rest: Vec<Vec3> = surface.gather_positions(&mesh.positions);
+        super::tethers::TetherStage::new(&scenario.tethers, surface, &rest)
+    });
+    if let Some(t) = &tethers {
+        let fixed = super::build::fixed_nodes(mesh, &scenario.fixed);
+        roi.extend(fem::ConstrainedSolver::tether_nodes(&t.solver_links(surface)).into_iter().filter(|&n| !fixed[n as usize]));
+        roi.sort_unstable();
+        roi.dedup();
+    }
     let reach = if early { reach_ranks(scenario, mesh, &roi, pose_sets) } else { Vec::new() };
     let collision = if scenario.effects.contains(Effect::Collision) {
         let config = CollisionConfig {
@@ -682,7 +699,7 @@ fn surface_side(scenario: &Scenario, mesh: &TetMesh, surface: &crate::mesh::Boun
     } else {
         None
     };
-    Ok(SurfaceSide { roi, reach, collision })
+    Ok(SurfaceSide { roi, reach, collision, tethers })
 }
 
 /// The stages a scenario's effects build, in frame order (for output columns).

@@ -41,6 +41,8 @@ pub struct MetricsWriter {
     spatulas: usize,
     /// Each spatula's force in the previous row (zero before the first).
     previous_force: Vec<Vec3>,
+    /// Vessels of the tether columns (`None`: the scene has no tethers, no columns).
+    vessels: Option<usize>,
     line: String,
 }
 
@@ -48,8 +50,24 @@ impl MetricsWriter {
     /// Creates the file and writes the header. `stages` are the built stages;
     /// `spatula_names` name the per-spatula columns.
     pub fn create(path: &Path, stages: &[StageId], spatula_names: &[String]) -> Result<Self, OutputError> {
+        Self::create_with_tethers(path, stages, spatula_names, None)
+    }
+
+    /// As [`Self::create`], with the tether columns when `vessel_names` is given (the scene's tethers): each
+    /// vessel's largest stretch this frame (`<vessel>_max_stretch`, the name with every character that is not a
+    /// letter or digit as `_`), then `bands_intact`, `bands_torn`, `bands_cut`, `max_band_tension_n`.
+    pub fn create_with_tethers(path: &Path, stages: &[StageId], spatula_names: &[String], vessel_names: Option<&[String]>) -> Result<Self, OutputError> {
         let file = File::create(path).map_err(|e| OutputError::new(path, e))?;
-        let mut w = Self { out: file, committed: 0, path: path.to_path_buf(), stages: stages.to_vec(), spatulas: spatula_names.len(), previous_force: vec![Vec3::zeros(); spatula_names.len()], line: String::new() };
+        let mut w = Self {
+            out: file,
+            committed: 0,
+            path: path.to_path_buf(),
+            stages: stages.to_vec(),
+            spatulas: spatula_names.len(),
+            previous_force: vec![Vec3::zeros(); spatula_names.len()],
+            vessels: vessel_names.map(<[String]>::len),
+            line: String::new(),
+        };
         let mut header = vec!["frame".to_string(), "time_s".to_string()];
         header.extend(stages.iter().map(|s| format!("{}_ms", s.name())));
         header.push("frame_ms".into());
@@ -62,6 +80,10 @@ impl MetricsWriter {
             ["constrained_vertices", "skull_contacts", "max_displacement_mm", "inverted_elements", "inverted_scope", "crossed_vertices", "penetrating_vertices", "max_penetration_mm", "rejected_poses", "max_von_mises_pa", "substeps", "solver_capped"]
                 .map(String::from),
         );
+        if let Some(names) = vessel_names {
+            header.extend(names.iter().map(|n| format!("{}_max_stretch", column_word(n))));
+            header.extend(["bands_intact", "bands_torn", "bands_cut", "max_band_tension_n"].map(String::from));
+        }
         w.line = header.join(",");
         w.write_line()?;
         Ok(w)
@@ -133,8 +155,20 @@ impl MetricsWriter {
             r.substeps,
             u8::from(r.solver_capped)
         );
+        if let Some(vessels) = self.vessels {
+            let t = r.tethers.clone().unwrap_or_default();
+            for k in 0..vessels {
+                let _ = write!(l, ",{}", t.vessel_stretch.get(k).copied().unwrap_or(0.0));
+            }
+            let _ = write!(l, ",{},{},{},{}", t.bands_intact, t.bands_torn, t.bands_cut, t.max_band_tension_n);
+        }
         self.write_line()
     }
+}
+
+/// A name as a CSV column word: letters and digits kept, everything else `_`.
+pub fn column_word(name: &str) -> String {
+    name.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect()
 }
 
 /// p50 / p95 / max of a sample, milliseconds.
@@ -215,6 +249,36 @@ pub struct Summary {
     pub integrity: Integrity,
     /// The precomputed compliance the frames read: what the scene's working region costs.
     pub compliance: ComplianceSummary,
+    /// Every tether torn or cut, in the order it happened (empty without tethers).
+    pub injuries: Vec<super::tethers::TetherEvent>,
+    /// Each vessel's largest stretch over the run (empty without tethers).
+    pub vessels: Vec<VesselSummary>,
+    /// The arachnoid bands at the end (None without tethers).
+    pub bands: Option<BandSummary>,
+}
+
+/// A vessel over the run.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct VesselSummary {
+    pub name: String,
+    /// `artery`, `vein` or `bridging vein`.
+    pub kind: String,
+    /// Largest stretch of any of its segments (length over rest length).
+    pub max_stretch: f64,
+    pub warning_stretch: f64,
+    pub rupture_stretch: f64,
+    pub torn: bool,
+}
+
+/// The arachnoid bands at the end of a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct BandSummary {
+    pub total: u32,
+    pub intact: u32,
+    pub torn: u32,
+    pub cut: u32,
+    /// Largest tension an intact band carried, N.
+    pub max_tension_n: f64,
 }
 
 /// The size of a run's precomputed compliance.
@@ -254,6 +318,8 @@ pub struct SummaryBuilder {
     /// Each spatula's force in the previous frame and its frame-to-frame changes so far.
     previous_force: Vec<Vec3>,
     force_jumps: Vec<Vec<f64>>,
+    /// First frame (and time) the torn vessels passed the scene's limit.
+    first_torn_over: Option<(u64, f64)>,
 }
 
 impl SummaryBuilder {
@@ -275,6 +341,24 @@ impl SummaryBuilder {
     /// Records the size of the compliance the run reads.
     pub fn set_compliance(&mut self, compliance: ComplianceSummary) {
         self.summary.compliance = compliance;
+    }
+
+    /// Names the scene's vessels (their limits) and bands, so the summary reports them.
+    pub fn with_tethers(mut self, tethers: &crate::scenario::Tethers) -> Self {
+        self.summary.vessels = tethers
+            .vessels
+            .iter()
+            .map(|v| VesselSummary {
+                name: v.name.clone(),
+                kind: v.kind.word().into(),
+                max_stretch: 1.0,
+                warning_stretch: v.warning_stretch,
+                rupture_stretch: v.rupture_stretch,
+                torn: false,
+            })
+            .collect();
+        self.summary.bands = Some(BandSummary { total: tethers.bands.len() as u32, intact: tethers.bands.len() as u32, ..Default::default() });
+        self
     }
 
     /// Sets the integrity limits the summary judges the run by (default: [`IntegrityLimits::default`]).
@@ -324,6 +408,21 @@ impl SummaryBuilder {
         m.rejected_poses += r.rejected_poses as u64;
         m.max_substeps = m.max_substeps.max(r.substeps);
         m.capped_frames += u64::from(r.solver_capped);
+        if let Some(t) = &r.tethers {
+            for (v, (&stretch, &torn)) in m.vessels.iter_mut().zip(t.vessel_stretch.iter().zip(&t.vessel_torn)) {
+                v.max_stretch = v.max_stretch.max(stretch);
+                v.torn |= torn;
+            }
+            if let Some(b) = &mut m.bands {
+                (b.intact, b.torn, b.cut) = (t.bands_intact, t.bands_torn, t.bands_cut);
+                b.max_tension_n = b.max_tension_n.max(t.max_band_tension_n);
+            }
+            m.injuries.extend(t.events.iter().cloned());
+            let torn = m.vessels.iter().filter(|v| v.torn).count() as u32;
+            if torn > self.limits.max_torn_vessels && self.first_torn_over.is_none() {
+                self.first_torn_over = Some((r.frame, r.time_s));
+            }
+        }
         self.last_time = r.time_s;
     }
 
@@ -351,9 +450,12 @@ impl SummaryBuilder {
             format!("inverted elements {} > {}", m.max_inverted_elements, l.max_inverted_elements),
             format!("vertices pulled through a blade {} > {}", m.max_crossed_vertices, l.max_crossed_vertices),
         ];
+        let torn = m.vessels.iter().filter(|v| v.torn).count();
+        let torn_text = format!("torn vessels {torn} > {}", l.max_torn_vessels);
         let failures = worst
             .into_iter()
             .zip(self.first_violation)
+            .chain([(torn_text, self.first_torn_over)])
             .filter_map(|(text, first)| first.map(|(frame, t)| format!("{text} (first at frame {frame}, t = {t:.2} s)")))
             .collect::<Vec<_>>();
         self.summary.integrity = Integrity { passed: failures.is_empty(), limits: l, failures };
@@ -433,7 +535,7 @@ mod tests {
         assert!(!s.integrity.passed);
         assert_eq!(s.integrity.failures.len(), 2, "{:?}", s.integrity.failures);
         assert!(s.integrity.failures[0].contains("0.180 mm > 0.05 mm") && s.integrity.failures[0].contains("frame 1"), "{:?}", s.integrity.failures);
-        let mut b = SummaryBuilder::new("t", &[], &[]).with_limits(IntegrityLimits { max_penetration_mm: 0.2, max_inverted_elements: 1, max_crossed_vertices: 0 });
+        let mut b = SummaryBuilder::new("t", &[], &[]).with_limits(IntegrityLimits { max_penetration_mm: 0.2, max_inverted_elements: 1, max_crossed_vertices: 0, max_torn_vessels: 0 });
         b.add(&r, 0.01);
         assert!(b.finish(String::new(), false).integrity.passed, "within the scene's own limits");
     }

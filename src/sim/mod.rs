@@ -14,6 +14,7 @@ pub mod pose_filter;
 pub mod preflight;
 pub mod replay;
 pub mod report;
+pub mod tethers;
 
 pub use build::{BuildError, BuildOptions};
 pub use pipeline::{FrameInput, MAX_SUBSTEPS, Pipeline, SUBSTEP_TRAVEL_FRACTION, SimState, SkullStage, StepError, substep_count};

@@ -159,6 +159,8 @@ pub struct Pipeline {
     solver: ConstrainedSolver,
     collision: Option<CollisionStage>,
     skull: Option<SkullStage>,
+    /// Vessels and arachnoid bands (the `Tethers` effect).
+    tethers: Option<super::tethers::TetherStage>,
     /// What a spatula target becomes: a sticking `Contact`, a bilateral
     /// `Enforced` hold, or a sliding `Barrier` row.
     contact_law: SpatulaContact,
@@ -214,6 +216,7 @@ impl Pipeline {
         solver: ConstrainedSolver,
         collision: Option<CollisionStage>,
         skull: Option<SkullStage>,
+        tethers: Option<super::tethers::TetherStage>,
     ) -> Result<Self, super::build::BuildError> {
         let surface_tets = surface_tets(&mesh, &surface, solver.far_vertices());
         let far_edge = region_edge(&surface.triangles, solver.far_vertices());
@@ -248,6 +251,7 @@ impl Pipeline {
             solver,
             collision,
             skull,
+            tethers,
             surface_tets,
             constraints: Vec::new(),
             solution: FrameSolution::default(),
@@ -309,6 +313,22 @@ impl Pipeline {
     /// The skull stage, when the scene asked for skull spheres.
     pub fn skull(&self) -> Option<&SkullStage> {
         self.skull.as_ref()
+    }
+    /// The tether stage, when the scene asked for tethers.
+    pub fn tethers(&self) -> Option<&super::tethers::TetherStage> {
+        self.tethers.as_ref()
+    }
+    /// Asks the microscissors at blade `spatula`'s tip to cut the arachnoid
+    /// bands within [`super::tethers::CUT_RADIUS_M`] of it at the next frame
+    /// (nothing without tethers). Returns whether the scene has tethers.
+    pub fn request_cut(&mut self, spatula: usize) -> bool {
+        match &mut self.tethers {
+            Some(t) => {
+                t.request_cut(spatula);
+                true
+            }
+            None => false,
+        }
     }
     /// The exact solver (for the haptic thread's contact compliance).
     pub fn solver(&self) -> &ConstrainedSolver {
@@ -403,6 +423,9 @@ impl Pipeline {
         for s in r.spatulas.iter_mut() {
             *s = SpatulaReport::default();
         }
+        if let Some(t) = &mut self.tethers {
+            t.begin_frame();
+        }
         let mut substeps = substep_count(&self.shapes, &self.frame_start_poses, &self.target_poses, self.substep_travel);
         if substeps > 1 && free && self.sweeps_clear(&state.surface_positions) {
             // Nothing near the blades' path and nothing held: every sub-step
@@ -483,6 +506,11 @@ impl Pipeline {
             r.inverted_scope_all = false;
         }
 
+        match (&self.tethers, &mut r.tethers) {
+            (Some(t), Some(out)) => out.clone_from(t.frame()),
+            (Some(t), None) => r.tethers = Some(t.frame().clone()),
+            _ => {}
+        }
         state.frame += 1;
         state.time_s = state.frame as f64 * self.time_step;
         r.frame = frame;
@@ -571,6 +599,11 @@ impl Pipeline {
 
         // Exact constrained solve and surface update.
         let t = Instant::now();
+        let time_s = (frame + 1) as f64 * self.time_step;
+        if let Some(tethers) = &mut self.tethers {
+            let tips: Vec<Vec3> = self.shapes.iter().zip(&state.poses).map(|(s, p)| p.transform_point(&Vec3::new(s.length, 0.0, 0.0))).collect();
+            tethers.apply_cuts(&tips, &state.surface_positions, time_s, frame, &mut self.solver);
+        }
         self.track_far(state);
         self.solver.step(&self.constraints, &mut self.solution).map_err(|source| StepError::Solve { frame, source })?;
         self.feasible_constraints.clone_from(&self.constraints);
@@ -578,6 +611,9 @@ impl Pipeline {
         state.surface_displacement.clone_from(&self.solution.displacement_surface);
         for ((p, rest), u) in state.surface_positions.iter_mut().zip(&self.rest).zip(&state.surface_displacement) {
             *p = rest + u;
+        }
+        if let Some(tethers) = &mut self.tethers {
+            tethers.after_solve(&state.surface_positions, &self.solution.tether_tension, time_s, frame, &mut self.solver);
         }
         let r = &mut self.report;
         r.max_displacement_m = self.solution.max_displacement;

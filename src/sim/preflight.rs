@@ -336,7 +336,50 @@ pub fn check_mesh(scenario: &Scenario, mesh: TetMesh) -> Result<CheckedMesh, Bui
             facts.excluding_clearance = Some(check_sphere(scenario, "skull.excluding", &s, false, &rest, &surface.vertices)?);
         }
     }
+    if scenario.effects.contains(Effect::Tethers) {
+        check_tethers(scenario, &mesh)?;
+    }
     Ok(CheckedMesh { mesh, fixed, facts })
+}
+
+/// The tethers against the mesh at rest: every surface point within
+/// [`super::tethers::MAX_SNAP_DISTANCE_M`] of the surface, every anchor outside the tissue.
+fn check_tethers(scenario: &Scenario, mesh: &TetMesh) -> Result<(), BuildError> {
+    use crate::scenario::{TetherPoint, Tethers};
+    let surface = mesh.boundary();
+    let rest: Vec<Vec3> = surface.vertices.iter().map(|&n| mesh.positions[n as usize]).collect();
+    let check = |field: String, point: &TetherPoint| -> Result<(), BuildError> {
+        match point {
+            TetherPoint::Surface(p) => {
+                let distance = super::tethers::snap(&surface.triangles, &rest, p).map_or(f64::INFINITY, |s| s.distance);
+                if distance > super::tethers::MAX_SNAP_DISTANCE_M {
+                    return Err(BuildError::Scenario(scenario.invalid(&field, format!(
+                        "({:.2}, {:.2}, {:.2}) mm is {:.2} mm from the brain's surface: a tether's surface point must lie within {} mm of it",
+                        p.x / MM, p.y / MM, p.z / MM, distance / MM, super::tethers::MAX_SNAP_DISTANCE_M / MM
+                    ))));
+                }
+            }
+            TetherPoint::Anchor(p) => {
+                if winding_number(&surface.triangles, &rest, p) > 0.5 {
+                    return Err(BuildError::Scenario(scenario.invalid(&field, format!(
+                        "the anchor ({:.2}, {:.2}, {:.2}) mm lies inside the tissue: an anchor is a fixed point outside the brain (a sinus, the dura)",
+                        p.x / MM, p.y / MM, p.z / MM
+                    ))));
+                }
+            }
+        }
+        Ok(())
+    };
+    for (v, vessel) in scenario.tethers.vessels.iter().enumerate() {
+        for (p, point) in vessel.points.iter().enumerate() {
+            check(Tethers::vessel_point_field(v, p), point)?;
+        }
+    }
+    for (b, band) in scenario.tethers.bands.iter().enumerate() {
+        check(Tethers::band_end_field(b, 0), &TetherPoint::Surface(band.from))?;
+        check(Tethers::band_end_field(b, 1), &TetherPoint::Surface(band.to))?;
+    }
+    Ok(())
 }
 
 /// Checks the rest surface against one sphere; returns the smallest gap (m).

@@ -101,6 +101,12 @@ impl PoseSource {
         }
     }
 
+    /// The spatulas whose trajectory rows cut in replay time `(after_s, until_s]` (the `cut` column).
+    pub fn cuts_between(&self, after_s: f64, until_s: f64) -> Vec<usize> {
+        let origin = self.trajectory_origin();
+        (0..self.initial.len()).filter(|&k| self.trajectory.as_ref().is_some_and(|t| t.cuts_between(k, after_s + origin, until_s + origin))).collect()
+    }
+
     /// Pose sets over the run (at most `count`), to size the automatic region of interest.
     pub fn samples(&self, duration: f64, count: usize) -> Vec<Vec<Pose>> {
         let mut input = FrameInput::default();
@@ -152,8 +158,12 @@ pub fn replay(
     std::fs::create_dir_all(&options.out_dir).map_err(|e| OutputError::new(&options.out_dir, e))?;
     let stages = pipeline.built_stages();
     let names = pipeline.spatula_names().to_vec();
-    let mut writer = MetricsWriter::create(&options.out_dir.join("metrics.csv"), &stages, &names)?;
+    let vessel_names: Option<Vec<String>> = pipeline.tethers().map(|t| t.vessel_names().map(|(n, _)| n.to_string()).collect());
+    let mut writer = MetricsWriter::create_with_tethers(&options.out_dir.join("metrics.csv"), &stages, &names, vessel_names.as_deref())?;
     let mut summary = SummaryBuilder::new(&scenario.name, &stages, &names).with_limits(scenario.integrity);
+    if let Some(t) = pipeline.tethers() {
+        summary = summary.with_tethers(t.tethers());
+    }
     let cs = pipeline.solver().compliance().stats();
     summary.set_compliance(super::metrics::ComplianceSummary {
         rows: cs.rows,
@@ -171,6 +181,11 @@ pub fn replay(
             break;
         }
         source.poses_at((k + 1) as f64 * dt, &mut input);
+        // The first frame takes the cuts at or before its start too.
+        let after = if k == 0 { f64::NEG_INFINITY } else { k as f64 * dt };
+        for spatula in source.cuts_between(after, (k + 1) as f64 * dt) {
+            pipeline.request_cut(spatula);
+        }
         // The report borrows the pipeline only until it is written (no per-frame copy).
         match pipeline.step(&mut state, &input) {
             Ok(report) => {

@@ -138,4 +138,6 @@ pub struct FrameReport {
     /// True when the contact solve hit its iteration cap: the frame kept the
     /// last feasible state (tissue and poses of the last sub-step that converged).
     pub solver_capped: bool,
+    /// Vessels and bands this frame (only with the tether stage).
+    pub tethers: Option<super::tethers::TetherFrame>,
 }

@@ -39,6 +39,9 @@
 mod blocks;
 mod columns;
 mod screen;
+mod tethers;
+
+pub use tethers::{Tether, TetherEnd};
 
 use blocks::{CANDIDATE_BLOCKS_FROM_BYTES, CandidateBlocks};
 use super::FemError;
@@ -139,6 +142,8 @@ pub struct FrameSolution {
     pub iterations: usize,
     /// Nodes whose K^-1 columns had to be solved this frame (outside the ROI).
     pub lazy_solves: usize,
+    /// Per tether (order of [`ConstrainedSolver::set_tethers`]): its tension, N (0 when slack or gone).
+    pub tether_tension: Vec<f64>,
 }
 
 /// Seconds spent in the phases of the last [`ConstrainedSolver::step`] (and one count).
@@ -221,6 +226,7 @@ pub struct ConstrainedSolver {
     cands: Candidates,
     columns: LazyColumns,
     surface: SurfaceUpdate,
+    tethers: tethers::TetherSet,
 }
 
 /// The frame's constraint system: its nodes and rows, W's factor and the solution.
@@ -370,6 +376,7 @@ impl ConstrainedSolver {
                 large_compliance,
             },
             columns: LazyColumns::default(),
+            tethers: tethers::TetherSet::default(),
             surface: SurfaceUpdate {
                 u_rows: vec![Vec3::zeros(); rows],
                 prev_u_rows: vec![Vec3::zeros(); rows],
@@ -421,7 +428,7 @@ impl ConstrainedSolver {
     /// Copies the last frame's `W = C K^-1 C^T` into `out` (n x n, column major, full symmetric), n =
     /// the number of rows; for a haptic thread that wants its own copy.
     pub fn contact_compliance(&self, out: &mut Vec<f64>) {
-        let n = self.sys.rows.len();
+        let n = self.row_count();
         let e = 3 * self.tools.enforced_nodes;
         let s = n - e;
         out.clear();
@@ -443,7 +450,7 @@ impl ConstrainedSolver {
     /// `delta_lambda = W^-1 delta_g`. Exact for the linear model; two triangular solves, no allocation once
     /// `scratch` has grown. The haptic force on the tool is its negative.
     pub fn spatula_force_delta(&self, owner: u16, delta: Vec3, scratch: &mut Vec<f64>) -> Vec3 {
-        let n = self.sys.rows.len();
+        let n = self.row_count();
         scratch.clear();
         scratch.resize(n, 0.0);
         let mut any = false;
@@ -480,6 +487,11 @@ impl ConstrainedSolver {
             }
         }
         f
+    }
+
+    /// Rows of W: the per-node rows, then the taut tethers'.
+    fn row_count(&self) -> usize {
+        self.sys.rows.len() + self.tethers.rows.len()
     }
 
     /// Fraction of candidate `ci`'s face-row reaction that belongs to spatula `owner` (0 for a sphere row).
@@ -547,6 +559,7 @@ impl ConstrainedSolver {
     fn prepare(&mut self, constraints: &[Constraint]) -> Result<(), FemError> {
         self.group_claims(constraints);
         self.collect_candidates(constraints);
+        self.linearize_tethers()?;
         self.touch_candidate_columns();
         // ROI candidates need their columns final (a W entry between two ROI nodes is read from the earlier
         // column); this waits only while they are computed in the background.
@@ -591,7 +604,7 @@ impl ConstrainedSolver {
             self.sys.nodes = nodes;
             ensured?;
             self.solve_rows();
-            if self.cands.candidates.is_empty() && self.tools.groups.iter().all(|g| g.normal.is_none()) {
+            if self.cands.candidates.is_empty() && !self.tethers.any() && self.tools.groups.iter().all(|g| g.normal.is_none()) {
                 return Ok(iterations);
             }
             let (any_add, worst_inactive, worst_active) = self.evaluate_candidates(screening);
@@ -666,11 +679,15 @@ impl ConstrainedSolver {
                 worst_active = worst_active.max(violation.abs());
             }
         }
+        let (tether_added, tether_worst) = self.evaluate_tethers();
+        any_add |= tether_added;
+        worst_inactive = worst_inactive.max(tether_worst);
         self.timings.candidates += evaluated.elapsed().as_secs_f64();
         (any_add, worst_inactive, worst_active)
     }
 
-    /// Releases the most adhesive active candidate row (lambda < 0 pulls the tissue); returns whether it did.
+    /// Releases the most adhesive active candidate row (lambda < 0 pulls the tissue) or the most compressive
+    /// tether (T < 0 would push), whichever is further below zero (a candidate on a tie); returns whether it did.
     fn release_most_adhesive(&mut self) -> bool {
         let enforced_rows = 3 * self.tools.enforced_nodes;
         let scale = self.sys.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()));
@@ -681,10 +698,19 @@ impl ConstrainedSolver {
                 most = Some((ci, l));
             }
         }
-        let Some((ci, _)) = most else { return false };
-        self.cands.candidates[ci].active = false;
-        self.cands.screen.forget(ci);
-        true
+        let tether = self.most_compressive_tether(self.sys.rows.len(), scale);
+        match (most, tether) {
+            (Some((ci, l)), t) if t.is_none_or(|(_, lt)| l <= lt) => {
+                self.cands.candidates[ci].active = false;
+                self.cands.screen.forget(ci);
+                true
+            }
+            (_, Some((i, _))) => {
+                self.release_tether(i);
+                true
+            }
+            _ => false,
+        }
     }
 
     /// Moves each active sphere row's linearization point part of the way to its node's current position.
@@ -942,14 +968,17 @@ impl ConstrainedSolver {
             self.sys.rows.push(ConstraintRow { slot, dir, target });
             self.sys.row_candidate.push(ci);
         }
+        self.build_tether_rows();
     }
 
     /// Gathers the candidate rows of W, extends the enforced factor with them, solves for lambda and the nodal forces.
     fn solve_rows(&mut self) {
         let t = std::time::Instant::now();
-        let n = self.sys.rows.len();
+        let n = self.row_count();
         let e = 3 * self.tools.enforced_nodes;
         let s = n - e;
+        // the candidate rows come first in the s block, the tethers' after them
+        let s_c = self.sys.rows.len() - e;
         self.sys.w_es.clear();
         self.sys.w_es.resize(e * s, 0.0);
         self.sys.w_ss.clear();
@@ -959,7 +988,7 @@ impl ConstrainedSolver {
         if let Some(kept) = kept.as_mut() {
             kept.prepare(self.frame, self.columns.lazy_generation, &self.sys.nodes, self.sys.nodes_version);
         }
-        for t in 0..s {
+        for t in 0..s_c {
             let ri = self.sys.rows[e + t];
             let pi = self.sys.nodes[ri.slot];
             // A sphere or face row's node is a candidate: its blocks against the W nodes are kept (K^-1[q, p] is
@@ -988,6 +1017,7 @@ impl ConstrainedSolver {
             }
         }
         drop(kept);
+        self.gather_tether_rows(e, s, &mut w_es, &mut w_ss);
         (self.sys.w_es, self.sys.w_ss) = (w_es, w_ss);
         self.timings.gather += t.elapsed().as_secs_f64();
         let t = std::time::Instant::now();
@@ -997,6 +1027,9 @@ impl ConstrainedSolver {
             let u0 = self.model.gravity_displacement(self.sys.nodes[row.slot]);
             self.sys.lambda.push(row.target - row.dir.dot(&u0));
         }
+        let mut lambda = std::mem::take(&mut self.sys.lambda);
+        self.tether_rhs(&mut lambda);
+        self.sys.lambda = lambda;
         self.sys.factor.solve_in_place(&mut self.sys.lambda);
         self.timings.factor += t.elapsed().as_secs_f64();
         self.sys.node_force.clear();
@@ -1004,6 +1037,7 @@ impl ConstrainedSolver {
         for (row, l) in self.sys.rows.iter().zip(&self.sys.lambda) {
             self.sys.node_force[row.slot] += row.dir * *l;
         }
+        self.add_tether_forces(self.sys.rows.len());
     }
 
     /// `sqrt(|K^-1[node, node]|_F)` for the screen, when the node has a ROI or lazy column; kept once read.
@@ -1125,7 +1159,10 @@ impl ConstrainedSolver {
         }
         self.carry_active_set(out);
         out.active_sphere_contacts = self.sys.row_candidate.iter().filter(|&&ci| self.cands.candidates[ci].limit.is_sphere()).count();
-        let n = self.sys.rows.len();
+        let mut tensions = std::mem::take(&mut out.tether_tension);
+        self.write_tether_tensions(self.sys.rows.len(), &mut tensions);
+        out.tether_tension = tensions;
+        let n = self.row_count();
         out.rows = n;
         out.dropped_rows = self.sys.factor.dropped().filter(|d| *d).count();
         out.conditioning = self.sys.factor.conditioning_estimate();
