@@ -7,7 +7,8 @@
 //! `SceneView` borrowing the snapshot and the buffers. Stays true: the three
 //! consumers draw through [`SceneBuffers::view`] only, so a screenshot looks
 //! like the window; capturing a snapshot reuses its vectors (no allocation once
-//! sized); nothing here touches the GPU.
+//! sized; a scene's vessels and bands, when it has them, through
+//! [`super::tethers`]); nothing here touches the GPU.
 
 use crate::geometry::Pose;
 use crate::math::Vec3;
@@ -128,6 +129,9 @@ pub struct Snapshot {
     /// The blade a `--script` made active (it drives the keys then; `None`
     /// without a script: the window's own keyboard says which).
     pub scripted_spatula: Option<usize>,
+    /// Vessels and bands at this frame, and what happened to them so far
+    /// (empty in a scene without tethers).
+    pub tethers: super::tethers::TetherSnapshot,
 }
 
 /// Per-surface-vertex areas (a third of each adjacent rest triangle), m^2, for
@@ -180,6 +184,7 @@ impl Snapshot {
             }
         }
         self.set_strain(surface, &state.stress);
+        self.tethers.capture(pipeline.tethers(), &state.surface_positions);
         self.source_nodes.clear();
         self.pairs.clear();
         if let Some(collision) = pipeline.collision() {
@@ -347,11 +352,13 @@ pub fn camera_from_parts(
     }
 }
 
-/// Owned buffers a [`SceneView`] borrows (spatula views, skull spheres), reused each frame.
+/// Owned buffers a [`SceneView`] borrows (spatula views, skull spheres,
+/// tether tubes), reused each frame.
 #[derive(Debug, Default)]
 pub struct SceneBuffers {
     spatulas: Vec<SpatulaView>,
     skull: Vec<SkullSphere>,
+    tethers: Vec<crate::render::TetherSegment>,
 }
 
 /// Colours of the two blades: cool steel (first) and warm brass (second), so they can be told apart.
@@ -386,8 +393,13 @@ impl SceneBuffers {
             };
             Some(ScalarField { values, kind, map, range })
         });
+        match &pipeline_view.tethers {
+            Some(info) => super::tethers::segments(info, &snapshot.tethers, &mut self.tethers),
+            None => self.tethers.clear(),
+        }
         view.spatulas = &self.spatulas;
         view.skull = &self.skull;
+        view.tethers = &self.tethers;
         view.overlays = Overlays {
             source_nodes: if options.source_nodes { &snapshot.source_nodes } else { &[] },
             node_size_m: 0.0,
@@ -398,7 +410,7 @@ impl SceneBuffers {
 }
 
 /// What does not change between frames of one pipeline: triangles, blade
-/// shapes, skull spheres (copied once so the window's render thread needs no
+/// shapes, skull spheres, the vessels' and bands' names and limits (copied once so the window's render thread needs no
 /// access to the pipeline, which lives on the simulation thread).
 #[derive(Debug, Clone, Default)]
 pub struct SceneStatic {
@@ -410,6 +422,10 @@ pub struct SceneStatic {
     /// The scenario's display settings (colour-bar top, named cameras), for a
     /// window that loads another scene; `None` where only the pipeline was known.
     pub display: Option<crate::scenario::Display>,
+    /// The scene's vessels and bands (`None`: it has none).
+    pub tethers: Option<crate::scenario::Tethers>,
+    /// The vessel-stretch legend (`None`: the scene has no vessels).
+    pub vessel_legend: Option<crate::render::tethers::VesselLegend>,
 }
 
 impl SceneStatic {
@@ -426,12 +442,15 @@ impl SceneStatic {
                 skull.push(SkullSphere { center: e.center, radius: e.radius, color: [0.9, 0.2, 0.15, 0.25] });
             }
         }
+        let tethers = pipeline.tethers().map(|t| t.tethers().clone()).filter(|t| !t.is_empty());
         Self {
             triangles: pipeline.surface().triangles.clone(),
             shapes: pipeline.spatula_shapes().to_vec(),
             skull,
             bounds: pipeline.mesh().bounding_box(),
             display: None,
+            vessel_legend: tethers.as_ref().and_then(super::tethers::vessel_legend),
+            tethers,
         }
     }
 }

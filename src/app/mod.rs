@@ -17,4 +17,5 @@ pub mod progress;
 pub mod script;
 pub mod sim_thread;
 pub mod stress_worker;
+pub mod tethers;
 pub mod window;

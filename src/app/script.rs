@@ -3,7 +3,9 @@
 //!
 //! In: text, one action a line: `TIME_S ACTION [ARG]`, `#` starts a comment.
 //! Actions: `press KEY`, `release KEY` (KEY: W S D A E Q Up Down Left Right
-//! PageUp PageDown 1 .. 9 Tab Shift), `record PATH`, `stop`, `field none|displacement|pressure|strain`,
+//! PageUp PageDown 1 .. 9 Tab Shift), `cut [N]` (microscissors at blade N's
+//! tip, numbered from 1 as the digit keys and the panel number them; without
+//! N the active blade's, as the X key), `record PATH`, `stop`, `field none|displacement|pressure|strain`,
 //! `view overview|microscope`, `quit`; and through the window's own key
 //! handling (focus rules included, as a user's key would go): `keydown NAME`,
 //! `keyup NAME` (NAME: any key of [`crate::input::bindings::KEY_BINDINGS`],
@@ -36,6 +38,8 @@ pub enum ScriptAction {
     Press(Key),
     Release(Key),
     Record(PathBuf),
+    /// Cut the bands at this blade's tip (index from 0; `None`: the active blade).
+    Cut(Option<usize>),
     Stop,
     Field(SurfaceField),
     View(ViewPreset),
@@ -47,9 +51,9 @@ pub enum ScriptAction {
 }
 
 impl ScriptAction {
-    /// True for actions the simulation thread carries out (keys, recording, quit).
+    /// True for actions the simulation thread carries out (keys, cuts, recording, quit).
     pub fn is_simulation(&self) -> bool {
-        matches!(self, Self::Press(_) | Self::Release(_) | Self::Record(_) | Self::Stop | Self::Quit)
+        matches!(self, Self::Press(_) | Self::Release(_) | Self::Cut(_) | Self::Record(_) | Self::Stop | Self::Quit)
     }
 
     /// True for the actions that drive the blades from the script (the live
@@ -112,6 +116,13 @@ impl Script {
                     Some("panel") => ScriptAction::FocusPanel,
                     _ => return Err(need("panel")),
                 },
+                "cut" => ScriptAction::Cut(match arg {
+                    None => None,
+                    Some(n) => match n.parse::<usize>() {
+                        Ok(n) if n >= 1 => Some(n - 1),
+                        _ => return Err(err(format!("`cut` takes a blade number from 1 (or nothing: the active blade), got `{n}`"))),
+                    },
+                }),
                 "stop" => ScriptAction::Stop,
                 "quit" => ScriptAction::Quit,
                 "field" => ScriptAction::Field(match arg {
@@ -164,5 +175,21 @@ mod tests {
         assert!(!s.actions[1].1.is_simulation() && s.actions[0].1.is_scripted_key());
         let e = Script::parse("0 keydown Z\n", Path::new("s.txt")).unwrap_err().to_string();
         assert!(e.contains("unknown key `Z`"), "{e}");
+    }
+
+    /// `cut N` names the blade as the digit keys do (from 1); `cut` alone is
+    /// the active blade's; both run on the simulation thread; `keydown X`
+    /// goes through the window's keys.
+    #[test]
+    fn cut_names_the_blade_from_one_and_runs_in_the_simulation() {
+        let s = Script::parse("0.5 cut 2\n0.6 cut\n0.7 keydown X\n", Path::new("s.txt")).unwrap();
+        assert_eq!(s.actions[0].1, ScriptAction::Cut(Some(1)));
+        assert_eq!(s.actions[1].1, ScriptAction::Cut(None));
+        assert!(s.actions[0].1.is_simulation() && !s.actions[0].1.is_scripted_key());
+        assert!(matches!(s.actions[2].1, ScriptAction::WindowKey(b, true) if b.name == "X"));
+        for bad in ["0 cut 0\n", "0 cut left\n"] {
+            let e = Script::parse(bad, Path::new("s.txt")).unwrap_err().to_string();
+            assert!(e.contains("s.txt:1") && e.contains("blade number from 1"), "{e}");
+        }
     }
 }

@@ -54,6 +54,9 @@ pub enum SimCommand {
     /// without the StressField stage then gets its stress from a background
     /// worker on the other core (never waited for; a frame or more behind).
     ShowStrain(bool),
+    /// Microscissors at this blade's tip (index from 0): the arachnoid bands
+    /// within reach are cut at the next frame (a scene without tethers says so).
+    Cut(usize),
     /// Stop after the current frame.
     Quit,
 }
@@ -366,6 +369,35 @@ fn stopped(shared: &SimShared, recording: Option<Recording>) {
     shared.recording.store(false, Ordering::Relaxed);
 }
 
+/// Asks the pipeline to cut at blade `k`'s tip; the blade when the scene has
+/// tethers (the frame that cuts then says what it cut), else `None` and the
+/// status line says there is nothing to cut.
+fn request_cut(b: &mut Built, k: usize, shared: &SimShared) -> Option<usize> {
+    let name = b.scenario.spatulas.get(k).map_or_else(|| format!("blade {}", k + 1), |s| s.name.clone());
+    if k >= b.scenario.spatulas.len() {
+        *lock(&shared.status) = format!("cut: this scene has no {name}");
+        return None;
+    }
+    if b.pipeline.request_cut(k) {
+        Some(k)
+    } else {
+        *lock(&shared.status) = format!("cut at {name}'s tip: this scene has no vessels or bands");
+        None
+    }
+}
+
+/// The status line after a frame that carried out a cut at blade `k`'s tip.
+fn say_what_was_cut(b: &Built, k: usize, report: &crate::sim::FrameReport, shared: &SimShared) {
+    let cut = report.tethers.as_ref().map_or(0, |t| t.events.iter().filter(|e| e.kind == crate::sim::tethers::LinkState::Cut).count());
+    let name = b.scenario.spatulas.get(k).map_or("the blade", |s| s.name.as_str());
+    let reach_mm = crate::sim::tethers::CUT_RADIUS_M * 1e3;
+    *lock(&shared.status) = match cut {
+        0 => format!("cut at {name}'s tip: no band within {reach_mm:.0} mm"),
+        1 => format!("cut at {name}'s tip: 1 band cut"),
+        n => format!("cut at {name}'s tip: {n} bands cut"),
+    };
+}
+
 /// The background solve (`app::stress_worker::StressWorker`, on the other core, never waited
 /// for): the strain colour for a scene without the StressField stage
 /// (started when the window first asks for strain) and the surface beyond
@@ -453,6 +485,8 @@ fn run_loop(
     let mut next = Instant::now();
     let mut quit = false;
     let mut background = BackgroundSolve::default();
+    // A cut asked for (the blade): the frame that carries it out says what it cut.
+    let mut cut_asked: Option<usize> = None;
     // Guards replaced by a rebuild leave their counts here.
     let mut rejected_before_rebuild = 0u64;
     let mut tracker_refused_shown = 0u64;
@@ -503,6 +537,7 @@ fn run_loop(
                     background.wanted = on;
                     background.stress.clear();
                 }
+                SimCommand::Cut(k) => cut_asked = request_cut(&mut b, k, shared).or(cut_asked),
             }
             if let Some(s) = rebuild {
                 // A rebuild restarts at rest: the history and any recording end here.
@@ -567,6 +602,10 @@ fn run_loop(
                     Err(e) => recording_failed(shared, format!("cannot record: {e}")),
                 },
                 ScriptAction::Stop => stopped(shared, recorder.take()),
+                ScriptAction::Cut(blade) => {
+                    let active = if scripted { script_keys.command().spatula } else { lock(&shared.input).keyboard.spatula };
+                    cut_asked = request_cut(&mut b, blade.unwrap_or(active), shared).or(cut_asked);
+                }
                 ScriptAction::Quit => quit = true,
                 _ => {}
             }
@@ -649,6 +688,9 @@ fn run_loop(
                 if let Some(h) = &haptics {
                     let model = HapticModel::of_frame(&b.pipeline, &b.state.poses, &report, &mut scratch);
                     h.publish(Arc::new(model));
+                }
+                if let Some(k) = cut_asked.take() {
+                    say_what_was_cut(&b, k, &report, shared);
                 }
                 back.capture(&b.pipeline, &b.state, &report, &b.areas);
                 if background.update(&b.pipeline, &b.state, shared) {

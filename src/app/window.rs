@@ -523,6 +523,7 @@ impl App {
         data.active_spatula = self.front.scripted_spatula.unwrap_or(self.keyboard.spatula);
         data.keys_to_scene = self.keys_to_scene;
         data.has_skull = !self.scene.skull.is_empty();
+        data.tethers = self.scene.tethers.as_ref().map(|info| super::tethers::panel(info, &self.front.tethers, self.front.report.tethers.as_ref()));
         let mut actions = Vec::new();
         let previous_culling = self.panel.culling;
         let mut backend = self.backend;
@@ -554,6 +555,7 @@ impl App {
         let mut load_field = self.load_field;
         let building = *lock(&shared.progress);
         let loading = (self.front.surface_positions.is_empty() || building.is_some()).then(|| self.scenario_path.display().to_string());
+        let vessel_legend = self.scene.vessel_legend.as_ref().filter(|_| loading.is_none());
         let mut full = self.egui.run_ui(raw, |ui| {
             if let Some(scene_name) = &loading {
                 loading_screen(ui, scene_name, building, &status);
@@ -589,6 +591,10 @@ impl App {
                 let painter = ui.ctx().layer_painter(egui::LayerId::new(egui::Order::Foreground, egui::Id::unique("fissure_legend")));
                 crate::ui::legend::paint_legend(&painter, scene, legend);
             }
+            if let Some(vessels) = vessel_legend {
+                let painter = ui.ctx().layer_painter(egui::LayerId::new(egui::Order::Foreground, egui::Id::unique("fissure_vessel_legend")));
+                crate::ui::legend::paint_vessel_legend(&painter, ui.available_rect_before_wrap(), vessels);
+            }
         });
         self.load_field = load_field;
         // Only the text field may keep the keys: a clicked button, slider or
@@ -609,6 +615,7 @@ impl App {
                 PanelAction::CameraOverview => self.preset(ViewPreset::Overview),
                 PanelAction::CameraMicroscope => self.preset(ViewPreset::Microscope),
                 PanelAction::LoadScenario => load = true,
+                PanelAction::Cut => self.cut(),
                 PanelAction::SelectSpatula(k) => {
                     if let Some(key) = crate::input::keyboard::DIGITS.get(k) {
                         self.keyboard.apply(KeyEvent { key: *key, pressed: true });
@@ -724,11 +731,17 @@ impl App {
                     self.toggle_recording(on);
                 }
                 KeyAction::Rumble => self.rumble.enabled = !self.rumble.enabled,
+                KeyAction::Cut => self.cut(),
                 KeyAction::Blade(_) => {}
             },
             KeyRoute::Scene(_) => {}
         }
         false
+    }
+
+    /// Microscissors at the active blade's tip (the one the keys drive).
+    fn cut(&self) {
+        self.send(SimCommand::Cut(self.front.scripted_spatula.unwrap_or(self.keyboard.spatula)));
     }
 
     fn panel_data(&self) -> PanelData {

@@ -51,10 +51,19 @@ impl OffscreenFrames {
         let camera = camera_for(self.view, pipeline, &state.poses, &self.options.views);
         let view = self.buffers.view(scene, &self.snapshot, &self.options, camera);
         renderer.render_offscreen(&view).context("rendering a frame")?;
-        // The shown field's colour bar, painted by the window's legend code.
-        if let Some(legend) = legend_for(&self.options, &self.snapshot) {
+        // The shown field's colour bar and the vessels' stretch legend, painted by the window's legend code.
+        let legend = legend_for(&self.options, &self.snapshot);
+        let vessels = scene.vessel_legend.as_ref();
+        if legend.is_some() || vessels.is_some() {
             self.overlay
-                .paint(renderer, |painter, rect| fissure::ui::legend::paint_legend(painter, rect, &legend))
+                .paint(renderer, |painter, rect| {
+                    if let Some(legend) = &legend {
+                        fissure::ui::legend::paint_legend(painter, rect, legend);
+                    }
+                    if let Some(vessels) = vessels {
+                        fissure::ui::legend::paint_vessel_legend(painter, rect, vessels);
+                    }
+                })
                 .context("drawing the colour legend")?;
         }
         capture::read_offscreen(renderer).context("reading the frame back")

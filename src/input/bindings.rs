@@ -25,6 +25,8 @@ pub enum KeyAction {
     Record,
     /// Gamepad force feedback on / off.
     Rumble,
+    /// Microscissors at the active blade's tip: cut the arachnoid bands near it.
+    Cut,
     /// Give the keys back to the scene (from the panel's text field).
     SceneFocus,
     /// Quit (Ctrl+Q).
@@ -80,6 +82,7 @@ pub const KEY_BINDINGS: &[KeyBinding] = &[
     bind(KeyCode::KeyF, "F", KeyAction::CycleField),
     bind(KeyCode::KeyR, "R", KeyAction::Record),
     bind(KeyCode::KeyH, "H", KeyAction::Rumble),
+    bind(KeyCode::KeyX, "X", KeyAction::Cut),
     bind(KeyCode::Escape, "Esc", KeyAction::SceneFocus),
     KeyBinding { code: KeyCode::KeyQ, ctrl: true, name: "Ctrl+Q", action: KeyAction::Quit },
 ];
@@ -193,6 +196,11 @@ pub const CONTROLS: &[ControlRow] = &[
         keys: &["H"],
     },
     ControlRow {
+        input: "X",
+        action: "microscissors: cut the arachnoid bands within 2 mm of the active blade's tip (a scene with tethers; the panel lists what was cut or torn)",
+        keys: &["X"],
+    },
+    ControlRow {
         input: "Esc",
         action: "keys back to the scene (after typing in the panel's text field); the panel shows where keys go: \"keys -> scene\" or \"keys -> panel\"",
         keys: &["Esc"],
@@ -244,6 +252,7 @@ mod tests {
         assert_eq!(action_of(KeyCode::Escape, false), Some(KeyAction::SceneFocus), "Esc gives the keys back, it does not quit");
         assert_eq!(action_of(KeyCode::Digit2, false), Some(KeyAction::Blade(Key::Digit2)));
         assert_eq!(action_of(KeyCode::KeyZ, false), None);
+        assert_eq!(action_of(KeyCode::KeyX, false), Some(KeyAction::Cut), "X cuts at the active blade");
     }
 
     /// Tab never moves the focus into the panel (the keys would stop

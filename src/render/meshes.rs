@@ -1,5 +1,5 @@
 //! CPU-side geometry for one frame: surface normals and colours, blade boxes,
-//! skull spheres, overlay squares and ribbons.
+//! skull spheres, tether tubes, overlay squares and ribbons.
 //!
 //! In: a [`SceneView`]'s parts and the camera target (positions are emitted
 //! relative to it, so f32 keeps ~0.1 µm resolution within a 1 m scene). Out:
@@ -10,7 +10,7 @@
 
 use super::colormap::NO_DATA;
 use super::gpu_types::Vertex;
-use super::scene::{BRAIN_PINK, FieldKind, Overlays, SkullSphere, SpatulaView, SurfaceView};
+use super::scene::{BRAIN_PINK, FieldKind, Overlays, SkullSphere, SpatulaView, SurfaceView, TetherSegment};
 use crate::math::Vec3;
 
 /// Per-vertex area-weighted normals of `triangles` over `positions`, written to
@@ -213,6 +213,57 @@ pub fn sphere_vertices(
     }
 }
 
+/// Sides of an opaque tether tube (a vessel, a torn end's stub).
+pub const TUBE_SIDES: u32 = 10;
+/// Sides of a translucent strand (a band: a fine thread).
+pub const STRAND_SIDES: u32 = 6;
+
+/// Appends the tether tubes of `segments` whose opacity is 1 (`opaque`) or
+/// below 1 (not `opaque`): a cylinder of `TUBE_SIDES` (opaque) or
+/// `STRAND_SIDES` sides, CCW from outside; an opaque tube also gets a sphere
+/// of its radius at each end from `unit_cap` ([`unit_sphere`]), so the
+/// segments of a vessel join without gaps at its bends. A segment with no
+/// length, no radius, or anything not finite is skipped.
+pub fn tube_vertices(segments: &[TetherSegment], opaque: bool, unit_cap: &[Vec3], origin: &Vec3, out: &mut Vec<Vertex>) {
+    for seg in segments {
+        if (seg.alpha >= 1.0) != opaque {
+            continue;
+        }
+        let r = f64::from(seg.radius_m);
+        let axis = seg.b - seg.a;
+        let length = axis.norm();
+        if !(r > 0.0 && r.is_finite() && length > 1e-9 && length.is_finite()) || !seg.a.iter().all(|c| c.is_finite()) {
+            continue;
+        }
+        let d = axis / length;
+        // Any unit vector across the axis, and the third making (u, v, d) right-handed.
+        let helper = if d.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
+        let u = d.cross(&helper).normalize();
+        let v = d.cross(&u);
+        let color = [seg.color[0], seg.color[1], seg.color[2], seg.alpha.clamp(0.0, 1.0)];
+        let sides = if opaque { TUBE_SIDES } else { STRAND_SIDES };
+        let around = |i: u32| {
+            let t = std::f64::consts::TAU * f64::from(i) / f64::from(sides);
+            u * t.cos() + v * t.sin()
+        };
+        for i in 0..sides {
+            let (n0, n1) = (around(i), around(i + 1));
+            let (a0, a1) = (seg.a + n0 * r, seg.a + n1 * r);
+            let (b0, b1) = (seg.b + n0 * r, seg.b + n1 * r);
+            for (p, n) in [(a0, n0), (a1, n1), (b1, n1), (a0, n0), (b1, n1), (b0, n0)] {
+                out.push(Vertex { position: rel(&p, origin), normal: f3(&n), color });
+            }
+        }
+        if opaque {
+            for centre in [seg.a, seg.b] {
+                for n in unit_cap {
+                    out.push(Vertex { position: rel(&(centre + n * r), origin), normal: f3(n), color });
+                }
+            }
+        }
+    }
+}
+
 /// Overlay colours (linear RGB).
 pub const NODE_COLOR: [f32; 4] = [0.1, 0.6, 1.0, 1.0];
 pub const FEASIBLE_COLOR: [f32; 4] = [0.1, 0.9, 0.2, 1.0];
@@ -375,6 +426,30 @@ mod tests {
                 "normal must point out of the box"
             );
         }
+    }
+
+    /// Tube triangles wind CCW seen from outside and their normals point away
+    /// from the axis; opaque and translucent segments go to their own pass;
+    /// a degenerate segment draws nothing.
+    #[test]
+    fn tubes_face_outward_and_split_by_opacity() {
+        let seg = |alpha: f32, b: Vec3| TetherSegment { a: Vec3::zeros(), b, radius_m: 0.001, color: [1.0, 0.0, 0.0], alpha };
+        let segments = [seg(1.0, Vec3::new(0.0, 0.0, 0.01)), seg(0.5, Vec3::new(0.01, 0.0, 0.0)), seg(1.0, Vec3::zeros())];
+        let cap = unit_sphere(3, 6);
+        let mut out = Vec::new();
+        tube_vertices(&segments, true, &cap, &Vec3::zeros(), &mut out);
+        assert_eq!(out.len(), (TUBE_SIDES * 6) as usize + 2 * cap.len(), "one opaque tube with its two caps");
+        for tri in out[..(TUBE_SIDES * 6) as usize].chunks(3) {
+            let p = tri.iter().map(|v| Vec3::new(v.position[0] as f64, v.position[1] as f64, v.position[2] as f64)).collect::<Vec<_>>();
+            let winding = (p[1] - p[0]).cross(&(p[2] - p[0]));
+            let centre = (p[0] + p[1] + p[2]) / 3.0;
+            let radial = Vec3::new(centre.x, centre.y, 0.0);
+            assert!(winding.dot(&radial) > 0.0, "tube triangle faces inward");
+        }
+        out.clear();
+        tube_vertices(&segments, false, &cap, &Vec3::zeros(), &mut out);
+        assert_eq!(out.len(), (STRAND_SIDES * 6) as usize, "one translucent strand, no caps");
+        assert!(out.iter().all(|v| v.color[3] == 0.5));
     }
 
     #[test]

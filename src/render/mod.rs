@@ -1,5 +1,5 @@
-//! Rendering: the deformed brain surface, the spatulas, overlays and skull
-//! spheres, with wgpu; offscreen capture for screenshots and `replay --frames`.
+//! Rendering: the deformed brain surface, the spatulas, overlays, skull
+//! spheres and tether tubes, with wgpu; offscreen capture for screenshots and `replay --frames`.
 //!
 //! In: a [`SceneView`] per frame (plain data: positions, triangles, an optional
 //! scalar field, spatula shapes and poses, a camera). Out: pixels in a window
@@ -15,6 +15,7 @@ pub mod legend;
 pub mod meshes;
 pub mod renderer;
 pub mod scene;
+pub mod tethers;
 pub mod window;
 
 pub use camera::OrbitCamera;
@@ -22,6 +23,7 @@ pub use colormap::ColorMap;
 pub use renderer::Renderer;
 pub use scene::{
     FieldKind, Overlays, PairSegment, ScalarField, SceneView, SkullSphere, SpatulaView, SurfaceView,
+    TetherSegment,
 };
 
 use std::path::PathBuf;

@@ -10,10 +10,11 @@
 //! a wgpu validation error becomes a [`RenderError::Gpu`], never a panic.
 //!
 //! Passes, in order, in one render pass with a depth buffer and 4x MSAA where
-//! the format allows: brain surface (two-sided), blades (opaque), hidden
-//! contact (with a pressure field: the triangles under pressure drawn again,
-//! translucent, only where something nearer hides them, so the patch under a
-//! blade or behind a lip of tissue shows through it), skull spheres (alpha
+//! the format allows: brain surface (two-sided), blades and opaque tether
+//! tubes (vessels, torn ends' stubs), hidden contact (with a pressure field:
+//! the triangles under pressure drawn again, translucent, only where something
+//! nearer hides them, so the patch under a blade or behind a lip of tissue
+//! shows through it), translucent strands (bands) and skull spheres (alpha
 //! blended, no depth write), overlays (nodes as squares, pairs as ribbons; on
 //! top, no depth test).
 
@@ -95,7 +96,9 @@ pub(crate) struct OffscreenTarget {
 /// Ranges of the shared tool vertex buffer.
 #[derive(Debug, Default, Clone, Copy)]
 struct ToolRanges {
+    /// Blades and opaque tether tubes.
     blades: (u32, u32),
+    /// Translucent strands, then skull spheres.
     skull: (u32, u32),
     overlays: (u32, u32),
 }
@@ -107,6 +110,8 @@ struct Scratch {
     surface: Vec<Vertex>,
     tools: Vec<Vertex>,
     unit_sphere: Vec<crate::math::Vec3>,
+    /// A coarse unit sphere: the rounded ends of tether tubes.
+    unit_cap: Vec<crate::math::Vec3>,
 }
 
 /// The renderer. Create once; call [`Renderer::render`] (or
@@ -355,6 +360,7 @@ impl Renderer {
         let tool_vertices = GrowBuffer::new(&device, "tool vertices", vertex_usage);
         let scratch = Scratch {
             unit_sphere: meshes::unit_sphere(24, 48),
+            unit_cap: meshes::unit_sphere(4, meshes::TUBE_SIDES),
             ..Scratch::default()
         };
         let renderer = Self {
@@ -557,7 +563,9 @@ impl Renderer {
 
         s.tools.clear();
         meshes::blade_vertices(view.spatulas, &origin, &mut s.tools);
+        meshes::tube_vertices(view.tethers, true, &s.unit_cap, &origin, &mut s.tools);
         let blades_end = s.tools.len() as u32;
+        meshes::tube_vertices(view.tethers, false, &s.unit_cap, &origin, &mut s.tools);
         meshes::sphere_vertices(view.skull, &s.unit_sphere, &origin, &mut s.tools);
         let skull_end = s.tools.len() as u32;
         let (right, up) = cam.right_up();

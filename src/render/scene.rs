@@ -1,7 +1,8 @@
 //! What the renderer draws: plain data the pipeline (or a test) fills each frame.
 //!
 //! In: borrowed slices of the deformed surface, an optional per-vertex scalar
-//! field, spatula shapes and poses, overlays, skull spheres, a camera. Out:
+//! field, spatula shapes and poses, overlays, skull spheres, tether tubes
+//! (vessels, arachnoid bands), a camera. Out:
 //! nothing (data only). Stays true: no simulation types beyond `Vec3`, `Pose`
 //! and `SpatulaShape`; everything is in metres, world frame.
 
@@ -125,6 +126,22 @@ pub struct SkullSphere {
     pub color: [f32; 4],
 }
 
+/// A tube between two points: a vessel segment, an arachnoid band, the stub
+/// of a torn vessel's end.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TetherSegment {
+    /// The two ends, metres.
+    pub a: Vec3,
+    pub b: Vec3,
+    /// Tube radius, metres (> 0; a segment with none, or not finite, is not drawn).
+    pub radius_m: f32,
+    /// Linear RGB, each 0..1.
+    pub color: [f32; 3],
+    /// Opacity 0..1: 1 draws a lit solid tube with rounded ends, below 1 a
+    /// translucent strand (blended, after the opaque parts).
+    pub alpha: f32,
+}
+
 /// Everything one frame draws.
 #[derive(Debug, Clone, Copy)]
 pub struct SceneView<'a> {
@@ -132,6 +149,8 @@ pub struct SceneView<'a> {
     pub spatulas: &'a [SpatulaView],
     pub overlays: Overlays<'a>,
     pub skull: &'a [SkullSphere],
+    /// Vessels and bands tied to the surface (empty in a scene without them).
+    pub tethers: &'a [TetherSegment],
     pub camera: OrbitCamera,
     /// Linear RGB background.
     pub background: [f32; 3],
@@ -149,6 +168,7 @@ impl<'a> SceneView<'a> {
             spatulas: &[],
             overlays: Overlays::default(),
             skull: &[],
+            tethers: &[],
             camera,
             background: BACKGROUND,
         }

@@ -230,7 +230,7 @@ impl Tethers {
 /// Checks the file's tethers into SI; `invalid(field, problem)` makes the error at the field's position.
 pub(super) fn validate(file: &TethersFile, invalid: &dyn Fn(&str, String) -> ScenarioError) -> Result<Tethers, ScenarioError> {
     let mut names: Vec<&str> = Vec::new();
-    let mut check_name = |field: String, name: &'_ str| -> Result<(), ScenarioError> {
+    let check_name = |field: String, name: &'_ str| -> Result<(), ScenarioError> {
         if name.trim().is_empty() {
             return Err(invalid(&field, "must not be empty".into()));
         }

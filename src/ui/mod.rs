@@ -9,9 +9,13 @@
 //! pressure above which brain injury risk rises) is drawn and exceeding it
 //! shows a warning and accumulates pressure-time (simulated seconds); the
 //! panel's first line says where the keys go ("keys -> scene" / "keys -> panel")
-//! and each blade is listed by the scene's own name, the active one marked.
+//! and each blade is listed by the scene's own name, the active one marked;
+//! a scene with vessels or arachnoid bands gets their section
+//! ([`tethers::tethers_section`]): bands by state, each vessel's stretch
+//! against its rupture stretch, what tore or was cut.
 
 pub mod legend;
+pub mod tethers;
 
 use crate::render::FieldKind;
 
@@ -164,11 +168,13 @@ pub struct PanelData {
     pub keys_to_scene: bool,
     /// The scene has skull spheres to show (else their switch is greyed out).
     pub has_skull: bool,
+    /// Vessels and bands (`None`: the scene has none).
+    pub tethers: Option<tethers::TetherPanel>,
 }
 
 impl Default for PanelData {
     fn default() -> Self {
-        Self { fps: 0.0, sim_frame_ms: 0.0, spatulas: Vec::new(), active_spatula: 0, keys_to_scene: true, has_skull: false }
+        Self { fps: 0.0, sim_frame_ms: 0.0, spatulas: Vec::new(), active_spatula: 0, keys_to_scene: true, has_skull: false, tethers: None }
     }
 }
 
@@ -235,6 +241,8 @@ pub enum PanelAction {
     LoadScenario,
     /// Make this blade the keyboard's active one (a click on its name).
     SelectSpatula(usize),
+    /// Cut the bands at the active blade's tip (as the X key does).
+    Cut,
 }
 
 /// Draws the right-hand panel into `ui` (the root ui of `Context::run_ui`),
@@ -297,6 +305,12 @@ pub fn draw_panel(
                     monitor.limit_mmhg, monitor.time_over_s, monitor.excess_mmhg_s, monitor.peak_mmhg
                 ));
                 pressure_bar(ui, s.mean_pressure_mmhg, monitor.limit_mmhg);
+            }
+            if let Some(t) = &data.tethers {
+                ui.separator();
+                if tethers::tethers_section(ui, t, data.active_spatula) {
+                    actions.push(PanelAction::Cut);
+                }
             }
             ui.separator();
             ui.label("Surface colour");
