@@ -76,7 +76,7 @@ for d in BAND_DEPTHS:
 
 # The superficial Sylvian vein on the frontal lip, along the fissure; an MCA branch crossing from the
 # temporal wall to the frontal wall 12 mm beside the blades.
-vein = [at(0.0, HALF_WIDTH + 1.0, a) for a in (-16.0, -8.0, 0.0, 8.0, 16.0)]
+vein = [at(0.02 * a * a, HALF_WIDTH + 1.0, a) for a in (-12.0, -6.0, 0.0, 6.0, 12.0)]  # the lateral surface curves inward along the fissure
 artery = [at(14.0, -HALF_WIDTH, 12.0), at(14.0, HALF_WIDTH, 12.0)]
 
 lines = ["    tethers: (", "        vessels: ["]
