@@ -42,6 +42,13 @@ pub fn vessel_color(base: [f32; 3], stretch: f64, warning: f64, rupture: f64) ->
         return base;
     }
     let t = ((stretch - warning) / (rupture - warning)).clamp(0.0, 1.0) as f32;
+    // the ends exactly (a blend at 0 or 1 may round off them)
+    if t <= 0.0 {
+        return base;
+    }
+    if t >= 1.0 {
+        return RUPTURE_YELLOW;
+    }
     if t <= 0.5 { mix(base, STRETCH_ORANGE, 2.0 * t) } else { mix(STRETCH_ORANGE, RUPTURE_YELLOW, 2.0 * t - 1.0) }
 }
 
