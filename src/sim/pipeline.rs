@@ -600,7 +600,8 @@ impl Pipeline {
         // Exact constrained solve and surface update.
         let t = Instant::now();
         let time_s = (frame + 1) as f64 * self.time_step;
-        if let Some(tethers) = &mut self.tethers {
+        if let Some(tethers) = self.tethers.as_mut().filter(|t| t.has_pending_cuts()) {
+            // Only a frame that cuts gathers the tips (a cut is rare; the frame stays allocation-free otherwise).
             let tips: Vec<Vec3> = self.shapes.iter().zip(&state.poses).map(|(s, p)| p.transform_point(&Vec3::new(s.length, 0.0, 0.0))).collect();
             tethers.apply_cuts(&tips, &state.surface_positions, time_s, frame, &mut self.solver);
         }

@@ -219,6 +219,11 @@ impl TetherStage {
         self.pending_cuts.push(spatula);
     }
 
+    /// Whether a cut waits for the next sub-step.
+    pub fn has_pending_cuts(&self) -> bool {
+        !self.pending_cuts.is_empty()
+    }
+
     /// Starts a frame's figures (the stretch maxima restart; states and events carry on).
     pub fn begin_frame(&mut self) {
         self.frame.vessel_stretch.iter_mut().for_each(|s| *s = 0.0);
