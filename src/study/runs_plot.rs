@@ -6,7 +6,8 @@
 //! `NAME_mean_pressure_mmhg` and `NAME_contact_vertices`, beside `time_s`,
 //! whatever the other columns and their order) and, when there is one,
 //! `summary.json` (its scenario name and its `interrupted` flag go under the
-//! run's name in the legend). Out: one PNG, or an SVG when the output's name
+//! run's name in the legend; its `injuries`, the tethers torn and cut, are
+//! marked on the time axis of every panel). Out: one PNG, or an SVG when the output's name
 //! ends in `.svg`, with three panels stacked on one time axis: the force on
 //! each blade (N), its mean contact pressure (mmHg) with the
 //! [`RETRACTION_DANGER_MMHG`] line drawn and labelled, and its contact vertices;
@@ -115,6 +116,35 @@ pub struct RunSeries {
     pub time_s: Vec<f64>,
     /// In the file's (the scenario's) order.
     pub blades: Vec<BladeSeries>,
+    /// `summary.json`'s injuries, in time order (none without the file).
+    pub events: Vec<RunEvent>,
+}
+
+/// A tether torn or cut during a run (`summary.json`'s `injuries`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunEvent {
+    pub time_s: f64,
+    pub kind: EventKind,
+    /// The vessel's or band's name.
+    pub tether: String,
+}
+
+/// What happened to a tether.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EventKind {
+    /// Broke under the blades: an injury.
+    Torn,
+    /// Cut on purpose (microscissors).
+    Cut,
+}
+
+impl EventKind {
+    fn word(self) -> &'static str {
+        match self {
+            EventKind::Torn => "torn",
+            EventKind::Cut => "cut",
+        }
+    }
 }
 
 impl RunSeries {
@@ -254,16 +284,41 @@ fn read_metrics(path: &Path) -> Result<(Vec<f64>, Vec<BladeSeries>), RunPlotErro
     Ok((time, blades))
 }
 
-/// `summary.json`'s scenario name and `interrupted` flag; (None, false) without the file.
-fn read_summary(dir: &Path) -> Result<(Option<String>, bool), RunPlotError> {
+/// What `summary.json` says of a run.
+#[derive(Debug, Default)]
+struct SummaryFacts {
+    scenario: Option<String>,
+    interrupted: bool,
+    events: Vec<RunEvent>,
+}
+
+/// `summary.json`'s scenario name, `interrupted` flag and injuries; nothing without the file.
+fn read_summary(dir: &Path) -> Result<SummaryFacts, RunPlotError> {
     let path = dir.join("summary.json");
     if std::fs::symlink_metadata(&path).is_err() {
-        return Ok((None, false));
+        return Ok(SummaryFacts::default());
     }
     let text = crate::fsio::read_regular_text(&path, SUMMARY_CAP)?;
     let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| RunPlotError::file(&path, format!("not a run summary: {e}")))?;
     let scenario = v.get("scenario").and_then(|s| s.as_str()).map(str::trim).filter(|s| !s.is_empty()).map(String::from);
-    Ok((scenario, v.get("interrupted").and_then(serde_json::Value::as_bool).unwrap_or(false)))
+    let interrupted = v.get("interrupted").and_then(serde_json::Value::as_bool).unwrap_or(false);
+    let mut events = Vec::new();
+    if let Some(list) = v.get("injuries") {
+        let list = list.as_array().ok_or_else(|| RunPlotError::file(&path, "`injuries` is not a list"))?;
+        for (k, e) in list.iter().enumerate() {
+            let bad = |what: &str| RunPlotError::file(&path, format!("injuries[{k}]: {what}"));
+            let time_s = e.get("time_s").and_then(serde_json::Value::as_f64).filter(|t| t.is_finite()).ok_or_else(|| bad("no finite `time_s`"))?;
+            let kind = match e.get("kind").and_then(serde_json::Value::as_str) {
+                Some("torn") => EventKind::Torn,
+                Some("cut") => EventKind::Cut,
+                other => return Err(bad(&format!("`kind` is {other:?}, not \"torn\" or \"cut\""))),
+            };
+            let tether = e.get("tether").and_then(serde_json::Value::as_str).unwrap_or("?").to_string();
+            events.push(RunEvent { time_s, kind, tether });
+        }
+    }
+    events.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+    Ok(SummaryFacts { scenario, interrupted, events })
 }
 
 /// The directory's own name (`out/run/` -> `run`; `.` -> the current folder's name).
@@ -281,8 +336,8 @@ pub fn read_run(dir: &Path) -> Result<RunSeries, RunPlotError> {
         Ok(_) => {}
     }
     let (time_s, blades) = read_metrics(&dir.join("metrics.csv"))?;
-    let (scenario, interrupted) = read_summary(dir)?;
-    Ok(RunSeries { dir: dir.to_path_buf(), label: dir_name(dir), scenario, interrupted, time_s, blades })
+    let SummaryFacts { scenario, interrupted, events } = read_summary(dir)?;
+    Ok(RunSeries { dir: dir.to_path_buf(), label: dir_name(dir), scenario, interrupted, time_s, blades, events })
 }
 
 /// Reads every run, in order; runs that share a directory name are named by
@@ -517,10 +572,69 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, panel: Panel, r
         let at = (t.start + (t.end - t.start) * 0.01, line + (y.end - y.start) * 0.015);
         chart.draw_series(std::iter::once(Text::new(label, at, style))).map_err(err)?;
     }
+    draw_events(&mut chart, panel, runs, &t, &y, s)?;
     for (r, run) in runs.iter().enumerate() {
         for (b, blade) in run.blades.iter().enumerate() {
             for points in segments(&run.time_s, panel.values(blade)) {
                 draw_segment(&mut chart, points, b, run_color(r), s)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// An event's vertical line: torn solid and heavy, cut dotted and light.
+fn event_line<DB: DrawingBackend>(chart: &mut Chart<'_, DB>, kind: EventKind, x: f64, y: &Range<f64>, color: RGBColor, s: Scale) -> Res {
+    let points = [(x, y.start), (x, y.end)];
+    match kind {
+        EventKind::Torn => chart.draw_series(LineSeries::new(points, color.stroke_width(s.px(2)))).map(|_| ()),
+        EventKind::Cut => chart.draw_series(DashedLineSeries::new(points, s.px(3), s.px(4), color.mix(0.8).stroke_width(s.px(1)))).map(|_| ()),
+    }
+    .map_err(err)
+}
+
+/// Events of one kind close in time, drawn under one label: (first time, count, the first's tether).
+fn event_groups(events: &[RunEvent], kind: EventKind, close_s: f64) -> Vec<(f64, usize, &str)> {
+    let mut out: Vec<(f64, usize, &str)> = Vec::new();
+    let mut last = f64::NEG_INFINITY;
+    for e in events.iter().filter(|e| e.kind == kind) {
+        match out.last_mut() {
+            Some(group) if e.time_s - last <= close_s => group.1 += 1,
+            _ => out.push((e.time_s, 1, &e.tether)),
+        }
+        last = e.time_s;
+    }
+    out
+}
+
+/// Every run's torn and cut tethers as vertical lines in the run's colour;
+/// on the force panel, a label over each group ("torn: NAME", or "8 cut"),
+/// a row a run and kind so that runs do not write over each other.
+fn draw_events<DB: DrawingBackend>(chart: &mut Chart<'_, DB>, panel: Panel, runs: &[RunSeries], t: &Range<f64>, y: &Range<f64>, s: Scale) -> Res {
+    let close_s = 0.04 * (t.end - t.start);
+    let mut row = 0;
+    for (r, run) in runs.iter().enumerate() {
+        for kind in [EventKind::Torn, EventKind::Cut] {
+            let groups = event_groups(&run.events, kind, close_s);
+            if groups.is_empty() {
+                continue;
+            }
+            for e in run.events.iter().filter(|e| e.kind == kind) {
+                event_line(chart, kind, e.time_s, y, run_color(r), s)?;
+            }
+            if panel != Panel::Force {
+                continue;
+            }
+            row += 1;
+            let at_y = y.end - (y.end - y.start) * 0.075 * row as f64;
+            for (time, n, tether) in groups {
+                let text = if n == 1 { format!("{}: {tether}", kind.word()) } else { format!("{n} {}", kind.word()) };
+                let right = time > t.start + 0.7 * (t.end - t.start);
+                let pos = Pos::new(if right { HPos::Right } else { HPos::Left }, VPos::Center);
+                let color = if kind == EventKind::Torn { DANGER } else { run_color(r) };
+                let style = (FONT, s.px(14), if kind == EventKind::Torn { FontStyle::Bold } else { FontStyle::Normal }).into_font().color(&color).pos(pos);
+                let nudge = (t.end - t.start) * 0.006 * if right { -1.0 } else { 1.0 };
+                chart.draw_series(std::iter::once(Text::new(text, (time + nudge, at_y), style))).map_err(err)?;
             }
         }
     }
@@ -543,6 +657,7 @@ enum Row<'a> {
     Note(String),
     Blade { name: &'a str, blade: usize, color: RGBColor },
     Danger,
+    Event(EventKind),
     More(usize),
 }
 
@@ -550,7 +665,11 @@ enum Row<'a> {
 /// runs as fit in `rows` rows.
 fn legend_rows(runs: &[RunSeries], panel: Panel, rows: usize) -> Vec<Row<'_>> {
     let mut out = Vec::new();
-    let reserved = usize::from(panel == Panel::Pressure);
+    let kinds: Vec<EventKind> = [EventKind::Torn, EventKind::Cut]
+        .into_iter()
+        .filter(|k| panel == Panel::Force && runs.iter().any(|r| r.events.iter().any(|e| e.kind == *k)))
+        .collect();
+    let reserved = usize::from(panel == Panel::Pressure) + kinds.len();
     for (r, run) in runs.iter().enumerate() {
         let note = match (&run.scenario, run.interrupted) {
             (Some(s), true) => Some(format!("{s} (interrupted)")),
@@ -571,6 +690,7 @@ fn legend_rows(runs: &[RunSeries], panel: Panel, rows: usize) -> Vec<Row<'_>> {
     if panel == Panel::Pressure {
         out.push(Row::Danger);
     }
+    out.extend(kinds.into_iter().map(Row::Event));
     out
 }
 
@@ -610,6 +730,21 @@ fn draw_legend<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, panel: Panel, 
                 let (a, b) = (indent, indent + s.i(14) + sample);
                 area.draw(&DashedPathElement::new(vec![(a, y), (b, y)], s.px(16), s.px(6), DANGER.stroke_width(s.px(2)))).map_err(err)?;
                 (b + s.i(8), format!("{RETRACTION_DANGER_MMHG} mmHg injury line"), (FONT, s.px(15)).into_font().color(&DANGER))
+            }
+            Row::Event(kind) => {
+                let x = indent + s.i(14) + sample / 2;
+                let color = if *kind == EventKind::Torn { DANGER } else { GREY };
+                let points = vec![(x, y - s.i(8)), (x, y + s.i(8))];
+                match kind {
+                    EventKind::Torn => area.draw(&PathElement::new(points, color.stroke_width(s.px(2)))),
+                    EventKind::Cut => area.draw(&DashedPathElement::new(points, s.px(3), s.px(4), color.stroke_width(s.px(1)))),
+                }
+                .map_err(err)?;
+                let what = match kind {
+                    EventKind::Torn => "tether torn (run's colour)",
+                    EventKind::Cut => "band cut (run's colour)",
+                };
+                (indent + s.i(14) + sample + s.i(8), what.to_string(), (FONT, s.px(15)).into_font().color(&color))
             }
             Row::More(n) => (indent, format!("... and {n} more run{}", if *n == 1 { "" } else { "s" }), (FONT, s.px(14)).into_font().color(&GREY)),
         };
@@ -676,6 +811,7 @@ mod tests {
             label: "r".into(),
             scenario: None,
             interrupted: false,
+            events: Vec::new(),
             time_s: vec![0.0, 1.0],
             blades: vec![BladeSeries { name: "a".into(), force_n: vec![0.0, 0.2], pressure_mmhg: vec![0.0, p], contact_vertices: vec![0.0, 3.0] }],
         };
@@ -691,6 +827,7 @@ mod tests {
             label: "r".into(),
             scenario: None,
             interrupted: false,
+            events: Vec::new(),
             blades: vec![BladeSeries { name: "a".into(), force_n: f.clone(), pressure_mmhg: vec![0.0; f.len()], contact_vertices: vec![0.0; f.len()] }],
             time_s: t,
         };
@@ -707,6 +844,15 @@ mod tests {
         assert_eq!(force_against(&first, &short)[0].frames, 1);
         assert!(force_against(&first, &run(vec![5.0, 6.0], vec![1.0, 1.0])).is_empty());
         assert_eq!(force_against(&first, &first)[0].max_pct, 0.0);
+    }
+
+    #[test]
+    fn events_close_in_time_share_a_label() {
+        let e = |time_s: f64, kind: EventKind, tether: &str| RunEvent { time_s, kind, tether: tether.into() };
+        let events = [e(1.0, EventKind::Cut, "b1"), e(1.02, EventKind::Torn, "vein"), e(1.03, EventKind::Cut, "b2"), e(1.2, EventKind::Cut, "b3"), e(2.0, EventKind::Torn, "b4")];
+        assert_eq!(event_groups(&events, EventKind::Cut, 0.05), vec![(1.0, 2, "b1"), (1.2, 1, "b3")]);
+        assert_eq!(event_groups(&events, EventKind::Torn, 0.05), vec![(1.02, 1, "vein"), (2.0, 1, "b4")]);
+        assert_eq!(event_groups(&events, EventKind::Torn, 1.0), vec![(1.02, 2, "vein")]);
     }
 
     #[test]
