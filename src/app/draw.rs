@@ -134,21 +134,7 @@ pub struct Snapshot {
     pub tethers: super::tethers::TetherSnapshot,
 }
 
-/// Per-surface-vertex areas (a third of each adjacent rest triangle), m^2, for
-/// turning reaction forces into pressures.
-pub fn vertex_areas(rest: &[Vec3], triangles: &[[u32; 3]]) -> Vec<f64> {
-    let mut areas = vec![0.0; rest.len()];
-    for t in triangles {
-        let [a, b, c] = t.map(|i| rest.get(i as usize).copied().unwrap_or_else(Vec3::zeros));
-        let third = (b - a).cross(&(c - a)).norm() / 6.0;
-        for &i in t {
-            if let Some(slot) = areas.get_mut(i as usize) {
-                *slot += third;
-            }
-        }
-    }
-    areas
-}
+pub use crate::mesh::surface::vertex_areas;
 
 impl Snapshot {
     /// Copies the frame just stepped (`report` is what `step` returned;

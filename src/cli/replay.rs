@@ -110,6 +110,19 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
             s.name, s.max_force_jump_n, s.p95_force_jump_n
         );
     }
+    if let Some(i) = &summary.ischemia {
+        let levels: Vec<String> = i.levels.iter().map(|l| format!("{} {:.1} mm2", l.level.replace('_', " "), l.max_area_mm2)).collect();
+        println!(
+            "  ischemia (MAP {:.0} mmHg): largest area {}; largest dose {:.1} mmHg min (risk {:.2}) at {:.1} s; perfusion under 10 mmHg at most {:.1} s{}",
+            i.mean_arterial_pressure_mmhg,
+            levels.join(", "),
+            i.max_dose_mmhg_min,
+            i.max_risk,
+            i.max_dose_time_s,
+            i.longest_low_perfusion_s,
+            if i.low_perfusion_over_tolerance { " (over the 6 minutes that preceded infarcts)" } else { "" }
+        );
+    }
     let c = &summary.compliance;
     println!(
         "  compliance: {} rows (the working region, of {} surface vertices) x {} columns, {:.0} MB",

@@ -84,6 +84,13 @@ pub struct ScenarioFile {
     /// Vessels and arachnoid bands (used with the `Tethers` effect). Default none.
     #[serde(default)]
     pub tethers: super::tethers::TethersFile,
+    /// The tissue's relaxation function (used with the `Relaxation` effect). Default: halves in 6.6 minutes.
+    #[serde(default)]
+    pub relaxation: super::tissue_time::RelaxationFile,
+    /// The ischemia model under a retractor (used with the `Ischemia` effect). Default: a MAP of 90 mmHg and the
+    /// rat-calibrated dose.
+    #[serde(default)]
+    pub ischemia: super::tissue_time::IschemiaFile,
 }
 
 /// Integrity limits: `(max_penetration_mm: 0.05, max_inverted_elements: 0, max_crossed_vertices: 0)`.
@@ -462,6 +469,10 @@ pub enum Effect {
     ContactPressure,
     /// Vessels and arachnoid bands that tie the tissue and tear (needs `tethers`).
     Tethers,
+    /// The tissue's stress relaxes while a blade holds (forces, pressures and tether pulls; `relaxation`).
+    Relaxation,
+    /// Injury from retractor pressure over time, per surface vertex (needs `Collision`; `ischemia`).
+    Ischemia,
 }
 
 /// Collision options: `(backend: Bvh)`.

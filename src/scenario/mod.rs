@@ -15,6 +15,7 @@ pub mod error;
 pub mod file;
 pub mod overrides;
 pub mod tethers;
+pub mod tissue_time;
 pub mod trajectory;
 pub mod tree;
 pub mod validate;
@@ -25,6 +26,7 @@ pub use error::{Location, Origin, ScenarioError};
 pub use file::{CollisionBackend, ComplianceStorage, DEFAULT_ROW_BAND_MM, Effect, LengthUnit, ScenarioFile, SpatulaContact};
 pub use overrides::Document;
 pub use tethers::{Band, TetherPoint, Tethers, Vessel, VesselKind};
+pub use tissue_time::{Ischemia, Relaxation};
 pub use trajectory::{Sample, Trajectory, TrajectoryError, TrajectoryRecorder};
 pub use validate::{
     Display, EffectSet, FixedRegion, InputBinding, IntegrityLimits, Material, MeshSource, Outputs, RegionMaterial, RegionOfInterest,

@@ -211,7 +211,7 @@ pub struct EffectSet(u16);
 
 impl Effect {
     /// Every effect, in the fixed order used for iteration and display.
-    pub const ALL: [Effect; 8] = [
+    pub const ALL: [Effect; 10] = [
         Effect::Collision,
         Effect::Culling,
         Effect::SkullSpheres,
@@ -220,6 +220,8 @@ impl Effect {
         Effect::StressField,
         Effect::ContactPressure,
         Effect::Tethers,
+        Effect::Relaxation,
+        Effect::Ischemia,
     ];
 
     fn bit(self) -> u16 {
@@ -393,6 +395,10 @@ pub struct Scenario {
     pub integrity: IntegrityLimits,
     /// Vessels and arachnoid bands (empty unless the scene has the `Tethers` effect).
     pub tethers: super::tethers::Tethers,
+    /// The relaxation function, with the `Relaxation` effect only.
+    pub relaxation: Option<super::tissue_time::Relaxation>,
+    /// The ischemia model, with the `Ischemia` effect only.
+    pub ischemia: Option<super::tissue_time::Ischemia>,
     /// Legal but doubtful values, in the order found (`fissure check` prints
     /// them; the pipeline's build logs them).
     pub warnings: Vec<ScenarioWarning>,
@@ -782,6 +788,12 @@ impl Scenario {
                 Effect::Culling | Effect::ContactPressure if !effects.contains(Effect::Collision) => {
                     return Err(c.invalid(&field, format!("{e:?} needs the Collision effect")));
                 }
+                Effect::Ischemia if !effects.contains(Effect::ContactPressure) => {
+                    return Err(c.invalid(&field, "Ischemia needs the ContactPressure effect (the pressure it doses)"));
+                }
+                Effect::Relaxation if !effects.contains(Effect::ForceOutput) && !effects.contains(Effect::ContactPressure) => {
+                    return Err(c.invalid(&field, "Relaxation needs ForceOutput or ContactPressure (the forces it relaxes)"));
+                }
                 Effect::Tethers if file.tethers.vessels.is_empty() && file.tethers.bands.is_empty() => {
                     return Err(c.invalid(&field, "Tethers needs `tethers` with at least one vessel or band, but none is given"));
                 }
@@ -794,6 +806,10 @@ impl Scenario {
             c.warn("tethers", "the scene lists tethers but not the Tethers effect: they are not built (add Tethers to `effects`)");
         }
         let tethers = if effects.contains(Effect::Tethers) { tethers } else { Default::default() };
+        let relaxation = super::tissue_time::validate_relaxation(&file.relaxation, &|field, problem| c.invalid(field, problem))?;
+        let relaxation = effects.contains(Effect::Relaxation).then_some(relaxation);
+        let ischemia = super::tissue_time::validate_ischemia(&file.ischemia, &|field, problem| c.invalid(field, problem))?;
+        let ischemia = effects.contains(Effect::Ischemia).then_some(ischemia);
         let solver = SolverOptions {
             compliance_storage: file.solver.compliance_storage,
             region_of_interest: match &file.solver.region_of_interest {
@@ -894,6 +910,8 @@ impl Scenario {
                 max_torn_vessels: file.integrity.max_torn_vessels,
             },
             tethers,
+            relaxation,
+            ischemia,
             warnings: c.warnings.take(),
             locations: field_locations(document, file.fixed.len(), file.spatulas.len(), &file.tethers),
         })

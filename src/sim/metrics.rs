@@ -43,20 +43,36 @@ pub struct MetricsWriter {
     previous_force: Vec<Vec3>,
     /// Vessels of the tether columns (`None`: the scene has no tethers, no columns).
     vessels: Option<usize>,
+    /// The ischemia columns (the scene has the `Ischemia` effect).
+    ischemia: bool,
     line: String,
+}
+
+/// The columns a scene's effects add to `metrics.csv`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct EffectColumns<'a> {
+    /// The scene's vessels' names (the `Tethers` effect).
+    pub vessels: Option<&'a [String]>,
+    /// The `Ischemia` effect.
+    pub ischemia: bool,
 }
 
 impl MetricsWriter {
     /// Creates the file and writes the header. `stages` are the built stages;
     /// `spatula_names` name the per-spatula columns.
     pub fn create(path: &Path, stages: &[StageId], spatula_names: &[String]) -> Result<Self, OutputError> {
-        Self::create_with_tethers(path, stages, spatula_names, None)
+        Self::create_with(path, stages, spatula_names, EffectColumns::default())
     }
 
-    /// As [`Self::create`], with the tether columns when `vessel_names` is given (the scene's tethers): each
-    /// vessel's largest stretch this frame (`<vessel>_max_stretch`, the name with every character that is not a
-    /// letter or digit as `_`), then `bands_intact`, `bands_torn`, `bands_cut`, `max_band_tension_n`.
-    pub fn create_with_tethers(path: &Path, stages: &[StageId], spatula_names: &[String], vessel_names: Option<&[String]>) -> Result<Self, OutputError> {
+    /// As [`Self::create`], with the columns of the scene's effects. Tethers (`vessels` given): each vessel's
+    /// largest stretch this frame (`<vessel>_max_stretch`, the name with every character that is not a letter or
+    /// digit as `_`), then `bands_intact`, `bands_torn`, `bands_cut`, `max_band_tension_n`. Ischemia: the area
+    /// whose risk is at or over each level (`ischemia_watch_mm2`, `ischemia_at_risk_mm2`, `ischemia_likely_mm2`:
+    /// risks 1/6, 1/2, 5/6), `ischemia_max_dose_mmhg_min`, `ischemia_max_risk`, `low_perfusion_longest_s` (the
+    /// longest current stretch of a vertex with its perfusion pressure under 10 mmHg), then each blade's
+    /// `<blade>_area_at_risk_mm2`.
+    pub fn create_with(path: &Path, stages: &[StageId], spatula_names: &[String], effects: EffectColumns<'_>) -> Result<Self, OutputError> {
+        let vessel_names = effects.vessels;
         let file = File::create(path).map_err(|e| OutputError::new(path, e))?;
         let mut w = Self {
             out: file,
@@ -66,6 +82,7 @@ impl MetricsWriter {
             spatulas: spatula_names.len(),
             previous_force: vec![Vec3::zeros(); spatula_names.len()],
             vessels: vessel_names.map(<[String]>::len),
+            ischemia: effects.ischemia,
             line: String::new(),
         };
         let mut header = vec!["frame".to_string(), "time_s".to_string()];
@@ -83,6 +100,11 @@ impl MetricsWriter {
         if let Some(names) = vessel_names {
             header.extend(names.iter().map(|n| format!("{}_max_stretch", column_word(n))));
             header.extend(["bands_intact", "bands_torn", "bands_cut", "max_band_tension_n"].map(String::from));
+        }
+        if effects.ischemia {
+            header.extend(crate::scenario::tissue_time::RISK_LEVELS.iter().map(|(_, word)| format!("ischemia_{word}_mm2")));
+            header.extend(["ischemia_max_dose_mmhg_min", "ischemia_max_risk", "low_perfusion_longest_s"].map(String::from));
+            header.extend(spatula_names.iter().map(|n| format!("{n}_area_at_risk_mm2")));
         }
         w.line = header.join(",");
         w.write_line()?;
@@ -161,6 +183,16 @@ impl MetricsWriter {
                 let _ = write!(l, ",{}", t.vessel_stretch.get(k).copied().unwrap_or(0.0));
             }
             let _ = write!(l, ",{},{},{},{}", t.bands_intact, t.bands_torn, t.bands_cut, t.max_band_tension_n);
+        }
+        if self.ischemia {
+            let i = r.ischemia.clone().unwrap_or_default();
+            for a in i.area_over_m2 {
+                let _ = write!(l, ",{}", a * 1e6);
+            }
+            let _ = write!(l, ",{},{},{}", i.max_dose_mmhg_s / 60.0, i.max_risk, i.longest_low_perfusion_s);
+            for k in 0..self.spatulas {
+                let _ = write!(l, ",{}", i.blade_area_at_risk_m2.get(k).copied().unwrap_or(0.0) * 1e6);
+            }
         }
         self.write_line()
     }
@@ -255,6 +287,47 @@ pub struct Summary {
     pub vessels: Vec<VesselSummary>,
     /// The arachnoid bands at the end (None without tethers).
     pub bands: Option<BandSummary>,
+    /// Injury from retractor pressure over time (None without the `Ischemia` effect).
+    pub ischemia: Option<IschemiaSummary>,
+}
+
+/// Ischemia over a run: areas, dose, perfusion.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct IschemiaSummary {
+    pub mean_arterial_pressure_mmhg: f64,
+    /// The largest area over each risk level during the run.
+    pub levels: Vec<RiskLevelSummary>,
+    /// The largest dose of any vertex, mmHg min, its risk, and when it was reached, s.
+    pub max_dose_mmhg_min: f64,
+    pub max_risk: f64,
+    pub max_dose_time_s: f64,
+    /// The longest stretch of any vertex with its perfusion pressure under 10 mmHg, s, and whether it passed the
+    /// six minutes after which five of six patients infarcted.
+    pub longest_low_perfusion_s: f64,
+    pub low_perfusion_over_tolerance: bool,
+    /// Per blade: its largest area at risk (even odds) and when it first had any.
+    pub blades: Vec<BladeRisk>,
+}
+
+/// One risk level over a run.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct RiskLevelSummary {
+    /// `watch` (1/6), `at_risk` (1/2), `likely` (5/6).
+    pub level: String,
+    pub risk: f64,
+    /// The largest area at or over it, mm^2, and the area at the end.
+    pub max_area_mm2: f64,
+    pub final_area_mm2: f64,
+    /// When a vertex first reached it, s.
+    pub first_time_s: Option<f64>,
+}
+
+/// One blade's share of the area at risk.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct BladeRisk {
+    pub name: String,
+    pub max_area_at_risk_mm2: f64,
+    pub first_at_risk_s: Option<f64>,
 }
 
 /// A vessel over the run.
@@ -361,6 +434,14 @@ impl SummaryBuilder {
         self
     }
 
+    /// Reports ischemia (the `Ischemia` effect) at the scene's mean arterial pressure.
+    pub fn with_ischemia(mut self, mean_arterial_pressure_mmhg: f64) -> Self {
+        let levels = crate::scenario::tissue_time::RISK_LEVELS.iter().map(|&(risk, word)| RiskLevelSummary { level: word.into(), risk, ..Default::default() }).collect();
+        let blades = self.summary.spatulas.iter().map(|s| BladeRisk { name: s.name.clone(), ..Default::default() }).collect();
+        self.summary.ischemia = Some(IschemiaSummary { mean_arterial_pressure_mmhg, levels, blades, ..Default::default() });
+        self
+    }
+
     /// Sets the integrity limits the summary judges the run by (default: [`IntegrityLimits::default`]).
     pub fn with_limits(mut self, limits: IntegrityLimits) -> Self {
         self.limits = limits;
@@ -421,6 +502,26 @@ impl SummaryBuilder {
             let torn = m.vessels.iter().filter(|v| v.torn).count() as u32;
             if torn > self.limits.max_torn_vessels && self.first_torn_over.is_none() {
                 self.first_torn_over = Some((r.frame, r.time_s));
+            }
+        }
+        if let (Some(i), Some(frame)) = (&mut m.ischemia, &r.ischemia) {
+            for (level, &area) in i.levels.iter_mut().zip(&frame.area_over_m2) {
+                level.max_area_mm2 = level.max_area_mm2.max(area * 1e6);
+                level.final_area_mm2 = area * 1e6;
+                if area > 0.0 && level.first_time_s.is_none() {
+                    level.first_time_s = Some(r.time_s);
+                }
+            }
+            if frame.max_dose_mmhg_s / 60.0 > i.max_dose_mmhg_min {
+                (i.max_dose_mmhg_min, i.max_risk, i.max_dose_time_s) = (frame.max_dose_mmhg_s / 60.0, frame.max_risk, r.time_s);
+            }
+            i.longest_low_perfusion_s = i.longest_low_perfusion_s.max(frame.longest_low_perfusion_s);
+            i.low_perfusion_over_tolerance = i.longest_low_perfusion_s > crate::scenario::tissue_time::RCPP_TOLERANCE_S;
+            for (b, &area) in i.blades.iter_mut().zip(&frame.blade_area_at_risk_m2) {
+                b.max_area_at_risk_mm2 = b.max_area_at_risk_mm2.max(area * 1e6);
+                if area > 0.0 && b.first_at_risk_s.is_none() {
+                    b.first_at_risk_s = Some(r.time_s);
+                }
             }
         }
         self.last_time = r.time_s;

@@ -15,6 +15,7 @@ pub mod preflight;
 pub mod replay;
 pub mod report;
 pub mod tethers;
+pub mod tissue_time;
 
 pub use build::{BuildError, BuildOptions};
 pub use pipeline::{FrameInput, MAX_SUBSTEPS, Pipeline, SUBSTEP_TRAVEL_FRACTION, SimState, SkullStage, StepError, substep_count};

@@ -161,6 +161,16 @@ pub struct Pipeline {
     skull: Option<SkullStage>,
     /// Vessels and arachnoid bands (the `Tethers` effect).
     tethers: Option<super::tethers::TetherStage>,
+    /// The blades' forces relaxing while held (the `Relaxation` effect).
+    relaxation: Option<super::tissue_time::RelaxationStage>,
+    /// Dose and risk per surface vertex (the `Ischemia` effect), and its frame's pressed vertices.
+    ischemia: Option<super::tissue_time::IschemiaStage>,
+    pressed: Vec<(u32, u16, f64)>,
+    /// Lumped area per surface vertex at rest (with `Ischemia` only), m^2.
+    vertex_areas: Vec<f64>,
+    /// Frames in a row solved at unchanged poses, and the last one's rows and surface: a scene with tissue over
+    /// time skips the solve once two of them agree (a long hold costs next to nothing).
+    still: StillFrames,
     /// What a spatula target becomes: a sticking `Contact`, a bilateral
     /// `Enforced` hold, or a sliding `Barrier` row.
     contact_law: SpatulaContact,
@@ -199,6 +209,17 @@ pub struct Pipeline {
     report: FrameReport,
 }
 
+/// Held blades: how many frames in a row were solved at the same poses, and what the last one gave.
+#[derive(Debug, Clone, Default)]
+struct StillFrames {
+    /// Solved frames in a row whose poses did not change (0: the blades moved).
+    count: u32,
+    /// Whether the last two of them gave the same rows and the same surface, bit for bit.
+    settled: bool,
+    constraints: Vec<Constraint>,
+    displacement: Vec<Vec3>,
+}
+
 /// A far surface vertex (one without a compliance row) is brought up to
 /// date every sub-step while it lies within this distance (m), plus the
 /// largest displacement of the working region's edge, of a blade at the
@@ -220,6 +241,10 @@ impl Pipeline {
     ) -> Result<Self, super::build::BuildError> {
         let surface_tets = surface_tets(&mesh, &surface, solver.far_vertices());
         let far_edge = region_edge(&surface.triangles, solver.far_vertices());
+        let blades = scenario.spatulas.len();
+        let relaxation = scenario.relaxation.as_ref().map(|r| super::tissue_time::RelaxationStage::new(r, scenario.time_step, blades));
+        let vertex_areas = if scenario.ischemia.is_some() { crate::mesh::surface::vertex_areas(&rest, &surface.triangles) } else { Vec::new() };
+        let ischemia = scenario.ischemia.as_ref().map(|m| super::tissue_time::IschemiaStage::new(m, scenario.time_step, vertex_areas.clone(), blades));
         let contact_scratch = super::contact::ContactScratch::for_surface(&surface);
         let n = scenario.spatulas.len();
         let contact_law = scenario.solver.spatula_contact;
@@ -252,6 +277,11 @@ impl Pipeline {
             collision,
             skull,
             tethers,
+            relaxation,
+            ischemia,
+            pressed: Vec::new(),
+            vertex_areas,
+            still: StillFrames::default(),
             surface_tets,
             constraints: Vec::new(),
             solution: FrameSolution::default(),
@@ -317,6 +347,11 @@ impl Pipeline {
     /// The tether stage, when the scene asked for tethers.
     pub fn tethers(&self) -> Option<&super::tethers::TetherStage> {
         self.tethers.as_ref()
+    }
+
+    /// The dose and risk per surface vertex (the `Ischemia` effect).
+    pub fn ischemia(&self) -> Option<&super::tissue_time::IschemiaStage> {
+        self.ischemia.as_ref()
     }
     /// Asks the microscissors at blade `spatula`'s tip to cut the arachnoid
     /// bands within [`super::tethers::CUT_RADIUS_M`] of it at the next frame
@@ -402,8 +437,6 @@ impl Pipeline {
         r.rejected_poses = 0;
         r.solver_capped = false;
         r.crossed_vertices = 0;
-        r.penetrating_vertices = 0;
-        r.max_penetration_m = 0.0;
         self.frame_start_poses.clone_from(&state.poses);
         self.target_poses.clone_from(&state.poses);
         for ((slot, new), filter) in self.target_poses.iter_mut().zip(&input.poses).zip(&mut self.pose_filters) {
@@ -420,6 +453,17 @@ impl Pipeline {
                 None => *slot = accepted.unwrap_or(*slot),
             }
         }
+        // Held blades: with tissue over time, a frame at the poses of two frames that gave the same rows and
+        // surface is that answer again (the solve is a function of them), so it is not solved.
+        let still = self.target_poses == self.frame_start_poses && !self.tethers.as_ref().is_some_and(|t| t.has_pending_cuts());
+        let over_time = self.relaxation.is_some() || self.ischemia.is_some();
+        if still && over_time && self.still.settled {
+            self.report.substeps = 0;
+            return self.finish_frame(state, frame);
+        }
+        let r = &mut self.report;
+        r.penetrating_vertices = 0;
+        r.max_penetration_m = 0.0;
         for s in r.spatulas.iter_mut() {
             *s = SpatulaReport::default();
         }
@@ -453,12 +497,38 @@ impl Pipeline {
                 Err(e) => return Err(e),
             }
         }
-        let r = &mut self.report;
-        check_finite_state(frame, state, r.max_displacement_m)?;
+        check_finite_state(frame, state, self.report.max_displacement_m)?;
+        if over_time {
+            self.note_still(still, state);
+        }
+        self.finish_frame(state, frame)
+    }
 
+    /// After a frame solved at unchanged poses (`still`), whether it agreed with the one before bit for bit.
+    fn note_still(&mut self, still: bool, state: &SimState) {
+        let events = self.tethers.as_ref().is_some_and(|t| !t.frame().events.is_empty());
+        let w = &mut self.still;
+        if !still || events || self.report.solver_capped {
+            w.count = 0;
+            w.settled = false;
+            return;
+        }
+        w.settled = w.count > 0 && w.constraints == self.constraints && w.displacement == state.surface_displacement;
+        w.count += 1;
+        w.constraints.clone_from(&self.constraints);
+        w.displacement.clone_from(&state.surface_displacement);
+    }
+
+    /// The frame's forces, pressures, tissue over time, stress and bookkeeping, from the solution it ends with.
+    fn finish_frame(&mut self, state: &mut SimState, frame: u64) -> Result<&FrameReport, StepError> {
+        let r = &mut self.report;
         // Forces, contact areas and pressures.
         if self.effects.contains(Effect::ForceOutput) || self.effects.contains(Effect::ContactPressure) {
             let t = Instant::now();
+            for s in r.spatulas.iter_mut() {
+                // The collision's counts stay (a settled still frame keeps the last solved frame's); what follows is this frame's.
+                (s.force, s.contact_area_m2, s.contact_vertices, s.mean_pressure_pa) = (Vec3::zeros(), 0.0, 0, 0.0);
+            }
             for (owner, f) in &self.solution.owner_forces {
                 if let Some(s) = r.spatulas.get_mut(*owner as usize) {
                     s.force = *f;
@@ -481,10 +551,30 @@ impl Pipeline {
                     }
                 }
             }
+            if let Some(relaxation) = &mut self.relaxation {
+                relaxation.apply(&mut r.spatulas);
+            }
             if r.spatulas.iter().any(|s| !(is_finite3(&s.force) && s.contact_area_m2.is_finite() && s.mean_pressure_pa.is_finite())) {
                 return Err(StepError::NonFinite { frame, stage: StageId::Forces, what: "a spatula's force or pressure" });
             }
             r.times.set(StageId::Forces, t.elapsed().as_secs_f64());
+        }
+        if let Some(ischemia) = &mut self.ischemia {
+            let t = Instant::now();
+            self.pressed.clear();
+            for (c, f) in self.constraints.iter().zip(&self.solution.reactions) {
+                let v = self.surface.node_to_vertex.get(c.node as usize).copied().unwrap_or(crate::mesh::surface::NOT_ON_SURFACE);
+                let area = self.vertex_areas.get(v as usize).copied().unwrap_or(0.0);
+                if c.kind.is_tool() && area > 0.0 {
+                    self.pressed.push((v, c.owner, f.norm() / area));
+                }
+            }
+            ischemia.step(&self.pressed, self.relaxation.as_ref().map(|r| r.ratios()), (frame + 1) as f64 * self.time_step);
+            r.times.add(StageId::Forces, t.elapsed().as_secs_f64());
+            match &mut r.ischemia {
+                Some(out) => out.copy_from(ischemia.frame()),
+                None => r.ischemia = Some(ischemia.frame().clone()),
+            }
         }
 
         // Interior displacements and stress, only when the scene asks.

@@ -159,10 +159,14 @@ pub fn replay(
     let stages = pipeline.built_stages();
     let names = pipeline.spatula_names().to_vec();
     let vessel_names: Option<Vec<String>> = pipeline.tethers().map(|t| t.vessel_names().map(|(n, _)| n.to_string()).collect());
-    let mut writer = MetricsWriter::create_with_tethers(&options.out_dir.join("metrics.csv"), &stages, &names, vessel_names.as_deref())?;
+    let columns = super::metrics::EffectColumns { vessels: vessel_names.as_deref(), ischemia: pipeline.ischemia().is_some() };
+    let mut writer = MetricsWriter::create_with(&options.out_dir.join("metrics.csv"), &stages, &names, columns)?;
     let mut summary = SummaryBuilder::new(&scenario.name, &stages, &names).with_limits(scenario.integrity);
     if let Some(t) = pipeline.tethers() {
         summary = summary.with_tethers(t.tethers());
+    }
+    if let Some(i) = pipeline.ischemia() {
+        summary = summary.with_ischemia(i.model().mean_arterial_pressure_mmhg);
     }
     let cs = pipeline.solver().compliance().stats();
     summary.set_compliance(super::metrics::ComplianceSummary {

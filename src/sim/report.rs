@@ -133,11 +133,14 @@ pub struct FrameReport {
     /// Largest von Mises stress, Pa (only with the stress stage).
     pub max_von_mises_pa: Option<f64>,
     /// Sub-steps the frame was split into (1 unless a blade moved more than
-    /// `solver.substep_travel` of its thickness).
+    /// `solver.substep_travel` of its thickness; 0 for a held frame of a scene
+    /// with tissue over time that was not solved again, its answer unchanged).
     pub substeps: u32,
     /// True when the contact solve hit its iteration cap: the frame kept the
     /// last feasible state (tissue and poses of the last sub-step that converged).
     pub solver_capped: bool,
     /// Vessels and bands this frame (only with the tether stage).
     pub tethers: Option<super::tethers::TetherFrame>,
+    /// Ischemic area and dose (the `Ischemia` effect).
+    pub ischemia: Option<super::tissue_time::IschemiaFrame>,
 }
