@@ -253,21 +253,29 @@ parse_replay() {
     printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' \
         "$tag" "$k" "$frames" "$p50" "$p95" "$max" "$stages" "$wall" "$peak" "$cv" "$forces" "$integrity" "$hash" "${substeps:-1}" "${jumps:--}" >> "$PERF/replays.tsv"
 }
-# replay TAG SCENARIO [ARGS..]: REPEAT runs of one scene.
+# replay_once TAG K SCENARIO [ARGS..]: run K of one scene (the first run names the tag).
 declare -A replay_cmd
 replay_tags=()
+replay_once() {
+    local tag=$1 k=$2 scenario=$3
+    shift 3
+    if [ -z "${replay_cmd[$tag]:-}" ]; then
+        replay_tags+=("$tag")
+        replay_cmd[$tag]="fissure replay $scenario --set solver.cache_dir=None${*:+ $*}"
+    fi
+    local base="$PERF/replay/${tag//\//_}_$k"
+    rm -rf "$base"
+    run_timed "replay $tag (run $k of $REPEAT)" "$base.log" "$base.time" \
+        "$FISSURE" replay "$scenario" --set solver.cache_dir=None "$@" --out "$base"
+    parse_replay "$tag" "$k" "$base"
+}
+# replay TAG SCENARIO [ARGS..]: REPEAT runs of one scene.
 replay() {
     local tag=$1 scenario=$2
     shift 2
-    replay_tags+=("$tag")
-    replay_cmd[$tag]="fissure replay $scenario --set solver.cache_dir=None${*:+ $*}"
     local k
     for k in $(seq 1 "$REPEAT"); do
-        local base="$PERF/replay/${tag//\//_}_$k"
-        rm -rf "$base"
-        run_timed "replay $tag (run $k of $REPEAT)" "$base.log" "$base.time" \
-            "$FISSURE" replay "$scenario" --set solver.cache_dir=None "$@" --out "$base"
-        parse_replay "$tag" "$k" "$base"
+        replay_once "$tag" "$k" "$scenario" "$@"
     done
 }
 # Every shipped scene with a trajectory (config/study_fissure.ron has none: the
@@ -294,6 +302,24 @@ replay size/coarse config/real_brain/sylvian.ron "${user_scene[@]}" --set "$coar
 replay size/coarse_all config/real_brain/sylvian.ron "${user_scene[@]}" --set "$coarse_mesh" --set solver.row_band_mm=None
 replay size/fine config/real_brain/sylvian.ron "${user_scene[@]}"
 replay size/fine_all config/real_brain/sylvian.ron "${user_scene[@]}" --set solver.row_band_mm=None
+# What the scene's effects cost: the fine-brain Sylvian scene as shipped (its tethers, relaxation and
+# ischemia), without any of them, and with its tethers alone, alternating run by run so that the ratios
+# are measured under the same load.
+plain_effects='effects=[Collision, Culling, ForceOutput, ContactPressure]'
+tether_effects='effects=[Collision, Culling, ForceOutput, ContactPressure, Tethers]'
+for k in $(seq 1 "$REPEAT"); do
+    replay_once effects/none "$k" config/real_brain/sylvian.ron --set "$plain_effects"
+    replay_once effects/tethers "$k" config/real_brain/sylvian.ron --set "$tether_effects"
+    replay_once effects/all "$k" config/real_brain/sylvian.ron
+done
+# Ten minutes held: continuously, and with a minute's rest halfway (one run each).
+replay_once hold/continuous 1 config/real_brain/sylvian.ron --trajectory assets/trajectories/real_brain_sylvian_hold.csv --set duration_s=603.5
+replay_once hold/intermittent 1 config/real_brain/sylvian.ron --trajectory assets/trajectories/real_brain_sylvian_intermittent.csv --set duration_s=668
+# A field of a run's summary.json (its first run): hold_field TAG PYTHON_EXPRESSION_OF_s.
+hold_field() {
+    python3 -c 'import json, sys; s = json.load(open(sys.argv[1])); print(eval(sys.argv[2]))' "$PERF/replay/${1//\//_}_1/summary.json" "$2" ||
+        die "replay $1: no such field in its summary.json: $2"
+}
 # The rows, surface vertices and columns a size/ run's compliance has.
 size_rows() { grab "$PERF/replay/size_${1}_1.log" '^  compliance: \([0-9]*\) rows .*$'; }
 size_surface() { grab "$PERF/replay/size_${1}_1.log" '^  compliance: [0-9]* rows (the working region, of \([0-9]*\) surface vertices).*$'; }
@@ -542,7 +568,7 @@ summary_rows() {
     echo "| collision stage, fine real brain (q15, 67,708 triangles), 500 source nodes a face, bvh | p50 ${coll_q15_p50:-n/a} / p95 ${coll_q15_p95:-n/a} ms | under 1 ms: $(verdict "$coll_q15_p50" 1) (p50) | the same |"
     local tag p95 goal
     for tag in "${replay_tags[@]}"; do
-        [[ $tag == size/* ]] && continue
+        [[ $tag == size/* || $tag == effects/* || $tag == hold/* ]] && continue
         p95=$(replay_p95 "$tag")
         case $tag in
             sylvian) goal="p95 < 2 ms (paper-size model): $(verdict "$p95" 2); < 5 ms: $(verdict "$p95" 5)" ;;
@@ -571,6 +597,7 @@ summary_rows() {
             real_brain/interhemispheric) what="coarse real brain (25,757 nodes), two blades down the inter-hemispheric fissure" ;;
             real_brain/sylvian) what="fine real brain (q15), the Sylvian opening, refined where the blades reach (refine: Auto)" ;;
             real_brain/sylvian_wide) what="the same, pressed wider (the wide-press trajectory)" ;;
+            sylvian_tethers) what="the default scene with its vessels and arachnoid bands, the careful opening (bands cut, then spread)" ;;
             sylvian_noisy) what="default scene, its spread with +-0.5 mm tracker noise every 10 ms, unfiltered" ;;
             sylvian_noisy_filtered) what="the same noisy spread through the One Euro filter" ;;
             *) what="$tag" ;;
@@ -583,6 +610,20 @@ summary_rows() {
         esac
         echo "| replay: $what, a frame | $(rp "$tag")$extra; $(runs_note) | $goal | $(code "${replay_cmd[$tag]}") |"
     done
+    local none_p95 tethers_p95 all_p95 tethers_x all_x2 tethers_n
+    none_p95=$(replay_p95 effects/none) tethers_p95=$(replay_p95 effects/tethers) all_p95=$(replay_p95 effects/all)
+    tethers_x=$(ratio "$tethers_p95" "$none_p95")
+    all_x2=$(ratio "$all_p95" "$tethers_p95")
+    tethers_n=$(hold_field effects/all '"%d bands, %d vessels" % (s["bands"]["total"], len(s["vessels"]))')
+    echo "| what the fine-brain Sylvian scene's effects cost, alternating run by run: frame p95 without them / with its tethers ($tethers_n) / with tethers, relaxation and ischemia (as shipped) | $none_p95 / $tethers_p95 / $all_p95 ms: tethers ${tethers_x}x, tissue over time ${all_x2}x on top; $(runs_note) | tethers within 1.3x: $(verdict "$tethers_x" 1.3); relaxation and ischemia within 1.2x: $(verdict "$all_x2" 1.2) | $(code "fissure replay config/real_brain/sylvian.ron --set solver.cache_dir=None [--set '$plain_effects']") |"
+    local hold_wall hold_p95 hold_risk int_risk hold_watch int_watch hold_ratio
+    hold_wall=$(replay_stat hold/continuous 8 | tail -1)
+    hold_p95=$(replay_p95 hold/continuous)
+    hold_watch=$(hold_field hold/continuous 'round(s["ischemia"]["levels"][0]["final_area_mm2"], 1)')
+    int_watch=$(hold_field hold/intermittent 'round(s["ischemia"]["levels"][0]["final_area_mm2"], 1)')
+    hold_risk=$(hold_field hold/continuous 'round(s["ischemia"]["max_risk"], 3)')
+    int_risk=$(hold_field hold/intermittent 'round(s["ischemia"]["max_risk"], 3)')
+    echo "| ten minutes held on the fine-brain Sylvian scene ($(replay_stat hold/continuous 3 | tail -1) frames): whole run; frame p95; at the end, area at risk >= 1/6 and the largest risk, continuous / intermittent (5 min, 1 min rest, 5 min) | $hold_wall s; p95 $hold_p95 ms; $hold_watch / $int_watch mm2, risk $hold_risk / $int_risk; one run each | a held frame costs next to nothing; the intermittent hold risks less: $( awk -v a="$int_watch" -v b="$hold_watch" -v c="$int_risk" -v d="$hold_risk" 'BEGIN { print ((a < b || (a == b && c < d)) ? "met" : "not met") }') | $(code "fissure replay config/real_brain/sylvian.ron --set solver.cache_dir=None --trajectory assets/trajectories/real_brain_sylvian_hold.csv --set duration_s=603.5") (\`_intermittent.csv\`, 668) |"
     local worst worst_tag
     worst=$(awk -F'\t' '{ print $6 }' "$PERF/replays.tsv" | maximum)
     worst_tag=$(awk -F'\t' -v w="$worst" '$6 == w { print $1; exit }' "$PERF/replays.tsv")
