@@ -89,7 +89,7 @@ impl MetricsWriter {
         header.extend(stages.iter().map(|s| format!("{}_ms", s.name())));
         header.push("frame_ms".into());
         for name in spatula_names {
-            for col in ["candidate_pairs", "culled_pairs", "feasible_pairs", "constrained_vertices", "force_n", "force_x_n", "force_y_n", "force_z_n", "contact_area_mm2", "contact_vertices", "mean_pressure_mmhg", "force_jump_n"] {
+            for col in ["candidate_pairs", "culled_pairs", "feasible_pairs", "constrained_vertices", "force_n", "force_x_n", "force_y_n", "force_z_n", "contact_area_mm2", "contact_vertices", "mean_pressure_mmhg", "force_jump_n", "tip_x_mm", "tip_y_mm", "tip_z_mm"] {
                 header.push(format!("{name}_{col}"));
             }
         }
@@ -146,7 +146,7 @@ impl MetricsWriter {
             self.previous_force[k] = s.force;
             let _ = write!(
                 l,
-                ",{},{},{},{},{},{},{},{},{},{},{},{}",
+                ",{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
                 s.candidate_pairs,
                 s.culled_pairs,
                 s.feasible_pairs,
@@ -158,7 +158,10 @@ impl MetricsWriter {
                 s.contact_area_m2 * 1e6,
                 s.contact_vertices,
                 s.mean_pressure_mmhg(),
-                jump
+                jump,
+                s.tip.x * 1e3,
+                s.tip.y * 1e3,
+                s.tip.z * 1e3
             );
         }
         let _ = write!(

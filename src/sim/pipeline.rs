@@ -353,6 +353,12 @@ impl Pipeline {
     pub fn ischemia(&self) -> Option<&super::tissue_time::IschemiaStage> {
         self.ischemia.as_ref()
     }
+
+    /// Per blade, its relaxed over its elastic force this frame (the `Relaxation` effect): what each of its
+    /// contact pressures is scaled by.
+    pub fn relaxation_ratios(&self) -> Option<&[f64]> {
+        self.relaxation.as_ref().map(|r| r.ratios())
+    }
     /// Asks the microscissors at blade `spatula`'s tip to cut the arachnoid
     /// bands within [`super::tethers::CUT_RADIUS_M`] of it at the next frame
     /// (nothing without tethers). Returns whether the scene has tethers.
@@ -600,6 +606,9 @@ impl Pipeline {
             (Some(t), Some(out)) => out.clone_from(t.frame()),
             (Some(t), None) => r.tethers = Some(t.frame().clone()),
             _ => {}
+        }
+        for ((s, shape), pose) in r.spatulas.iter_mut().zip(&self.shapes).zip(&state.poses) {
+            s.tip = pose.transform_point(&Vec3::new(shape.length, 0.0, 0.0));
         }
         state.frame += 1;
         state.time_s = state.frame as f64 * self.time_step;

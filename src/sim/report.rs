@@ -91,6 +91,8 @@ pub struct SpatulaReport {
     pub contact_vertices: u32,
     /// Mean contact pressure |force| / area, Pa (0 without contact).
     pub mean_pressure_pa: f64,
+    /// The blade's tip at the end of the frame, m (world frame).
+    pub tip: Vec3,
 }
 
 impl SpatulaReport {
