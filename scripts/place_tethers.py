@@ -28,19 +28,11 @@ Run from the repository root; output is deterministic.
 import math
 import re
 
+from trajectory_lib import add, blade_pose, cross, row, write
+
 ENTRY, INWARD = (-68.09, 10.0, -11.65), (1.0, 0.0, 0.0)
 NORMAL = tuple(c / math.hypot(0.3429, 0.9394) for c in (0.0, 0.3429, 0.9394))
 HALF_WIDTH, L = 4.2, 60.0
-
-
-def add(a, b, s=1.0):
-    return tuple(ai + s * bi for ai, bi in zip(a, b))
-
-
-def cross(a, b):
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
 ACROSS = cross(NORMAL, INWARD)
 
 
@@ -51,20 +43,6 @@ def at(depth, side, across):
 
 def fmt(p):
     return f"({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f})"
-
-
-def quat_from_axes(x, y, z):
-    m = [[x[0], y[0], z[0]], [x[1], y[1], z[1]], [x[2], y[2], z[2]]]
-    tr = m[0][0] + m[1][1] + m[2][2]
-    s = math.sqrt(tr + 1.0) * 2
-    q = (0.25 * s, (m[2][1] - m[1][2]) / s, (m[0][2] - m[2][0]) / s, (m[1][0] - m[0][1]) / s)
-    n = math.sqrt(sum(c * c for c in q))
-    return tuple(c / n for c in q)
-
-
-def blade_pose(tip_depth, offset):
-    origin = add(add(ENTRY, INWARD, tip_depth - L), NORMAL, offset)
-    return origin, quat_from_axes(INWARD, ACROSS, NORMAL)
 
 
 # Bands: two rows of four across the gap, at 1.5 mm either side of the blades' centre line.
@@ -96,17 +74,6 @@ new = re.sub(r"(    // tethers: begin\n).*?(    // tethers: end\n)", lambda m: m
 open(path, "w").write(new)
 
 
-def row(t, k, p, q, cut):
-    return f"{t:.4f},{k},{p[0]:.4f},{p[1]:.4f},{p[2]:.4f},{q[0]:.9f},{q[1]:.9f},{q[2]:.9f},{q[3]:.9f},{cut}"
-
-
-def write(path, comment, rows):
-    with open(path, "w") as f:
-        f.write("".join(f"# {line}\n" for line in comment.splitlines()))
-        f.write("time_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz,cut\n")
-        f.write("\n".join(rows) + "\n")
-
-
 def trajectory(spread, spread_end, cuts):
     rows = []
     for k, side in ((0, 1.0), (1, -1.0)):
@@ -115,8 +82,8 @@ def trajectory(spread, spread_end, cuts):
             # The tip reaches depth d at t = 1.5 (d + 5) / 23 s on its way in.
             keys += [(1.5 * (d + 5.0) / 23.0, d, 1.2, 1) for d in BAND_DEPTHS]
         for t, depth, off, cut in sorted(keys):
-            p, q = blade_pose(depth, side * off)
-            rows.append((t, k, row(t, k, p, q, cut)))
+            p, q = blade_pose(ENTRY, INWARD, NORMAL, L, depth, side * off)
+            rows.append((t, k, row(t, k, p, q, cut, time_digits=4)))
     return [r for _, _, r in sorted(rows)]
 
 
@@ -124,8 +91,8 @@ write("assets/trajectories/sylvian_tethers.csv",
       "The careful surgeon on the phantom's left Sylvian fissure (config/sylvian_tethers.ron; scripts/place_tethers.py):\n"
       "the blades go in as in paper_fig14_sylvian.csv, the frontal blade's microscissors cutting the arachnoid\n"
       "bands as its tip reaches each (cut = 1), then both spread 7 mm along the fissure normal until 4 s and hold.",
-      trajectory(7.0, 4.0, True))
+      trajectory(7.0, 4.0, True), cut=True)
 write("assets/trajectories/sylvian_tethers_rough.csv",
       "A rough opening of the same fissure: no sharp dissection, the blades spread 10 mm each in 1 s\n"
       "(1.5 -> 2.5 s) through the uncut arachnoid, and hold.",
-      trajectory(10.0, 2.5, False))
+      trajectory(10.0, 2.5, False), cut=True)
