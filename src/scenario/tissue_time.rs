@@ -99,9 +99,12 @@ pub const DOSE_50_MMHG_MIN: f64 = 225.0;
 pub const DOSE_SPREAD_MMHG_MIN: f64 = 75.0 / 1.609_437_912_434_100_3;
 /// Default recovery time constant, s. Intermittent retraction injured less than continuous retraction at the same
 /// force (dogs, 60 minutes: Yokoh et al., J Neurosurg 1983;58(6):918-23, PMID 6854385; rats: Rosenørn 1988,
-/// PMID 3414411); how fast the tissue recovers is not given as a time constant. Five minutes is chosen: blood flow
-/// under a released retractor returns within minutes, and a minute's release then takes a fifth of the dose away.
-pub const RECOVERY_TAU_S: f64 = 300.0;
+/// PMID 3414411); how fast the tissue recovers is not given as a time constant. One minute is chosen: blood flow
+/// under a released retractor returns within about a minute (the hyperaemia of reperfusion), so a minute's release
+/// takes most (63 %) of the dose away, while a blade lifted for a few seconds takes little. With a slower recovery
+/// an intermittent hold would come out worse than a continuous one here (the re-pressed tissue starts unrelaxed),
+/// against the dogs' and rats' findings.
+pub const RECOVERY_TAU_S: f64 = 60.0;
 
 fn default_map() -> f64 {
     DEFAULT_MAP_MMHG
