@@ -9,6 +9,7 @@
 
 pub mod app;
 pub mod collision;
+pub mod debrief;
 pub mod fem;
 pub mod fsio;
 pub mod geometry;

@@ -7,6 +7,7 @@
 
 mod bench;
 mod check;
+mod debrief;
 mod frames;
 mod mesh;
 mod plot;
@@ -98,6 +99,10 @@ pub enum Command {
     /// Plot replay runs against time: force, mean contact pressure (with the 20 mmHg
     /// line) and contact vertices per blade; several runs overlay, a colour a run.
     Plot(plot::PlotArgs),
+    /// Score and explain a trainee's run: a self-contained HTML page (verdicts per blade against a reference run
+    /// and the literature's limits, what to do differently, the timeline, a map of where pressure was applied)
+    /// and its numbers as JSON beside it.
+    Debrief(debrief::DebriefArgs),
     /// Measure what accuracy costs in time: sweeps, results.csv, report.md and plots.
     Study {
         /// quick (minutes, paper-9k: the README's table), full (paper-12k, three phantom resolutions), ci (a short plan the tests re-run against docs/study/ci/report.md) or brain (the real brains, coarse against q15: the shipped assets/brain/ or --mesh).
@@ -220,6 +225,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<()> {
             replay::run(replay::ReplayArgs { scenario: &scenario, set: &set, trajectory, out, vtk, frames, strict }).map(|_| ())
         }
         Some(Command::Plot(args)) => plot::run(&args),
+        Some(Command::Debrief(args)) => debrief::run(&args),
         Some(Command::Study { preset, scene, out, knobs, meshes, cache_dir }) => {
             let preset = match preset {
                 StudyPresetArg::Quick => fissure::study::StudyPreset::Quick,

@@ -147,6 +147,31 @@ pub fn contact_patches(
     }
 }
 
+/// Per surface vertex, the contact pressure the blades put on it this frame, mmHg, into `out` (resized to the
+/// surface's vertices, zero where no blade pushes): the magnitude of each tool row's reaction on the vertex (rows of
+/// several blades on one vertex add) over the vertex's lumped rest area `vertex_area_m2`
+/// ([`crate::mesh::surface::vertex_areas`]). Barrier rows and non-tool rows (skull, tethers) count only as tool
+/// rows do in [`contact_patches`]: a tool row with a zero reaction adds nothing. A vertex of zero area stays 0.
+pub fn vertex_pressures_mmhg(surface: &BoundarySurface, constraints: &[Constraint], reactions: &[Vec3], vertex_area_m2: &[f64], out: &mut Vec<f64>) {
+    out.clear();
+    out.resize(surface.vertices.len(), 0.0);
+    for (c, r) in constraints.iter().zip(reactions) {
+        if !c.kind.is_tool() {
+            continue;
+        }
+        let v = surface.node_to_vertex.get(c.node as usize).copied().unwrap_or(NOT_ON_SURFACE);
+        if v == NOT_ON_SURFACE {
+            continue;
+        }
+        let area = vertex_area_m2.get(v as usize).copied().unwrap_or(0.0);
+        if let Some(slot) = out.get_mut(v as usize)
+            && area > 0.0
+        {
+            *slot += r.norm() / area / PA_PER_MMHG;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -251,6 +276,21 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn vertex_pressure_is_the_reaction_over_the_lumped_rest_area() {
+        let (surface, positions) = square();
+        let areas = crate::mesh::surface::vertex_areas(&positions, &surface.triangles);
+        // Vertex 0 (a third of 1 mm^2) pushed with 1 mN by two rows of two blades; vertex 1 guarded, no force.
+        let constraints = [barrier(0, 0), barrier(0, 1), barrier(1, 0)];
+        let reactions = [Vec3::new(0.0, 0.0, 0.6e-3), Vec3::new(0.0, 0.0, 0.4e-3), Vec3::zeros()];
+        let mut out = Vec::new();
+        vertex_pressures_mmhg(&surface, &constraints, &reactions, &areas, &mut out);
+        assert_eq!(out.len(), 4);
+        let expected = 1e-3 / (1e-6 / 3.0) / PA_PER_MMHG;
+        assert!((out[0] - expected).abs() < 1e-9 * expected, "{} against {expected}", out[0]);
+        assert_eq!(&out[1..], &[0.0, 0.0, 0.0]);
     }
 
     #[test]

@@ -5,7 +5,9 @@
 //! else the spatulas hold their initial poses), an output folder. Out:
 //! `metrics.csv` (a row a frame, flushed as written), `summary.json`, and with
 //! `vtk` a `series.pvd` + `frame_NNNNN.vtu` per frame (deformed mesh with point
-//! displacement and cell stress / strain / region). Stays true: an error or an
+//! displacement and cell stress / strain / region), and `surface_dose.csv`: per
+//! surface vertex at rest, the time integral of its contact pressure (mmHg s)
+//! and its peak (mmHg) over the frames played. Stays true: an error or an
 //! interruption (the `interrupt` flag, set by Ctrl-C in the CLI) stops the loop
 //! with every row written so far valid; the summary is still written, marked
 //! `interrupted`.
@@ -180,6 +182,7 @@ pub fn replay(
     let mut input = FrameInput::default();
     let mut pvd: Vec<(f64, String)> = Vec::new();
     let mut failure: Option<ReplayError> = None;
+    let mut dose = SurfaceDose::new(&pipeline);
     for k in 0..total {
         if interrupt.load(Ordering::Relaxed) {
             break;
@@ -198,6 +201,7 @@ pub fn replay(
                     break;
                 }
                 summary.add(report, dt);
+                dose.add(&pipeline, dt);
             }
             Err(e) => {
                 failure = Some(ReplayError::Step { source: e, frames: k, dir: options.out_dir.clone() });
@@ -235,13 +239,68 @@ pub fn replay(
         result.collision_backend = Some(format!("{:?}", c.backend()).to_lowercase());
         result.collision_notes = c.warnings().to_vec();
     }
-    let written = write_summary(&options.out_dir.join("summary.json"), &result);
+    let written = write_summary(&options.out_dir.join("summary.json"), &result)
+        .and_then(|()| dose.write(&options.out_dir.join(SURFACE_DOSE_FILE), pipeline.rest_positions()));
     match failure {
         Some(e) => Err(e),
         None => {
             written?;
             Ok(result)
         }
+    }
+}
+
+/// The per-vertex pressure file a replay writes beside `metrics.csv`.
+pub const SURFACE_DOSE_FILE: &str = "surface_dose.csv";
+/// Its header: the vertex's rest position, its pressure-time integral and its peak pressure.
+pub const SURFACE_DOSE_HEADER: &str = "x_mm,y_mm,z_mm,pressure_time_mmhg_s,peak_pressure_mmhg";
+
+/// Per surface vertex, the integral of its contact pressure over the frames played (mmHg s) and its peak (mmHg):
+/// where on the brain the blades pressed, and for how long. A frame's pressure is the ischemia stage's relaxed
+/// pressure when the scene has one, else the tool rows' reactions over the rest areas
+/// ([`super::contact::vertex_pressures_mmhg`]).
+struct SurfaceDose {
+    areas_m2: Vec<f64>,
+    frame_mmhg: Vec<f64>,
+    dose_mmhg_s: Vec<f64>,
+    peak_mmhg: Vec<f64>,
+}
+
+impl SurfaceDose {
+    fn new(pipeline: &Pipeline) -> Self {
+        let n = pipeline.surface().vertices.len();
+        let areas_m2 = crate::mesh::surface::vertex_areas(pipeline.rest_positions(), &pipeline.surface().triangles);
+        Self { areas_m2, frame_mmhg: Vec::with_capacity(n), dose_mmhg_s: vec![0.0; n], peak_mmhg: vec![0.0; n] }
+    }
+
+    /// Adds the pipeline's last frame, of `dt` seconds.
+    fn add(&mut self, pipeline: &Pipeline, dt: f64) {
+        let pressures: &[f64] = match pipeline.ischemia() {
+            Some(i) => i.pressure_mmhg(),
+            None => {
+                let solution = pipeline.last_solution();
+                super::contact::vertex_pressures_mmhg(pipeline.surface(), pipeline.last_constraints(), &solution.reactions, &self.areas_m2, &mut self.frame_mmhg);
+                &self.frame_mmhg
+            }
+        };
+        for ((dose, peak), &p) in self.dose_mmhg_s.iter_mut().zip(&mut self.peak_mmhg).zip(pressures) {
+            if p > 0.0 {
+                *dose += p * dt;
+                *peak = peak.max(p);
+            }
+        }
+    }
+
+    /// Writes the file whole: a row per surface vertex at its rest position (mm).
+    fn write(&self, path: &Path, rest_m: &[crate::math::Vec3]) -> Result<(), OutputError> {
+        use std::fmt::Write as _;
+        let mut text = String::with_capacity(64 * rest_m.len() + 64);
+        text.push_str(SURFACE_DOSE_HEADER);
+        text.push('\n');
+        for ((x, dose), peak) in rest_m.iter().zip(&self.dose_mmhg_s).zip(&self.peak_mmhg) {
+            let _ = writeln!(text, "{},{},{},{},{}", x.x * 1e3, x.y * 1e3, x.z * 1e3, dose, peak);
+        }
+        crate::fsio::write_atomic(path, text.as_bytes()).map_err(|e| OutputError::new(path, e.source))
     }
 }
 

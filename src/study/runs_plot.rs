@@ -396,6 +396,16 @@ pub fn write_plot(runs: &[RunSeries], out: &Path, size: (u32, u32)) -> Result<()
     Ok(())
 }
 
+/// The SVG text of the figure [`write_plot`] draws, for `runs` at `size` pixels (at least [`MIN_SIZE`]): for a
+/// page that embeds it.
+pub fn runs_svg(runs: &[RunSeries], size: (u32, u32)) -> Result<String, RunPlotError> {
+    if runs.is_empty() {
+        return Err(RunPlotError::NoRuns);
+    }
+    let size = (size.0.max(MIN_SIZE.0), size.1.max(MIN_SIZE.1));
+    svg_text(size, |root| draw_runs(root, runs)).map_err(|m| RunPlotError::file(&runs[0].dir, format!("drawing the timeline: {m}")))
+}
+
 /// Smallest and largest finite value.
 fn finite_span(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
     values.filter(|v| v.is_finite()).fold(None, |span, v| Some(span.map_or((v, v), |(lo, hi): (f64, f64)| (lo.min(v), hi.max(v)))))

@@ -1,0 +1,52 @@
+//! `fissure debrief RUN_DIR... [--reference REF_RUN_DIR] [-o OUT.html]`: a replay's run scored and explained as one
+//! self-contained HTML page and its JSON. The reading, scoring and page are [`fissure::debrief`]'s; this names the
+//! folder in each error and prints what was written and each blade's worst verdict.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use fissure::debrief::{self, Verdict};
+
+/// `fissure debrief`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct DebriefArgs {
+    /// Run folders written by `fissure replay --out DIR` (metrics.csv, summary.json, surface_dose.csv); several are
+    /// shown side by side with each metric's trend from the first to the last.
+    #[arg(required = true, value_name = "RUN_DIR")]
+    pub runs: Vec<PathBuf>,
+    /// The reference run (the careful surgeon's trajectory replayed the same way): each value against its own.
+    #[arg(long, value_name = "REF_RUN_DIR")]
+    pub reference: Option<PathBuf>,
+    /// The page (default RUN_DIR/debrief.html for one run; required for several); the JSON goes beside it, same stem.
+    #[arg(short, long, value_name = "OUT.html")]
+    pub output: Option<PathBuf>,
+}
+
+pub fn run(args: &DebriefArgs) -> anyhow::Result<()> {
+    let out = match (&args.output, args.runs.as_slice()) {
+        (Some(out), _) => out.clone(),
+        (None, [one]) => one.join("debrief.html"),
+        (None, _) => anyhow::bail!("debriefing {} runs: name the page with -o OUT.html", args.runs.len()),
+    };
+    let reference = match &args.reference {
+        Some(dir) => Some(debrief::read_run(dir).with_context(|| format!("reading the reference run {}", dir.display()))?),
+        None => None,
+    };
+    let runs = args.runs.iter().map(|dir| debrief::read_run(dir).with_context(|| format!("debriefing {}", dir.display()))).collect::<anyhow::Result<Vec<_>>>()?;
+    let debriefs: Vec<_> = runs.iter().map(|r| debrief::debrief(r, reference.as_ref())).collect();
+    let json = debrief::page::write_page(&runs, &debriefs, &out).with_context(|| format!("writing the debrief {}", out.display()))?;
+    println!("wrote {} and {}", out.display(), json.display());
+    for d in &debriefs {
+        if d.interrupted {
+            println!("  {}: stopped early, {} frames", d.run, d.frames);
+        }
+        for b in &d.blades {
+            let worst = b.metrics.iter().filter_map(|m| m.verdict.map(|v| (v, m))).max_by_key(|(v, _)| *v);
+            match worst {
+                Some((v, m)) if v > Verdict::Within => println!("  {} {}: {} {}", d.run, b.name, m.name, v.words()),
+                _ => println!("  {} {}: within", d.run, b.name),
+            }
+        }
+    }
+    Ok(())
+}
