@@ -8,7 +8,8 @@
 //! consumers draw through [`SceneBuffers::view`] only, so a screenshot looks
 //! like the window; capturing a snapshot reuses its vectors (no allocation once
 //! sized; a scene's vessels and bands, when it has them, through
-//! [`super::tethers`]); nothing here touches the GPU.
+//! [`super::tethers`]; its tissue over time, the relaxed pressures and the
+//! infarct risk, from the pipeline's stages); nothing here touches the GPU.
 
 use crate::geometry::Pose;
 use crate::math::Vec3;
@@ -35,6 +36,25 @@ pub enum SurfaceField {
     /// Largest principal strain of the tets under each vertex (0..[`STRAIN_FULL_SCALE`]);
     /// plain while the snapshot has no strain yet.
     Strain,
+    /// Risk of infarct of each vertex under the retractors (0..1, white to dark
+    /// purple, the levels 1/6, 1/2, 5/6 marked on the legend); plain in a scene
+    /// without the `Ischemia` effect.
+    Risk,
+}
+
+impl SurfaceField {
+    /// The field the F key shows after `self`: none, displacement, pressure,
+    /// strain, then infarct risk where the scene has it (`has_risk`: the
+    /// `Ischemia` effect), then none again.
+    pub fn next(self, has_risk: bool) -> Self {
+        match self {
+            SurfaceField::None => SurfaceField::Displacement,
+            SurfaceField::Displacement => SurfaceField::Pressure,
+            SurfaceField::Pressure => SurfaceField::Strain,
+            SurfaceField::Strain if has_risk => SurfaceField::Risk,
+            SurfaceField::Strain | SurfaceField::Risk => SurfaceField::None,
+        }
+    }
 }
 
 /// Displacement mapped to the top of the colour map, mm.
@@ -82,14 +102,18 @@ pub fn field_scale(field: SurfaceField, pressure_max_mmhg: f64) -> Option<(Field
         SurfaceField::Displacement => Some((FieldKind::DisplacementMm, FieldKind::DisplacementMm.default_map(), (0.0, DISPLACEMENT_FULL_SCALE_MM))),
         SurfaceField::Pressure => Some((FieldKind::ContactPressureMmHg, crate::render::ColorMap::WhiteYellowRed, (0.0, pressure_max))),
         SurfaceField::Strain => Some((FieldKind::Strain, FieldKind::Strain.default_map(), (0.0, STRAIN_FULL_SCALE))),
+        SurfaceField::Risk => Some((FieldKind::InfarctRisk, FieldKind::InfarctRisk.default_map(), (0.0, 1.0))),
     }
 }
 
-/// The colour bar of what `options` shows on `snapshot` (`None`: no field, or
-/// strain not computed yet).
+/// The colour bar of what `options` shows on `snapshot` (`None`: no field,
+/// strain not computed yet, or risk in a scene without it).
 pub fn legend_for(options: &DrawOptions, snapshot: &Snapshot) -> Option<crate::render::legend::Legend> {
-    if options.field == SurfaceField::Strain && snapshot.strain.len() != snapshot.surface_positions.len() {
-        return None;
+    let n = snapshot.surface_positions.len();
+    match options.field {
+        SurfaceField::Strain if snapshot.strain.len() != n => return None,
+        SurfaceField::Risk if snapshot.risk.len() != n => return None,
+        _ => {}
     }
     let (kind, map, range) = field_scale(options.field, options.pressure_max_mmhg)?;
     crate::render::legend::Legend::of(kind, map, range)
@@ -107,8 +131,16 @@ pub struct Snapshot {
     pub surface_positions: Vec<Vec3>,
     /// |displacement| per surface vertex, mm.
     pub displacement_mm: Vec<f64>,
-    /// Contact pressure per surface vertex, mmHg (0 where not in contact).
+    /// Contact pressure per surface vertex, mmHg (0 where not in contact);
+    /// relaxed where the scene has the `Relaxation` effect, as the report's
+    /// forces are.
     pub pressure_mmhg: Vec<f64>,
+    /// Risk of infarct per surface vertex, 0 to 1 (the `Ischemia` effect;
+    /// empty without it).
+    pub risk: Vec<f64>,
+    /// Per blade: the simulated time its area at risk first passed zero, s
+    /// (the `Ischemia` effect; empty without it).
+    pub first_at_risk_s: Vec<Option<f64>>,
     /// Largest principal strain per surface vertex: the mean over the tets that
     /// own its boundary triangles, from the StressField stage or the window's
     /// background stress worker. Empty when neither has given stress.
@@ -149,25 +181,14 @@ impl Snapshot {
         self.poses.clear();
         self.poses.extend_from_slice(&state.poses);
         self.report.clone_from(report);
-        // Pressure: |reaction| / vertex area at each enforced vertex.
-        self.pressure_mmhg.clear();
-        self.pressure_mmhg.resize(state.surface_positions.len(), 0.0);
+        let n = state.surface_positions.len();
         let surface = pipeline.surface();
-        let reactions = &pipeline.last_solution().reactions;
-        for (c, f) in pipeline.last_constraints().iter().zip(reactions) {
-            if !c.kind.is_tool() {
-                continue;
-            }
-            let v = surface.node_to_vertex.get(c.node as usize).copied().unwrap_or(NOT_ON_SURFACE);
-            if v == NOT_ON_SURFACE {
-                continue;
-            }
-            let area = areas.get(v as usize).copied().unwrap_or(0.0);
-            if area > 0.0 {
-                if let Some(p) = self.pressure_mmhg.get_mut(v as usize) {
-                    *p += f.norm() / area / PASCALS_PER_MMHG;
-                }
-            }
+        self.capture_pressure(pipeline, n, areas);
+        self.risk.clear();
+        self.first_at_risk_s.clear();
+        if let Some(ischemia) = pipeline.ischemia() {
+            self.risk.extend((0..n).map(|v| ischemia.risk(v)));
+            self.first_at_risk_s.extend_from_slice(ischemia.first_at_risk_s());
         }
         self.set_strain(surface, &state.stress);
         self.tethers.capture(pipeline.tethers(), &state.surface_positions);
@@ -193,6 +214,39 @@ impl Snapshot {
 }
 
 impl Snapshot {
+    /// Sets [`Snapshot::pressure_mmhg`] for `n` surface vertices: the
+    /// ischemia stage's (relaxed) pressures where the scene has it, else
+    /// |reaction| / vertex area at each blade's vertex, scaled by its blade's
+    /// relaxation where the scene relaxes (the pressures of a patch relax with
+    /// its blade's force).
+    fn capture_pressure(&mut self, pipeline: &Pipeline, n: usize, areas: &[f64]) {
+        self.pressure_mmhg.clear();
+        if let Some(relaxed) = pipeline.ischemia().map(|i| i.pressure_mmhg()).filter(|p| p.len() == n) {
+            self.pressure_mmhg.extend_from_slice(relaxed);
+            return;
+        }
+        self.pressure_mmhg.resize(n, 0.0);
+        let surface = pipeline.surface();
+        let ratios = pipeline.relaxation_ratios();
+        let reactions = &pipeline.last_solution().reactions;
+        for (c, f) in pipeline.last_constraints().iter().zip(reactions) {
+            if !c.kind.is_tool() {
+                continue;
+            }
+            let v = surface.node_to_vertex.get(c.node as usize).copied().unwrap_or(NOT_ON_SURFACE);
+            if v == NOT_ON_SURFACE {
+                continue;
+            }
+            let area = areas.get(v as usize).copied().unwrap_or(0.0);
+            let ratio = ratios.and_then(|r| r.get(usize::from(c.owner)).copied()).unwrap_or(1.0);
+            if area > 0.0 {
+                if let Some(p) = self.pressure_mmhg.get_mut(v as usize) {
+                    *p += f.norm() / area / PASCALS_PER_MMHG * ratio;
+                }
+            }
+        }
+    }
+
     /// Shows the surface beyond the working region (the vertices without
     /// compliance rows, which the frames leave as they were) at `nodes`,
     /// every node's displacement from the background solve of a recent
@@ -375,6 +429,7 @@ impl SceneBuffers {
                 SurfaceField::Displacement => &snapshot.displacement_mm,
                 SurfaceField::Pressure => &snapshot.pressure_mmhg,
                 SurfaceField::Strain if snapshot.strain.len() == snapshot.surface_positions.len() => &snapshot.strain,
+                SurfaceField::Risk if snapshot.risk.len() == snapshot.surface_positions.len() => &snapshot.risk,
                 _ => return None,
             };
             Some(ScalarField { values, kind, map, range })
@@ -412,6 +467,14 @@ pub struct SceneStatic {
     pub tethers: Option<crate::scenario::Tethers>,
     /// The vessel-stretch legend (`None`: the scene has no vessels).
     pub vessel_legend: Option<crate::render::tethers::VesselLegend>,
+    /// The scene relaxes (the `Relaxation` effect): the forces and pressures
+    /// shown are the held tissue's.
+    pub relaxing: bool,
+    /// The time its relaxation function takes to halve, s (`None`: it never
+    /// halves, the scene does not relax, or only the pipeline was known).
+    pub relaxation_half_time_s: Option<f64>,
+    /// The ischemia model (`None`: the scene has no `Ischemia` effect).
+    pub ischemia: Option<crate::scenario::Ischemia>,
 }
 
 impl SceneStatic {
@@ -437,6 +500,9 @@ impl SceneStatic {
             display: None,
             vessel_legend: tethers.as_ref().and_then(super::tethers::vessel_legend),
             tethers,
+            relaxing: pipeline.relaxation_ratios().is_some(),
+            relaxation_half_time_s: None,
+            ischemia: pipeline.ischemia().map(|i| i.model().clone()),
         }
     }
 }
@@ -488,6 +554,108 @@ mod tests {
         };
         let cam = camera_from_parts(ViewPreset::Microscope, bounds, &[], &[], &views);
         assert!((cam.eye() - Vec3::new(0.1, -0.05, 0.2)).norm() < 1e-9 && cam.target == Vec3::zeros() && cam.fov_y_rad == 0.5, "{cam:?}");
+    }
+
+    /// F goes none, displacement, pressure, strain, then infarct risk only
+    /// where the scene has it, and back to none; a risk field left over from
+    /// another scene goes to none.
+    #[test]
+    fn the_f_cycle_includes_risk_only_with_ischemia() {
+        let cycle = |has_risk: bool| {
+            let mut seen = vec![SurfaceField::None];
+            let mut f = SurfaceField::None.next(has_risk);
+            while f != SurfaceField::None && seen.len() < 10 {
+                seen.push(f);
+                f = f.next(has_risk);
+            }
+            seen
+        };
+        use SurfaceField::*;
+        assert_eq!(cycle(true), vec![None, Displacement, Pressure, Strain, Risk]);
+        assert_eq!(cycle(false), vec![None, Displacement, Pressure, Strain]);
+        assert_eq!(Risk.next(false), None);
+        let (kind, map, range) = field_scale(Risk, 30.0).expect("risk has a scale");
+        assert_eq!((kind, map, range), (FieldKind::InfarctRisk, crate::render::ColorMap::WhitePurple, (0.0, 1.0)));
+    }
+
+    /// The risk field is drawn and gets its colour bar only when the snapshot
+    /// has one value per surface vertex (a scene without `Ischemia` has none).
+    #[test]
+    fn the_risk_field_needs_one_value_per_vertex() {
+        let options = DrawOptions { field: SurfaceField::Risk, ..DrawOptions::default() };
+        let mut snapshot = Snapshot { surface_positions: vec![Vec3::zeros(); 3], ..Snapshot::default() };
+        assert!(legend_for(&options, &snapshot).is_none(), "no risk, no colour bar");
+        let scene = SceneStatic { triangles: vec![[0, 1, 2]], ..SceneStatic::default() };
+        let mut buffers = SceneBuffers::default();
+        assert!(buffers.view(&scene, &snapshot, &options, OrbitCamera::default()).surface.field.is_none());
+        snapshot.risk = vec![0.0, 0.5, 0.9];
+        let legend = legend_for(&options, &snapshot).expect("a colour bar");
+        assert_eq!(legend.markers.len(), 3);
+        let view = buffers.view(&scene, &snapshot, &options, OrbitCamera::default());
+        let field = view.surface.field.expect("the risk field is drawn");
+        assert_eq!((field.values, field.kind), (&[0.0, 0.5, 0.9][..], FieldKind::InfarctRisk));
+    }
+
+    /// The snapshot of a scene with tissue over time (the V valley, its blade
+    /// wedged and held): its pressure is the relaxed one, each blade's elastic
+    /// pressure times its relaxation without the ischemia stage and the
+    /// stage's own with it (the two agree), and its risk is the stage's, one
+    /// value per surface vertex; without `Ischemia` it has no risk.
+    #[test]
+    fn the_snapshot_captures_the_relaxed_pressure_and_the_risk() {
+        use crate::sim::replay::PoseSource;
+        use crate::sim::{BuildOptions, FrameInput};
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let run = |effects: &str| {
+            // A dose the wedged blade gives in a fraction of a second has even odds.
+            let sets = [
+                format!("effects=[Collision, Culling, ForceOutput, ContactPressure, {effects}]"),
+                "ischemia.dose_50_mmhg_min=0.02".to_string(),
+                "ischemia.dose_spread_mmhg_min=0.005".to_string(),
+            ];
+            let scenario = crate::scenario::Scenario::load(&root.join("config/v_valley.ron"), &sets).expect("the V valley loads");
+            let source = PoseSource::for_scenario(&scenario, None).expect("its trajectory");
+            let options = BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None, ..BuildOptions::default() };
+            let (mut pipeline, mut state) = Pipeline::build(&scenario, options).expect("it builds");
+            let (mut input, mut report) = (FrameInput::default(), FrameReport::default());
+            // Down the valley for 2 s (wedged from about 1.8 s), then held.
+            for k in 1..=250 {
+                source.poses_at(k as f64 * scenario.time_step, &mut input);
+                report = pipeline.step(&mut state, &input).expect("a frame").clone();
+            }
+            let areas = vertex_areas(pipeline.rest_positions(), &pipeline.surface().triangles);
+            let mut snapshot = Snapshot::default();
+            snapshot.capture(&pipeline, &state, &report, &areas);
+            (pipeline, snapshot, areas)
+        };
+        let (relaxing, relaxed, areas) = run("Relaxation");
+        let n = relaxed.surface_positions.len();
+        assert!(relaxed.risk.is_empty() && relaxed.first_at_risk_s.is_empty(), "no Ischemia, no risk");
+        let ratio = relaxing.relaxation_ratios().and_then(|r| r.first().copied()).expect("one blade relaxing");
+        assert!(ratio > 0.9 && ratio < 1.0, "a ramp of a second relaxes a little: {ratio}");
+        let mut elastic = vec![0.0; n];
+        for (c, f) in relaxing.last_constraints().iter().zip(&relaxing.last_solution().reactions) {
+            let v = relaxing.surface().node_to_vertex[c.node as usize];
+            if c.kind.is_tool() && v != NOT_ON_SURFACE && areas[v as usize] > 0.0 {
+                elastic[v as usize] += f.norm() / areas[v as usize] / PASCALS_PER_MMHG;
+            }
+        }
+        let peak = elastic.iter().copied().fold(0.0, f64::max);
+        assert!(peak > 1.0, "the blade presses the walls: {peak} mmHg");
+        assert_eq!(relaxed.pressure_mmhg.len(), n);
+        for (v, (got, e)) in relaxed.pressure_mmhg.iter().zip(&elastic).enumerate() {
+            assert!((got - e * ratio).abs() <= 1e-12 * peak, "vertex {v}: {got} against {e} x {ratio}");
+        }
+        let (dosing, dosed, _) = run("Relaxation, Ischemia");
+        let stage = dosing.ischemia().expect("the ischemia stage");
+        assert_eq!(dosed.pressure_mmhg, stage.pressure_mmhg(), "the stage's relaxed pressures");
+        for (v, (a, b)) in dosed.pressure_mmhg.iter().zip(&relaxed.pressure_mmhg).enumerate() {
+            assert!((a - b).abs() <= 1e-9 * peak, "vertex {v}: the stage's {a} against the relaxed elastic {b}");
+        }
+        assert_eq!(dosed.risk.len(), n);
+        assert!(dosed.risk.iter().enumerate().all(|(v, &r)| r == stage.risk(v)));
+        assert!(dosed.risk.iter().any(|&r| r > 0.5), "the wedged walls are at risk");
+        assert!(dosed.first_at_risk_s.first().copied().flatten().is_some(), "{:?}", dosed.first_at_risk_s);
     }
 
     #[test]

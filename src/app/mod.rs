@@ -18,4 +18,5 @@ pub mod script;
 pub mod sim_thread;
 pub mod stress_worker;
 pub mod tethers;
+pub mod tissue_time;
 pub mod window;

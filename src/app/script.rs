@@ -5,7 +5,7 @@
 //! Actions: `press KEY`, `release KEY` (KEY: W S D A E Q Up Down Left Right
 //! PageUp PageDown 1 .. 9 Tab Shift), `cut [N]` (microscissors at blade N's
 //! tip, numbered from 1 as the digit keys and the panel number them; without
-//! N the active blade's, as the X key), `record PATH`, `stop`, `field none|displacement|pressure|strain`,
+//! N the active blade's, as the X key), `record PATH`, `stop`, `field none|displacement|pressure|strain|risk`,
 //! `view overview|microscope`, `quit`; and through the window's own key
 //! handling (focus rules included, as a user's key would go): `keydown NAME`,
 //! `keyup NAME` (NAME: any key of [`crate::input::bindings::KEY_BINDINGS`],
@@ -130,7 +130,8 @@ impl Script {
                     Some("displacement") => SurfaceField::Displacement,
                     Some("pressure") => SurfaceField::Pressure,
                     Some("strain") => SurfaceField::Strain,
-                    _ => return Err(need("none, displacement, pressure or strain")),
+                    Some("risk") => SurfaceField::Risk,
+                    _ => return Err(need("none, displacement, pressure, strain or risk")),
                 }),
                 "view" => ScriptAction::View(match arg {
                     Some("overview") => ViewPreset::Overview,

@@ -214,7 +214,11 @@ fn build(scenario: Scenario, shared: &SimShared) -> Result<Built, String> {
     *lock(&shared.progress) = None;
     let (pipeline, state) = built.map_err(|e| e.to_string())?;
     let areas = vertex_areas(pipeline.rest_positions(), &pipeline.surface().triangles);
-    *lock(&shared.scene) = Arc::new(super::draw::SceneStatic { display: Some(scenario.display), ..super::draw::SceneStatic::of(&pipeline) });
+    *lock(&shared.scene) = Arc::new(super::draw::SceneStatic {
+        display: Some(scenario.display),
+        relaxation_half_time_s: scenario.relaxation.as_ref().and_then(super::tissue_time::half_time_s),
+        ..super::draw::SceneStatic::of(&pipeline)
+    });
     shared.generation.fetch_add(1, Ordering::Relaxed);
     *lock(&shared.status) = String::new();
     Ok(Built { scenario, pipeline, state, trajectory, areas })

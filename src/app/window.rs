@@ -11,10 +11,11 @@
 //!
 //! Keys: [`crate::input::bindings`] (one table with the README's Controls):
 //! the blade map, `M` microscope view, `O` overview, `F` cycles the surface
-//! colour, `R` starts / stops recording, `Esc` gives the keys back to the
-//! scene, `Ctrl+Q` quits. The keys drive the scene unless the panel's text
-//! field has the focus (clicked into); any other panel interaction hands the
-//! focus straight back, and the panel's first line says where keys go.
+//! colour (infarct risk too where the scene has `Ischemia`), `R` starts /
+//! stops recording, `Esc` gives the keys back to the scene, `Ctrl+Q` quits.
+//! The keys drive the scene unless the panel's text field has the focus
+//! (clicked into); any other panel interaction hands the focus straight back,
+//! and the panel's first line says where keys go.
 
 use super::draw::{DrawOptions, SceneBuffers, SceneStatic, Snapshot, SurfaceField, ViewPreset};
 use super::sim_thread::BuildProgress;
@@ -375,13 +376,16 @@ impl App {
         }
     }
 
+    /// Shows `field` (infarct risk only where the scene has it: else none).
     fn set_field(&mut self, field: SurfaceField) {
+        let field = if field == SurfaceField::Risk && self.scene.ischemia.is_none() { SurfaceField::None } else { field };
         self.draw.field = field;
         self.panel.field = match field {
             SurfaceField::None => FieldChoice::None,
             SurfaceField::Displacement => FieldChoice::Field(FieldKind::DisplacementMm),
             SurfaceField::Pressure => FieldChoice::Field(FieldKind::ContactPressureMmHg),
             SurfaceField::Strain => FieldChoice::Field(FieldKind::Strain),
+            SurfaceField::Risk => FieldChoice::Field(FieldKind::InfarctRisk),
         };
     }
 
@@ -442,6 +446,10 @@ impl App {
             if let Some(display) = self.scene.display {
                 self.draw.views = display.views;
                 self.panel.pressure_max_mmhg = display.pressure_max_mmhg;
+            }
+            // A scene without infarct risk shows none of it.
+            if self.draw.field == SurfaceField::Risk {
+                self.set_field(SurfaceField::Risk);
             }
         }
         if shared.frames.take_latest(&mut self.front) && self.front.frame != self.last_frame_seen {
@@ -524,6 +532,7 @@ impl App {
         data.keys_to_scene = self.keys_to_scene;
         data.has_skull = !self.scene.skull.is_empty();
         data.tethers = self.scene.tethers.as_ref().map(|info| super::tethers::panel(info, &self.front.tethers, self.front.report.tethers.as_ref()));
+        data.tissue = super::tissue_time::panel(&self.scene, &self.front);
         let mut actions = Vec::new();
         let previous_culling = self.panel.culling;
         let mut backend = self.backend;
@@ -564,7 +573,7 @@ impl App {
             egui::Panel::bottom("fissure_status").show(ui, |ui| {
                 // Wraps onto a second line rather than cutting the end off (1280 px).
                 ui.horizontal_wrapped(|ui| {
-                    ui.label(format!("t = {time_s:.2} s"));
+                    ui.label(format!("t = {}", crate::ui::tissue_time::clock(time_s)));
                     for (name, (f, _)) in names.iter().zip(&haptic) {
                         ui.label(format!("{name}: haptic |F| {f:.3} N"));
                     }
@@ -649,6 +658,7 @@ impl App {
             FieldChoice::Field(FieldKind::DisplacementMm) => self.draw.field = SurfaceField::Displacement,
             FieldChoice::Field(FieldKind::ContactPressureMmHg) => self.draw.field = SurfaceField::Pressure,
             FieldChoice::Field(FieldKind::Strain) => self.draw.field = SurfaceField::Strain,
+            FieldChoice::Field(FieldKind::InfarctRisk) => self.draw.field = SurfaceField::Risk,
         }
         self.tell_strain();
         let Some(gpu) = self.gpu.as_mut() else { return };
@@ -720,12 +730,7 @@ impl App {
                 }
                 KeyAction::Microscope => self.preset(ViewPreset::Microscope),
                 KeyAction::Overview => self.preset(ViewPreset::Overview),
-                KeyAction::CycleField => self.set_field(match self.draw.field {
-                    SurfaceField::None => SurfaceField::Displacement,
-                    SurfaceField::Displacement => SurfaceField::Pressure,
-                    SurfaceField::Pressure => SurfaceField::Strain,
-                    SurfaceField::Strain => SurfaceField::None,
-                }),
+                KeyAction::CycleField => self.set_field(self.draw.field.next(self.scene.ischemia.is_some())),
                 KeyAction::Record => {
                     let on = !self.panel.recording;
                     self.toggle_recording(on);
@@ -750,7 +755,7 @@ impl App {
 }
 
 fn panel_data_of(front: &Snapshot, fps: f64) -> PanelData {
-    let mut data = PanelData { fps, sim_frame_ms: front.report.times.total() * 1e3, ..PanelData::default() };
+    let mut data = PanelData { fps, sim_frame_ms: front.report.times.total() * 1e3, time_s: front.time_s, ..PanelData::default() };
     for (k, s) in front.report.spatulas.iter().enumerate() {
         data.spatulas.push(SpatulaReadout {
             driver: front.drivers.get(k).map(|d| d.label()).unwrap_or("held"),

@@ -4,7 +4,8 @@
 //! Vulkan driver; no display needed), through the same drawing code as the
 //! window and `replay --frames`; a shown field gets the window's colour bar
 //! (units, ticks, the 20 mmHg line on pressure, whose scale is the scenario's
-//! `display.pressure_max_mmhg`).
+//! `display.pressure_max_mmhg`, the levels 1/6, 1/2, 5/6 on infarct risk).
+//! With the `Relaxation` effect the pressure shown is the relaxed one.
 
 use std::path::PathBuf;
 
@@ -30,6 +31,8 @@ pub enum FieldArg {
     Pressure,
     /// Largest principal strain (computed for the shown frame when the scene has no StressField stage).
     Strain,
+    /// Risk of infarct under the retractors, 0 to 1 (a scene with the `Ischemia` effect).
+    Risk,
 }
 
 #[derive(Debug, clap::Args)]
@@ -72,6 +75,13 @@ pub fn parse_size(text: &str) -> Result<(u32, u32), String> {
 pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.time.is_finite() && args.time >= 0.0, "--time must be a finite number of seconds >= 0, got {}", args.time);
     let scenario = Scenario::load(&args.scenario, &args.set).with_context(|| format!("loading {}", args.scenario.display()))?;
+    // Risk is dosed frame by frame by the `Ischemia` stage: a scene without it has none to show (fail before building).
+    anyhow::ensure!(
+        !matches!(args.field, FieldArg::Risk) || scenario.ischemia.is_some(),
+        "--field risk needs the Ischemia effect, and scene '{}' ({}) does not list it in `effects` (Ischemia, with ContactPressure: docs/usage.md, Tissue over time)",
+        scenario.name,
+        args.scenario.display()
+    );
     let source = PoseSource::for_scenario(&scenario, None).context("loading the scenario's trajectory")?;
     let (mut pipeline, mut state) = Pipeline::build(
         &scenario,
@@ -97,6 +107,7 @@ pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
             FieldArg::Displacement => SurfaceField::Displacement,
             FieldArg::Pressure => SurfaceField::Pressure,
             FieldArg::Strain => SurfaceField::Strain,
+            FieldArg::Risk => SurfaceField::Risk,
         },
         source_nodes: args.overlays,
         pairs: args.overlays,

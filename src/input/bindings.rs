@@ -182,7 +182,7 @@ pub const CONTROLS: &[ControlRow] = &[
     ControlRow { input: "M / O", action: "microscope view / overview", keys: &["M", "O"] },
     ControlRow {
         input: "F",
-        action: "surface colour: none, displacement, contact pressure, largest principal strain, each with its colour bar (without the scene's `StressField` stage, strain comes from a background worker on the other core, a frame or a few behind; the simulation never waits for it)",
+        action: "surface colour: none, displacement, contact pressure, largest principal strain, infarct risk (a scene with `Ischemia`), each with its colour bar (without the scene's `StressField` stage, strain comes from a background worker on the other core, a frame or a few behind; the simulation never waits for it)",
         keys: &["F"],
     },
     ControlRow {

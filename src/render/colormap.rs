@@ -1,4 +1,4 @@
-//! Colour maps for scalar fields (displacement, strain, contact pressure).
+//! Colour maps for scalar fields (displacement, strain, contact pressure, infarct risk).
 //!
 //! In: a value, a range (min, max), a [`ColorMap`]. Out: a linear-RGB colour
 //! (each 0..1) for the GPU. Stays true: values outside the range clamp to the
@@ -22,6 +22,11 @@ pub enum ColorMap {
     /// without contact stays white, a few mmHg already show yellow). The
     /// white start, then ColorBrewer's YlOrRd.
     WhiteYellowRed,
+    /// White -> pale blue -> violet -> dark purple (infarct risk: untouched
+    /// tissue stays white, and the hues differ from the pressure map's, so
+    /// the two fields are not mistaken for each other). The white start, then
+    /// ColorBrewer's BuPu.
+    WhitePurple,
 }
 
 const VIRIDIS: [[f32; 3]; 9] = [
@@ -64,6 +69,18 @@ const WHITE_YELLOW_RED: [[f32; 3]; 9] = [
     [0.502, 0.000, 0.149],
 ];
 
+const WHITE_PURPLE: [[f32; 3]; 9] = [
+    [1.000, 1.000, 1.000],
+    [0.878, 0.925, 0.957],
+    [0.749, 0.827, 0.902],
+    [0.620, 0.737, 0.855],
+    [0.549, 0.588, 0.776],
+    [0.549, 0.420, 0.694],
+    [0.533, 0.255, 0.616],
+    [0.506, 0.059, 0.486],
+    [0.302, 0.000, 0.294],
+];
+
 /// Linear component (0..1) to sRGB.
 pub fn linear_to_srgb(c: f32) -> f32 {
     if c <= 0.003_130_8 {
@@ -89,6 +106,7 @@ impl ColorMap {
             ColorMap::Inferno => &INFERNO,
             ColorMap::BlueWhiteRed => &BLUE_WHITE_RED,
             ColorMap::WhiteYellowRed => &WHITE_YELLOW_RED,
+            ColorMap::WhitePurple => &WHITE_PURPLE,
         }
     }
 
@@ -145,6 +163,19 @@ mod tests {
         // 6-12 mmHg must be visible (it was not on a white->red 0-40 scale).
         let blue = m.color_srgb8(8.0, (0.0, 30.0))[2];
         assert!(blue < 140, "8 mmHg of 30 must be clearly yellow (blue channel {blue})");
+    }
+
+    #[test]
+    fn white_purple_darkens_monotonically_from_white() {
+        let lum = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+        let m = ColorMap::WhitePurple;
+        assert_eq!(m.color_srgb8(0.0, (0.0, 1.0)), [255, 255, 255], "no risk stays white");
+        let mut last = 2.0;
+        for k in 0..=30 {
+            let l = lum(m.color(k as f64 / 30.0, (0.0, 1.0)));
+            assert!(l < last, "luminance must fall with risk: {k}/30 gave {l} after {last}");
+            last = l;
+        }
     }
 
     #[test]

@@ -27,6 +27,8 @@ pub enum FieldKind {
     Strain,
     /// Contact (retraction) pressure, mmHg.
     ContactPressureMmHg,
+    /// Risk of infarct under a retractor, 0 to 1, dimensionless.
+    InfarctRisk,
 }
 
 impl FieldKind {
@@ -36,6 +38,7 @@ impl FieldKind {
             FieldKind::DisplacementMm => "displacement (mm)",
             FieldKind::Strain => "max principal strain (-)",
             FieldKind::ContactPressureMmHg => "contact pressure (mmHg)",
+            FieldKind::InfarctRisk => "infarct risk (0 to 1)",
         }
     }
 
@@ -45,6 +48,7 @@ impl FieldKind {
             FieldKind::DisplacementMm => ColorMap::Viridis,
             FieldKind::Strain => ColorMap::Viridis,
             FieldKind::ContactPressureMmHg => ColorMap::Inferno,
+            FieldKind::InfarctRisk => ColorMap::WhitePurple,
         }
     }
 }

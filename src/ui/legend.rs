@@ -5,7 +5,7 @@
 //!
 //! In: a [`Legend`] and the rectangle of the scene. Out: shapes on an egui
 //! painter (a box at the scene's lower left: title with unit, the marked
-//! value's label, the bar with the marked value as a line, ticks with labels). Stays true: draws nothing for a
+//! values' labels, the bar with each marked value as a line, ticks with labels). Stays true: draws nothing for a
 //! legend without ticks; needs no layout pass (works on the first frame of a
 //! fresh egui context).
 
@@ -34,7 +34,7 @@ pub fn paint_legend(painter: &egui::Painter, scene: egui::Rect, legend: &Legend)
     let text = egui::Color32::from_gray(235);
     let font = egui::FontId::proportional(13.0);
     painter.text(frame.left_top() + egui::vec2(10.0, 6.0), egui::Align2::LEFT_TOP, &legend.title, font.clone(), text);
-    // Title row, then the marker's label row, then the bar and its tick labels.
+    // Title row, then the markers' label row, then the bar and its tick labels.
     let bar = egui::Rect::from_min_size(frame.left_top() + egui::vec2(14.0, 40.0), egui::vec2(frame.width() - 28.0, 14.0));
     let steps = bar.width().round().max(1.0) as usize;
     let step = bar.width() / steps as f32;
@@ -54,12 +54,12 @@ pub fn paint_legend(painter: &egui::Painter, scene: egui::Rect, legend: &Legend)
         painter.line_segment([egui::pos2(x, bar.bottom()), egui::pos2(x, bar.bottom() + 4.0)], egui::Stroke::new(1.0, text));
         painter.text(egui::pos2(x, bar.bottom() + 5.0), egui::Align2::CENTER_TOP, label, small.clone(), text);
     }
-    if let Some(marker) = &legend.marker {
+    let red = egui::Color32::from_rgb(255, 70, 50);
+    for marker in &legend.markers {
         let x = bar.left() + bar.width() * legend.fraction(marker.value);
-        let red = egui::Color32::from_rgb(255, 70, 50);
         painter.line_segment([egui::pos2(x, bar.top() - 5.0), egui::pos2(x, bar.bottom() + 3.0)], egui::Stroke::new(2.5, egui::Color32::BLACK));
         painter.line_segment([egui::pos2(x, bar.top() - 5.0), egui::pos2(x, bar.bottom() + 3.0)], egui::Stroke::new(1.5, egui::Color32::WHITE));
-        painter.text(egui::pos2(x, bar.top() - 5.0), egui::Align2::CENTER_BOTTOM, &marker.label, small, red);
+        painter.text(egui::pos2(x, bar.top() - 5.0), egui::Align2::CENTER_BOTTOM, &marker.label, small.clone(), red);
     }
 }
 
@@ -164,5 +164,20 @@ mod tests {
             assert!(texts.iter().any(|t| t == want), "missing text `{want}` in {texts:?}");
         }
         assert!(rects > 200, "the bar is painted as one strip a point: {rects} rectangles");
+    }
+
+    /// The risk bar paints each of its three levels' labels over the bar.
+    #[test]
+    fn risk_legend_paints_its_three_levels() {
+        let legend = Legend::of(FieldKind::InfarctRisk, ColorMap::WhitePurple, (0.0, 1.0)).unwrap();
+        let ctx = egui::Context::default();
+        let mut out = ctx.run_ui(egui::RawInput::default(), |ui| {
+            paint_legend(ui.painter(), egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(800.0, 500.0)), &legend);
+        });
+        out.textures_delta.clear();
+        let texts: Vec<String> = out.shapes.iter().filter_map(|c| if let egui::Shape::Text(t) = &c.shape { Some(t.galley.text().to_string()) } else { None }).collect();
+        for want in ["infarct risk (0 to 1)", "1/6 watch", "1/2 at risk", "5/6 likely", "0", "1"] {
+            assert!(texts.iter().any(|t| t == want), "missing text `{want}` in {texts:?}");
+        }
     }
 }

@@ -12,10 +12,14 @@
 //! and each blade is listed by the scene's own name, the active one marked;
 //! a scene with vessels or arachnoid bands gets their section
 //! ([`tethers::tethers_section`]): bands by state, each vessel's stretch
-//! against its rupture stretch, what tore or was cut.
+//! against its rupture stretch, what tore or was cut; the simulated time reads
+//! in minutes and seconds ("t = 2:03.4"), and a scene with tissue over time
+//! says its forces are relaxed and gets its ischemia section
+//! ([`tissue_time`]).
 
 pub mod legend;
 pub mod tethers;
+pub mod tissue_time;
 
 use crate::render::FieldKind;
 
@@ -170,11 +174,32 @@ pub struct PanelData {
     pub has_skull: bool,
     /// Vessels and bands (`None`: the scene has none).
     pub tethers: Option<tethers::TetherPanel>,
+    /// Simulated time of the shown frame, s.
+    pub time_s: f64,
+    /// Relaxation and ischemia (`None`: the scene has neither effect).
+    pub tissue: Option<tissue_time::TissuePanel>,
 }
 
 impl Default for PanelData {
     fn default() -> Self {
-        Self { fps: 0.0, sim_frame_ms: 0.0, spatulas: Vec::new(), active_spatula: 0, keys_to_scene: true, has_skull: false, tethers: None }
+        Self {
+            fps: 0.0,
+            sim_frame_ms: 0.0,
+            spatulas: Vec::new(),
+            active_spatula: 0,
+            keys_to_scene: true,
+            has_skull: false,
+            tethers: None,
+            time_s: 0.0,
+            tissue: None,
+        }
+    }
+}
+
+impl PanelData {
+    /// The scene has an infarct risk field to show (the `Ischemia` effect).
+    pub fn has_risk(&self) -> bool {
+        self.tissue.as_ref().is_some_and(|t| t.ischemia.is_some())
     }
 }
 
@@ -268,12 +293,16 @@ pub fn draw_panel(
             if !hint.is_empty() {
                 ui.small(hint);
             }
+            ui.label(egui::RichText::new(format!("t = {} (simulated)", tissue_time::clock(data.time_s))).strong());
             ui.label(format!(
                 "{:.0} fps, simulation {:.2} ms",
                 data.fps, data.sim_frame_ms
             ));
             timing_graph(ui, history);
             ui.separator();
+            if let Some(t) = &data.tissue {
+                tissue_time::relaxation_line(ui, t);
+            }
             for (k, (s, monitor)) in data.spatulas.iter().zip(state.monitors.iter()).enumerate() {
                 let f = s.force_n;
                 let magnitude = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
@@ -306,6 +335,10 @@ pub fn draw_panel(
                 ));
                 pressure_bar(ui, s.mean_pressure_mmhg, monitor.limit_mmhg);
             }
+            if let Some(ischemia) = data.tissue.as_ref().and_then(|t| t.ischemia.as_ref()) {
+                ui.separator();
+                tissue_time::ischemia_section(ui, ischemia, names);
+            }
             if let Some(t) = &data.tethers {
                 ui.separator();
                 if tethers::tethers_section(ui, t, data.active_spatula) {
@@ -320,6 +353,10 @@ pub fn draw_panel(
                 FieldKind::Strain,
                 FieldKind::ContactPressureMmHg,
             ] {
+                ui.radio_value(&mut state.field, FieldChoice::Field(kind), kind.label());
+            }
+            if data.has_risk() {
+                let kind = FieldKind::InfarctRisk;
                 ui.radio_value(&mut state.field, FieldChoice::Field(kind), kind.label());
             }
             ui.add(egui::Slider::new(&mut state.pressure_max_mmhg, 1.0..=1000.0).logarithmic(true).text("pressure bar top (mmHg)"));
@@ -545,5 +582,27 @@ mod tests {
         data.keys_to_scene = false;
         let texts = panel_texts(&data, &names);
         assert!(texts.iter().any(|t| t.starts_with("keys -> panel")), "{texts:?}");
+    }
+
+    /// The panel shows the simulated time in minutes and seconds; with tissue
+    /// over time, the relaxation line, the ischemia section and the risk
+    /// field's switch; without, none of them.
+    #[test]
+    fn panel_shows_the_clock_and_tissue_over_time_only_with_its_effects() {
+        let names = ["frontal".to_string()];
+        let mut data = PanelData { spatulas: vec![SpatulaReadout::default()], time_s: 123.4, ..PanelData::default() };
+        let texts = panel_texts(&data, &names);
+        assert!(texts.iter().any(|t| t == "t = 2:03.4 (simulated)"), "{texts:?}");
+        assert!(!texts.iter().any(|t| t == "Ischemia" || t.starts_with("tissue relaxing") || t == "infarct risk (0 to 1)"), "{texts:?}");
+        data.tissue = Some(tissue_time::TissuePanel {
+            relaxing: true,
+            half_time_s: Some(396.0),
+            ischemia: Some(tissue_time::IschemiaPanel { blades: vec![tissue_time::BladeRisk::default()], map_mmhg: 90.0, ..Default::default() }),
+        });
+        assert!(data.has_risk());
+        let texts = panel_texts(&data, &names);
+        for want in ["tissue relaxing: forces are the held tissue's, G(t) halves in 6.6 min", "Ischemia", "  frontal: 0.0 mm² at risk, none yet", "  MAP 90 mmHg", "infarct risk (0 to 1)"] {
+            assert!(texts.iter().any(|t| t == want), "missing `{want}` in {texts:?}");
+        }
     }
 }
