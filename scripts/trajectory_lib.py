@@ -1,4 +1,4 @@
-"""Helpers shared by the scripts that write trajectories and place tethers.
+"""Functions shared by the scripts that write trajectories and place tethers.
 
 scripts/make_trajectories.py, scripts/place_tethers.py and
 scripts/place_tethers_real_brain.py import it (Python puts a script's own

@@ -77,11 +77,12 @@ pub fn surface_vertices(
     }
 }
 
-/// Whether surface vertex `i` carries a contact pressure above zero (only a
-/// pressure field has any).
+/// Whether surface vertex `i` carries a contact pressure or a risk of infarct
+/// above zero (only those fields have any): what lies under a blade shows
+/// through it, the tissue a retractor presses being where both are.
 fn pressed_value(surface: &SurfaceView, i: usize) -> bool {
     surface.field.as_ref().is_some_and(|f| {
-        f.kind == FieldKind::ContactPressureMmHg && f.values.get(i).is_some_and(|&v| v > 0.0 && v.is_finite())
+        matches!(f.kind, FieldKind::ContactPressureMmHg | FieldKind::InfarctRisk) && f.values.get(i).is_some_and(|&v| v > 0.0 && v.is_finite())
     })
 }
 
@@ -237,8 +238,8 @@ pub fn tube_vertices(segments: &[TetherSegment], opaque: bool, unit_cap: &[Vec3]
         }
         let d = axis / length;
         // Any unit vector across the axis, and the third making (u, v, d) right-handed.
-        let helper = if d.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
-        let u = d.cross(&helper).normalize();
+        let other = if d.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
+        let u = d.cross(&other).normalize();
         let v = d.cross(&u);
         let color = [seg.color[0], seg.color[1], seg.color[2], seg.alpha.clamp(0.0, 1.0)];
         let sides = if opaque { TUBE_SIDES } else { STRAND_SIDES };
@@ -333,7 +334,7 @@ mod tests {
     use crate::geometry::{Pose, SpatulaShape};
 
     #[test]
-    fn only_pressed_triangles_show_through_and_only_for_pressure() {
+    fn only_pressed_triangles_show_through_and_only_for_pressure_and_risk() {
         use super::super::colormap::ColorMap;
         use super::super::scene::ScalarField;
         let p = vec![Vec3::zeros(), Vec3::x(), Vec3::y(), Vec3::new(1.0, 1.0, 0.0), Vec3::new(2.0, 1.0, 0.0)];
@@ -346,10 +347,13 @@ mod tests {
         assert_eq!(verts.iter().map(|v| v.color[3]).collect::<Vec<_>>(), vec![0.0, 0.0, 1.0, 0.0, 0.0], "NaN is not pressure");
         pressed_triangles(&tris, &verts, &mut out);
         assert_eq!(out, vec![[0, 1, 2], [1, 3, 2]], "the triangles around the pressed vertex");
+        surface_vertices(&view(Some(field(FieldKind::InfarctRisk))), &Vec3::zeros(), &mut normals, &mut verts);
+        pressed_triangles(&tris, &verts, &mut out);
+        assert_eq!(out, vec![[0, 1, 2], [1, 3, 2]], "the tissue at risk shows through too");
         for other in [None, Some(field(FieldKind::DisplacementMm)), Some(field(FieldKind::Strain))] {
             surface_vertices(&view(other), &Vec3::zeros(), &mut normals, &mut verts);
             pressed_triangles(&tris, &verts, &mut out);
-            assert!(out.is_empty(), "only a pressure field shows through");
+            assert!(out.is_empty(), "only a pressure or risk field shows through");
         }
     }
 
