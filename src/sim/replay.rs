@@ -109,15 +109,59 @@ impl PoseSource {
         (0..self.initial.len()).filter(|&k| self.trajectory.as_ref().is_some_and(|t| t.cuts_between(k, after_s + origin, until_s + origin))).collect()
     }
 
-    /// Pose sets over the run (at most `count`), to size the automatic region of interest.
+    /// Pose sets over the run, to size the automatic region of interest and refinement: `count + 1` evenly
+    /// spaced; and when those lie farther apart than [`MOTION_SAMPLE_S`] (a long run), samples of their own for
+    /// the stretches between the trajectory's rows in which a blade moves (at most about `count` more), so that a
+    /// spread of a few seconds in a ten-minute hold is followed as closely as in a run of a few seconds.
     pub fn samples(&self, duration: f64, count: usize) -> Vec<Vec<Pose>> {
         let mut input = FrameInput::default();
-        (0..=count)
-            .map(|k| {
-                self.poses_at(duration * k as f64 / count.max(1) as f64, &mut input);
-                input.poses.iter().flatten().copied().collect()
-            })
-            .collect()
+        let mut at = |t: f64| -> Vec<Pose> {
+            self.poses_at(t, &mut input);
+            input.poses.iter().flatten().copied().collect()
+        };
+        let mut out: Vec<Vec<Pose>> = (0..=count).map(|k| at(duration * k as f64 / count.max(1) as f64)).collect();
+        let Some(trajectory) = self.trajectory.as_ref().filter(|_| duration / count.max(1) as f64 > MOTION_SAMPLE_S) else {
+            return out;
+        };
+        let origin = self.trajectory_origin();
+        let mut times: Vec<f64> = (0..trajectory.spatula_count())
+            .flat_map(|k| trajectory.samples(k).iter().map(move |s| s.time_s - origin))
+            .filter(|t| (0.0..=duration).contains(t))
+            .chain([0.0, duration])
+            .collect();
+        times.sort_by(f64::total_cmp);
+        times.dedup();
+        // Between two rows a blade moves on a straight line: a stretch moves when its ends differ.
+        let moving: Vec<(f64, f64)> = times.windows(2).map(|w| (w[0], w[1])).filter(|&(a, b)| at(a) != at(b)).collect();
+        let moving_s: f64 = moving.iter().map(|(a, b)| b - a).sum();
+        let step = (moving_s / count.max(1) as f64).max(MOTION_SAMPLE_S);
+        for (a, b) in moving {
+            let n = ((b - a) / step).ceil().max(1.0) as usize;
+            out.extend((0..=n).map(|j| at(a + (b - a) * j as f64 / n as f64)));
+        }
+        out
+    }
+}
+
+/// Evenly spaced pose samples closer than this (s) already follow a blade's motion
+/// ([`PoseSource::samples`]); a longer run gets samples of its moving stretches too.
+pub const MOTION_SAMPLE_S: f64 = 0.05;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_long_holds_short_spread_is_sampled_as_closely_as_a_short_runs() {
+        let text = "time_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0,0,0,0,0,1,0,0,0\n1,0,0,0,0,1,0,0,0\n3.5,0,0,0,10,1,0,0,0\n603.5,0,0,0,10,1,0,0,0\n";
+        let trajectory = Trajectory::parse(text, Path::new("hold.csv")).expect("a track");
+        let source = PoseSource { trajectory: Some(trajectory), initial: vec![Pose::default()] };
+        let spread = |poses: &[Vec<Pose>]| poses.iter().filter(|p| p[0].position.z > 1e-4 && p[0].position.z < 0.0099).count();
+        // Evenly spaced over ten minutes, 200 samples are 3 s apart: at most one falls inside the 2.5 s spread.
+        let long = source.samples(603.5, 200);
+        assert!(spread(&long) >= 40, "{} samples inside the spread", spread(&long));
+        // A run of a few seconds is sampled as it always was: evenly, 201 pose sets.
+        assert_eq!(source.samples(4.0, 200).len(), 201);
     }
 }
 
