@@ -17,7 +17,6 @@ use crate::render::{
     FieldKind, OrbitCamera, Overlays, PairSegment, ScalarField, SceneView, SkullSphere, SpatulaView,
 };
 use crate::sim::{FrameReport, Pipeline, SimState};
-use crate::mesh::surface::NOT_ON_SURFACE;
 
 /// Pascals in one mmHg.
 pub const PASCALS_PER_MMHG: f64 = 133.322_387_415;
@@ -225,26 +224,9 @@ impl Snapshot {
             self.pressure_mmhg.extend_from_slice(relaxed);
             return;
         }
+        let solution = pipeline.last_solution();
+        crate::sim::contact::vertex_pressures_mmhg(pipeline.surface(), pipeline.last_constraints(), &solution.reactions, areas, pipeline.relaxation_ratios(), &mut self.pressure_mmhg);
         self.pressure_mmhg.resize(n, 0.0);
-        let surface = pipeline.surface();
-        let ratios = pipeline.relaxation_ratios();
-        let reactions = &pipeline.last_solution().reactions;
-        for (c, f) in pipeline.last_constraints().iter().zip(reactions) {
-            if !c.kind.is_tool() {
-                continue;
-            }
-            let v = surface.node_to_vertex.get(c.node as usize).copied().unwrap_or(NOT_ON_SURFACE);
-            if v == NOT_ON_SURFACE {
-                continue;
-            }
-            let area = areas.get(v as usize).copied().unwrap_or(0.0);
-            let ratio = ratios.and_then(|r| r.get(usize::from(c.owner)).copied()).unwrap_or(1.0);
-            if area > 0.0 {
-                if let Some(p) = self.pressure_mmhg.get_mut(v as usize) {
-                    *p += f.norm() / area / PASCALS_PER_MMHG * ratio;
-                }
-            }
-        }
     }
 
     /// Shows the surface beyond the working region (the vertices without
@@ -636,7 +618,7 @@ mod tests {
         let mut elastic = vec![0.0; n];
         for (c, f) in relaxing.last_constraints().iter().zip(&relaxing.last_solution().reactions) {
             let v = relaxing.surface().node_to_vertex[c.node as usize];
-            if c.kind.is_tool() && v != NOT_ON_SURFACE && areas[v as usize] > 0.0 {
+            if c.kind.is_tool() && v != crate::mesh::surface::NOT_ON_SURFACE && areas[v as usize] > 0.0 {
                 elastic[v as usize] += f.norm() / areas[v as usize] / PASCALS_PER_MMHG;
             }
         }

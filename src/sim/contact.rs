@@ -150,26 +150,40 @@ pub fn contact_patches(
 /// Per surface vertex, the contact pressure the blades put on it this frame, mmHg, into `out` (resized to the
 /// surface's vertices, zero where no blade pushes): the magnitude of each tool row's reaction on the vertex (rows of
 /// several blades on one vertex add) over the vertex's lumped rest area `vertex_area_m2`
-/// ([`crate::mesh::surface::vertex_areas`]). Barrier rows and non-tool rows (skull, tethers) count only as tool
+/// ([`crate::mesh::surface::vertex_areas`]), scaled by its blade's `ratios` entry where the scene relaxes. Barrier rows and non-tool rows (skull, tethers) count only as tool
 /// rows do in [`contact_patches`]: a tool row with a zero reaction adds nothing. A vertex of zero area stays 0.
-pub fn vertex_pressures_mmhg(surface: &BoundarySurface, constraints: &[Constraint], reactions: &[Vec3], vertex_area_m2: &[f64], out: &mut Vec<f64>) {
+pub fn vertex_pressures_mmhg(
+    surface: &BoundarySurface,
+    constraints: &[Constraint],
+    reactions: &[Vec3],
+    vertex_area_m2: &[f64],
+    ratios: Option<&[f64]>,
+    out: &mut Vec<f64>,
+) {
     out.clear();
     out.resize(surface.vertices.len(), 0.0);
-    for (c, r) in constraints.iter().zip(reactions) {
-        if !c.kind.is_tool() {
-            continue;
-        }
-        let v = surface.node_to_vertex.get(c.node as usize).copied().unwrap_or(NOT_ON_SURFACE);
-        if v == NOT_ON_SURFACE {
-            continue;
-        }
-        let area = vertex_area_m2.get(v as usize).copied().unwrap_or(0.0);
-        if let Some(slot) = out.get_mut(v as usize)
-            && area > 0.0
-        {
-            *slot += r.norm() / area / PA_PER_MMHG;
+    for (v, owner, pa) in tool_vertex_pressures(surface, constraints, reactions, vertex_area_m2) {
+        let ratio = ratios.and_then(|r| r.get(usize::from(owner)).copied()).unwrap_or(1.0);
+        if let Some(slot) = out.get_mut(v as usize) {
+            *slot += pa * ratio / super::report::PASCALS_PER_MMHG;
         }
     }
+}
+
+/// Each tool row's (surface vertex, owner, pressure in Pa): `|reaction| / vertex area`, for the rows on a
+/// surface vertex with an area. The one place a row's reaction becomes a vertex's pressure (the ischemia
+/// stage, the window's pressure field, the replay's pressure-time dose).
+pub fn tool_vertex_pressures<'a>(
+    surface: &'a BoundarySurface,
+    constraints: &'a [Constraint],
+    reactions: &'a [Vec3],
+    vertex_area_m2: &'a [f64],
+) -> impl Iterator<Item = (u32, u16, f64)> + 'a {
+    constraints.iter().zip(reactions).filter(|(c, _)| c.kind.is_tool()).filter_map(|(c, r)| {
+        let v = surface.node_to_vertex.get(c.node as usize).copied().unwrap_or(NOT_ON_SURFACE);
+        let area = vertex_area_m2.get(v as usize).copied().unwrap_or(0.0);
+        (v != NOT_ON_SURFACE && area > 0.0).then(|| (v, c.owner, r.norm() / area))
+    })
 }
 
 #[cfg(test)]
@@ -286,9 +300,9 @@ mod tests {
         let constraints = [barrier(0, 0), barrier(0, 1), barrier(1, 0)];
         let reactions = [Vec3::new(0.0, 0.0, 0.6e-3), Vec3::new(0.0, 0.0, 0.4e-3), Vec3::zeros()];
         let mut out = Vec::new();
-        vertex_pressures_mmhg(&surface, &constraints, &reactions, &areas, &mut out);
+        vertex_pressures_mmhg(&surface, &constraints, &reactions, &areas, None, &mut out);
         assert_eq!(out.len(), 4);
-        let expected = 1e-3 / (1e-6 / 3.0) / PA_PER_MMHG;
+        let expected = 1e-3 / (1e-6 / 3.0) / super::super::report::PASCALS_PER_MMHG;
         assert!((out[0] - expected).abs() < 1e-9 * expected, "{} against {expected}", out[0]);
         assert_eq!(&out[1..], &[0.0, 0.0, 0.0]);
     }

@@ -568,13 +568,7 @@ impl Pipeline {
         if let Some(ischemia) = &mut self.ischemia {
             let t = Instant::now();
             self.pressed.clear();
-            for (c, f) in self.constraints.iter().zip(&self.solution.reactions) {
-                let v = self.surface.node_to_vertex.get(c.node as usize).copied().unwrap_or(crate::mesh::surface::NOT_ON_SURFACE);
-                let area = self.vertex_areas.get(v as usize).copied().unwrap_or(0.0);
-                if c.kind.is_tool() && area > 0.0 {
-                    self.pressed.push((v, c.owner, f.norm() / area));
-                }
-            }
+            self.pressed.extend(super::contact::tool_vertex_pressures(&self.surface, &self.constraints, &self.solution.reactions, &self.vertex_areas));
             ischemia.step(&self.pressed, self.relaxation.as_ref().map(|r| r.ratios()), (frame + 1) as f64 * self.time_step);
             r.times.add(StageId::Forces, t.elapsed().as_secs_f64());
             match &mut r.ischemia {

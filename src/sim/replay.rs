@@ -323,7 +323,7 @@ impl SurfaceDose {
             Some(i) => i.pressure_mmhg(),
             None => {
                 let solution = pipeline.last_solution();
-                super::contact::vertex_pressures_mmhg(pipeline.surface(), pipeline.last_constraints(), &solution.reactions, &self.areas_m2, &mut self.frame_mmhg);
+                super::contact::vertex_pressures_mmhg(pipeline.surface(), pipeline.last_constraints(), &solution.reactions, &self.areas_m2, pipeline.relaxation_ratios(), &mut self.frame_mmhg);
                 &self.frame_mmhg
             }
         };
