@@ -122,3 +122,56 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
     let replay_peak: f64 = line_after(&replay_out, "frontal: peak force ").and_then(|v| v.split_whitespace().next()).and_then(|v| v.parse().ok()).expect("replay peak force");
     assert!((window_peak - replay_peak).abs() <= 0.0005 + 1e-12, "peak force: window {window_peak} N vs replay {replay_peak} N (replay prints 3 decimals)");
 }
+
+/// Ending a session with Ctrl+Q writes the session from rest as a recording, replays it and the scene's own
+/// trajectory, and writes the debrief page beside the recording; the window stays open on the verdicts until the
+/// timed exit, which waits for the debrief. The page's numbers are the replay's: the frontal blade's peak force in
+/// the JSON is the window's.
+#[test]
+fn ctrl_q_ends_the_session_and_writes_its_debrief_beside_the_recording() {
+    let Some(x) = start_xvfb(90) else {
+        eprintln!("skipping: Xvfb is not installed (apt-get install xvfb)");
+        return;
+    };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let records = dir.path().join("recordings");
+    let script = dir.path().join("script.txt");
+    std::fs::write(&script, "0.05 press W\n1.65 release W\n1.7 press E\n2.2 release E\n2.3 keydown Ctrl+Q\n2.31 keyup Ctrl+Q\n")
+        .expect("write script");
+    let output = fissure(dir.path())
+        .env("DISPLAY", &x.display)
+        .args(["run", "config/sylvian.ron", "--present-mode", "fifo", "--size", "640x400", "--exit-after", "4", "--record-dir"])
+        .arg(&records)
+        .arg("--script")
+        .arg(&script)
+        .output()
+        .expect("run fissure");
+    let stdout = String::from_utf8_lossy(&output.stdout).to_string();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "the window run must exit 0:\nstdout {stdout}\nstderr {stderr}");
+    let page = PathBuf::from(line_after(&stdout, "debrief ").expect("the run names its debrief page").trim());
+    let recording = PathBuf::from(line_after(&stdout, "recorded ").expect("the session was written as a recording").trim());
+    assert_eq!(page.parent(), recording.parent(), "the page is beside the recording");
+    assert_eq!(recording.parent(), Some(records.as_path()), "the recording is in --record-dir");
+    let stem = recording.file_stem().and_then(|s| s.to_str()).expect("stem").to_string();
+    assert_eq!(page.file_name().and_then(|s| s.to_str()), Some(format!("{stem}_debrief.html").as_str()));
+    let html = std::fs::read_to_string(&page).expect("the page");
+    assert!(html.contains("<h1>Debrief: ") && html.contains("reference"), "a page against the reference");
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(page.with_extension("json")).expect("json")).expect("valid JSON");
+    assert!(json["reference"].as_str().is_some_and(|r| r.ends_with(&format!("{stem}_reference"))), "{}", json["reference"]);
+    assert_eq!(json["interrupted"], serde_json::Value::Bool(false));
+    // The whole session from rest: Ctrl+Q at 2.3 s, so about 230 frames (the window acts at its first frame after).
+    let frames = json["frames"].as_u64().expect("frames");
+    assert!((230..=240).contains(&frames), "the debrief covers the session from rest to Ctrl+Q: {frames} frames");
+    let frontal = json["blades"].as_array().and_then(|b| b.iter().find(|b| b["name"] == "frontal")).expect("the frontal blade");
+    let peak = frontal["metrics"].as_array().and_then(|m| m.iter().find(|m| m["key"] == "peak_force_n")).expect("peak force");
+    let debrief_peak = peak["value"].as_f64().expect("a peak force");
+    let window_peak: f64 = line_after(&stdout, "frontal: final position_mm (")
+        .and_then(|l| l.split("peak force ").nth(1))
+        .and_then(|v| v.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .expect("the window's peak force");
+    assert!(window_peak > 0.01, "the blade must have pressed tissue so the comparison means something: {window_peak} N");
+    assert!((debrief_peak - window_peak).abs() < 5e-4, "the debrief replays the session: peak {debrief_peak} N against the window's {window_peak} N");
+    assert!(peak["reference"].as_f64().is_some_and(|r| r > 0.0), "judged against the careful trajectory's peak force: {peak}");
+}

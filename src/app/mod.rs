@@ -15,6 +15,7 @@ pub mod haptics;
 pub mod overlay;
 pub mod progress;
 pub mod script;
+pub mod session_debrief;
 pub mod sim_thread;
 pub mod stress_worker;
 pub mod tethers;

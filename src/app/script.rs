@@ -6,7 +6,8 @@
 //! PageUp PageDown 1 .. 9 Tab Shift), `cut [N]` (microscissors at blade N's
 //! tip, numbered from 1 as the digit keys and the panel number them; without
 //! N the active blade's, as the X key), `record PATH`, `stop`, `field none|displacement|pressure|strain|risk`,
-//! `view overview|microscope`, `quit`; and through the window's own key
+//! `view overview|microscope`, `quit`, `end` (a window action: the session ends and is debriefed, as Ctrl+Q);
+//! and through the window's own key
 //! handling (focus rules included, as a user's key would go): `keydown NAME`,
 //! `keyup NAME` (NAME: any key of [`crate::input::bindings::KEY_BINDINGS`],
 //! e.g. `Tab`, `Esc`, `W`, `2`), `focus panel` (the panel's text field takes
@@ -44,6 +45,8 @@ pub enum ScriptAction {
     Field(SurfaceField),
     View(ViewPreset),
     Quit,
+    /// End the session as Ctrl+Q does: the session is written and debriefed, the window shows the verdicts.
+    End,
     /// A key going down (true) or up through the window's key handling.
     WindowKey(KeyBinding, bool),
     /// The panel's text field takes the keyboard focus.
@@ -125,6 +128,7 @@ impl Script {
                 }),
                 "stop" => ScriptAction::Stop,
                 "quit" => ScriptAction::Quit,
+                "end" => ScriptAction::End,
                 "field" => ScriptAction::Field(match arg {
                     Some("none") => SurfaceField::None,
                     Some("displacement") => SurfaceField::Displacement,

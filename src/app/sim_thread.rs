@@ -59,6 +59,21 @@ pub enum SimCommand {
     Cut(usize),
     /// Stop after the current frame.
     Quit,
+    /// End the session: the recording under way closes, or, with none, the whole session from the scene at rest
+    /// is written to this file as a recording; then the loop stops, leaving [`SimShared::ended`] for the debrief.
+    EndSession(PathBuf),
+}
+
+/// A session the window ended: its recording and the scene it ran, for the debrief.
+#[derive(Debug, Clone)]
+pub struct EndedSession {
+    /// The trajectory file holding the whole session from the scene at rest (a lead-in at negative times, if
+    /// recording started mid-session).
+    pub recording: PathBuf,
+    /// The scenario the session ran (the last one loaded).
+    pub scenario: Scenario,
+    /// Simulated seconds since the scene was at rest.
+    pub simulated_s: f64,
 }
 
 /// The commands the window's input devices give now.
@@ -95,6 +110,9 @@ pub struct SimShared {
     /// The simulated time through which the window has handled its scripted
     /// actions (`None`: none yet); see [`SimOptions::window_script_times`].
     pub window_script_done: Mutex<Option<f64>>,
+    /// Set when [`SimCommand::EndSession`] ended the loop: what to debrief (`None` inside: nothing was simulated
+    /// or the recording could not be written; the status line says which).
+    pub ended: Mutex<Option<Option<EndedSession>>>,
 }
 
 /// How far a build is: compliance columns done of the total, and the time left
@@ -316,16 +334,30 @@ fn as_recorded(pose: Pose) -> Pose {
 }
 
 /// The session's poses so far, from the scene at rest (time 0), for a
-/// recording started mid-session.
+/// recording started mid-session, with the blades that cut in each frame.
 struct History {
     rows: Vec<(f64, Vec<Pose>)>,
+    /// Per row, a bit per blade: microscissors cut at its tip in the frame ending at the row's time.
+    cuts: Vec<u64>,
+    /// The scene has tethers: recordings get the `cut` column.
+    with_cut: bool,
 }
 
 impl History {
     /// A history starting with the poses at rest.
-    fn at_rest(poses: &[Pose]) -> Self {
-        Self { rows: vec![(0.0, poses.to_vec())] }
+    fn at_rest(poses: &[Pose], with_cut: bool) -> Self {
+        Self { rows: vec![(0.0, poses.to_vec())], cuts: vec![0], with_cut }
     }
+
+    fn push(&mut self, time_s: f64, poses: Vec<Pose>, cut: Option<usize>) {
+        self.rows.push((time_s, poses));
+        self.cuts.push(cut.filter(|&k| k < 64).map_or(0, |k| 1u64 << k));
+    }
+}
+
+/// Whether the scene's recordings carry the `cut` column (it has tethers to cut).
+fn records_cuts(scenario: &Scenario) -> bool {
+    scenario.effects.contains(Effect::Tethers)
 }
 
 /// A recording under way: rows at session time minus `origin_s` (the session
@@ -341,13 +373,40 @@ fn start_recording(path: &PathBuf, history: &History, origin_s: f64) -> Result<R
     let note = format!(
         "recording: t = 0 is the moment it was started ({origin_s} s into the session); the rows before it are the session from the scene at rest (replay plays them first)"
     );
-    let mut recorder = TrajectoryRecorder::create_with_note(path, &note).map_err(|e| e.to_string())?;
-    for (t, poses) in &history.rows {
+    let mut recorder = TrajectoryRecorder::create_with(path, &note, history.with_cut).map_err(|e| e.to_string())?;
+    for ((t, poses), cuts) in history.rows.iter().zip(&history.cuts) {
         for (k, p) in poses.iter().enumerate() {
-            recorder.record(t - origin_s, k, p).map_err(|e| e.to_string())?;
+            recorder.record_with_cut(t - origin_s, k, p, k < 64 && cuts & (1 << k) != 0).map_err(|e| e.to_string())?;
         }
     }
     Ok(Recording { recorder, origin_s })
+}
+
+/// Ends the session for the debrief: the recording under way is the session's file (it holds the session from
+/// rest); with none, the whole history is written to `path` as one. `None` when nothing was simulated yet or the
+/// file cannot be written (the status line says which).
+fn end_session(path: &PathBuf, recording: Option<Recording>, history: &History, b: &Built, shared: &SimShared) -> Option<EndedSession> {
+    if history.rows.len() < 2 {
+        *lock(&shared.status) = "session ended before its first frame: nothing to debrief".into();
+        stopped(shared, recording);
+        return None;
+    }
+    let file = match recording {
+        Some(r) => {
+            let file = r.recorder.path().to_path_buf();
+            stopped(shared, Some(r));
+            file
+        }
+        None => match start_recording(path, history, b.state.time_s) {
+            Ok(r) => r.recorder.path().to_path_buf(),
+            Err(e) => {
+                recording_failed(shared, format!("cannot write the session for its debrief: {e}"));
+                return None;
+            }
+        },
+    };
+    *lock(&shared.status) = format!("session ended: {}", file.display());
+    Some(EndedSession { recording: file, scenario: b.scenario.clone(), simulated_s: b.state.time_s })
 }
 
 /// Says in the panel and the log that a recording failed; what was written stays.
@@ -475,7 +534,7 @@ fn run_loop(
     let mut input = FrameInput::default();
     let mut scratch = Vec::new();
     let mut guards: Vec<PoseGuard> = b.state.poses.iter().map(|p| PoseGuard::new(*p, "window")).collect();
-    let mut history = History::at_rest(&b.state.poses);
+    let mut history = History::at_rest(&b.state.poses, records_cuts(&b.scenario));
     let mut recorder: Option<Recording> = None;
     let mut script = options.script.into_iter().peekable();
     let mut window_script = options.window_script_times.into_iter().peekable();
@@ -507,6 +566,14 @@ fn run_loop(
             let mut rebuild: Option<Scenario> = None;
             match command {
                 SimCommand::Quit => break 'outer,
+                SimCommand::EndSession(path) => {
+                    let ended = end_session(&path, recorder.take(), &history, &b, shared);
+                    if let Some(e) = &ended {
+                        exit.recording = Some(e.recording.clone());
+                    }
+                    *lock(&shared.ended) = Some(ended);
+                    break 'outer;
+                }
                 SimCommand::StartRecording(path) => match start_recording(&path, &history, b.state.time_s) {
                     Ok(r) => {
                         exit.recording = Some(path.clone());
@@ -554,7 +621,7 @@ fn run_loop(
                         background.nodes.clear();
                         rejected_before_rebuild += guards.iter().map(PoseGuard::rejected).sum::<u64>();
                         guards = b.state.poses.iter().map(|p| PoseGuard::new(*p, "window")).collect();
-                        history = History::at_rest(&b.state.poses);
+                        history = History::at_rest(&b.state.poses, records_cuts(&b.scenario));
                         taken_over.clear();
                         script_keys.set_spatula_count(b.scenario.spatulas.len());
                         recorder = None;
@@ -680,15 +747,17 @@ fn run_loop(
                 // a replay of the recording applies again in the same frames),
                 // or the pose the blade kept where the input was refused.
                 let raw: Vec<Pose> = input.poses.iter().zip(&b.state.poses).map(|(i, s)| i.filter(Pose::is_valid).unwrap_or(*s)).collect();
+                // The blade whose cut this frame carried out: its row says so, and a replay cuts in the same frame.
+                let cut_now = cut_asked;
                 if let Some(r) = recorder.as_mut() {
                     let t = b.state.time_s - r.origin_s;
-                    if let Some(e) = raw.iter().enumerate().find_map(|(k, p)| r.recorder.record(t, k, p).err()) {
+                    if let Some(e) = raw.iter().enumerate().find_map(|(k, p)| r.recorder.record_with_cut(t, k, p, cut_now == Some(k)).err()) {
                         let path = r.recorder.path().display().to_string();
                         recording_failed(shared, format!("recording stopped: {e} (the rows before are kept in {path})"));
                         recorder = None;
                     }
                 }
-                history.rows.push((b.state.time_s, raw));
+                history.push(b.state.time_s, raw, cut_now);
                 if let Some(h) = &haptics {
                     let model = HapticModel::of_frame(&b.pipeline, &b.state.poses, &report, &mut scratch);
                     h.publish(Arc::new(model));
@@ -772,9 +841,9 @@ mod tests {
         let dir = tempfile::tempdir().expect("temp dir");
         let path = dir.path().join("rec.csv");
         let dt = 0.01;
-        let mut history = History::at_rest(&[at_x(0.0)]);
+        let mut history = History::at_rest(&[at_x(0.0)], false);
         for frame in 1..=30u32 {
-            history.rows.push((f64::from(frame) * dt, vec![at_x(f64::from(frame) * 1e-3)]));
+            history.push(f64::from(frame) * dt, vec![at_x(f64::from(frame) * 1e-3)], None);
         }
         let origin = 30.0 * dt;
         let mut rec = start_recording(&path, &history, origin).expect("recording starts");

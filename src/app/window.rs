@@ -32,6 +32,7 @@ use crate::render::window::{FrameOutcome, WindowRenderer};
 use crate::render::{FieldKind, OrbitCamera};
 use crate::scenario::{CollisionBackend, InputBinding, Scenario};
 use crate::sim::StageId;
+use crate::ui::debrief::DebriefPanel;
 use crate::ui::{FieldChoice, PanelAction, PanelData, PanelState, SpatulaReadout, TimingHistory, draw_panel, update_monitors};
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -126,6 +127,10 @@ pub struct WindowSummary {
     pub sim: SimExit,
     /// Adapter name.
     pub adapter: String,
+    /// The debrief page written when the session ended (Ctrl+Q, closing, End session).
+    pub debrief: Option<PathBuf>,
+    /// A session debrief left unfinished when the window closed: its recording (the debrief can be made from it).
+    pub debrief_unfinished: Option<PathBuf>,
 }
 
 impl WindowSummary {
@@ -188,6 +193,17 @@ struct App {
     load_field: Option<egui::Id>,
     /// Where the keys went last frame (true: the scene).
     keys_to_scene: bool,
+    /// The session's end, once asked for (Ctrl+Q, closing, the End session button, a script's `end`).
+    ending: Option<Ending>,
+    /// The debrief page, once written.
+    debrief_page: Option<PathBuf>,
+}
+
+/// Where the end of a session is: the simulation writing the session's recording, the debrief being made, done.
+enum Ending {
+    WaitingForSim,
+    Debriefing(super::session_debrief::SessionDebriefWorker),
+    Done,
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -346,18 +362,36 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
         ctrl: false,
         load_field: None,
         keys_to_scene: true,
+        ending: None,
+        debrief_page: None,
     };
     app.camera = OrbitCamera::framing(app.scene.bounds.0, app.scene.bounds.1);
     app.generation = app.sim.as_ref().map(|s| s.shared.generation.load(std::sync::atomic::Ordering::Relaxed)).unwrap_or(0);
     let result = event_loop.run_app(&mut app);
     let wall_s = app.first_present.map(|t| t.elapsed().as_secs_f64()).unwrap_or(0.0);
     let sim_exit = app.sim.take().map(SimThread::stop).unwrap_or_default();
+    let debrief_unfinished = match app.ending.take() {
+        Some(Ending::Debriefing(worker)) => {
+            worker.stop();
+            Some(worker.recording.clone())
+        }
+        _ => None,
+    };
     let (haptic_ticks, haptic_s) = app.haptics.as_ref().map(|h| (h.ticks(), h.elapsed_s())).unwrap_or((0, 0.0));
     if let Some(e) = app.error.take() {
         return Err(e);
     }
     result.map_err(|e| WindowError::EventLoop(e.to_string()))?;
-    Ok(WindowSummary { presented: app.presented, wall_s, haptic_ticks, haptic_s, sim: sim_exit, adapter: app.adapter })
+    Ok(WindowSummary {
+        presented: app.presented,
+        wall_s,
+        haptic_ticks,
+        haptic_s,
+        sim: sim_exit,
+        adapter: app.adapter,
+        debrief: app.debrief_page,
+        debrief_unfinished,
+    })
 }
 
 impl App {
@@ -415,6 +449,93 @@ impl App {
             self.send(SimCommand::StopRecording);
         }
         self.panel.recording = on;
+    }
+
+    /// Ends the session (Ctrl+Q, closing the window, the End session button, a script's `end`): the first time, the
+    /// simulation writes the session from the scene at rest as a recording and stops, and its debrief is made on
+    /// another thread while the window shows its progress and then its verdicts; again (or before the scene was
+    /// built, when nothing was simulated), the window closes.
+    fn end_session(&mut self, event_loop: &ActiveEventLoop) {
+        let running = self.sim.as_ref().is_some_and(|s| s.shared.running.load(std::sync::atomic::Ordering::Acquire) && !s.finished());
+        if self.ending.is_some() || !running {
+            event_loop.exit();
+            return;
+        }
+        let dir = self.options.record_dir.clone();
+        if let Err(e) = std::fs::create_dir_all(&dir) {
+            // Nowhere to write the session: say so and close as before.
+            tracing::error!("cannot write the session for its debrief: cannot create the folder {}: {e}", dir.display());
+            event_loop.exit();
+            return;
+        }
+        let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
+        self.send(SimCommand::EndSession(dir.join(format!("session_{secs}.csv"))));
+        self.keyboard.release_all();
+        self.panel.recording = false;
+        self.panel.debrief = Some(DebriefPanel::Working { what: "ending the session".into(), fraction: 0.0 });
+        self.ending = Some(Ending::WaitingForSim);
+    }
+
+    /// Moves the session's end along: starts the debrief once the simulation has written the session, shows its
+    /// progress, then its verdicts and where the page is.
+    fn advance_ending(&mut self) {
+        let Some(ending) = self.ending.as_mut() else { return };
+        match ending {
+            Ending::WaitingForSim => {
+                let Some(sim) = self.sim.as_ref().filter(|s| s.finished()) else { return };
+                let ended = lock(&sim.shared.ended).take();
+                let status = lock(&sim.shared.status).clone();
+                match ended {
+                    Some(Some(session)) => match super::session_debrief::SessionDebriefWorker::start(session.scenario, session.recording) {
+                        Ok(worker) => *ending = Ending::Debriefing(worker),
+                        Err(e) => {
+                            self.panel.debrief = Some(DebriefPanel::Failed(e));
+                            *ending = Ending::Done;
+                        }
+                    },
+                    Some(None) => {
+                        self.panel.debrief = Some(DebriefPanel::Failed(status));
+                        *ending = Ending::Done;
+                    }
+                    None => {
+                        self.panel.debrief = Some(DebriefPanel::Failed("the simulation stopped before the session was written".into()));
+                        *ending = Ending::Done;
+                    }
+                }
+            }
+            Ending::Debriefing(worker) => match worker.poll() {
+                None => {
+                    let p = worker.progress();
+                    self.panel.debrief = Some(DebriefPanel::Working { what: p.step.words().into(), fraction: p.fraction });
+                }
+                Some(result) => {
+                    let status = match result {
+                        Ok(d) => {
+                            let page = d.files.page.clone();
+                            tracing::info!("debrief written to {}", page.display());
+                            self.panel.debrief = Some(DebriefPanel::Ready(super::session_debrief::panel_summary(&d)));
+                            self.debrief_page = Some(page.clone());
+                            format!("debrief written to {}", page.display())
+                        }
+                        Err(e) => {
+                            tracing::error!("the session's debrief failed: {e}");
+                            self.panel.debrief = Some(DebriefPanel::Failed(format!("the debrief failed: {e}")));
+                            format!("the debrief failed: {e}")
+                        }
+                    };
+                    if let Some(sim) = &self.sim {
+                        *lock(&sim.shared.status) = status;
+                    }
+                    *ending = Ending::Done;
+                }
+            },
+            Ending::Done => {}
+        }
+    }
+
+    /// The session is ending and its debrief not yet made (the window waits for it before a timed exit).
+    fn debriefing(&self) -> bool {
+        matches!(self.ending, Some(Ending::WaitingForSim | Ending::Debriefing(_)))
     }
 
     /// Moves the first build's error, if any, into `self.error` (the window then
@@ -492,6 +613,7 @@ impl App {
                         self.egui.memory_mut(|m| m.request_focus(id));
                     }
                 }
+                ScriptAction::End => self.end_session(event_loop),
                 _ => {}
             }
         }
@@ -625,6 +747,7 @@ impl App {
                 PanelAction::CameraMicroscope => self.preset(ViewPreset::Microscope),
                 PanelAction::LoadScenario => load = true,
                 PanelAction::Cut => self.cut(),
+                PanelAction::EndSession => self.end_session(event_loop),
                 PanelAction::SelectSpatula(k) => {
                     if let Some(key) = crate::input::keyboard::DIGITS.get(k) {
                         self.keyboard.apply(KeyEvent { key: *key, pressed: true });
@@ -723,7 +846,7 @@ impl App {
             }
             KeyRoute::Scene(KeyAction::Blade(key)) => self.keyboard.apply(KeyEvent { key, pressed }),
             KeyRoute::Scene(action) if pressed && !repeat => match action {
-                KeyAction::Quit => event_loop.exit(),
+                KeyAction::Quit => self.end_session(event_loop),
                 KeyAction::SceneFocus => {
                     self.egui.memory_mut(|m| m.stop_text_input());
                     self.keys_to_scene = true;
@@ -862,7 +985,7 @@ impl ApplicationHandler for App {
             None => false,
         };
         match event {
-            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::CloseRequested => self.end_session(event_loop),
             WindowEvent::Resized(size) => {
                 if let Some(gpu) = self.gpu.as_mut() {
                     gpu.renderer.resize(size.width, size.height);
@@ -909,8 +1032,10 @@ impl ApplicationHandler for App {
             // no redraw came in between.
             self.take_build_error();
         }
-        let timed_out = self.options.exit_after_s.is_some_and(|t| self.started.elapsed().as_secs_f64() >= t);
-        if sim_done || timed_out {
+        self.advance_ending();
+        // An ended session stays open on its debrief until closed; a timed exit waits for the debrief.
+        let timed_out = self.options.exit_after_s.is_some_and(|t| self.started.elapsed().as_secs_f64() >= t) && !self.debriefing();
+        if (sim_done && self.ending.is_none()) || timed_out {
             event_loop.exit();
             return;
         }

@@ -134,6 +134,16 @@ pub fn run(scenario: Option<&Path>, set: &[String], headless_only: bool, args: &
             if let Some(r) = &sim.recording {
                 println!("  recorded {}", r.display());
             }
+            if let Some(page) = &summary.debrief {
+                println!("  debrief {}", page.display());
+            }
+            if let Some(rec) = &summary.debrief_unfinished {
+                println!(
+                    "  the session's debrief was not finished (the window closed first); make it with: fissure debrief {} --scenario {}",
+                    rec.display(),
+                    path.display()
+                );
+            }
             if sim.background_strain_frames > 0 {
                 println!("  strain colour from the background stress worker: {} frames", sim.background_strain_frames);
             }

@@ -205,7 +205,7 @@ pub const CONTROLS: &[ControlRow] = &[
         action: "keys back to the scene (after typing in the panel's text field); the panel shows where keys go: \"keys -> scene\" or \"keys -> panel\"",
         keys: &["Esc"],
     },
-    ControlRow { input: "Ctrl+Q", action: "quit (a recording in progress is kept whole); closing the window does the same", keys: &["Ctrl+Q"] },
+    ControlRow { input: "Ctrl+Q", action: "end the session: the session from the scene at rest is written as a recording and debriefed against the scene's careful trajectory, the panel shows the verdicts and the page's path (the End session button and closing the window do the same); again: quit", keys: &["Ctrl+Q"] },
     ControlRow {
         input: "gamepad",
         action: "left stick and triggers move (A toggles translate / rotate), LB / RB pick the spatula on the left / right of the screen, right stick orbits, X precision (table in `src/input/gamepad.rs`)",

@@ -386,6 +386,8 @@ pub struct TrajectoryRecorder {
     path: PathBuf,
     row: String,
     last_time: Vec<f64>,
+    /// The file has the `cut` column (a scene with tethers: the window's cuts replay).
+    with_cut: bool,
 }
 
 impl TrajectoryRecorder {
@@ -396,20 +398,37 @@ impl TrajectoryRecorder {
 
     /// [`Self::create`] with `note` as a further comment line (none when empty).
     pub fn create_with_note(path: &Path, note: &str) -> Result<Self, TrajectoryError> {
+        Self::create_with(path, note, false)
+    }
+
+    /// [`Self::create_with_note`], with the `cut` column when `with_cut` (every row then says whether
+    /// microscissors cut at that blade's tip in the frame that ends at the row's time; see
+    /// [`Self::record_with_cut`]).
+    pub fn create_with(path: &Path, note: &str, with_cut: bool) -> Result<Self, TrajectoryError> {
         let io = |io| TrajectoryError::Io { path: path.to_path_buf(), io };
         let mut file = File::create(path).map_err(io)?;
         let mut text = Trajectory::new().to_csv();
+        if with_cut {
+            text = text.replacen(HEADER, HEADER_WITH_CUT, 1);
+            text.insert_str(text.find(HEADER_WITH_CUT).unwrap_or(0), "# cut = 1: microscissors at that blade's tip on that row.\n");
+        }
         if !note.is_empty() {
             text.insert_str(0, &format!("# {}\n", note.replace('\n', " ")));
         }
         file.write_all(text.as_bytes()).map_err(io)?;
         file.flush().map_err(io)?;
-        Ok(Self { file, path: path.to_path_buf(), row: String::with_capacity(192), last_time: Vec::new() })
+        Ok(Self { file, path: path.to_path_buf(), row: String::with_capacity(192), last_time: Vec::new(), with_cut })
     }
 
     /// Appends one pose (metres) for `spatula` at `time_s`; checks it like
     /// [`Trajectory::push`] and writes it through to the file.
     pub fn record(&mut self, time_s: f64, spatula: usize, pose: &Pose) -> Result<(), TrajectoryError> {
+        self.record_with_cut(time_s, spatula, pose, false)
+    }
+
+    /// [`Self::record`], marking the row as a cut at the blade's tip when `cut` (a replay cuts in the frame whose
+    /// end time is the row's, as the window did). A cut in a file without the `cut` column is refused.
+    pub fn record_with_cut(&mut self, time_s: f64, spatula: usize, pose: &Pose, cut: bool) -> Result<(), TrajectoryError> {
         let sample = Sample::from_pose(time_s, pose);
         let bad = |problem: String| TrajectoryError::Sample { spatula, time_s, problem };
         if spatula >= MAX_SPATULAS {
@@ -422,8 +441,15 @@ impl TrajectoryRecorder {
         if time_s <= self.last_time[spatula] {
             return Err(bad(format!("times must strictly increase per spatula (previous {} s)", self.last_time[spatula])));
         }
+        if cut && !self.with_cut {
+            return Err(bad("a cut in a recording made without the `cut` column".into()));
+        }
         self.row.clear();
         write_row(&mut self.row, spatula, &sample);
+        if self.with_cut {
+            self.row.pop();
+            let _ = writeln!(self.row, ",{}", u8::from(cut));
+        }
         let io = |io| TrajectoryError::Io { path: self.path.clone(), io };
         self.file.write_all(self.row.as_bytes()).map_err(io)?;
         self.file.flush().map_err(io)?;
@@ -539,5 +565,25 @@ mod tests {
         let p = back.sample(0, 0.03).expect("track 0");
         assert!((p.position - pose(0.03).position).norm() < 1e-15, "recorded position comes back in metres");
         assert!(p.rotation.angle_to(&pose(0.03).rotation) < 1e-12);
+    }
+
+    #[test]
+    fn a_recording_with_the_cut_column_reads_back_its_cuts_in_the_frame_that_ends_at_the_row() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("rec.csv");
+        let mut rec = TrajectoryRecorder::create_with(&path, "a window session", true).expect("create");
+        let pose = |x: f64| Pose { position: Vec3::new(x, 0.0, 0.0), rotation: Quat::identity() };
+        for k in 0..4 {
+            let t = k as f64 * 0.01;
+            rec.record_with_cut(t, 0, &pose(t), k == 2).expect("record 0");
+            rec.record(t, 1, &pose(-t)).expect("record 1");
+        }
+        let back = Trajectory::load(&path).expect("load");
+        assert!(back.has_cuts());
+        assert!(back.cuts_between(0, 0.01, 0.02), "the cut on the row at 0.02 s belongs to the frame ending then");
+        assert!(!back.cuts_between(0, 0.02, 0.03) && !back.cuts_between(1, f64::NEG_INFINITY, 1.0));
+        let mut plain = TrajectoryRecorder::create(&dir.path().join("plain.csv")).expect("create");
+        let e = plain.record_with_cut(0.0, 0, &pose(0.0), true).expect_err("no cut column");
+        assert!(e.to_string().contains("cut"), "{e}");
     }
 }

@@ -17,6 +17,7 @@
 //! says its forces are relaxed and gets its ischemia section
 //! ([`tissue_time`]).
 
+pub mod debrief;
 pub mod legend;
 pub mod tethers;
 pub mod tissue_time;
@@ -237,6 +238,8 @@ pub struct PanelState {
     pub pressure_max_mmhg: f64,
     /// One per blade (resized by [`update_monitors`]).
     pub monitors: Vec<PressureMonitor>,
+    /// The end-of-session debrief, once the session has ended (shown at the top of the panel).
+    pub debrief: Option<debrief::DebriefPanel>,
 }
 
 impl Default for PanelState {
@@ -252,6 +255,7 @@ impl Default for PanelState {
             record_error: None,
             pressure_max_mmhg: crate::render::legend::DEFAULT_PRESSURE_MAX_MMHG,
             monitors: Vec::new(),
+            debrief: None,
         }
     }
 }
@@ -268,6 +272,8 @@ pub enum PanelAction {
     SelectSpatula(usize),
     /// Cut the bands at the active blade's tip (as the X key does).
     Cut,
+    /// End the session and debrief it (as Ctrl+Q does); once ended, close the window.
+    EndSession,
 }
 
 /// Draws the right-hand panel into `ui` (the root ui of `Context::run_ui`),
@@ -284,6 +290,13 @@ pub fn draw_panel(
         .default_size(280.0)
         .show(ui, |ui| {
             ui.heading("fissure");
+            if let Some(d) = &state.debrief {
+                egui::ScrollArea::vertical().id_salt("debrief_scroll").max_height(ui.available_height() * 0.7).show(ui, |ui| {
+                    if debrief::debrief_section(ui, d) {
+                        actions.push(PanelAction::EndSession);
+                    }
+                });
+            }
             let (colour, hint) = if data.keys_to_scene {
                 (egui::Color32::from_rgb(110, 210, 120), "1, 2, … or Tab pick the blade")
             } else {
@@ -392,6 +405,11 @@ pub fn draw_panel(
                     actions.push(PanelAction::LoadScenario);
                 }
             });
+            if state.debrief.is_none()
+                && ui.button("End session").on_hover_text("the session is written as a recording and debriefed against the scene's careful trajectory (Ctrl+Q)").clicked()
+            {
+                actions.push(PanelAction::EndSession);
+            }
             if !state.record_dir.is_empty() {
                 ui.small(format!("recordings -> {}", state.record_dir));
             }
