@@ -1,26 +1,37 @@
-//! OpenIGTLink server: receives TRANSFORM messages from trackers, haptic
-//! bridges or 3D Slicer and publishes the latest good pose per device name;
-//! sends force feedback back to every connected client.
+//! OpenIGTLink endpoint: a server that receives TRANSFORM messages from
+//! trackers, haptic bridges or 3D Slicer, and client links to remote servers
+//! (a PlusServer streaming a haptic stylus); publishes the latest good pose
+//! per device name and sends force feedback back.
 //!
 //! In: TCP clients (default `127.0.0.1:18944`), each sending OpenIGTLink
-//! messages (header v1 or v2). Out: [`IgtlServer::latest`] (via [`PoseSource`])
-//! gives the last good pose of a device, translation converted from millimetres
-//! to metres; [`IgtlServer::send_force`] writes the `SENSOR` force message
-//! documented in [`super::igtl_codec`]. Stays true: a malformed message (bad CRC,
+//! messages (header v1 or v2), and the messages of each remote server in
+//! [`IgtlConfig::links`] ([`super::igtl_link`]: reconnected with backoff on its
+//! own thread). Out: [`IgtlServer::latest`] (via [`PoseSource`]) gives the last
+//! good pose of a device, translation converted from millimetres to metres and,
+//! for a device with a [`StylusMapping`], mapped to the blade by scale, frame
+//! and clutch ([`super::workspace`]); [`IgtlServer::send_force`] writes the
+//! `SENSOR` force message documented in [`super::igtl_codec`] to every client,
+//! and, for a blade with a [`ForceTransformConfig`], the force as PLUS takes it
+//! ([`super::force_transform`]). Stays true: a malformed message (bad CRC,
 //! wrong size, NaN, non-orthonormal rotation) is dropped and logged (a warning
-//! the first time per client and kind, counted always) and the last good pose
-//! holds; a well-formed pose outside the device's workspace or faster than its
+//! the first time per connection and kind, counted always) and the last good
+//! pose holds; a well-formed pose outside the device's workspace or faster than its
 //! speed limit ([`TrackerLimits`], see [`super::tracker`]) is refused the same
 //! way, counted per reason and logged the first time and then at most once a
 //! second per device with the count; a dropped client is logged and its thread
-//! ends; nothing here panics on what a client sends. Each client has its own thread; the accept loop runs
-//! on another; all stop when the server is dropped.
+//! ends; nothing here panics on what a peer sends, and nothing a caller does
+//! waits on a network peer longer than the write timeout. Each client and each
+//! link has its own thread; the accept loop runs on another; all stop when the
+//! server is dropped (which first sends a zero force to the PLUS-form outputs).
 
-use super::igtl_codec::{self, HEADER_SIZE, IgtlError, Message};
+use super::force_transform::{ForceTransformConfig, ForceTransformOutput};
+use super::igtl_codec::{self, HEADER_SIZE, IgtlError, RawMessage};
+use super::igtl_link::{self, Backoff, LinkConfig, LinkStatus};
 use super::tracker::{RateLimitedWarning, Refused, TrackerGuard, TrackerLimits};
+use super::workspace::{MappedStylus, StylusMapping, plus_buttons};
 use super::{PoseSource, TimedPose};
 use crate::geometry::Pose;
-use crate::math::Quat;
+use crate::math::{Matrix3, Quat, Vec3};
 use std::io::{ErrorKind, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -31,12 +42,16 @@ use std::time::{Duration, Instant};
 /// Default OpenIGTLink port.
 pub const DEFAULT_PORT: u16 = 18944;
 
-/// Server settings.
+/// Endpoint settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IgtlConfig {
     /// Address to listen on. Default `127.0.0.1:18944` (loopback only); port 0
     /// picks a free port (see [`IgtlServer::local_addr`]).
     pub bind: SocketAddr,
+    /// Whether to listen at all (default true). Off when every pose comes over
+    /// [`IgtlConfig::links`] and nothing goes back: a PlusServer on the same
+    /// machine holds port 18944 itself.
+    pub listen: bool,
     /// How long a blocked write of a force message may take before the client
     /// is dropped, ms (1..=1000; default 5).
     pub write_timeout_ms: u64,
@@ -45,15 +60,29 @@ pub struct IgtlConfig {
     pub limits: TrackerLimits,
     /// Limits per device name (the scenario's `OpenIgtLink` bindings).
     pub device_limits: Vec<(String, TrackerLimits)>,
+    /// Remote servers to connect to, each with the devices read from it.
+    pub links: Vec<LinkConfig>,
+    /// How a lost or refused link waits before it tries again.
+    pub backoff: Backoff,
+    /// Devices whose poses map to a blade by scale, frame and clutch (a
+    /// stylus); a device not listed is taken as an absolute pose in the scene.
+    pub mappings: Vec<(String, StylusMapping)>,
+    /// Forces sent as PLUS takes them, besides the `SENSOR` message.
+    pub force_transforms: Vec<ForceTransformConfig>,
 }
 
 impl Default for IgtlConfig {
     fn default() -> Self {
         Self {
             bind: SocketAddr::from(([127, 0, 0, 1], DEFAULT_PORT)),
+            listen: true,
             write_timeout_ms: 5,
             limits: TrackerLimits::default(),
             device_limits: Vec::new(),
+            links: Vec::new(),
+            backoff: Backoff::default(),
+            mappings: Vec::new(),
+            force_transforms: Vec::new(),
         }
     }
 }
@@ -101,6 +130,14 @@ pub struct IgtlStats {
     pub messages_ignored: AtomicU64,
     /// Force messages written.
     pub forces_sent: AtomicU64,
+    /// Button TRANSFORMs read (a stylus's clutch).
+    pub buttons_received: AtomicU64,
+    /// Force TRANSFORMs (PLUS's form) written, one per client reached.
+    pub force_transforms_sent: AtomicU64,
+    /// Force TRANSFORMs whose force was clamped to the device's maximum.
+    pub forces_clamped: AtomicU64,
+    /// Connections the links made (a reconnection counts again).
+    pub links_connected: AtomicU64,
 }
 
 /// A copyable snapshot of [`IgtlStats`].
@@ -114,6 +151,10 @@ pub struct IgtlStatsSnapshot {
     pub poses_too_fast: u64,
     pub messages_ignored: u64,
     pub forces_sent: u64,
+    pub buttons_received: u64,
+    pub force_transforms_sent: u64,
+    pub forces_clamped: u64,
+    pub links_connected: u64,
 }
 
 impl IgtlStatsSnapshot {
@@ -131,17 +172,64 @@ struct DeviceCheck {
     warning: RateLimitedWarning,
 }
 
-/// Latest pose per device, kept sorted by name (fixed order, no hashing), and
-/// each device's plausibility check.
+/// Latest pose per device, kept sorted by name (fixed order, no hashing), each
+/// device's plausibility check, and the mapped styluses.
 #[derive(Debug, Default)]
-struct PoseSlots {
+pub(super) struct PoseSlots {
     slots: Vec<(String, TimedPose)>,
     checks: Vec<(String, DeviceCheck)>,
+    /// Mapped styluses by device name, sorted.
+    mapped: Vec<(String, MappedStylus)>,
 }
 
 impl PoseSlots {
-    /// Publishes `pose` if the device's check accepts it; otherwise returns why,
-    /// with `Some(n)` when a log line is due for the `n` refusals since the last.
+    fn with_mappings(mappings: &[(String, StylusMapping)]) -> Self {
+        let mut mapped: Vec<(String, MappedStylus)> = Vec::new();
+        for (device, mapping) in mappings {
+            if let Err(i) = mapped.binary_search_by(|(name, _)| name.as_str().cmp(device)) {
+                mapped.insert(i, (device.clone(), MappedStylus::new(mapping.clone())));
+            }
+        }
+        Self { mapped, ..Self::default() }
+    }
+
+    fn mapped_mut(&mut self, device: &str) -> Option<&mut MappedStylus> {
+        let i = self.mapped.binary_search_by(|(name, _)| name.as_str().cmp(device)).ok()?;
+        Some(&mut self.mapped[i].1)
+    }
+
+    /// Whether `device` is a mapped stylus whose clutch is held.
+    pub(super) fn clutched(&self, device: &str) -> bool {
+        self.mapped.binary_search_by(|(name, _)| name.as_str().cmp(device)).is_ok_and(|i| self.mapped[i].1.clutched())
+    }
+
+    /// Whether `device` carries the buttons of some stylus's clutch.
+    fn is_clutch_device(&self, device: &str) -> bool {
+        self.mapped.iter().any(|(_, m)| m.mapping().clutch.as_ref().is_some_and(|c| c.device == device))
+    }
+
+    /// Sets the clutch of every stylus whose clutch button `device` carries.
+    fn buttons(&mut self, device: &str, pressed: [bool; 4]) {
+        for (_, m) in &mut self.mapped {
+            if let Some(button) = m.mapping().clutch.as_ref().filter(|c| c.device == device).map(|c| c.button) {
+                let held = pressed.get(usize::from(button.max(1)) - 1).copied().unwrap_or(false);
+                m.set_clutch(held);
+            }
+        }
+    }
+
+    /// Re-anchors the mapped styluses among `devices` (a link came back).
+    pub(super) fn reanchor(&mut self, devices: &[String]) {
+        for (name, m) in &mut self.mapped {
+            if devices.iter().any(|d| d == name) {
+                m.reanchor();
+            }
+        }
+    }
+
+    /// Maps `pose` if the device is a stylus, then publishes it if the
+    /// device's check accepts it; otherwise returns why, with `Some(n)` when a
+    /// log line is due for the `n` refusals since the last.
     fn offer(
         &mut self,
         device: &str,
@@ -150,6 +238,10 @@ impl PoseSlots {
         arrived: Instant,
         config: &IgtlConfig,
     ) -> Result<(), (Refused, Option<u64>)> {
+        let pose = match self.mapped_mut(device) {
+            Some(m) => m.map(&pose),
+            None => pose,
+        };
         let i = match self.checks.binary_search_by(|(name, _)| name.as_str().cmp(device)) {
             Ok(i) => i,
             Err(i) => {
@@ -164,6 +256,9 @@ impl PoseSlots {
         let check = &mut self.checks[i].1;
         match check.guard.check(&pose, timestamp_s, arrived) {
             Ok(()) => {
+                if let Some(m) = self.mapped_mut(device) {
+                    m.accept(pose);
+                }
                 self.publish(device, pose, timestamp_s);
                 Ok(())
             }
@@ -206,72 +301,102 @@ impl PoseSlots {
     }
 }
 
-struct Shared {
-    config: IgtlConfig,
-    poses: Mutex<PoseSlots>,
+pub(super) struct Shared {
+    pub(super) config: IgtlConfig,
+    pub(super) poses: Mutex<PoseSlots>,
     writers: Mutex<Vec<(u64, TcpStream)>>,
-    stop: AtomicBool,
-    stats: IgtlStats,
+    pub(super) stop: AtomicBool,
+    pub(super) stats: IgtlStats,
+    /// One status per link, in [`IgtlConfig::links`] order.
+    pub(super) links: Mutex<Vec<LinkStatus>>,
 }
 
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     // A panicking holder cannot leave these plain containers half-updated in a
     // way that matters; keep serving rather than propagate the poison.
     m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-/// A running OpenIGTLink server. Dropping it stops its threads.
+/// A running OpenIGTLink endpoint. Dropping it stops its threads.
 pub struct IgtlServer {
     shared: Arc<Shared>,
-    local_addr: SocketAddr,
+    local_addr: Option<SocketAddr>,
     accept_thread: Option<JoinHandle<()>>,
+    link_threads: Vec<JoinHandle<()>>,
     force_buffer: Vec<u8>,
+    transform_buffer: Vec<u8>,
+    force_outputs: Vec<ForceTransformOutput>,
 }
 
 impl IgtlServer {
-    /// Binds and starts accepting clients on their own threads.
+    /// Binds (when [`IgtlConfig::listen`]) and starts accepting clients on
+    /// their own threads; starts one thread per link.
     pub fn start(config: &IgtlConfig) -> Result<Self, IgtlServerError> {
-        let listener = TcpListener::bind(config.bind).map_err(|source| IgtlServerError::Bind {
-            addr: config.bind,
-            source,
-        })?;
-        let local_addr = listener
-            .local_addr()
-            .map_err(|source| IgtlServerError::Configure {
-                addr: config.bind,
-                source,
-            })?;
-        listener
-            .set_nonblocking(true)
-            .map_err(|source| IgtlServerError::Configure {
-                addr: local_addr,
-                source,
-            })?;
+        let listener = if config.listen {
+            let listener = TcpListener::bind(config.bind).map_err(|source| IgtlServerError::Bind { addr: config.bind, source })?;
+            let local_addr = listener.local_addr().map_err(|source| IgtlServerError::Configure { addr: config.bind, source })?;
+            listener.set_nonblocking(true).map_err(|source| IgtlServerError::Configure { addr: local_addr, source })?;
+            Some((listener, local_addr))
+        } else {
+            None
+        };
         let shared = Arc::new(Shared {
             config: config.clone(),
-            poses: Mutex::new(PoseSlots::default()),
+            poses: Mutex::new(PoseSlots::with_mappings(&config.mappings)),
             writers: Mutex::new(Vec::new()),
             stop: AtomicBool::new(false),
             stats: IgtlStats::default(),
+            links: Mutex::new(config.links.iter().map(|l| LinkStatus::new(&l.address)).collect()),
         });
         let write_timeout = Duration::from_millis(config.write_timeout_ms.clamp(1, 1000));
-        let accept_shared = Arc::clone(&shared);
-        let accept_thread = std::thread::Builder::new()
-            .name("igtl-accept".into())
-            .spawn(move || accept_loop(listener, accept_shared, write_timeout))
-            .map_err(IgtlServerError::Thread)?;
-        tracing::info!(%local_addr, "OpenIGTLink server listening");
-        Ok(Self {
-            shared,
-            local_addr,
-            accept_thread: Some(accept_thread),
+        let mut server = Self {
+            shared: Arc::clone(&shared),
+            local_addr: listener.as_ref().map(|(_, a)| *a),
+            accept_thread: None,
+            link_threads: Vec::new(),
             force_buffer: Vec::with_capacity(igtl_codec::FORCE_MESSAGE_SIZE),
-        })
+            transform_buffer: Vec::with_capacity(igtl_codec::TRANSFORM_MESSAGE_SIZE),
+            force_outputs: config.force_transforms.iter().cloned().map(ForceTransformOutput::new).collect(),
+        };
+        if let Some((listener, local_addr)) = listener {
+            let accept_shared = Arc::clone(&shared);
+            let accept_thread = std::thread::Builder::new()
+                .name("igtl-accept".into())
+                .spawn(move || accept_loop(listener, accept_shared, write_timeout))
+                .map_err(IgtlServerError::Thread)?;
+            server.accept_thread = Some(accept_thread);
+            tracing::info!(%local_addr, "OpenIGTLink server listening");
+        }
+        for index in 0..config.links.len() {
+            let link_shared = Arc::clone(&shared);
+            let thread = std::thread::Builder::new()
+                .name(format!("igtl-link-{index}"))
+                .spawn(move || igtl_link::run(index, link_shared, write_timeout))
+                .map_err(IgtlServerError::Thread)?;
+            server.link_threads.push(thread);
+        }
+        Ok(server)
     }
 
-    /// The address actually bound (useful with port 0).
-    pub fn local_addr(&self) -> SocketAddr {
+    /// The address actually bound (useful with port 0); `None` when not listening.
+    pub fn listening_on(&self) -> Option<SocketAddr> {
         self.local_addr
+    }
+
+    /// The address actually bound (useful with port 0). Without a listener
+    /// (see [`IgtlConfig::listen`]) this is the configured address, unbound.
+    pub fn local_addr(&self) -> SocketAddr {
+        self.local_addr.unwrap_or(self.shared.config.bind)
+    }
+
+    /// How each link stands, in [`IgtlConfig::links`] order.
+    pub fn link_status(&self) -> Vec<LinkStatus> {
+        lock(&self.shared.links).clone()
+    }
+
+    /// Whether the stylus `device` has its clutch held.
+    pub fn clutched(&self, device: &str) -> bool {
+        lock(&self.shared.poses).clutched(device)
     }
 
     /// The latest good pose of `device` (also through [`PoseSource`]).
@@ -300,34 +425,57 @@ impl IgtlServer {
             poses_too_fast: s.poses_too_fast.load(Ordering::Relaxed),
             messages_ignored: s.messages_ignored.load(Ordering::Relaxed),
             forces_sent: s.forces_sent.load(Ordering::Relaxed),
+            buttons_received: s.buttons_received.load(Ordering::Relaxed),
+            force_transforms_sent: s.force_transforms_sent.load(Ordering::Relaxed),
+            forces_clamped: s.forces_clamped.load(Ordering::Relaxed),
+            links_connected: s.links_connected.load(Ordering::Relaxed),
         }
     }
 
     /// Sends the force on `spatula` (newtons, world axes) to every connected
-    /// client as a `SENSOR` message named `Force_<spatula>`. A client whose
-    /// write fails or times out is dropped (logged). Returns how many clients
-    /// received it. Allocation-free after the first call.
+    /// client as a `SENSOR` message named `Force_<spatula>`, and, when a
+    /// [`ForceTransformConfig`] names the spatula and its period has passed
+    /// on `timestamp_s`, as PLUS's force TRANSFORM (device frame, scaled,
+    /// clamped). A client whose write fails or times out is dropped (logged).
+    /// Returns how many clients received the `SENSOR` message.
+    /// Allocation-free after the first call.
     pub fn send_force(&mut self, spatula: &str, timestamp_s: f64, force_n: [f64; 3]) -> usize {
         igtl_codec::encode_force(&mut self.force_buffer, spatula, timestamp_s, force_n);
-        let mut writers = lock(&self.shared.writers);
-        let mut sent = 0;
-        let buffer = &self.force_buffer;
-        writers.retain_mut(|(id, stream)| match stream.write_all(buffer) {
-            Ok(()) => {
-                sent += 1;
-                true
+        let sent = broadcast(&self.shared.writers, &self.force_buffer, "force message");
+        self.shared.stats.forces_sent.fetch_add(sent as u64, Ordering::Relaxed);
+        for output in &mut self.force_outputs {
+            if output.config().spatula != spatula {
+                continue;
             }
-            Err(e) => {
-                tracing::warn!(client = *id, error = %e, "force message not delivered; no more force messages to this client");
-                false
+            let clutched = output.config().clutch_device.as_deref().is_some_and(|d| lock(&self.shared.poses).clutched(d));
+            let Some(force) = output.tick(timestamp_s, Vec3::from(force_n), clutched, Instant::now()) else { continue };
+            igtl_codec::encode_transform_into(&mut self.transform_buffer, &output.config().name, timestamp_s, &Matrix3::identity(), &force.force_n);
+            let reached = broadcast(&self.shared.writers, &self.transform_buffer, "force TRANSFORM");
+            self.shared.stats.force_transforms_sent.fetch_add(reached as u64, Ordering::Relaxed);
+            if force.clamped {
+                self.shared.stats.forces_clamped.fetch_add(1, Ordering::Relaxed);
             }
-        });
-        self.shared
-            .stats
-            .forces_sent
-            .fetch_add(sent as u64, Ordering::Relaxed);
+        }
         sent
     }
+}
+
+/// Writes `message` to every client; drops (and logs) those whose write fails.
+/// Returns how many were reached.
+fn broadcast(writers: &Mutex<Vec<(u64, TcpStream)>>, message: &[u8], what: &str) -> usize {
+    let mut writers = lock(writers);
+    let mut sent = 0;
+    writers.retain_mut(|(id, stream)| match stream.write_all(message) {
+        Ok(()) => {
+            sent += 1;
+            true
+        }
+        Err(e) => {
+            tracing::warn!(client = *id, error = %e, "{what} not delivered; no more force messages to this client");
+            false
+        }
+    });
+    sent
 }
 
 impl PoseSource for IgtlServer {
@@ -338,11 +486,20 @@ impl PoseSource for IgtlServer {
 
 impl Drop for IgtlServer {
     fn drop(&mut self) {
+        // A device that keeps its last force (PLUS's tracker holds the last
+        // transform it read) must not go on pushing once the simulation ends.
+        for output in &self.force_outputs {
+            igtl_codec::encode_transform_into(&mut self.transform_buffer, &output.config().name, 0.0, &Matrix3::identity(), &Vec3::zeros());
+            broadcast(&self.shared.writers, &self.transform_buffer, "zero force TRANSFORM");
+        }
         self.shared.stop.store(true, Ordering::Relaxed);
         for (_, stream) in lock(&self.shared.writers).drain(..) {
             let _ = stream.shutdown(std::net::Shutdown::Both);
         }
         if let Some(handle) = self.accept_thread.take() {
+            let _ = handle.join();
+        }
+        for handle in self.link_threads.drain(..) {
             let _ = handle.join();
         }
     }
@@ -412,7 +569,7 @@ fn accept_loop(listener: TcpListener, shared: Arc<Shared>, write_timeout: Durati
     }
 }
 
-fn setup_client(stream: &TcpStream, write_timeout: Duration) -> std::io::Result<()> {
+pub(super) fn setup_client(stream: &TcpStream, write_timeout: Duration) -> std::io::Result<()> {
     stream.set_nonblocking(false)?;
     stream.set_nodelay(true)?;
     stream.set_read_timeout(Some(Duration::from_millis(50)))?;
@@ -420,40 +577,53 @@ fn setup_client(stream: &TcpStream, write_timeout: Duration) -> std::io::Result<
 }
 
 /// Why reading one message failed.
-enum ReadOutcome {
+pub(super) enum ReadOutcome {
     Closed,
     Stopped,
     Io(std::io::Error),
 }
 
-/// Fills `buf` completely, retrying on read timeouts until the server stops.
-fn read_full(stream: &mut TcpStream, buf: &mut [u8], stop: &AtomicBool) -> Result<(), ReadOutcome> {
+/// Fills `buf` completely, retrying on read timeouts until the endpoint stops
+/// or, with `idle_limit`, until nothing has come for that long.
+fn read_full(stream: &mut TcpStream, buf: &mut [u8], stop: &AtomicBool, idle_limit: Option<Duration>) -> Result<(), ReadOutcome> {
     let mut filled = 0;
+    let mut last_byte = Instant::now();
     while filled < buf.len() {
         if stop.load(Ordering::Relaxed) {
             return Err(ReadOutcome::Stopped);
         }
         match stream.read(&mut buf[filled..]) {
             Ok(0) => return Err(ReadOutcome::Closed),
-            Ok(n) => filled += n,
+            Ok(n) => {
+                filled += n;
+                last_byte = Instant::now();
+            }
             Err(e)
                 if matches!(
                     e.kind(),
                     ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
-                ) => {}
+                ) =>
+            {
+                if let Some(limit) = idle_limit
+                    && last_byte.elapsed() >= limit
+                {
+                    let silent = format!("nothing received for {:.1} s", limit.as_secs_f64());
+                    return Err(ReadOutcome::Io(std::io::Error::new(ErrorKind::TimedOut, silent)));
+                }
+            }
             Err(e) => return Err(ReadOutcome::Io(e)),
         }
     }
     Ok(())
 }
 
-/// Warn the first time per client and error kind; count always.
+/// Warn the first time per connection and error kind; count always.
 struct RejectLog {
     warned: [bool; 8],
 }
 
 impl RejectLog {
-    fn report(&mut self, client: u64, error: &IgtlError, shared: &Shared) {
+    fn report(&mut self, peer: &Peer, error: &IgtlError, shared: &Shared) {
         shared
             .stats
             .messages_rejected
@@ -470,80 +640,43 @@ impl RejectLog {
         };
         if !self.warned[kind] {
             self.warned[kind] = true;
-            tracing::warn!(client, %error, "OpenIGTLink message refused; the last good pose holds (further refusals of this kind are counted, not logged)");
+            tracing::warn!(%peer, %error, "OpenIGTLink message refused; the last good pose holds (further refusals of this kind are counted, not logged)");
         } else {
-            tracing::debug!(client, %error, "OpenIGTLink message refused");
+            tracing::debug!(%peer, %error, "OpenIGTLink message refused");
         }
     }
 }
 
-fn client_loop(id: u64, mut stream: TcpStream, shared: Arc<Shared>) {
-    let mut header_bytes = [0u8; HEADER_SIZE];
-    let mut body = Vec::new();
-    let mut rejects = RejectLog { warned: [false; 8] };
-    let outcome = loop {
-        if let Err(outcome) = read_full(&mut stream, &mut header_bytes, &shared.stop) {
-            break outcome;
+/// Who sent a message: a client of the server, or a link's remote server.
+#[derive(Debug, Clone)]
+pub(super) enum Peer {
+    /// A client the server accepted, by its number.
+    Client(u64),
+    /// A remote server, by its address; only these devices are read from it.
+    Link { address: String, devices: Vec<String> },
+}
+
+impl std::fmt::Display for Peer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Peer::Client(id) => write!(f, "client {id}"),
+            Peer::Link { address, .. } => write!(f, "server {address}"),
         }
-        let header = match igtl_codec::decode_header(&header_bytes) {
-            Ok(h) => h,
-            Err(e) => {
-                // Without a trustworthy body size the stream cannot be re-synchronised.
-                rejects.report(id, &e, &shared);
-                break ReadOutcome::Io(std::io::Error::new(ErrorKind::InvalidData, e.to_string()));
-            }
-        };
-        body.resize(header.body_size as usize, 0);
-        if let Err(outcome) = read_full(&mut stream, &mut body, &shared.stop) {
-            break outcome;
+    }
+}
+
+impl Peer {
+    /// Whether messages for `device` from this peer are read.
+    fn reads(&self, device: &str) -> bool {
+        match self {
+            Peer::Client(_) => true,
+            Peer::Link { devices, .. } => devices.iter().any(|d| d == device),
         }
-        match igtl_codec::decode_body(&header, &body) {
-            Ok(Message::Transform(t)) => match transform_to_pose(&t) {
-                Some(pose) => {
-                    let offered = lock(&shared.poses).offer(&t.device, pose, t.timestamp_s, Instant::now(), &shared.config);
-                    match offered {
-                        Ok(()) => {
-                            shared
-                                .stats
-                                .transforms_accepted
-                                .fetch_add(1, Ordering::Relaxed);
-                        }
-                        Err((why, log_line)) => {
-                            let counter = match why {
-                                Refused::OutsideWorkspace { .. } => &shared.stats.poses_outside_workspace,
-                                Refused::TooFast { .. } => &shared.stats.poses_too_fast,
-                            };
-                            counter.fetch_add(1, Ordering::Relaxed);
-                            match log_line {
-                                Some(1) => tracing::warn!(client = id, device = %t.device, "OpenIGTLink pose refused: {why}; the last good pose holds"),
-                                Some(n) => tracing::warn!(client = id, device = %t.device, "OpenIGTLink: {n} poses refused in the last second or more (latest: {why}); the last good pose holds"),
-                                None => tracing::debug!(client = id, device = %t.device, "OpenIGTLink pose refused: {why}"),
-                            }
-                        }
-                    }
-                }
-                None => rejects.report(
-                    id,
-                    &IgtlError::NotOrthonormal {
-                        device: t.device.clone(),
-                        error: f64::NAN,
-                    },
-                    &shared,
-                ),
-            },
-            Ok(Message::Other {
-                message_type,
-                device,
-            }) => {
-                shared
-                    .stats
-                    .messages_ignored
-                    .fetch_add(1, Ordering::Relaxed);
-                tracing::debug!(client = id, %message_type, %device, "OpenIGTLink message ignored");
-            }
-            Err(e) => rejects.report(id, &e, &shared),
-        }
-    };
+    }
+}
+
+fn client_loop(id: u64, stream: TcpStream, shared: Arc<Shared>) {
+    let outcome = serve(&Peer::Client(id), stream, &shared, None);
     match outcome {
         ReadOutcome::Closed => tracing::info!(client = id, "OpenIGTLink client disconnected"),
         ReadOutcome::Stopped => {}
@@ -551,6 +684,84 @@ fn client_loop(id: u64, mut stream: TcpStream, shared: Arc<Shared>) {
     }
     shared.stats.clients_dropped.fetch_add(1, Ordering::Relaxed);
     lock(&shared.writers).retain(|(w, _)| *w != id);
+}
+
+/// Reads messages from `stream` until it closes, fails, falls silent for
+/// `idle_limit`, or the endpoint stops; each message goes to [`handle`].
+pub(super) fn serve(peer: &Peer, mut stream: TcpStream, shared: &Shared, idle_limit: Option<Duration>) -> ReadOutcome {
+    let mut header_bytes = [0u8; HEADER_SIZE];
+    let mut body = Vec::new();
+    let mut rejects = RejectLog { warned: [false; 8] };
+    loop {
+        if let Err(outcome) = read_full(&mut stream, &mut header_bytes, &shared.stop, idle_limit) {
+            return outcome;
+        }
+        let header = match igtl_codec::decode_header(&header_bytes) {
+            Ok(h) => h,
+            Err(e) => {
+                // Without a trustworthy body size the stream cannot be re-synchronised.
+                rejects.report(peer, &e, shared);
+                return ReadOutcome::Io(std::io::Error::new(ErrorKind::InvalidData, e.to_string()));
+            }
+        };
+        body.resize(header.body_size as usize, 0);
+        if let Err(outcome) = read_full(&mut stream, &mut body, &shared.stop, idle_limit) {
+            return outcome;
+        }
+        handle(peer, &header, &body, shared, &mut rejects);
+    }
+}
+
+/// One message: a stylus's buttons set its clutch; a pose is mapped (a
+/// stylus), checked and published; anything else is counted and skipped.
+fn handle(peer: &Peer, header: &igtl_codec::Header, body: &[u8], shared: &Shared, rejects: &mut RejectLog) {
+    let raw = match igtl_codec::decode_body_raw(header, body) {
+        Ok(RawMessage::Transform(raw)) if peer.reads(&raw.device) || lock(&shared.poses).is_clutch_device(&raw.device) => raw,
+        Ok(RawMessage::Transform(raw)) => {
+            shared.stats.messages_ignored.fetch_add(1, Ordering::Relaxed);
+            tracing::debug!(%peer, device = %raw.device, "OpenIGTLink TRANSFORM for a device no spatula reads from this peer; ignored");
+            return;
+        }
+        Ok(RawMessage::Other { message_type, device }) => {
+            shared.stats.messages_ignored.fetch_add(1, Ordering::Relaxed);
+            tracing::debug!(%peer, %message_type, %device, "OpenIGTLink message ignored");
+            return;
+        }
+        Err(e) => return rejects.report(peer, &e, shared),
+    };
+    {
+        let mut poses = lock(&shared.poses);
+        if poses.is_clutch_device(&raw.device) {
+            poses.buttons(&raw.device, plus_buttons(&raw.matrix));
+            shared.stats.buttons_received.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+    }
+    let t = match igtl_codec::validate_rotation(raw) {
+        Ok(t) => t,
+        Err(e) => return rejects.report(peer, &e, shared),
+    };
+    let Some(pose) = transform_to_pose(&t) else {
+        return rejects.report(peer, &IgtlError::NotOrthonormal { device: t.device.clone(), error: f64::NAN }, shared);
+    };
+    let offered = lock(&shared.poses).offer(&t.device, pose, t.timestamp_s, Instant::now(), &shared.config);
+    match offered {
+        Ok(()) => {
+            shared.stats.transforms_accepted.fetch_add(1, Ordering::Relaxed);
+        }
+        Err((why, log_line)) => {
+            let counter = match why {
+                Refused::OutsideWorkspace { .. } => &shared.stats.poses_outside_workspace,
+                Refused::TooFast { .. } => &shared.stats.poses_too_fast,
+            };
+            counter.fetch_add(1, Ordering::Relaxed);
+            match log_line {
+                Some(1) => tracing::warn!(%peer, device = %t.device, "OpenIGTLink pose refused: {why}; the last good pose holds"),
+                Some(n) => tracing::warn!(%peer, device = %t.device, "OpenIGTLink: {n} poses refused in the last second or more (latest: {why}); the last good pose holds"),
+                None => tracing::debug!(%peer, device = %t.device, "OpenIGTLink pose refused: {why}"),
+            }
+        }
+    }
 }
 
 #[cfg(test)]

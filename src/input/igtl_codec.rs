@@ -16,6 +16,11 @@
 //! TRANSFORM content: 12 float32, the rotation's columns (R11 R21 R31 R12 R22
 //! R32 R13 R23 R33) then the translation (TX TY TZ) in millimetres.
 //!
+//! A TRANSFORM that carries no pose (PLUS's `Buttons` tool puts the stylus's
+//! button states in the matrix's first column, see [`super::workspace`]) is
+//! read with [`decode_body_raw`], which checks the CRC, the size and
+//! finiteness but not orthonormality; [`decode_body`] adds that check.
+//!
 //! **Force feedback message** (what [`encode_force`] writes, for haptic bridges):
 //! a header-version-1 `SENSOR` message whose device name is `Force_<spatula>`
 //! (e.g. `Force_Left`), body = `u8 larray = 3 | u8 status = 0 | u64 unit =
@@ -102,6 +107,29 @@ pub struct Transform {
     pub rotation: Matrix3<f64>,
     /// Translation, millimetres (as on the wire).
     pub translation_mm: Vec3,
+}
+
+/// A TRANSFORM whose values are finite but whose 3x3 part need not be a
+/// rotation (see [`decode_body_raw`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawTransform {
+    /// Device name from the header.
+    pub device: String,
+    /// Timestamp, seconds since the Unix epoch.
+    pub timestamp_s: f64,
+    /// The upper-left 3x3 block as sent (finite; not checked otherwise).
+    pub matrix: Matrix3<f64>,
+    /// The translation column as sent (finite; millimetres for a pose).
+    pub translation: Vec3,
+}
+
+/// A decoded message whose TRANSFORM, if any, is not yet held to be a rotation.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RawMessage {
+    /// A TRANSFORM with finite values.
+    Transform(RawTransform),
+    /// A message of another type (its CRC was checked).
+    Other { message_type: String, device: String },
 }
 
 /// A decoded message.
@@ -203,6 +231,26 @@ pub fn decode_header(bytes: &[u8]) -> Result<Header, IgtlError> {
 /// Decodes a body of the message `header` announced: checks the CRC, then for a
 /// TRANSFORM the size, finiteness and orthonormality of its content.
 pub fn decode_body(header: &Header, body: &[u8]) -> Result<Message, IgtlError> {
+    match decode_body_raw(header, body)? {
+        RawMessage::Transform(raw) => validate_rotation(raw).map(Message::Transform),
+        RawMessage::Other { message_type, device } => Ok(Message::Other { message_type, device }),
+    }
+}
+
+/// Holds a raw TRANSFORM's 3x3 block to be a rotation (orthonormal with det +1
+/// within [`ORTHONORMAL_TOLERANCE`]).
+pub fn validate_rotation(raw: RawTransform) -> Result<Transform, IgtlError> {
+    let error = orthonormality_error(&raw.matrix);
+    if error.is_nan() || error > ORTHONORMAL_TOLERANCE {
+        return Err(IgtlError::NotOrthonormal { device: raw.device, error });
+    }
+    Ok(Transform { device: raw.device, timestamp_s: raw.timestamp_s, rotation: raw.matrix, translation_mm: raw.translation })
+}
+
+/// Like [`decode_body`] without the orthonormality check: the CRC, then for a
+/// TRANSFORM the size and finiteness of its content. For TRANSFORMs that carry
+/// data other than a pose (a stylus's buttons).
+pub fn decode_body_raw(header: &Header, body: &[u8]) -> Result<RawMessage, IgtlError> {
     if (body.len() as u64) != header.body_size {
         return Err(IgtlError::Truncated {
             needed: header.body_size as usize,
@@ -219,13 +267,13 @@ pub fn decode_body(header: &Header, body: &[u8]) -> Result<Message, IgtlError> {
         });
     }
     if header.message_type != "TRANSFORM" {
-        return Ok(Message::Other {
+        return Ok(RawMessage::Other {
             message_type: header.message_type.clone(),
             device: header.device.clone(),
         });
     }
     let content = transform_content(header, body)?;
-    decode_transform_content(header, content).map(Message::Transform)
+    decode_transform_content(header, content).map(RawMessage::Transform)
 }
 
 fn transform_content<'a>(header: &Header, body: &'a [u8]) -> Result<&'a [u8], IgtlError> {
@@ -258,7 +306,7 @@ fn transform_content<'a>(header: &Header, body: &'a [u8]) -> Result<&'a [u8], Ig
     Ok(&body[ext..end])
 }
 
-fn decode_transform_content(header: &Header, content: &[u8]) -> Result<Transform, IgtlError> {
+fn decode_transform_content(header: &Header, content: &[u8]) -> Result<RawTransform, IgtlError> {
     if content.len() != TRANSFORM_CONTENT_SIZE {
         return Err(IgtlError::WrongContentSize {
             device: header.device.clone(),
@@ -278,19 +326,12 @@ fn decode_transform_content(header: &Header, content: &[u8]) -> Result<Transform
         *slot = x as f64;
     }
     // Columns first: v[0..3] is the first column.
-    let rotation = Matrix3::new(v[0], v[3], v[6], v[1], v[4], v[7], v[2], v[5], v[8]);
-    let error = orthonormality_error(&rotation);
-    if error.is_nan() || error > ORTHONORMAL_TOLERANCE {
-        return Err(IgtlError::NotOrthonormal {
-            device: header.device.clone(),
-            error,
-        });
-    }
-    Ok(Transform {
+    let matrix = Matrix3::new(v[0], v[3], v[6], v[1], v[4], v[7], v[2], v[5], v[8]);
+    Ok(RawTransform {
         device: header.device.clone(),
         timestamp_s: header.timestamp_s,
-        rotation,
-        translation_mm: Vec3::new(v[9], v[10], v[11]),
+        matrix,
+        translation: Vec3::new(v[9], v[10], v[11]),
     })
 }
 
@@ -338,19 +379,33 @@ pub fn encode_transform(
     rotation: &Matrix3<f64>,
     translation_mm: &Vec3,
 ) -> Vec<u8> {
-    let mut body = Vec::with_capacity(TRANSFORM_CONTENT_SIZE);
+    let mut out = Vec::with_capacity(TRANSFORM_MESSAGE_SIZE);
+    encode_transform_into(&mut out, device, timestamp_s, rotation, translation_mm);
+    out
+}
+
+/// Size of an encoded header-version-1 TRANSFORM, bytes.
+pub const TRANSFORM_MESSAGE_SIZE: usize = HEADER_SIZE + TRANSFORM_CONTENT_SIZE;
+
+/// [`encode_transform`] into `out` (cleared first; no allocation once `out`
+/// has [`TRANSFORM_MESSAGE_SIZE`] capacity). The translation column is written
+/// as given: millimetres for a pose, newtons for PLUS's force tool.
+pub fn encode_transform_into(out: &mut Vec<u8>, device: &str, timestamp_s: f64, rotation: &Matrix3<f64>, translation: &Vec3) {
+    let mut body = [0u8; TRANSFORM_CONTENT_SIZE];
+    let mut at = 0;
     for col in 0..3 {
         for row in 0..3 {
-            body.extend_from_slice(&(rotation[(row, col)] as f32).to_be_bytes());
+            body[at..at + 4].copy_from_slice(&(rotation[(row, col)] as f32).to_be_bytes());
+            at += 4;
         }
     }
     for k in 0..3 {
-        body.extend_from_slice(&(translation_mm[k] as f32).to_be_bytes());
+        body[at..at + 4].copy_from_slice(&(translation[k] as f32).to_be_bytes());
+        at += 4;
     }
-    let mut out = Vec::with_capacity(HEADER_SIZE + body.len());
-    write_header(&mut out, "TRANSFORM", device, timestamp_s, &body);
+    out.clear();
+    write_header(out, "TRANSFORM", device, timestamp_s, &body);
     out.extend_from_slice(&body);
-    out
 }
 
 /// Size of an encoded force message, bytes.
@@ -519,6 +574,28 @@ mod tests {
             ),
             "a reflection (det -1) is not a rotation"
         );
+    }
+
+    #[test]
+    fn a_raw_transform_keeps_a_matrix_that_is_no_rotation() {
+        // PLUS's Buttons tool: button 1 pressed, the rest of the 3x3 block zero.
+        let mut buttons = Matrix3::zeros();
+        buttons[(0, 0)] = 1.0;
+        let bytes = encode_transform("ButtonsToBase", 2.0, &buttons, &Vec3::zeros());
+        let header = decode_header(&bytes).expect("header");
+        let RawMessage::Transform(raw) = decode_body_raw(&header, &bytes[HEADER_SIZE..]).expect("raw body") else {
+            panic!("expected a TRANSFORM")
+        };
+        assert_eq!((raw.device.as_str(), raw.matrix), ("ButtonsToBase", buttons));
+        assert!(matches!(decode_body(&header, &bytes[HEADER_SIZE..]), Err(IgtlError::NotOrthonormal { .. })), "no rotation: refused as a pose");
+        let mut out = Vec::with_capacity(TRANSFORM_MESSAGE_SIZE);
+        encode_transform_into(&mut out, "ButtonsToBase", 2.0, &buttons, &Vec3::zeros());
+        assert_eq!(out, bytes, "the buffer form writes the same message");
+        let mut nan = buttons;
+        nan[(2, 1)] = f64::NAN;
+        let bytes = encode_transform("ButtonsToBase", 2.0, &nan, &Vec3::zeros());
+        let header = decode_header(&bytes).expect("header");
+        assert!(matches!(decode_body_raw(&header, &bytes[HEADER_SIZE..]), Err(IgtlError::NonFinite { index: 5, .. })), "a NaN is refused raw too");
     }
 
     #[test]

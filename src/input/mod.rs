@@ -1,5 +1,7 @@
-//! Inputs that move the two spatulas: gamepad (gilrs), keyboard + mouse, and
-//! OpenIGTLink 6-DoF TRANSFORM messages from a tracker or haptic bridge.
+//! Inputs that move the two spatulas: gamepad (gilrs), keyboard + mouse, a
+//! SpaceMouse (spacenavd or its HID device), and OpenIGTLink 6-DoF TRANSFORM
+//! messages from a tracker or haptic bridge, served or read from a remote
+//! server (a PlusServer with a haptic stylus, whose force goes back in PLUS's form).
 //!
 //! In: device events (synthetic structs in tests, gilrs / winit / TCP at the
 //! edge). Out: either a [`PoseVelocity`] in the spatula's own frame that the
@@ -8,7 +10,8 @@
 //! a [`PoseGuard`] is finite with a unit quaternion; a rejected pose leaves the
 //! last good one in place and logs a warning once per guard. A tracker's poses
 //! are also held to a workspace and a speed limit ([`tracker`]) before the
-//! OpenIGTLink server publishes them.
+//! OpenIGTLink server publishes them; a stylus's poses first map to its blade
+//! by scale, frame and clutch ([`workspace`]).
 //!
 //! The mappings from device state to motion are pure functions so tests drive
 //! them with synthetic events; only the thin adapters touch gilrs, winit and
@@ -16,12 +19,16 @@
 
 pub mod bindings;
 pub mod drivers;
+pub mod force_transform;
 pub mod gamepad;
 pub mod igtl;
 pub mod igtl_codec;
+pub mod igtl_link;
 pub mod keyboard;
 pub mod rumble;
+pub mod spacemouse;
 pub mod tracker;
+pub mod workspace;
 
 use crate::geometry::Pose;
 use crate::math::{Quat, Vec3, is_finite3};
