@@ -12,7 +12,7 @@ use fissure::input::igtl::{IgtlConfig, IgtlServer};
 use fissure::input::igtl_codec::encode_transform;
 use fissure::input::tracker::TrackerLimits;
 use fissure::math::{Matrix3, Vec3};
-use fissure::scenario::{InputBinding, Scenario};
+use fissure::scenario::{IgtlLink, InputBinding, Scenario};
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::Path;
@@ -82,9 +82,9 @@ fn the_scenario_binding_carries_the_limits_and_refuses_bad_ones() {
     let text = std::fs::read_to_string(path).expect("read");
     let load = |input: &str| Scenario::from_str(&text, path, &[format!("spatulas[0].input={input}")]);
     let s = load(r#"OpenIgtLink(device: "Frontal")"#).expect("defaults");
-    assert_eq!(s.spatulas[0].input, InputBinding::OpenIgtLink { device: "Frontal".into(), workspace_m: 1.0, max_speed_m_s: 3.0 });
+    assert_eq!(s.spatulas[0].input, InputBinding::OpenIgtLink { device: "Frontal".into(), workspace_m: 1.0, max_speed_m_s: 3.0, link: IgtlLink::default() });
     let s = load(r#"OpenIgtLink(device: "Frontal", workspace_mm: 250.0, max_speed_mm_s: 500.0)"#).expect("given");
-    assert_eq!(s.spatulas[0].input, InputBinding::OpenIgtLink { device: "Frontal".into(), workspace_m: 0.25, max_speed_m_s: 0.5 });
+    assert_eq!(s.spatulas[0].input, InputBinding::OpenIgtLink { device: "Frontal".into(), workspace_m: 0.25, max_speed_m_s: 0.5, link: IgtlLink::default() });
     for (input, field) in [
         (r#"OpenIgtLink(device: "F", workspace_mm: 0.0)"#, "spatulas[0].input.workspace_mm"),
         (r#"OpenIgtLink(device: "F", workspace_mm: -5.0)"#, "spatulas[0].input.workspace_mm"),

@@ -2,13 +2,14 @@
 //! + egui), the simulation thread, the 1 kHz force output, and the drawing
 //! shared with `fissure screenshot` and `replay --frames`.
 //!
-//! In: a validated scenario, devices (keyboard, mouse, gamepad, OpenIGTLink),
+//! In: a validated scenario, devices (keyboard, mouse, gamepad, SpaceMouse, OpenIGTLink),
 //! scripted input for tests. Out: a window, forces at 1 kHz, trajectories,
 //! PNGs. Stays true: the simulation thread steps at the scenario's fixed time
 //! step and never waits on rendering; the window draws the newest published
 //! frame and never waits on the simulation; the simulation core (`sim`,
 //! `fem`, `collision`, ...) does not import this module.
 
+pub mod devices;
 pub mod draw;
 pub mod exchange;
 pub mod haptics;

@@ -555,6 +555,7 @@ fn run_loop(
     let mut tracker_refused_shown = 0u64;
     // Compliance columns computed in the background: the count last shown.
     let mut columns_shown: Option<usize> = None;
+    let mut devices = super::devices::Devices::default();
     'outer: loop {
         // Commands from the window.
         loop {
@@ -685,6 +686,7 @@ fn run_loop(
         let live = *lock(&shared.input);
         let keyboard = if scripted { script_keys.command() } else { live.keyboard };
         back.scripted_spatula = scripted.then_some(keyboard.spatula);
+        let mouse = devices.poll(&b.scenario, igtl.as_ref(), &shared.status);
         input.poses.clear();
         back.drivers.clear();
         taken_over.resize(b.scenario.spatulas.len(), false);
@@ -701,6 +703,7 @@ fn run_loop(
                     offers.pad = (live.pad.spatula.index() == k).then_some(live.pad.velocity);
                     BindingKind::Gamepad
                 }
+                InputBinding::SpaceMouse => mouse.offer(k, &mut offers),
                 InputBinding::OpenIgtLink { device, .. } => {
                     offers.tracker = igtl.as_ref().and_then(|s| lock(s).latest(device)).map(|t| t.pose);
                     BindingKind::Tracker

@@ -24,8 +24,6 @@ use super::script::ScriptAction;
 use super::sim_thread::{SimCommand, SimExit, SimOptions, SimThread};
 use crate::input::gamepad::{GamepadInput, GamepadMapping};
 use crate::input::rumble::{RumbleSettings, RumbleStatus};
-use crate::input::igtl::{IgtlConfig, IgtlServer};
-use crate::input::tracker::TrackerLimits;
 use crate::input::bindings::{KeyAction, KeyRoute, route};
 use crate::input::keyboard::{KeyEvent, KeyboardController, KeyboardMapping, map_mouse};
 use crate::render::window::{FrameOutcome, WindowRenderer};
@@ -242,31 +240,8 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
     let event_loop = EventLoop::new().map_err(|e| WindowError::NoDisplay(display_error(&e)))?;
     event_loop.set_control_flow(ControlFlow::Poll);
 
-    // OpenIGTLink server when any spatula is bound to it.
-    let needs_igtl = scenario.spatulas.iter().any(|s| matches!(s.input, InputBinding::OpenIgtLink { .. }));
-    let igtl = if needs_igtl {
-        // Each bound device gets its binding's workspace and speed limit (the first binding of a name wins).
-        let mut config = IgtlConfig::default();
-        for s in &scenario.spatulas {
-            if let InputBinding::OpenIgtLink { device, workspace_m, max_speed_m_s } = &s.input
-                && !config.device_limits.iter().any(|(d, _)| d == device)
-            {
-                config.device_limits.push((device.clone(), TrackerLimits { workspace_m: *workspace_m, max_speed_m_s: *max_speed_m_s }));
-            }
-        }
-        match IgtlServer::start(&config) {
-            Ok(s) => {
-                tracing::info!(addr = %s.local_addr(), "OpenIGTLink server listening");
-                Some(Arc::new(Mutex::new(s)))
-            }
-            Err(e) => {
-                tracing::warn!(error = %e, "OpenIGTLink server not started; its spatulas hold their poses");
-                None
-            }
-        }
-    } else {
-        None
-    };
+    // OpenIGTLink when any spatula is bound to it: server, links, force back.
+    let igtl = super::devices::start_igtl(&scenario);
     let names: Vec<String> = scenario.spatulas.iter().map(|s| s.name.clone()).collect();
     let haptics = if options.haptics {
         let devices: Vec<Option<String>> = scenario

@@ -11,6 +11,8 @@
 //! - `Keyboard`: the keys, while the blade is the active one.
 //! - `Gamepad`: the pad (while LB / RB has it selected) and the keys (while it
 //!   is the active one) both move it: their velocities add.
+//! - `SpaceMouse`: likewise, the SpaceMouse (while its left button has it
+//!   picked) and the keys.
 //! - `OpenIgtLink`: the tracker wins as soon as it has sent a pose (an
 //!   absolute pose would snap any keyboard move back); until then the keys move it.
 //! - `Trajectory`: plays its track until a move key is held while it is the
@@ -24,6 +26,7 @@ use crate::geometry::Pose;
 pub enum BindingKind {
     Keyboard,
     Gamepad,
+    SpaceMouse,
     Tracker,
     Trajectory,
 }
@@ -40,6 +43,10 @@ pub enum Driver {
     Pad,
     /// The gamepad and the keyboard together (velocities added).
     KeysAndPad,
+    /// The SpaceMouse.
+    SpaceMouse,
+    /// The SpaceMouse and the keyboard together (velocities added).
+    KeysAndSpaceMouse,
     /// The tracker's latest pose.
     Tracker,
     /// The scenario's trajectory.
@@ -57,6 +64,8 @@ pub struct DeviceOffers {
     pub keys_moving: bool,
     /// The pad's velocity when the pad selects this blade.
     pub pad: Option<PoseVelocity>,
+    /// The SpaceMouse's velocity when it has picked this blade.
+    pub spacemouse: Option<PoseVelocity>,
     /// The tracker's latest pose, once it has sent one.
     pub tracker: Option<Pose>,
     /// The trajectory's pose at this frame's time.
@@ -79,6 +88,11 @@ pub fn drive(binding: BindingKind, current: &Pose, offers: &DeviceOffers, taken_
         BindingKind::Gamepad => match (&offers.keys, &offers.pad) {
             (Some(k), Some(p)) => (integrate(current, &add(k, p), dt_s), Driver::KeysAndPad),
             (None, Some(p)) => (integrate(current, p, dt_s), Driver::Pad),
+            _ => keys(Driver::Keys),
+        },
+        BindingKind::SpaceMouse => match (&offers.keys, &offers.spacemouse) {
+            (Some(k), Some(m)) => (integrate(current, &add(k, m), dt_s), Driver::KeysAndSpaceMouse),
+            (None, Some(m)) => (integrate(current, m, dt_s), Driver::SpaceMouse),
             _ => keys(Driver::Keys),
         },
         BindingKind::Tracker => match offers.tracker {
@@ -106,6 +120,8 @@ impl Driver {
             Driver::Keys => "keys",
             Driver::Pad => "gamepad",
             Driver::KeysAndPad => "keys + gamepad",
+            Driver::SpaceMouse => "SpaceMouse",
+            Driver::KeysAndSpaceMouse => "keys + SpaceMouse",
             Driver::Tracker => "tracker (keys ignored)",
             Driver::Trajectory => "trajectory (a move key takes over)",
             Driver::KeysTookOver => "keys (took over the trajectory)",
@@ -124,7 +140,7 @@ mod tests {
 
     #[test]
     fn every_binding_moves_under_the_keys_when_nothing_else_holds_it() {
-        for binding in [BindingKind::Keyboard, BindingKind::Gamepad, BindingKind::Tracker, BindingKind::Trajectory] {
+        for binding in [BindingKind::Keyboard, BindingKind::Gamepad, BindingKind::SpaceMouse, BindingKind::Tracker, BindingKind::Trajectory] {
             let offers = DeviceOffers { keys: Some(forward(0.01)), keys_moving: true, ..DeviceOffers::default() };
             let mut taken = false;
             let (pose, driver) = drive(binding, &Pose::default(), &offers, &mut taken, 1.0);
@@ -144,6 +160,19 @@ mod tests {
         let offers = DeviceOffers { tracker: Some(tracked), ..offers };
         let (pose, driver) = drive(BindingKind::Tracker, &Pose::default(), &offers, &mut false, 1.0);
         assert_eq!((pose, driver), (tracked, Driver::Tracker), "the tracker's absolute pose wins over the keys");
+    }
+
+    #[test]
+    fn the_spacemouse_and_the_keys_add_and_only_its_picked_blade_moves() {
+        let offers = DeviceOffers { keys: Some(forward(0.01)), keys_moving: true, spacemouse: Some(forward(0.03)), ..DeviceOffers::default() };
+        let (pose, driver) = drive(BindingKind::SpaceMouse, &Pose::default(), &offers, &mut false, 1.0);
+        assert!((pose.position.x - 0.04).abs() < 1e-15 && driver == Driver::KeysAndSpaceMouse, "{pose:?} {driver:?}");
+        let alone = DeviceOffers { spacemouse: Some(forward(0.03)), ..DeviceOffers::default() };
+        let (pose, driver) = drive(BindingKind::SpaceMouse, &Pose::default(), &alone, &mut false, 1.0);
+        assert!((pose.position.x - 0.03).abs() < 1e-15 && driver == Driver::SpaceMouse, "{pose:?} {driver:?}");
+        assert_eq!(driver.label(), "SpaceMouse", "the panel names the device");
+        let not_picked = DeviceOffers { pad: Some(forward(0.5)), ..DeviceOffers::default() };
+        assert_eq!(drive(BindingKind::SpaceMouse, &Pose::default(), &not_picked, &mut false, 1.0), (Pose::default(), Driver::Held), "a pad does not move a SpaceMouse blade");
     }
 
     #[test]

@@ -91,6 +91,12 @@ pub struct ScenarioFile {
     /// rat-calibrated dose.
     #[serde(default)]
     pub ischemia: super::tissue_time::IschemiaFile,
+    /// fissure's OpenIGTLink server (used by `OpenIgtLink` inputs). Default `(listen: "127.0.0.1:18944")`.
+    #[serde(default)]
+    pub openigtlink: super::devices::OpenIgtLinkFile,
+    /// The SpaceMouse's tuning (used by `SpaceMouse` inputs). Default: the gamepad's speeds and dead zone.
+    #[serde(default)]
+    pub spacemouse: super::devices::SpaceMouseFile,
 }
 
 /// Integrity limits: `(max_penetration_mm: 0.05, max_inverted_elements: 0, max_crossed_vertices: 0)`.
@@ -431,6 +437,9 @@ pub enum InputFile {
     Keyboard,
     /// A gamepad (gilrs).
     Gamepad,
+    /// A 3Dconnexion SpaceMouse (spacenavd, else its HID device): the cap's
+    /// pushes and turns are the blade's rates; tuned by the scene's `spacemouse`.
+    SpaceMouse,
     /// An OpenIGTLink TRANSFORM stream from the named device. A pose outside
     /// the workspace or faster than the speed limit is refused (counted, logged;
     /// the last good pose holds).
@@ -445,6 +454,19 @@ pub enum InputFile {
         /// default 3000).
         #[serde(default = "default_igtl_max_speed_mm_s")]
         max_speed_mm_s: f64,
+        /// `host:port` of a server to read the device from, fissure connecting
+        /// as a client (a PlusServer: `"127.0.0.1:18944"`), reconnecting with
+        /// backoff. Default `None`: the device sends to fissure's server.
+        #[serde(default)]
+        connect: Option<String>,
+        /// The poses move the blade relatively, by scale, frame and clutch (a
+        /// stylus). Default `None`: each pose is the blade's, in the scene.
+        #[serde(default)]
+        mapping: Option<super::devices::StylusMappingFile>,
+        /// Also send the force on the blade as PLUS's OpenHaptics device takes it.
+        /// Default `None`: only `SENSOR Force_<spatula>`.
+        #[serde(default)]
+        force: Option<super::devices::ForceTransformFile>,
     },
     /// The scenario's recorded `trajectory` (which must then be given).
     Trajectory,

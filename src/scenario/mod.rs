@@ -11,6 +11,7 @@
 //! Stays true: nothing here panics on any input text; a `Scenario` holds only
 //! checked, finite SI values. This module reads no mesh and builds no stage.
 
+pub mod devices;
 pub mod error;
 pub mod file;
 pub mod overrides;
@@ -22,6 +23,7 @@ pub mod validate;
 
 use std::path::Path;
 
+pub use devices::{ForceTransformSettings, IgtlLink, SpaceMouseSettings, StylusMappingSettings};
 pub use error::{Location, Origin, ScenarioError};
 pub use file::{CollisionBackend, ComplianceStorage, DEFAULT_ROW_BAND_MM, Effect, LengthUnit, ScenarioFile, SpatulaContact};
 pub use overrides::Document;

@@ -169,10 +169,14 @@ pub enum InputBinding {
     Keyboard,
     /// A gamepad.
     Gamepad,
-    /// OpenIGTLink TRANSFORM messages from this device name (non-empty); poses
-    /// outside the workspace box (half-width `workspace_m` on each axis around
-    /// the scene origin, m, > 0) or faster than `max_speed_m_s` (m/s, > 0) are refused.
-    OpenIgtLink { device: String, workspace_m: f64, max_speed_m_s: f64 },
+    /// OpenIGTLink TRANSFORM messages from this device name (non-empty, at
+    /// most 20 bytes); poses outside the workspace box (half-width
+    /// `workspace_m` on each axis around the scene origin, m, > 0) or faster
+    /// than `max_speed_m_s` (m/s, > 0) are refused; `link` says where they come
+    /// from, how a stylus maps to the blade and how the force goes back.
+    OpenIgtLink { device: String, workspace_m: f64, max_speed_m_s: f64, link: super::devices::IgtlLink },
+    /// A SpaceMouse, tuned by [`Scenario::spacemouse`].
+    SpaceMouse,
     /// The scenario's trajectory, track = this spatula's index.
     Trajectory,
 }
@@ -399,6 +403,10 @@ pub struct Scenario {
     pub relaxation: Option<super::tissue_time::Relaxation>,
     /// The ischemia model, with the `Ischemia` effect only.
     pub ischemia: Option<super::tissue_time::Ischemia>,
+    /// Where fissure's OpenIGTLink server listens (`openigtlink.listen`).
+    pub igtl_listen: std::net::SocketAddr,
+    /// The SpaceMouse's tuning (`spacemouse`).
+    pub spacemouse: super::devices::SpaceMouseSettings,
     /// Legal but doubtful values, in the order found (`fissure check` prints
     /// them; the pipeline's build logs them).
     pub warnings: Vec<ScenarioWarning>,
@@ -730,13 +738,37 @@ impl Scenario {
             let input = match &s.input {
                 InputFile::Keyboard => InputBinding::Keyboard,
                 InputFile::Gamepad => InputBinding::Gamepad,
-                InputFile::OpenIgtLink { device, workspace_mm, max_speed_mm_s } => {
-                    if device.trim().is_empty() {
-                        return Err(c.invalid(&format!("{field}.input.device"), "the OpenIGTLink device name must not be empty"));
-                    }
+                InputFile::SpaceMouse => InputBinding::SpaceMouse,
+                InputFile::OpenIgtLink { device, workspace_mm, max_speed_mm_s, connect, mapping, force } => {
+                    let invalid = |field: &str, problem: String| c.invalid(field, problem);
+                    super::devices::device_name(&format!("{field}.input.device"), device, &invalid)?;
                     let workspace_mm = c.positive(&format!("{field}.input.workspace_mm"), *workspace_mm)?;
                     let max_speed_mm_s = c.positive(&format!("{field}.input.max_speed_mm_s"), *max_speed_mm_s)?;
-                    InputBinding::OpenIgtLink { device: device.clone(), workspace_m: workspace_mm * 1e-3, max_speed_m_s: max_speed_mm_s * 1e-3 }
+                    let rotation = |field: &str, r: &RotationFile| c.rotation(field, r);
+                    let link = super::devices::validate_link(
+                        &format!("{field}.input"),
+                        device,
+                        connect.as_deref(),
+                        mapping.as_ref(),
+                        force.as_ref(),
+                        &invalid,
+                        &rotation,
+                    )?;
+                    if link.mapping.is_some()
+                        && let Some(j) = spatulas.iter().position(|o: &SpatulaConfig| matches!(&o.input, InputBinding::OpenIgtLink { device: d, .. } if d == device))
+                    {
+                        return Err(c.invalid(&format!("{field}.input.device"), format!(
+                            "\"{device}\" also drives spatulas[{j}]; a mapped stylus drives one blade"
+                        )));
+                    }
+                    if let Some(j) = spatulas.iter().position(|o: &SpatulaConfig| {
+                        matches!(&o.input, InputBinding::OpenIgtLink { device: d, link: l, .. } if d == device && l.mapping.is_some())
+                    }) {
+                        return Err(c.invalid(&format!("{field}.input.device"), format!(
+                            "\"{device}\" is spatulas[{j}]'s mapped stylus; a mapped stylus drives one blade"
+                        )));
+                    }
+                    InputBinding::OpenIgtLink { device: device.clone(), workspace_m: workspace_mm * 1e-3, max_speed_m_s: max_speed_mm_s * 1e-3, link }
                 }
                 InputFile::Trajectory => {
                     let Some((path, track)) = &trajectory else {
@@ -810,6 +842,8 @@ impl Scenario {
         let relaxation = effects.contains(Effect::Relaxation).then_some(relaxation);
         let ischemia = super::tissue_time::validate_ischemia(&file.ischemia, &|field, problem| c.invalid(field, problem))?;
         let ischemia = effects.contains(Effect::Ischemia).then_some(ischemia);
+        let igtl_listen = super::devices::validate_listen(&file.openigtlink, &|field, problem| c.invalid(field, problem))?;
+        let spacemouse = super::devices::validate_spacemouse(&file.spacemouse, &|field, problem| c.invalid(field, problem))?;
         let solver = SolverOptions {
             compliance_storage: file.solver.compliance_storage,
             region_of_interest: match &file.solver.region_of_interest {
@@ -912,6 +946,8 @@ impl Scenario {
             tethers,
             relaxation,
             ischemia,
+            igtl_listen,
+            spacemouse,
             warnings: c.warnings.take(),
             locations: field_locations(document, file.fixed.len(), file.spatulas.len(), &file.tethers),
         })
