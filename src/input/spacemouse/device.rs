@@ -101,12 +101,19 @@ fn pause(stop: &AtomicBool, wait: Duration) -> bool {
 pub fn run(sources: Sources, updates: Sender<Update>, stop: Arc<AtomicBool>) {
     let mut last_missing = String::new();
     while !stop.load(Ordering::Relaxed) {
+        // After a device was read and lost, the next miss is news again.
         let spnav = match read_spacenavd(&sources, &updates, &stop) {
-            Ok(()) => continue,
+            Ok(()) => {
+                last_missing.clear();
+                continue;
+            }
             Err(why) => why,
         };
         let hid = match read_hidraw(&sources, &updates, &stop) {
-            Ok(()) => continue,
+            Ok(()) => {
+                last_missing.clear();
+                continue;
+            }
             Err(why) => why,
         };
         let missing = format!("no SpaceMouse: {spnav}; {hid}");
