@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Bounded cargo-fuzz run over every entrance target (fuzz/fuzz_targets/*).
 #
-#   scripts/fuzz.sh [SECONDS_PER_TARGET]   (default 30; e.g. 150 for a 10-minute run of 4 targets)
+#   scripts/fuzz.sh [SECONDS_PER_TARGET]   (default 30; e.g. 120 for a 10-minute run of 5 targets)
 #
 # Needs cargo-fuzz (`cargo install cargo-fuzz`). cargo-fuzz uses nightly-only
 # rustc flags; on the stable toolchain RUSTC_BOOTSTRAP=1 allows them. The
@@ -14,10 +14,12 @@ set -euo pipefail
 cd "$(dirname "$0")/../fuzz"
 SECONDS_PER_TARGET="${1:-30}"
 export RUSTC_BOOTSTRAP=1
-TARGETS=(mesh_parsers scenario trajectory igtl)
+TARGETS=(mesh_parsers scenario trajectory igtl spacemouse)
 
 # Seed corpora from valid inputs (idempotent).
-mkdir -p corpus/mesh_parsers corpus/scenario corpus/trajectory corpus/igtl
+mkdir -p corpus/mesh_parsers corpus/scenario corpus/trajectory corpus/igtl corpus/spacemouse
+# A SpaceMouse seed: a spacenavd motion event (type 0, six axes, period) then HID reports 1, 2 and 3.
+printf '\x00\x00\x00\x00\x78\x00\x00\x00\xdd\xff\xff\xff\xc8\x00\x00\x00\xf6\xff\xff\xff\x06\xff\xff\xff\xc4\xff\xff\xff\x10\x00\x00\x00\x07\x01\x78\x00\x38\xff\x23\x00\x07\x02\xf6\xff\x3c\x00\xfa\x00\x03\x03\x01\x00' > corpus/spacemouse/seed
 for f in ../config/*.ron; do cp -f "$f" "corpus/scenario/$(basename "$f")"; done
 printf 'time_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0.0,0,1.5,-2.0,3.0,1.0,0.0,0.0,0.0\n0.5,1,1.5,-2.0,3.0,0.7071067811865476,0.7071067811865476,0.0,0.0\n' > corpus/trajectory/seed.csv
 for f in ../assets/trajectories/*.csv; do [ -e "$f" ] && cp -f "$f" "corpus/trajectory/$(basename "$f")"; done

@@ -68,6 +68,32 @@ proptest! {
     }
 
     #[test]
+    fn random_device_overrides_never_panic_and_validate_only_checked_devices(
+        field in "(connect|mapping|mapping\\.scale|mapping\\.rotation|mapping\\.clutch|mapping\\.clutch\\.device|mapping\\.clutch\\.button|force|force\\.name|force\\.scale|force\\.max_force_n|force\\.rate_hz|force\\.rotation|device|workspace_mm)",
+        value in "[ -~]{0,24}",
+        section in "(spacemouse\\.dead_zone|spacemouse\\.max_speed_mm_s|spacemouse\\.max_rate_deg_s|spacemouse\\.precision_factor|spacemouse\\.full_scale_counts|openigtlink\\.listen)",
+        section_value in "[ -~]{0,16}",
+    ) {
+        // A full stylus binding, then one of its fields (or a section's) replaced by noise.
+        let binding = "spatulas[0].input=OpenIgtLink(device: \"StylusToBase\", connect: \"127.0.0.1:18944\", mapping: (scale: 0.5, clutch: (device: \"ButtonsToBase\")), force: ())".to_string();
+        for set in [format!("spatulas[0].input.{field}={value}"), format!("{section}={section_value}")] {
+            if let Ok(s) = Scenario::from_str(SYLVIAN, origin(), &[binding.clone(), set]) {
+                prop_assert!(s.spacemouse.dead_zone.is_finite() && (0.0..=0.9).contains(&s.spacemouse.dead_zone));
+                prop_assert!(s.spacemouse.max_speed_m_s > 0.0 && s.spacemouse.max_rate_rad_s > 0.0 && s.spacemouse.full_scale_counts > 0.0);
+                if let fissure::scenario::InputBinding::OpenIgtLink { device, link, .. } = &s.spatulas[0].input {
+                    prop_assert!(!device.is_empty() && device.len() <= 20);
+                    if let Some(m) = &link.mapping {
+                        prop_assert!(m.scale > 0.0 && m.scale <= 100.0 && m.clutch.as_ref().is_none_or(|(d, b)| (1..=3).contains(b) && d.len() <= 20));
+                    }
+                    if let Some(f) = &link.force {
+                        prop_assert!(f.max_force_n > 0.0 && f.max_force_n <= 100.0 && f.rate_hz > 0.0 && f.scale > 0.0 && f.name.len() <= 20);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
     fn random_overrides_never_panic(path in "[a-z_\\[\\]0-9.]{0,24}", value in "[ -~]{0,24}") {
         let arg = format!("{path}={value}");
         let _ = Scenario::from_str(SYLVIAN, origin(), &[arg]);
