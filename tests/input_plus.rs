@@ -8,7 +8,9 @@
 //! OpenHaptics device's `Force` tool, with the right translation, clamp and
 //! rate; the PlusServer restarts and the link comes back without the blade
 //! jumping. The endpoint is built from the scenario as the window builds it
-//! (`fissure::app::devices::igtl_config`).
+//! (`fissure::app::devices::igtl_config`). And the shipped PLUS configuration
+//! (`assets/devices/PlusDeviceSet_fissure_Touch.xml`) names the transforms,
+//! ports and rate the shipped scene (`config/sylvian_touch.ron`) uses.
 
 use fissure::app::devices::igtl_config;
 use fissure::input::igtl::IgtlServer;
@@ -256,4 +258,100 @@ fn an_unreachable_plus_server_is_retried_and_said_so_without_blocking() {
     let plus = TcpListener::bind(("127.0.0.1", port)).expect("rebind");
     let _link = FakePlus::accept(&plus);
     wait_until(|| server.link_status()[0].connected(), "the late server");
+}
+
+/// One element of an XML file: its name, its attributes, and the chain of
+/// `Id`s of the `Device` it sits in (empty outside a device).
+#[derive(Debug)]
+struct Element {
+    name: String,
+    attributes: Vec<(String, String)>,
+    device: Option<String>,
+}
+
+impl Element {
+    fn get(&self, key: &str) -> Option<&str> {
+        self.attributes.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+    }
+}
+
+fn elements(xml: &str) -> Vec<Element> {
+    use quick_xml::events::Event;
+    let mut reader = quick_xml::Reader::from_str(xml);
+    let mut out = Vec::new();
+    // The device each open element sits in.
+    let mut open: Vec<Option<String>> = Vec::new();
+    loop {
+        let event = reader.read_event().expect("well-formed XML");
+        match event {
+            Event::Start(ref e) | Event::Empty(ref e) => {
+                let name = String::from_utf8_lossy(e.name().as_ref().as_bytes()).into_owned();
+                let attributes: Vec<(String, String)> = e
+                    .attributes()
+                    .flatten()
+                    .map(|a| (String::from_utf8_lossy(a.key.as_ref().as_bytes()).into_owned(), String::from_utf8_lossy(a.value.as_bytes()).into_owned()))
+                    .collect();
+                let element = Element { name, attributes, device: open.last().cloned().flatten() };
+                let inner = if element.name == "Device" { element.get("Id").map(str::to_string) } else { element.device.clone() };
+                out.push(element);
+                if matches!(event, Event::Start(_)) {
+                    open.push(inner);
+                }
+            }
+            Event::End(_) => {
+                open.pop();
+            }
+            Event::Eof => break,
+            _ => {}
+        }
+    }
+    out
+}
+
+/// The shipped PLUS configuration and the shipped scene agree: the transform
+/// names fissure reads and sends, the two ports, and the force's rate.
+#[test]
+fn the_shipped_plus_configuration_matches_the_shipped_touch_scene() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let xml = std::fs::read_to_string(root.join("assets/devices/PlusDeviceSet_fissure_Touch.xml")).expect("shipped");
+    let all = elements(&xml);
+    let scenario = Scenario::load(&root.join("config/sylvian_touch.ron"), &[]).expect("the Touch scene validates");
+    let fissure::scenario::InputBinding::OpenIgtLink { device, link, .. } = &scenario.spatulas[0].input else { panic!("the frontal blade is on the stylus") };
+    let (clutch, _) = link.mapping.as_ref().and_then(|m| m.clutch.clone()).expect("a clutch");
+    let force = link.force.as_ref().expect("force back");
+    assert_eq!(scenario.spatulas[1].input, fissure::scenario::InputBinding::SpaceMouse);
+
+    let device_of_type = |ty: &str| all.iter().find(|e| e.name == "Device" && e.get("Type") == Some(ty)).unwrap_or_else(|| panic!("a {ty} device"));
+    let haptics = device_of_type("OpenHaptics");
+    let frame = haptics.get("ToolReferenceFrame").expect("the OpenHaptics frame");
+    let haptics_id = haptics.get("Id").expect("id");
+    let tools: Vec<(&str, &str)> = all
+        .iter()
+        .filter(|e| e.name == "DataSource" && e.device.as_deref() == Some(haptics_id) && e.get("Type") == Some("Tool"))
+        .map(|e| (e.get("Id").unwrap_or(""), e.get("PortName").unwrap_or("")))
+        .collect();
+    assert!(tools.contains(&("Stylus", "Stylus")) && tools.contains(&("Buttons", "Buttons")), "{tools:?}");
+    assert_eq!(device.as_str(), format!("StylusTo{frame}"), "the pose PLUS sends");
+    assert_eq!(clutch, format!("ButtonsTo{frame}"), "the buttons PLUS sends");
+
+    let server = all.iter().find(|e| e.name == "PlusOpenIGTLinkServer").expect("the server");
+    let connect = link.connect.as_deref().expect("fissure connects to PLUS");
+    assert_eq!(connect.rsplit_once(':').map(|(_, p)| p), server.get("ListeningPort"), "fissure connects where PlusServer listens");
+    let names: Vec<&str> = all.iter().filter(|e| e.name == "Transform").filter_map(|e| e.get("Name")).collect();
+    assert!(names.contains(&device.as_str()) && names.contains(&clutch.as_str()), "PlusServer sends what fissure reads: {names:?}");
+
+    let tracker = device_of_type("OpenIGTLinkTracker");
+    assert_eq!(tracker.get("ServerPort").map(str::to_string), Some(scenario.igtl_listen.port().to_string()), "PLUS's force channel connects to fissure's server");
+    assert_eq!(tracker.get("MessageType"), Some("TRANSFORM"));
+    let tracker_id = tracker.get("Id").expect("id");
+    let force_tool = all
+        .iter()
+        .find(|e| e.name == "DataSource" && e.device.as_deref() == Some(tracker_id) && e.get("PortName") == Some("Force"))
+        .expect("a tool with port name Force");
+    assert_eq!(force.name, format!("{}To{}", force_tool.get("Id").expect("id"), tracker.get("ToolReferenceFrame").expect("frame")), "the TRANSFORM the tracker turns into its Force tool");
+    let channel = all.iter().find(|e| e.name == "OutputChannel" && e.device.as_deref() == Some(tracker_id)).and_then(|e| e.get("Id")).expect("its channel");
+    assert!(all.iter().any(|e| e.name == "InputChannel" && e.device.as_deref() == Some(haptics_id) && e.get("Id") == Some(channel)), "the OpenHaptics device's input channel is the force's");
+    for d in [tracker, haptics] {
+        assert_eq!(d.get("AcquisitionRate").and_then(|r| r.parse::<f64>().ok()), Some(force.rate_hz), "{:?} reads at the force's rate", d.get("Id"));
+    }
 }
