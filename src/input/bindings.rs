@@ -212,6 +212,16 @@ pub const CONTROLS: &[ControlRow] = &[
         keys: &[],
     },
     ControlRow {
+        input: "SpaceMouse",
+        action: "a blade bound to it (`input: SpaceMouse`) moves at the rates its cap is pushed and turned, read through spacenavd or else its HID device; the cap is the blade: push away to advance it, lift towards its +z face, tilt and twist to turn it; left button: the next SpaceMouse blade, right button: precision (speeds x 0.25); the status line names the device or says why none is read",
+        keys: &[],
+    },
+    ControlRow {
+        input: "haptic stylus (PLUS)",
+        action: "a blade bound to `OpenIgtLink(device: \"StylusToBase\", connect: \"127.0.0.1:18944\", mapping: .., force: ..)` follows a PlusServer's stylus by scale and frame; holding the clutch button (the Touch's front one in `config/sylvian_touch.ron`) holds the blade while the stylus is re-centred; the blade's force goes back as PLUS's `ForceToBase` TRANSFORM, cut to the device's maximum",
+        keys: &[],
+    },
+    ControlRow {
         input: "OpenIGTLink",
         action: "TRANSFORM messages on 127.0.0.1:18944, device names bound in the scenario (`input: OpenIgtLink(device: \"Spatula1\")`, millimetres); the force on each spatula goes back as `SENSOR Force_<spatula>` (3 float64 N). A pose outside the workspace (default ±1000 mm on each axis around the scene origin) or further from the last accepted pose than the speed limit allows (default 3000 mm/s, by the sender's timestamps, an interval counting as at least 10 ms) is refused: the last good pose holds, a warning is logged (the first, then at most one a second with the count), the panel's status line and the exit summary count them",
         keys: &[],
