@@ -120,6 +120,8 @@ fn mapping_of(settings: &SpaceMouseSettings) -> SpaceMouseMapping {
 #[derive(Default)]
 pub struct Devices {
     spacemouse: Option<SpaceMouseInput>,
+    /// The status changes last shown: the SpaceMouse's and the links'.
+    seen: Option<(u64, u64)>,
     shown: Vec<String>,
 }
 
@@ -139,33 +141,42 @@ impl FrameDevices {
     }
 }
 
+fn on_spacemouse(s: &crate::scenario::SpatulaConfig) -> bool {
+    matches!(s.input, InputBinding::SpaceMouse)
+}
+
 impl Devices {
     /// Polls the SpaceMouse when the scene binds blades to it (starting its
     /// reader the first time, stopping it when a new scene binds none), and
-    /// writes each device status line that changed to `status`. Never blocks.
+    /// writes each device status line that changed to `status`. Never blocks;
+    /// allocates only when a status changed.
     pub fn poll(&mut self, scenario: &Scenario, igtl: Option<&Arc<Mutex<IgtlServer>>>, status: &Mutex<String>) -> FrameDevices {
-        let bound: Vec<usize> = scenario.spatulas.iter().enumerate().filter(|(_, s)| s.input == InputBinding::SpaceMouse).map(|(k, _)| k).collect();
-        let mut lines = Vec::new();
+        let bound = scenario.spatulas.iter().filter(|s| on_spacemouse(s)).count();
         let mut frame = FrameDevices::default();
-        if bound.is_empty() {
+        if bound == 0 {
             self.spacemouse = None;
         } else {
             let mapping = mapping_of(&scenario.spacemouse);
             let mouse = self.spacemouse.get_or_insert_with(|| SpaceMouseInput::start(mapping, Sources::system()));
             mouse.controller.mapping = mapping;
-            let command = mouse.poll(bound.len());
-            frame.spacemouse = bound.get(command.selected).map(|&k| (k, command.velocity));
-            lines.push(mouse.status().to_string());
+            let command = mouse.poll(bound);
+            let blade = scenario.spatulas.iter().enumerate().filter(|(_, s)| on_spacemouse(s)).nth(command.selected);
+            frame.spacemouse = blade.map(|(k, _)| (k, command.velocity));
         }
-        if let Some(server) = igtl {
-            lines.extend(lock(server).link_status().iter().map(ToString::to_string));
-        }
-        for line in &lines {
-            if !self.shown.contains(line) {
-                *lock(status) = line.clone();
+        let seen = (self.spacemouse.as_ref().map_or(0, SpaceMouseInput::status_changes), igtl.map_or(0, |s| lock(s).link_changes()));
+        if self.seen != Some(seen) {
+            self.seen = Some(seen);
+            let mut lines: Vec<String> = self.spacemouse.iter().map(|m| m.status().to_string()).collect();
+            if let Some(server) = igtl {
+                lines.extend(lock(server).link_status().iter().map(ToString::to_string));
             }
+            for line in &lines {
+                if !self.shown.contains(line) {
+                    *lock(status) = line.clone();
+                }
+            }
+            self.shown = lines;
         }
-        self.shown = lines;
         frame
     }
 
@@ -200,6 +211,33 @@ mod tests {
         assert_eq!(c.mappings[0].1.origin, s.spatulas[0].initial_pose, "the stylus's first pose maps to the blade's start");
         let f = &c.force_transforms[0];
         assert_eq!((f.spatula.as_str(), f.name.as_str(), f.max_force_n, f.clutch_device.as_deref()), ("frontal", "ForceToBase", 2.0, Some("StylusToBase")));
+    }
+
+    #[test]
+    fn a_spacemouse_scene_says_where_its_device_is_and_offers_only_its_picked_blade() {
+        let s = scene(&["spatulas[0].input=SpaceMouse", "spatulas[1].input=SpaceMouse"]);
+        let status = Mutex::new(String::new());
+        let mut devices = Devices::default();
+        let frame = devices.poll(&s, None, &status);
+        assert!(lock(&status).contains("SpaceMouse"), "the status line speaks of the device: {}", lock(&status));
+        let mut offers = DeviceOffers::default();
+        assert_eq!(frame.offer(1, &mut offers), BindingKind::SpaceMouse);
+        assert!(offers.spacemouse.is_none(), "the left button has not picked the second blade");
+        frame.offer(0, &mut offers);
+        assert!(offers.spacemouse.is_some(), "the first SpaceMouse blade is picked at the start");
+        // The reader's first look ends in a device or in what is missing.
+        let start = std::time::Instant::now();
+        while devices.spacemouse_status().is_some_and(|l| l.contains("looking for")) {
+            assert!(start.elapsed() < std::time::Duration::from_secs(10), "the reader never reported");
+            std::thread::sleep(std::time::Duration::from_millis(5));
+            devices.poll(&s, None, &status);
+        }
+        assert_eq!(devices.spacemouse_status(), Some(lock(&status).as_str()), "the new line is shown");
+        *lock(&status) = String::new();
+        devices.poll(&s, None, &status);
+        assert_eq!(lock(&status).as_str(), "", "an unchanged status is not written again");
+        devices.poll(&scene(&[]), None, &status);
+        assert!(devices.spacemouse_status().is_none(), "a scene without a SpaceMouse stops its reader");
     }
 
     #[test]

@@ -309,6 +309,8 @@ pub(super) struct Shared {
     pub(super) stats: IgtlStats,
     /// One status per link, in [`IgtlConfig::links`] order.
     pub(super) links: Mutex<Vec<LinkStatus>>,
+    /// Counts changes of `links` (a caller re-reads them only when it moved).
+    pub(super) link_changes: AtomicU64,
 }
 
 pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -347,6 +349,7 @@ impl IgtlServer {
             stop: AtomicBool::new(false),
             stats: IgtlStats::default(),
             links: Mutex::new(config.links.iter().map(|l| LinkStatus::new(&l.address)).collect()),
+            link_changes: AtomicU64::new(0),
         });
         let write_timeout = Duration::from_millis(config.write_timeout_ms.clamp(1, 1000));
         let mut server = Self {
@@ -392,6 +395,12 @@ impl IgtlServer {
     /// How each link stands, in [`IgtlConfig::links`] order.
     pub fn link_status(&self) -> Vec<LinkStatus> {
         lock(&self.shared.links).clone()
+    }
+
+    /// How many times a link's status changed so far (cheap: read it each
+    /// frame, [`IgtlServer::link_status`] only when it moved).
+    pub fn link_changes(&self) -> u64 {
+        self.shared.link_changes.load(Ordering::Relaxed)
     }
 
     /// Whether the stylus `device` has its clutch held.

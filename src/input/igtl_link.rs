@@ -111,11 +111,14 @@ impl std::fmt::Display for LinkStatus {
 }
 
 fn set_state(shared: &Shared, index: usize, state: LinkState) {
-    if let Some(status) = lock(&shared.links).get_mut(index) {
+    if let Some(status) = lock(&shared.links).get_mut(index)
+        && status.state != state
+    {
         if state == LinkState::Connected {
             status.connections += 1;
         }
         status.state = state;
+        shared.link_changes.fetch_add(1, Ordering::Relaxed);
     }
 }
 

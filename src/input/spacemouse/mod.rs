@@ -164,6 +164,7 @@ pub struct SpaceMouseInput {
     /// The controller the events drive.
     pub controller: SpaceMouseController,
     status: String,
+    status_changes: u64,
     device: Option<String>,
     stop: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
@@ -180,35 +181,40 @@ impl SpaceMouseInput {
             Ok(t) => (Some(t), Some(rx), "SpaceMouse: looking for spacenavd or a 3Dconnexion HID device".to_string()),
             Err(e) => (None, None, format!("SpaceMouse: cannot start its reader thread: {e}")),
         };
-        Self { updates, controller: SpaceMouseController::new(mapping), status, device: None, stop, thread }
+        Self { updates, controller: SpaceMouseController::new(mapping), status, status_changes: 0, device: None, stop, thread }
     }
 
     /// Drains the reader's updates and returns this frame's command for
     /// `blades` blades bound to the SpaceMouse. Never blocks.
     pub fn poll(&mut self, blades: usize) -> SpaceMouseCommand {
+        let before = self.status_changes;
         while let Some(rx) = &self.updates {
             match rx.try_recv() {
                 Ok(Update::Event(e)) => self.controller.apply(e),
                 Ok(Update::Connected(what)) => {
                     tracing::info!(device = %what, "SpaceMouse connected");
                     self.status = format!("SpaceMouse: {what}");
+                    self.status_changes = before + 1;
                     self.device = Some(what);
                 }
                 Ok(Update::Lost(why)) => {
                     tracing::info!(%why, "SpaceMouse lost");
                     self.controller.release();
                     self.status = format!("SpaceMouse lost: {why}; looking for it again");
+                    self.status_changes = before + 1;
                     self.device = None;
                 }
                 Ok(Update::Missing(what)) => {
                     self.controller.release();
                     self.status = what;
+                    self.status_changes = before + 1;
                     self.device = None;
                 }
                 Err(TryRecvError::Empty) => break,
                 Err(TryRecvError::Disconnected) => {
                     self.controller.release();
                     self.status = "SpaceMouse: its reader thread ended".to_string();
+                    self.status_changes = before + 1;
                     self.device = None;
                     self.updates = None;
                 }
@@ -220,6 +226,12 @@ impl SpaceMouseInput {
     /// One line for the panel: the device read and how, or why none is.
     pub fn status(&self) -> &str {
         &self.status
+    }
+
+    /// How many polls changed the status line so far (read it each frame,
+    /// [`SpaceMouseInput::status`] when it moved).
+    pub fn status_changes(&self) -> u64 {
+        self.status_changes
     }
 
     /// The device read now, if any (name and how it is read).
