@@ -25,14 +25,15 @@
 //! server is dropped (which first sends a zero force to the PLUS-form outputs).
 
 use super::force_transform::{ForceTransformConfig, ForceTransformOutput};
-use super::igtl_codec::{self, HEADER_SIZE, IgtlError, RawMessage};
+use super::igtl_codec;
 use super::igtl_link::{self, Backoff, LinkConfig, LinkStatus};
+use super::igtl_stream::{Peer, ReadOutcome, serve, setup_client};
 use super::tracker::{RateLimitedWarning, Refused, TrackerGuard, TrackerLimits};
-use super::workspace::{MappedStylus, StylusMapping, plus_buttons};
+use super::workspace::{MappedStylus, StylusMapping};
 use super::{PoseSource, TimedPose};
 use crate::geometry::Pose;
 use crate::math::{Matrix3, Quat, Vec3};
-use std::io::{ErrorKind, Read, Write};
+use std::io::{ErrorKind, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -204,12 +205,12 @@ impl PoseSlots {
     }
 
     /// Whether `device` carries the buttons of some stylus's clutch.
-    fn is_clutch_device(&self, device: &str) -> bool {
+    pub(super) fn is_clutch_device(&self, device: &str) -> bool {
         self.mapped.iter().any(|(_, m)| m.mapping().clutch.as_ref().is_some_and(|c| c.device == device))
     }
 
     /// Sets the clutch of every stylus whose clutch button `device` carries.
-    fn buttons(&mut self, device: &str, pressed: [bool; 4]) {
+    pub(super) fn buttons(&mut self, device: &str, pressed: [bool; 4]) {
         for (_, m) in &mut self.mapped {
             if let Some(button) = m.mapping().clutch.as_ref().filter(|c| c.device == device).map(|c| c.button) {
                 let held = pressed.get(usize::from(button.max(1)) - 1).copied().unwrap_or(false);
@@ -230,7 +231,7 @@ impl PoseSlots {
     /// Maps `pose` if the device is a stylus, then publishes it if the
     /// device's check accepts it; otherwise returns why, with `Some(n)` when a
     /// log line is due for the `n` refusals since the last.
-    fn offer(
+    pub(super) fn offer(
         &mut self,
         device: &str,
         pose: Pose,
@@ -578,112 +579,6 @@ fn accept_loop(listener: TcpListener, shared: Arc<Shared>, write_timeout: Durati
     }
 }
 
-pub(super) fn setup_client(stream: &TcpStream, write_timeout: Duration) -> std::io::Result<()> {
-    stream.set_nonblocking(false)?;
-    stream.set_nodelay(true)?;
-    stream.set_read_timeout(Some(Duration::from_millis(50)))?;
-    stream.set_write_timeout(Some(write_timeout))
-}
-
-/// Why reading one message failed.
-pub(super) enum ReadOutcome {
-    Closed,
-    Stopped,
-    Io(std::io::Error),
-}
-
-/// Fills `buf` completely, retrying on read timeouts until the endpoint stops
-/// or, with `idle_limit`, until nothing has come for that long.
-fn read_full(stream: &mut TcpStream, buf: &mut [u8], stop: &AtomicBool, idle_limit: Option<Duration>) -> Result<(), ReadOutcome> {
-    let mut filled = 0;
-    let mut last_byte = Instant::now();
-    while filled < buf.len() {
-        if stop.load(Ordering::Relaxed) {
-            return Err(ReadOutcome::Stopped);
-        }
-        match stream.read(&mut buf[filled..]) {
-            Ok(0) => return Err(ReadOutcome::Closed),
-            Ok(n) => {
-                filled += n;
-                last_byte = Instant::now();
-            }
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
-                ) =>
-            {
-                if let Some(limit) = idle_limit
-                    && last_byte.elapsed() >= limit
-                {
-                    let silent = format!("nothing received for {:.1} s", limit.as_secs_f64());
-                    return Err(ReadOutcome::Io(std::io::Error::new(ErrorKind::TimedOut, silent)));
-                }
-            }
-            Err(e) => return Err(ReadOutcome::Io(e)),
-        }
-    }
-    Ok(())
-}
-
-/// Warn the first time per connection and error kind; count always.
-struct RejectLog {
-    warned: [bool; 8],
-}
-
-impl RejectLog {
-    fn report(&mut self, peer: &Peer, error: &IgtlError, shared: &Shared) {
-        shared
-            .stats
-            .messages_rejected
-            .fetch_add(1, Ordering::Relaxed);
-        let kind = match error {
-            IgtlError::Truncated { .. } => 0,
-            IgtlError::UnsupportedVersion { .. } => 1,
-            IgtlError::BodyTooLarge { .. } => 2,
-            IgtlError::CrcMismatch { .. } => 3,
-            IgtlError::BadExtendedHeader { .. } => 4,
-            IgtlError::WrongContentSize { .. } => 5,
-            IgtlError::NonFinite { .. } => 6,
-            IgtlError::NotOrthonormal { .. } => 7,
-        };
-        if !self.warned[kind] {
-            self.warned[kind] = true;
-            tracing::warn!(%peer, %error, "OpenIGTLink message refused; the last good pose holds (further refusals of this kind are counted, not logged)");
-        } else {
-            tracing::debug!(%peer, %error, "OpenIGTLink message refused");
-        }
-    }
-}
-
-/// Who sent a message: a client of the server, or a link's remote server.
-#[derive(Debug, Clone)]
-pub(super) enum Peer {
-    /// A client the server accepted, by its number.
-    Client(u64),
-    /// A remote server, by its address; only these devices are read from it.
-    Link { address: String, devices: Vec<String> },
-}
-
-impl std::fmt::Display for Peer {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Peer::Client(id) => write!(f, "client {id}"),
-            Peer::Link { address, .. } => write!(f, "server {address}"),
-        }
-    }
-}
-
-impl Peer {
-    /// Whether messages for `device` from this peer are read.
-    fn reads(&self, device: &str) -> bool {
-        match self {
-            Peer::Client(_) => true,
-            Peer::Link { devices, .. } => devices.iter().any(|d| d == device),
-        }
-    }
-}
-
 fn client_loop(id: u64, stream: TcpStream, shared: Arc<Shared>) {
     let outcome = serve(&Peer::Client(id), stream, &shared, None);
     match outcome {
@@ -695,87 +590,11 @@ fn client_loop(id: u64, stream: TcpStream, shared: Arc<Shared>) {
     lock(&shared.writers).retain(|(w, _)| *w != id);
 }
 
-/// Reads messages from `stream` until it closes, fails, falls silent for
-/// `idle_limit`, or the endpoint stops; each message goes to [`handle`].
-pub(super) fn serve(peer: &Peer, mut stream: TcpStream, shared: &Shared, idle_limit: Option<Duration>) -> ReadOutcome {
-    let mut header_bytes = [0u8; HEADER_SIZE];
-    let mut body = Vec::new();
-    let mut rejects = RejectLog { warned: [false; 8] };
-    loop {
-        if let Err(outcome) = read_full(&mut stream, &mut header_bytes, &shared.stop, idle_limit) {
-            return outcome;
-        }
-        let header = match igtl_codec::decode_header(&header_bytes) {
-            Ok(h) => h,
-            Err(e) => {
-                // Without a trustworthy body size the stream cannot be re-synchronised.
-                rejects.report(peer, &e, shared);
-                return ReadOutcome::Io(std::io::Error::new(ErrorKind::InvalidData, e.to_string()));
-            }
-        };
-        body.resize(header.body_size as usize, 0);
-        if let Err(outcome) = read_full(&mut stream, &mut body, &shared.stop, idle_limit) {
-            return outcome;
-        }
-        handle(peer, &header, &body, shared, &mut rejects);
-    }
-}
-
-/// One message: a stylus's buttons set its clutch; a pose is mapped (a
-/// stylus), checked and published; anything else is counted and skipped.
-fn handle(peer: &Peer, header: &igtl_codec::Header, body: &[u8], shared: &Shared, rejects: &mut RejectLog) {
-    let raw = match igtl_codec::decode_body_raw(header, body) {
-        Ok(RawMessage::Transform(raw)) if peer.reads(&raw.device) || lock(&shared.poses).is_clutch_device(&raw.device) => raw,
-        Ok(RawMessage::Transform(raw)) => {
-            shared.stats.messages_ignored.fetch_add(1, Ordering::Relaxed);
-            tracing::debug!(%peer, device = %raw.device, "OpenIGTLink TRANSFORM for a device no spatula reads from this peer; ignored");
-            return;
-        }
-        Ok(RawMessage::Other { message_type, device }) => {
-            shared.stats.messages_ignored.fetch_add(1, Ordering::Relaxed);
-            tracing::debug!(%peer, %message_type, %device, "OpenIGTLink message ignored");
-            return;
-        }
-        Err(e) => return rejects.report(peer, &e, shared),
-    };
-    {
-        let mut poses = lock(&shared.poses);
-        if poses.is_clutch_device(&raw.device) {
-            poses.buttons(&raw.device, plus_buttons(&raw.matrix));
-            shared.stats.buttons_received.fetch_add(1, Ordering::Relaxed);
-            return;
-        }
-    }
-    let t = match igtl_codec::validate_rotation(raw) {
-        Ok(t) => t,
-        Err(e) => return rejects.report(peer, &e, shared),
-    };
-    let Some(pose) = transform_to_pose(&t) else {
-        return rejects.report(peer, &IgtlError::NotOrthonormal { device: t.device.clone(), error: f64::NAN }, shared);
-    };
-    let offered = lock(&shared.poses).offer(&t.device, pose, t.timestamp_s, Instant::now(), &shared.config);
-    match offered {
-        Ok(()) => {
-            shared.stats.transforms_accepted.fetch_add(1, Ordering::Relaxed);
-        }
-        Err((why, log_line)) => {
-            let counter = match why {
-                Refused::OutsideWorkspace { .. } => &shared.stats.poses_outside_workspace,
-                Refused::TooFast { .. } => &shared.stats.poses_too_fast,
-            };
-            counter.fetch_add(1, Ordering::Relaxed);
-            match log_line {
-                Some(1) => tracing::warn!(%peer, device = %t.device, "OpenIGTLink pose refused: {why}; the last good pose holds"),
-                Some(n) => tracing::warn!(%peer, device = %t.device, "OpenIGTLink: {n} poses refused in the last second or more (latest: {why}); the last good pose holds"),
-                None => tracing::debug!(%peer, device = %t.device, "OpenIGTLink pose refused: {why}"),
-            }
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::input::igtl_codec::HEADER_SIZE;
+    use std::io::Read;
     use crate::math::{Matrix3, Vec3};
     use std::time::Instant;
 

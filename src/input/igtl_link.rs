@@ -16,7 +16,8 @@
 //! connection re-anchors the link's mapped styluses, so the blade does not jump
 //! to wherever the stylus was moved while the link was down.
 
-use super::igtl::{Peer, ReadOutcome, Shared, lock, serve, setup_client};
+use super::igtl::{Shared, lock};
+use super::igtl_stream::{Peer, ReadOutcome, serve, setup_client};
 use std::net::{TcpStream, ToSocketAddrs};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};

@@ -24,6 +24,7 @@ pub mod gamepad;
 pub mod igtl;
 pub mod igtl_codec;
 pub mod igtl_link;
+mod igtl_stream;
 pub mod keyboard;
 pub mod rumble;
 pub mod spacemouse;

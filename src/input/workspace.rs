@@ -152,7 +152,7 @@ impl MappedStylus {
     }
 }
 
-/// The rotation matrix of a unit quaternion (a helper for configurations).
+/// The rotation matrix of a unit quaternion (how a configuration states a frame).
 pub fn rotation_matrix(q: &Quat) -> Matrix3<f64> {
     q.to_rotation_matrix().into_inner()
 }
