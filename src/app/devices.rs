@@ -92,12 +92,7 @@ pub fn start_igtl(scenario: &Scenario) -> Option<Arc<Mutex<IgtlServer>>> {
         other => other,
     };
     match started {
-        Ok(s) => {
-            if let Some(addr) = s.listening_on() {
-                tracing::info!(%addr, "OpenIGTLink server listening");
-            }
-            Some(Arc::new(Mutex::new(s)))
-        }
+        Ok(s) => Some(Arc::new(Mutex::new(s))),
         Err(e) => {
             tracing::warn!(error = %e, "OpenIGTLink not started; its spatulas hold their poses");
             None
@@ -238,6 +233,20 @@ mod tests {
         assert_eq!(lock(&status).as_str(), "", "an unchanged status is not written again");
         devices.poll(&scene(&[]), None, &status);
         assert!(devices.spacemouse_status().is_none(), "a scene without a SpaceMouse stops its reader");
+    }
+
+    #[test]
+    fn a_taken_port_still_lets_the_link_read_the_stylus() {
+        let taken = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+        let port = taken.local_addr().expect("addr").port();
+        let s = scene(&[
+            r#"spatulas[0].input=OpenIgtLink(device: "StylusToBase", connect: "127.0.0.1:9", force: ())"#,
+            &format!("openigtlink.listen=\"127.0.0.1:{port}\""),
+        ]);
+        let server = start_igtl(&s).expect("started without its server");
+        let server = lock(&server);
+        assert_eq!(server.listening_on(), None, "the port is taken: no server, so no force back (logged)");
+        assert_eq!(server.link_status().len(), 1, "the link runs");
     }
 
     #[test]
