@@ -181,6 +181,33 @@ pub enum InputBinding {
     Trajectory,
 }
 
+impl std::fmt::Display for InputBinding {
+    /// A line for `fissure check`: `OpenIgtLink "StylusToBase" from 127.0.0.1:18944,
+    /// mapped at scale 0.5 (clutch: ButtonsToBase button 1), force back as ForceToBase`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            InputBinding::OpenIgtLink { device, workspace_m, max_speed_m_s, link } => {
+                write!(f, "OpenIgtLink \"{device}\"")?;
+                if let Some(address) = &link.connect {
+                    write!(f, " from {address}")?;
+                }
+                write!(f, " (within {} mm, at most {} mm/s)", number(workspace_m / MM), number(max_speed_m_s / MM))?;
+                if let Some(m) = &link.mapping {
+                    write!(f, ", mapped at scale {} turned by {:.1} degrees", number(m.scale), m.rotation.angle().to_degrees())?;
+                    if let Some((d, b)) = &m.clutch {
+                        write!(f, " (clutch: {d} button {b})")?;
+                    }
+                }
+                if let Some(o) = &link.force {
+                    write!(f, ", force back as {} (x{}, at most {} N, {} Hz)", o.name, number(o.scale), number(o.max_force_n), number(o.rate_hz))?;
+                }
+                Ok(())
+            }
+            other => write!(f, "{other:?}"),
+        }
+    }
+}
+
 /// One spatula, SI.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SpatulaConfig {
@@ -1025,7 +1052,7 @@ impl Scenario {
             let p = sp.initial_pose.position / MM;
             let _ = writeln!(
                 s,
-                "  spatula {i} \"{}\": {:.1} x {:.1} x {:.2} mm, {layout}, at ({:.1}, {:.1}, {:.1}) mm, input {:?}",
+                "  spatula {i} \"{}\": {:.1} x {:.1} x {:.2} mm, {layout}, at ({:.1}, {:.1}, {:.1}) mm, input {}",
                 sp.name,
                 sp.shape.length / MM,
                 sp.shape.width / MM,
