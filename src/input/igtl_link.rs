@@ -153,11 +153,14 @@ pub(super) fn run(index: usize, shared: std::sync::Arc<Shared>, write_timeout: D
     let backoff = shared.config.backoff;
     let peer = Peer::Link { address: link.address.clone(), devices: link.devices.clone() };
     let mut wait_ms = backoff.first_ms.max(1);
+    // One warning per outage: the first failed attempt after a connection (or at the start).
+    let mut warned = false;
     while !shared.stop.load(Ordering::Relaxed) {
         set_state(&shared, index, LinkState::Connecting);
         let failure = match connect(&link.address).and_then(|s| setup_client(&s, write_timeout).map(|()| s)) {
             Ok(stream) => {
                 wait_ms = backoff.first_ms.max(1);
+                warned = false;
                 lock(&shared.poses).reanchor(&link.devices);
                 shared.stats.links_connected.fetch_add(1, Ordering::Relaxed);
                 set_state(&shared, index, LinkState::Connected);
@@ -174,14 +177,13 @@ pub(super) fn run(index: usize, shared: std::sync::Arc<Shared>, write_timeout: D
                 LinkState::Lost { reason, retry_in_s: wait_ms as f64 * 1e-3 }
             }
             Err(e) => {
-                let state = LinkState::Unreachable { error: e.to_string(), retry_in_s: wait_ms as f64 * 1e-3 };
-                let first = lock(&shared.links).get(index).is_some_and(|s| s.connections == 0 && !matches!(s.state, LinkState::Unreachable { .. }));
-                if first {
-                    tracing::warn!(server = %link.address, error = %e, "OpenIGTLink: cannot connect; trying again with backoff");
-                } else {
+                if warned {
                     tracing::debug!(server = %link.address, error = %e, "OpenIGTLink: cannot connect");
+                } else {
+                    warned = true;
+                    tracing::warn!(server = %link.address, error = %e, "OpenIGTLink: cannot connect; trying again with backoff (further failures are not logged until it connects)");
                 }
-                state
+                LinkState::Unreachable { error: e.to_string(), retry_in_s: wait_ms as f64 * 1e-3 }
             }
         };
         set_state(&shared, index, failure);

@@ -137,8 +137,15 @@ fn read_spacenavd(sources: &Sources, updates: &Sender<Update>, stop: &AtomicBool
     let socket = &sources.spnav_socket;
     let mut stream = std::os::unix::net::UnixStream::connect(socket).map_err(|e| format!("spacenavd is not running ({}: {e})", socket.display()))?;
     stream.set_read_timeout(Some(Duration::from_millis(100))).map_err(|e| format!("spacenavd's socket {}: {e}", socket.display()))?;
-    let device = space_mice(sources).first().map_or_else(|| "a device spacenavd reads".to_string(), |f| f.name.clone());
-    let _ = updates.send(Update::Connected(format!("{device} through spacenavd ({})", socket.display())));
+    let connected = match space_mice(sources).first() {
+        Some(f) => format!("{} through spacenavd ({})", f.name, socket.display()),
+        None => format!(
+            "the device spacenavd reads, through spacenavd ({}; no 3Dconnexion USB device in {})",
+            socket.display(),
+            sources.hidraw_class.display()
+        ),
+    };
+    let _ = updates.send(Update::Connected(connected));
     let mut event = [0u8; SPNAV_EVENT_SIZE];
     let mut filled = 0;
     let reason = loop {
