@@ -20,14 +20,19 @@ fn text(bytes: &[u8]) -> String {
 /// A run written by hand: blade `a` moves in a straight line at constant speed (3, 4, 0) mm a frame, pushes with
 /// a constant 0.2 N at 30 mmHg; rows every 0.5 s from 0.5 s to 2 s (four frames, 2 s). Blade `b` touches nothing.
 fn hand_run(dir: &Path) {
+    hand_run_pushing(dir, 0.2);
+}
+
+/// [`hand_run`] with blade `a` pushing `force_n` (its first frame's jump too).
+fn hand_run_pushing(dir: &Path, force_n: f64) {
     std::fs::create_dir_all(dir).unwrap();
     let mut csv = String::from(
         "frame,time_s,a_force_n,a_contact_area_mm2,a_contact_vertices,a_mean_pressure_mmhg,a_force_jump_n,a_tip_x_mm,a_tip_y_mm,a_tip_z_mm,\
          b_force_n,b_contact_area_mm2,b_contact_vertices,b_mean_pressure_mmhg,b_force_jump_n,b_tip_x_mm,b_tip_y_mm,b_tip_z_mm,inverted_scope\n",
     );
     for k in 0..4 {
-        let jump = if k == 0 { 0.2 } else { 0.0 };
-        csv += &format!("{k},{},0.2,10,12,30,{jump},{},{},0,0,0,0,0,0,50,0,0,surface\n", 0.5 * (k + 1) as f64, 3.0 * k as f64, 4.0 * k as f64);
+        let jump = if k == 0 { force_n } else { 0.0 };
+        csv += &format!("{k},{},{force_n},10,12,30,{jump},{},{},0,0,0,0,0,0,50,0,0,surface\n", 0.5 * (k + 1) as f64, 3.0 * k as f64, 4.0 * k as f64);
     }
     std::fs::write(dir.join("metrics.csv"), csv).unwrap();
     std::fs::write(dir.join("summary.json"), r#"{"scenario": "hand-made", "interrupted": false, "integrity": {"passed": true, "failures": []}, "injuries": [], "vessels": [], "bands": null}"#).unwrap();
@@ -189,4 +194,41 @@ fn a_real_replay_against_itself_is_within_everywhere_with_a_map() {
             assert_eq!(m.value, m.reference, "{section} {}", m.key);
         }
     }
+}
+
+/// A trainee's first, second and third tries side by side: the page's trend column gives each metric's change from
+/// the first run to the last, by hand: peak force 0.4 -> 0.2 N is -50 %, the unchanged path length "+0 %".
+#[test]
+fn several_runs_side_by_side_give_each_metrics_trend() {
+    let tmp = tempfile::tempdir().unwrap();
+    let runs: Vec<_> = [0.4, 0.3, 0.2]
+        .iter()
+        .enumerate()
+        .map(|(k, f)| {
+            let dir = tmp.path().join(format!("try{}", k + 1));
+            hand_run_pushing(&dir, *f);
+            dir
+        })
+        .collect();
+    let page = tmp.path().join("progress.html");
+    let args: Vec<&str> = ["debrief"].into_iter().chain(runs.iter().map(|d| d.to_str().unwrap())).chain(["-o", page.to_str().unwrap()]).collect();
+    let out = fissure(&args);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert!(html.contains("Trend, first run to last"), "a trend table");
+    let row = |name: &str| -> Vec<String> {
+        let start = html.find(&format!("<tr><td>{name} (blade a)")).unwrap_or_else(|| panic!("no row {name}"));
+        let end = start + html[start..].find("</tr>").unwrap();
+        html[start..end].split("<td>").skip(2).map(|c| c.trim_end_matches("</td>").to_string()).collect()
+    };
+    assert_eq!(row("peak force"), ["0.4000", "0.3000", "0.2000", "-50 %"], "each run's value, then the trend");
+    assert_eq!(row("instrument tip path length"), ["15.00", "15.00", "15.00", "+0 %"]);
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(page.with_extension("json")).unwrap()).unwrap();
+    let peaks: Vec<f64> = json
+        .as_array()
+        .expect("one debrief a run")
+        .iter()
+        .map(|d| d["blades"][0]["metrics"].as_array().unwrap().iter().find(|m| m["key"] == "peak_force_n").unwrap()["value"].as_f64().unwrap())
+        .collect();
+    assert_eq!(peaks, [0.4, 0.3, 0.2], "the JSON holds the same numbers, run by run");
 }

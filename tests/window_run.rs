@@ -29,12 +29,17 @@ fn fissure(dir: &Path) -> Command {
     c
 }
 
+/// The window tests run one at a time: each measures what a window does in real time (the background stress
+/// worker's frames, a debrief's replays), which the other's load on a two-core machine would starve.
+static ONE_WINDOW_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 fn line_after<'a>(text: &'a str, prefix: &str) -> Option<&'a str> {
     text.lines().find_map(|l| l.trim_start().strip_prefix(prefix))
 }
 
 #[test]
 fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_and_forces() {
+    let _one = ONE_WINDOW_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     let Some(x) = start_xvfb(90) else {
         eprintln!("skipping: Xvfb is not installed (apt-get install xvfb)");
         return;
@@ -129,6 +134,7 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
 /// the JSON is the window's.
 #[test]
 fn ctrl_q_ends_the_session_and_writes_its_debrief_beside_the_recording() {
+    let _one = ONE_WINDOW_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     let Some(x) = start_xvfb(90) else {
         eprintln!("skipping: Xvfb is not installed (apt-get install xvfb)");
         return;

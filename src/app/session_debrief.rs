@@ -191,6 +191,7 @@ fn row(section: &str, m: &debrief::Metric) -> crate::ui::debrief::DebriefRow {
         section: section.to_string(),
         name: m.name.clone(),
         value: unit(m.value),
+        reference: m.reference.map_or_else(|| "-".to_string(), |r| unit(Some(r))),
         against,
         verdict: m.verdict.map(|v| v.words().to_string()).unwrap_or_default(),
         level: level(m.verdict),

@@ -28,7 +28,7 @@ pub enum DebriefPageError {
 }
 
 /// The map's size in pixels.
-pub const MAP_SIZE: (u32, u32) = (900, 700);
+pub const MAP_SIZE: (u32, u32) = (1400, 650);
 /// The timeline's size in pixels.
 pub const TIMELINE_SIZE: (u32, u32) = (1200, 900);
 
@@ -138,7 +138,7 @@ fn map_section(html: &mut String, run: &RunData) -> Result<(), DebriefPageError>
             let png = png_bytes(MAP_SIZE, |root| draw_map(root, vertices)).map_err(|m| DebriefPageError::File { path: run.dir.clone(), message: format!("drawing the pressure map: {m}") })?;
             let _ = writeln!(
                 html,
-                "<img alt=\"pressure-time dose on the brain surface, top view\" src=\"data:image/png;base64,{}\">",
+                "<img alt=\"pressure-time dose on the brain surface: top view and a close-up of the pressed region\" src=\"data:image/png;base64,{}\">",
                 base64::engine::general_purpose::STANDARD.encode(png)
             );
         }
@@ -250,44 +250,152 @@ fn dose_color(fraction: f64) -> RGBColor {
     RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
 }
 
-/// The top view (x-y, looking down z) of the surface, each vertex a dot coloured by its pressure-time dose; the
-/// vertices drawn from the lowest to the highest, so the upper surface shows; a colour bar with its unit.
-fn draw_map(root: &DrawingArea<BitMapBackend<'_>, Shift>, vertices: &[DoseVertex]) -> Res {
-    root.fill(&WHITE).map_err(err)?;
-    let (w, _) = root.dim_in_pixel();
-    let body = root.titled("Pressure-time dose on the brain surface (top view, looking down z)", (FONT, 22)).map_err(err)?;
-    let (map, bar) = body.split_horizontally(w.saturating_sub(150));
-    let finite: Vec<&DoseVertex> = vertices.iter().filter(|v| v.position_mm.iter().all(|c| c.is_finite())).collect();
-    let span = |k: usize| finite.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v.position_mm[k]), hi.max(v.position_mm[k])));
-    let ((x0, x1), (y0, y1)) = (span(0), span(1));
-    if !(x0.is_finite() && y0.is_finite()) {
-        return Err("no vertex with a finite position".into());
+/// One projection of the surface: the two axes drawn (0 x, 1 y, 2 z), the axis looked along (drawn from its low end
+/// up, so the side at its high end shows), the area shown and the slab of depth kept.
+struct MapView {
+    title: String,
+    axes: [usize; 2],
+    depth: usize,
+    /// Centre and size of the area shown, mm, on the two axes.
+    centre: [f64; 2],
+    size: [f64; 2],
+    /// Only vertices whose depth lies in this range (a close-up cuts away what lies over the pressed patch).
+    slab: (f64, f64),
+    /// A rectangle to outline (the close-up's area, on the overview), on the two axes.
+    outline: Option<([f64; 2], [f64; 2])>,
+}
+
+const AXIS: [&str; 3] = ["x", "y", "z"];
+
+/// The axis-aligned box of `points` on axis `k`.
+fn span_of<'a>(points: impl Iterator<Item = &'a DoseVertex>, k: usize) -> (f64, f64) {
+    points.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v.position_mm[k]), hi.max(v.position_mm[k])))
+}
+
+/// The views of the map: the whole surface from the top, and, when anything was pressed, a close-up of the pressed
+/// patch seen along the axis in which it is thinnest (a fissure's wall, seen face on), the surface above and below
+/// it more than 3 mm away cut off, the area 10 mm or a third of its size larger than the patch on each side.
+fn map_views(vertices: &[&DoseVertex]) -> Option<(MapView, Option<MapView>)> {
+    let whole = [0, 1, 2].map(|k| span_of(vertices.iter().copied(), k));
+    if !whole.iter().all(|(lo, hi)| lo.is_finite() && hi.is_finite()) {
+        return None;
     }
-    // Equal scales on both axes: pad the shorter span to the area's aspect.
-    let (mw, mh) = map.dim_in_pixel();
+    let pressed: Vec<&DoseVertex> = vertices.iter().copied().filter(|v| v.pressure_time_mmhg_s > 0.0).collect();
+    let box_of = |k: usize| span_of(pressed.iter().copied(), k);
+    let close = (!pressed.is_empty()).then(|| {
+        let spans = [0, 1, 2].map(box_of);
+        let depth = (0..3).min_by(|&a, &b| (spans[a].1 - spans[a].0).total_cmp(&(spans[b].1 - spans[b].0))).unwrap_or(2);
+        let axes = match depth {
+            0 => [1, 2],
+            1 => [0, 2],
+            _ => [0, 1],
+        };
+        let pad = |(lo, hi): (f64, f64)| (10.0_f64).max((hi - lo) / 3.0);
+        let area = axes.map(|k| {
+            let (lo, hi) = spans[k];
+            let p = pad(spans[k]);
+            (lo - p, hi + p)
+        });
+        let (d0, d1) = spans[depth];
+        MapView {
+            title: format!("Close-up, looking along {} (surface more than 3 mm off the pressed patch cut away)", AXIS[depth]),
+            axes,
+            depth,
+            centre: area.map(|(lo, hi)| (lo + hi) / 2.0),
+            size: area.map(|(lo, hi)| hi - lo),
+            slab: (d0 - 3.0, d1 + 3.0),
+            outline: None,
+        }
+    });
+    let outline = (!pressed.is_empty()).then(|| {
+        let (x, y) = (box_of(0), box_of(1));
+        ([x.0 - 5.0, y.0 - 5.0], [x.1 + 5.0, y.1 + 5.0])
+    });
+    let overview = MapView {
+        title: "The whole surface from the top (looking down z)".into(),
+        axes: [0, 1],
+        depth: 2,
+        centre: [(whole[0].0 + whole[0].1) / 2.0, (whole[1].0 + whole[1].1) / 2.0],
+        size: [(whole[0].1 - whole[0].0).max(1.0) * 1.05, (whole[1].1 - whole[1].0).max(1.0) * 1.05],
+        slab: (f64::NEG_INFINITY, f64::INFINITY),
+        outline,
+    };
+    Some((overview, close))
+}
+
+/// Draws one view into `area`: each vertex a dot coloured by its dose against `max` (grey untouched), drawn from the
+/// low end of the depth axis up, equal scales on both axes.
+fn draw_view(area: &DrawingArea<BitMapBackend<'_>, Shift>, view: &MapView, vertices: &[&DoseVertex], max: f64) -> Res {
+    let body = area.titled(&view.title, (FONT, 16)).map_err(err)?;
+    let (mw, mh) = body.dim_in_pixel();
     let aspect = (mw.saturating_sub(80)) as f64 / (mh.saturating_sub(60)).max(1) as f64;
-    let (cx, cy, mut sx, mut sy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0, (x1 - x0).max(1.0) * 1.05, (y1 - y0).max(1.0) * 1.05);
+    let [mut sx, mut sy] = view.size;
     if sx / sy < aspect { sx = sy * aspect } else { sy = sx / aspect }
-    let mut chart = ChartBuilder::on(&map)
+    let [cx, cy] = view.centre;
+    let mut chart = ChartBuilder::on(&body)
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(60)
         .build_cartesian_2d(cx - sx / 2.0..cx + sx / 2.0, cy - sy / 2.0..cy + sy / 2.0)
         .map_err(err)?;
-    chart.configure_mesh().disable_mesh().x_desc("x (mm)").y_desc("y (mm)").label_style((FONT, 14)).draw().map_err(err)?;
-    let max = finite.iter().map(|v| v.pressure_time_mmhg_s).filter(|d| d.is_finite()).fold(0.0, f64::max);
-    let mut order = finite.clone();
-    order.sort_by(|a, b| a.position_mm[2].total_cmp(&b.position_mm[2]));
+    let [a, b] = view.axes;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(format!("{} (mm)", AXIS[a]))
+        .y_desc(format!("{} (mm)", AXIS[b]))
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(err)?;
+    let inside = |v: &&&DoseVertex| {
+        let (p, d) = ((v.position_mm[a], v.position_mm[b]), v.position_mm[view.depth]);
+        d >= view.slab.0 && d <= view.slab.1 && (p.0 - cx).abs() <= sx / 2.0 && (p.1 - cy).abs() <= sy / 2.0
+    };
+    let mut order: Vec<&&DoseVertex> = vertices.iter().filter(inside).collect();
+    order.sort_by(|p, q| p.position_mm[view.depth].total_cmp(&q.position_mm[view.depth]));
+    let radius = if view.slab.0.is_finite() { (3, 4) } else { (2, 3) };
     chart
         .draw_series(order.iter().map(|v| {
             let d = v.pressure_time_mmhg_s;
-            let color = if d > 0.0 && max > 0.0 { dose_color(d / max) } else { RGBColor(215, 215, 215) };
-            Circle::new((v.position_mm[0], v.position_mm[1]), if d > 0.0 { 3 } else { 2 }, color.filled())
+            let color = if d > 0.0 && max > 0.0 { dose_color((d / max).min(1.0)) } else { RGBColor(215, 215, 215) };
+            Circle::new((v.position_mm[a], v.position_mm[b]), if d > 0.0 { radius.1 } else { radius.0 }, color.filled())
         }))
         .map_err(err)?;
+    if let Some((lo, hi)) = view.outline {
+        chart.draw_series(std::iter::once(Rectangle::new([(lo[0], lo[1]), (hi[0], hi[1])], BLACK.stroke_width(2)))).map_err(err)?;
+    }
+    Ok(())
+}
+
+/// The map: the whole surface from the top with the pressed region outlined, and a close-up of that region
+/// ([`map_views`]), each surface vertex coloured by its pressure-time dose; one colour bar with its unit.
+fn draw_map(root: &DrawingArea<BitMapBackend<'_>, Shift>, vertices: &[DoseVertex]) -> Res {
+    root.fill(&WHITE).map_err(err)?;
+    let (w, _) = root.dim_in_pixel();
+    let body = root.titled("Pressure-time dose on the brain surface", (FONT, 22)).map_err(err)?;
+    let (maps, bar) = body.split_horizontally(w.saturating_sub(150));
+    let finite: Vec<&DoseVertex> = vertices.iter().filter(|v| v.position_mm.iter().all(|c| c.is_finite())).collect();
+    let Some((overview, close)) = map_views(&finite) else {
+        return Err("no vertex with a finite position".into());
+    };
+    // The colour bar's top: the 99th percentile of the pressed vertices' doses (one vertex under a blade's edge
+    // must not wash out the patch), the doses above it drawn in its colour and the bar saying so.
+    let mut pressed: Vec<f64> = finite.iter().map(|v| v.pressure_time_mmhg_s).filter(|d| d.is_finite() && *d > 0.0).collect();
+    pressed.sort_by(f64::total_cmp);
+    let largest = pressed.last().copied().unwrap_or(0.0);
+    let max = pressed.get(((pressed.len() as f64 - 1.0) * 0.99).round().max(0.0) as usize).copied().unwrap_or(0.0);
+    match &close {
+        Some(close) => {
+            let (mw, _) = maps.dim_in_pixel();
+            let (left, right) = maps.split_horizontally(mw * 9 / 20);
+            draw_view(&left, &overview, &finite, max)?;
+            draw_view(&right, close, &finite, max)?;
+        }
+        None => draw_view(&maps, &overview, &finite, max)?,
+    }
     // The colour bar.
     let (bw, bh) = bar.dim_in_pixel();
-    let (top, bottom, left) = (40i32, bh as i32 - 60, 20i32);
+    let (top, bottom, left) = (40i32, bh as i32 - 80, 20i32);
     let steps = 100;
     for k in 0..steps {
         let f = k as f64 / steps as f64;
@@ -296,12 +404,18 @@ fn draw_map(root: &DrawingArea<BitMapBackend<'_>, Shift>, vertices: &[DoseVertex
         bar.draw(&Rectangle::new([(left, y_hi), (left + 30, y_lo)], dose_color(f).filled())).map_err(err)?;
     }
     bar.draw(&Rectangle::new([(left, top), (left + 30, bottom)], BLACK)).map_err(err)?;
-    for (f, label) in [(0.0, "0".to_string()), (0.5, shown(Some(max / 2.0))), (1.0, shown(Some(max)))] {
+    let top_label = if largest > max { format!("{} +", shown(Some(max))) } else { shown(Some(max)) };
+    for (f, label) in [(0.0, "0".to_string()), (0.5, shown(Some(max / 2.0))), (1.0, top_label)] {
         let y = bottom - ((bottom - top) as f64 * f) as i32;
         bar.draw(&Text::new(label, (left + 36, y - 7), (FONT, 14).into_font())).map_err(err)?;
     }
     bar.draw(&Text::new("mmHg s", (left, bottom + 16), (FONT, 15).into_font())).map_err(err)?;
     bar.draw(&Text::new("grey: untouched", (left.min(bw as i32 - 120).max(0), bottom + 36), (FONT, 13).into_font().color(&RGBColor(110, 110, 110)))).map_err(err)?;
+    if largest > max {
+        // The top is the 99th percentile: say what lies above it.
+        let grey = (FONT, 13).into_font().color(&RGBColor(110, 110, 110));
+        bar.draw(&Text::new(format!("largest {}", shown(Some(largest))), (left.min(bw as i32 - 120).max(0), bottom + 52), grey)).map_err(err)?;
+    }
     root.present().map_err(err)
 }
 

@@ -21,6 +21,10 @@ use serde::Serialize;
 use super::read::{BladeTrack, Injury, RunData};
 use crate::sim::report::RETRACTION_DANGER_MMHG;
 
+/// A dip of the mean pressure under 20 mmHg shorter than this does not end a hold, s (chosen: a quarter second is
+/// shorter than a deliberate release and return, longer than a blade's frame-to-frame chatter).
+pub const HOLD_GAP_S: f64 = 0.25;
+
 /// A value within this factor of the reference's is "within".
 pub const WITHIN_FACTOR: f64 = 1.25;
 /// Past "within", up to this factor it is "above"; beyond, "far above".
@@ -137,6 +141,22 @@ pub fn frame_durations(time_s: &[f64]) -> Vec<f64> {
     out
 }
 
+/// A hold of the mean pressure above 20 mmHg.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Hold {
+    /// Its first frame's time, s.
+    pub start: f64,
+    /// From the first frame above to the last, dips included, s.
+    pub span: f64,
+    /// Time above the line in it, s, and the pressure's integral over that time, mmHg s.
+    pub above: f64,
+    integral: f64,
+    /// The dip under the line since its last frame above, s.
+    gap: f64,
+    /// The mean pressure over its time above the line, mmHg.
+    pub mean_mmhg: f64,
+}
+
 /// The plain numbers of one blade, before any verdict.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct BladeNumbers {
@@ -152,8 +172,8 @@ pub struct BladeNumbers {
     pub peak_mean_pressure_mmhg: f64,
     pub time_above_20mmhg_s: f64,
     pub pressure_time_above_20mmhg_mmhg_s: f64,
-    /// The longest stretch above 20 mmHg: its first frame's time, its length, its time-weighted mean pressure.
-    pub longest_above: Option<(f64, f64, f64)>,
+    /// The longest hold above 20 mmHg (dips under the line shorter than [`HOLD_GAP_S`] included).
+    pub longest_above: Option<Hold>,
     pub max_area_at_risk_mm2: Option<f64>,
     pub first_at_risk_s: Option<f64>,
     /// Frame by frame: in contact.
@@ -193,13 +213,15 @@ pub fn blade_numbers(blade: &BladeTrack, time_s: &[f64]) -> BladeNumbers {
     if !changes.is_empty() {
         b.force_roughness_n = Some((changes.iter().map(|c| c * c).sum::<f64>() / changes.len() as f64).sqrt());
     }
-    // Pressure above the line: time, dose and the longest stretch.
-    let mut run: Option<(f64, f64, f64)> = None; // start, length, pressure * time
-    let close = |run: &mut Option<(f64, f64, f64)>, longest: &mut Option<(f64, f64, f64)>| {
-        if let Some((start, length, integral)) = run.take()
-            && longest.is_none_or(|l| length > l.1)
+    // Pressure above the line: time, dose and the longest hold. A hold goes on across dips under the line shorter
+    // than [`HOLD_GAP_S`] (a blade chattering about 20 mmHg is one hold, not many short ones).
+    let mut hold: Option<Hold> = None;
+    let close = |hold: &mut Option<Hold>, longest: &mut Option<Hold>| {
+        if let Some(mut h) = hold.take()
+            && longest.is_none_or(|l| h.span > l.span)
         {
-            *longest = Some((start, length, if length > 0.0 { integral / length } else { 0.0 }));
+            h.mean_mmhg = if h.above > 0.0 { h.integral / h.above } else { 0.0 };
+            *longest = Some(h);
         }
     };
     for k in 0..n {
@@ -210,14 +232,19 @@ pub fn blade_numbers(blade: &BladeTrack, time_s: &[f64]) -> BladeNumbers {
         if p.is_finite() && p > RETRACTION_DANGER_MMHG {
             b.time_above_20mmhg_s += dt[k];
             b.pressure_time_above_20mmhg_mmhg_s += (p - RETRACTION_DANGER_MMHG) * dt[k];
-            let r = run.get_or_insert((time_s[k], 0.0, 0.0));
-            r.1 += dt[k];
-            r.2 += p * dt[k];
-        } else {
-            close(&mut run, &mut b.longest_above);
+            let h = hold.get_or_insert(Hold { start: time_s[k], span: 0.0, above: 0.0, integral: 0.0, gap: 0.0, mean_mmhg: 0.0 });
+            h.span += h.gap + dt[k];
+            h.gap = 0.0;
+            h.above += dt[k];
+            h.integral += p * dt[k];
+        } else if let Some(h) = hold.as_mut() {
+            h.gap += dt[k];
+            if h.gap >= HOLD_GAP_S {
+                close(&mut hold, &mut b.longest_above);
+            }
         }
     }
-    close(&mut run, &mut b.longest_above);
+    close(&mut hold, &mut b.longest_above);
     // The tip's path.
     if let Some(tip) = &blade.tip_mm {
         let finite: Vec<&[f64; 3]> = tip.iter().filter(|p| p.iter().all(|c| c.is_finite())).collect();
@@ -331,18 +358,21 @@ fn blade_sentences(name: &str, b: &BladeNumbers, metrics: &[Metric]) -> Vec<Stri
     let get = |key: &str| metrics.iter().find(|m| m.key == key);
     let worse = |key: &str| get(key).and_then(|m| m.reference_verdict).is_some_and(|v| v > Verdict::Within);
     let mut out: Vec<(u8, String)> = Vec::new();
-    if let Some((start, length, mean)) = b.longest_above {
-        out.push((
-            0,
+    if let Some(h) = b.longest_above {
+        let all = format!("{} s above 20 mmHg in all, a dose of {} mmHg s above the line", num(b.time_above_20mmhg_s), num(b.pressure_time_above_20mmhg_mmhg_s));
+        // A hold mostly above the line reads as one; one that kept crossing it says so.
+        let held = if h.above >= 0.9 * h.span {
+            format!("The {name} blade held {} mmHg for {} s from {} s ({all})", num(h.mean_mmhg), num(h.span), num(h.start))
+        } else {
             format!(
-                "The {name} blade held {} mmHg for {} s from {} s ({} s above 20 mmHg in all, a dose of {} mmHg s above the line): spread less, or release and return.",
-                num(mean),
-                num(length),
-                num(start),
-                num(b.time_above_20mmhg_s),
-                num(b.pressure_time_above_20mmhg_mmhg_s)
-            ),
-        ));
+                "The {name} blade pressed about the 20 mmHg line for {} s from {} s, above it {} s of that at {} mmHg on average ({all})",
+                num(h.span),
+                num(h.start),
+                num(h.above),
+                num(h.mean_mmhg)
+            )
+        };
+        out.push((0, format!("{held}: spread less, or release and return.")));
     }
     if let (Some(area), Some(t)) = (b.max_area_at_risk_mm2.filter(|a| *a > 0.0), b.first_at_risk_s) {
         out.push((0, format!("Under the {name} blade {} mm^2 reached even odds of ischemic injury, the first at {} s: release the retraction from time to time.", num(area), num(t))));
@@ -370,6 +400,14 @@ fn blade_sentences(name: &str, b: &BladeNumbers, metrics: &[Metric]) -> Vec<Stri
         && let Some(r) = get("time_in_contact_s").and_then(|m| m.reference)
     {
         out.push((4, format!("The {name} blade touched the brain for {} s against the reference's {} s: leave the tissue when the blade is not needed.", num(b.time_in_contact_s), num(r))));
+    }
+    // Less is not judged "above", but a blade that did not go where the careful one went did not do the job: a tip
+    // that moved less than half the reference's net displacement is told so (half: chosen).
+    if let (Some(v), Some(r)) = (b.net_displacement_mm, get("net_displacement_mm").and_then(|m| m.reference))
+        && r > 1.0
+        && v < 0.5 * r
+    {
+        out.push((1, format!("The {name} blade's tip moved {} mm from where it started against the careful surgeon's {} mm: the opening is not done; take the blade to where the reference's went.", num(v), num(r))));
     }
     out.sort_by_key(|(rank, _)| *rank);
     let mut sentences: Vec<String> = out.into_iter().map(|(_, s)| s).take(3).collect();
@@ -539,8 +577,34 @@ mod tests {
         // 30 mmHg for 2 s: 2 s above the line, a dose of 10 mmHg x 2 s.
         assert!((b.time_above_20mmhg_s - 2.0).abs() < 1e-12);
         assert!((b.pressure_time_above_20mmhg_mmhg_s - 20.0).abs() < 1e-12);
-        assert_eq!(b.longest_above, Some((0.5, 2.0, 30.0)));
+        let h = b.longest_above.expect("a hold");
+        assert_eq!((h.start, h.span, h.above, h.mean_mmhg), (0.5, 2.0, 2.0, 30.0));
         assert_eq!(b.path_length_mm, None, "no tip columns: no path");
+    }
+
+    #[test]
+    fn a_blade_that_went_less_than_half_as_far_as_the_reference_is_told_the_opening_is_not_done() {
+        let time: Vec<f64> = (1..=3).map(|k| k as f64 * 0.5).collect();
+        let run = |step: f64| blade(vec![0.1; 3], vec![5.0; 3], Some((0..3).map(|k| [step * k as f64, 0.0, 0.0]).collect()));
+        let (mine, careful) = (blade_numbers(&run(2.0), &time), blade_numbers(&run(10.0), &time));
+        let metrics = blade_metrics(&mine, Some(&careful));
+        let said = blade_sentences("frontal", &mine, &metrics);
+        assert!(said.iter().any(|s| s.contains("moved 4.00 mm") && s.contains("careful surgeon's 20.0 mm")), "{said:?}");
+        let metrics = blade_metrics(&careful, Some(&careful));
+        assert!(!blade_sentences("frontal", &careful, &metrics).iter().any(|s| s.contains("not done")), "the reference itself is done");
+    }
+
+    #[test]
+    fn a_hold_goes_on_across_short_dips_and_ends_at_a_long_one() {
+        // Frames of 0.1 s: above (30 mmHg), a 0.1 s dip, above twice (40), then 0.3 s under, then above once (50).
+        let pressure = vec![30.0, 10.0, 40.0, 40.0, 10.0, 10.0, 10.0, 50.0];
+        let time: Vec<f64> = (1..=pressure.len()).map(|k| k as f64 * 0.1).collect();
+        let b = blade_numbers(&blade(vec![0.1; pressure.len()], pressure, None), &time);
+        let Hold { start, span, mean_mmhg: mean, .. } = b.longest_above.expect("a hold");
+        assert!((start - 0.1).abs() < 1e-12, "the hold starts at the first frame above: {start}");
+        assert!((span - 0.4).abs() < 1e-12, "0.1 s dip inside it: four frames, 0.4 s: {span}");
+        assert!((mean - (30.0 + 40.0 + 40.0) / 3.0).abs() < 1e-9, "mean over the frames above the line: {mean}");
+        assert!((b.time_above_20mmhg_s - 0.4).abs() < 1e-12, "four frames above in all");
     }
 
     #[test]

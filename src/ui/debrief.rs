@@ -16,6 +16,8 @@ pub struct DebriefRow {
     pub name: String,
     /// The value with its unit.
     pub value: String,
+    /// The reference's value (the careful surgeon's), `-` when none.
+    pub reference: String,
     /// The reference's value (or the limit) it was judged against, with its unit; empty when none.
     pub against: String,
     /// "within", "above", "far above", "over the limit"; empty when not judged.
@@ -71,15 +73,18 @@ pub fn debrief_section(ui: &mut egui::Ui, panel: &DebriefPanel) -> bool {
         DebriefPanel::Ready(s) => {
             ui.label(&s.headline);
             let mut section = "";
-            egui::Grid::new("debrief_rows").num_columns(3).striped(true).show(ui, |ui| {
+            egui::Grid::new("debrief_rows").num_columns(4).striped(true).show(ui, |ui| {
                 for row in &s.rows {
                     if row.section != section {
                         section = &row.section;
                         ui.label(egui::RichText::new(section).strong());
+                        ui.small("you");
+                        ui.small("careful");
                         ui.end_row();
                     }
                     ui.label(&row.name);
                     ui.label(&row.value).on_hover_text(if row.against.is_empty() { "not judged".to_string() } else { format!("against {}", row.against) });
+                    ui.label(&row.reference);
                     ui.colored_label(colour(row.level), if row.verdict.is_empty() { "-" } else { &row.verdict });
                     ui.end_row();
                 }
