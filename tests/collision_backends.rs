@@ -7,6 +7,8 @@
 //! and the real brain surfaces with 2000 nodes a face (random poses and the first
 //! frames of the collision benchmark's motion).
 
+mod common;
+
 use fissure::collision::backend::gpu::GpuCaster;
 use fissure::collision::backend::reference::ReferenceCaster;
 use fissure::collision::backend::{PairLine, RayCaster};
@@ -85,7 +87,7 @@ fn gpu_stage(t: &[[u32; 3]], p: &[Vec3], specs: &[SpatulaSpec], backend: Backend
     let g = CollisionStage::new(CollisionConfig { backend, culling: true }, t, p, specs).expect("stage");
     if backend == BackendKind::Gpu && g.backend() != BackendKind::Gpu {
         assert!(!g.warnings().is_empty(), "a fallback must be reported in warnings()");
-        println!("skip: no GPU adapter ({:?})", g.warnings());
+        common::skip(&format!("no GPU adapter ({:?})", g.warnings()));
         return None;
     }
     Some(g)
@@ -148,7 +150,7 @@ fn gpu_agrees_with_reference_bit_for_bit_on_hard_lines() {
     let mut gpu = match GpuCaster::new(&t, &p, 2020) {
         Ok(g) => g,
         Err(e) => {
-            println!("skip: no GPU adapter ({e})");
+            common::skip(&format!("no GPU adapter ({e})"));
             return;
         }
     };
@@ -305,7 +307,7 @@ fn gpu_finds_the_hit_behind_a_silhouette_edge_that_the_line_just_misses() {
     let mut gpu = match GpuCaster::new(&t, &p, 256) {
         Ok(g) => g,
         Err(e) => {
-            println!("skip: no GPU adapter ({e})");
+            common::skip(&format!("no GPU adapter ({e})"));
             return;
         }
     };

@@ -4,6 +4,8 @@
 //! spatula: the two faces' contact patterns differ). Every case runs on every
 //! backend; the GPU one prints a skip line when no adapter exists.
 
+mod common;
+
 use fissure::collision::scenes::{heightfield_solid, linspace, merge, pose_from_axes, subdivided_box};
 use fissure::collision::{BackendKind, CollisionConfig, CollisionOutput, CollisionStage, SpatulaSpec};
 use fissure::geometry::{NodeLayout, Pose, SpatulaShape};
@@ -14,7 +16,7 @@ const MM: f64 = 1e-3;
 fn stage(backend: BackendKind, culling: bool, t: &[[u32; 3]], p: &[Vec3], spec: &SpatulaSpec) -> Option<CollisionStage> {
     let s = CollisionStage::new(CollisionConfig { backend, culling }, t, p, std::slice::from_ref(spec)).expect("valid stage");
     if backend == BackendKind::Gpu && s.backend() != BackendKind::Gpu {
-        println!("skip: no GPU adapter ({:?})", s.warnings());
+        common::skip(&format!("no GPU adapter ({:?})", s.warnings()));
         return None;
     }
     Some(s)

@@ -3,6 +3,8 @@
 //! Runs on the software Vulkan driver in CI; skips with a message only when
 //! the binary reports no GPU adapter.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -45,7 +47,7 @@ fn shoot(name: &str, args: &[&str]) -> Option<(image::RgbaImage, String)> {
         .expect("run fissure");
     let stderr = String::from_utf8_lossy(&output.stderr);
     if !output.status.success() && stderr.contains("no GPU adapter") {
-        eprintln!("skipping: no GPU adapter ({stderr})");
+        common::skip(&format!("no GPU adapter ({stderr})"));
         return None;
     }
     assert!(output.status.success(), "screenshot failed: {stderr}");

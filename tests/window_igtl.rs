@@ -24,11 +24,11 @@ fn fissure(dir: &Path) -> Command {
 fn a_pyigtl_client_moves_a_spatula_and_the_recording_shows_it() {
     let pyigtl = Command::new("python3").args(["-c", "import pyigtl"]).output();
     if !pyigtl.map(|o| o.status.success()).unwrap_or(false) {
-        eprintln!("skipping: pyigtl is not importable (pip install pyigtl)");
+        common::skip("pyigtl is not importable (pip install pyigtl)");
         return;
     }
     let Some(x) = common::xvfb::start_xvfb(140) else {
-        eprintln!("skipping: Xvfb is not installed (apt-get install xvfb)");
+        common::skip("Xvfb is not installed (apt-get install xvfb)");
         return;
     };
     let dir = tempfile::tempdir().expect("temp dir");

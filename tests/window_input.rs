@@ -28,7 +28,7 @@ fn final_position_mm(stdout: &str, name: &str) -> [f64; 3] {
 #[test]
 fn keys_select_any_blade_esc_and_tab_take_the_keys_back_from_the_panel() {
     let Some(x) = start_xvfb(90) else {
-        eprintln!("skipping: Xvfb is not installed (apt-get install xvfb)");
+        common::skip("Xvfb is not installed (apt-get install xvfb)");
         return;
     };
     let dir = tempfile::tempdir().expect("temp dir");

@@ -41,7 +41,7 @@ fn line_after<'a>(text: &'a str, prefix: &str) -> Option<&'a str> {
 fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_and_forces() {
     let _one = ONE_WINDOW_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     let Some(x) = start_xvfb(90) else {
-        eprintln!("skipping: Xvfb is not installed (apt-get install xvfb)");
+        common::skip("Xvfb is not installed (apt-get install xvfb)");
         return;
     };
     let dir = tempfile::tempdir().expect("temp dir");
@@ -136,7 +136,7 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
 fn ctrl_q_ends_the_session_and_writes_its_debrief_beside_the_recording() {
     let _one = ONE_WINDOW_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     let Some(x) = start_xvfb(90) else {
-        eprintln!("skipping: Xvfb is not installed (apt-get install xvfb)");
+        common::skip("Xvfb is not installed (apt-get install xvfb)");
         return;
     };
     let dir = tempfile::tempdir().expect("temp dir");

@@ -597,7 +597,7 @@ impl Pipeline {
         }
 
         match (&self.tethers, &mut r.tethers) {
-            (Some(t), Some(out)) => out.clone_from(t.frame()),
+            (Some(t), Some(out)) => out.copy_from(t.frame()),
             (Some(t), None) => r.tethers = Some(t.frame().clone()),
             _ => {}
         }

@@ -136,6 +136,20 @@ pub struct TetherFrame {
     pub events: Vec<TetherEvent>,
 }
 
+impl TetherFrame {
+    /// Becomes a copy of `other`, reusing its buffers (the frame report's copy allocates nothing on a frame without
+    /// events; a derived `clone_from` would replace every vector).
+    pub fn copy_from(&mut self, other: &Self) {
+        self.vessel_stretch.clone_from(&other.vessel_stretch);
+        self.vessel_torn.clone_from(&other.vessel_torn);
+        self.bands_intact = other.bands_intact;
+        self.bands_torn = other.bands_torn;
+        self.bands_cut = other.bands_cut;
+        self.max_band_tension_n = other.max_band_tension_n;
+        self.events.clone_from(&other.events);
+    }
+}
+
 /// The stage: the links, their limits and what happened to them.
 #[derive(Debug, Clone)]
 pub struct TetherStage {
@@ -337,6 +351,17 @@ impl TetherStage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_frame_copy_is_equal_and_keeps_its_buffers() {
+        let event = TetherEvent { time_s: 0.5, frame: 49, kind: LinkState::Torn, tether: "band".into(), what: "band", stretch: 1.2, tension_n: 0.05 };
+        let a = TetherFrame { vessel_stretch: vec![1.1, 1.02], vessel_torn: vec![false, true], bands_intact: 3, bands_torn: 1, bands_cut: 2, max_band_tension_n: 0.04, events: vec![event] };
+        let mut b = TetherFrame { vessel_stretch: Vec::with_capacity(8), ..TetherFrame::default() };
+        let buffer = b.vessel_stretch.as_ptr();
+        b.copy_from(&a);
+        assert_eq!(b, a);
+        assert_eq!(b.vessel_stretch.as_ptr(), buffer, "the stretch buffer is reused");
+    }
 
     #[test]
     fn a_point_snaps_to_the_nearest_triangle_with_its_barycentric_weights() {
