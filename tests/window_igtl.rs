@@ -27,10 +27,7 @@ fn a_pyigtl_client_moves_a_spatula_and_the_recording_shows_it() {
         common::skip("pyigtl is not importable (pip install pyigtl)");
         return;
     }
-    let Some(x) = common::xvfb::start_xvfb(140) else {
-        common::skip("Xvfb is not installed (apt-get install xvfb)");
-        return;
-    };
+    let Some(x) = common::xvfb::xvfb_or_skip(140) else { return };
     let dir = tempfile::tempdir().expect("temp dir");
     let recording = dir.path().join("igtl.csv");
     let script = dir.path().join("script.txt");

@@ -11,7 +11,6 @@
 
 mod common;
 
-use common::xvfb::start_xvfb;
 use std::path::Path;
 use std::process::Command;
 
@@ -27,10 +26,7 @@ fn final_position_mm(stdout: &str, name: &str) -> [f64; 3] {
 
 #[test]
 fn keys_select_any_blade_esc_and_tab_take_the_keys_back_from_the_panel() {
-    let Some(x) = start_xvfb(90) else {
-        common::skip("Xvfb is not installed (apt-get install xvfb)");
-        return;
-    };
+    let Some(x) = common::xvfb::xvfb_or_skip(90) else { return };
     let dir = tempfile::tempdir().expect("temp dir");
     let blocker = dir.path().join("not_a_folder");
     std::fs::write(&blocker, "a file where the recordings folder would go").expect("write");

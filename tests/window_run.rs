@@ -13,7 +13,6 @@
 
 mod common;
 
-use common::xvfb::start_xvfb;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -33,6 +32,15 @@ fn fissure(dir: &Path) -> Command {
 /// worker's frames, a debrief's replays), which the other's load on a two-core machine would starve.
 static ONE_WINDOW_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
+/// Runs `fissure` with `args` on the display `x` from `dir`; asserts exit 0; returns stdout and stderr.
+fn run_window(dir: &Path, x: &common::xvfb::Xvfb, args: &[&std::ffi::OsStr]) -> (String, String) {
+    let output = fissure(dir).env("DISPLAY", &x.display).args(args).output().expect("run fissure");
+    let stdout = String::from_utf8_lossy(&output.stdout).to_string();
+    let stderr = String::from_utf8_lossy(&output.stderr).to_string();
+    assert!(output.status.success(), "the window run must exit 0:\nstdout {stdout}\nstderr {stderr}");
+    (stdout, stderr)
+}
+
 fn line_after<'a>(text: &'a str, prefix: &str) -> Option<&'a str> {
     text.lines().find_map(|l| l.trim_start().strip_prefix(prefix))
 }
@@ -40,10 +48,7 @@ fn line_after<'a>(text: &'a str, prefix: &str) -> Option<&'a str> {
 #[test]
 fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_and_forces() {
     let _one = ONE_WINDOW_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
-    let Some(x) = start_xvfb(90) else {
-        common::skip("Xvfb is not installed (apt-get install xvfb)");
-        return;
-    };
+    let Some(x) = common::xvfb::xvfb_or_skip(90) else { return };
     let dir = tempfile::tempdir().expect("temp dir");
     let recording: PathBuf = dir.path().join("rec.csv");
     let script = dir.path().join("script.txt");
@@ -56,15 +61,11 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
     )
     .expect("write script");
     let frames = 240;
-    let output = fissure(dir.path())
-        .env("DISPLAY", &x.display)
-        .args(["run", "config/sylvian.ron", "--present-mode", "fifo", "--size", "640x400", "--frames", &frames.to_string(), "--script"])
-        .arg(&script)
-        .output()
-        .expect("run fissure");
-    let stdout = String::from_utf8_lossy(&output.stdout).to_string();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(output.status.success(), "the window run must exit 0:\nstdout {stdout}\nstderr {stderr}");
+    let frame_count = frames.to_string();
+    let args = ["run", "config/sylvian.ron", "--present-mode", "fifo", "--size", "640x400", "--frames", &frame_count, "--script"];
+    let mut args: Vec<&std::ffi::OsStr> = args.iter().map(std::ffi::OsStr::new).collect();
+    args.push(script.as_os_str());
+    let (stdout, stderr) = run_window(dir.path(), &x, &args);
     assert!(!stderr.contains("running") || !stderr.contains("headless instead"), "the window must open under Xvfb, not fall back: {stderr}");
     assert!(stdout.contains(&format!("simulation: {frames} frames")), "the run stops after {frames} frames: {stdout}");
     let presented: u64 = line_after(&stdout, "window: ")
@@ -135,26 +136,16 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
 #[test]
 fn ctrl_q_ends_the_session_and_writes_its_debrief_beside_the_recording() {
     let _one = ONE_WINDOW_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
-    let Some(x) = start_xvfb(90) else {
-        common::skip("Xvfb is not installed (apt-get install xvfb)");
-        return;
-    };
+    let Some(x) = common::xvfb::xvfb_or_skip(90) else { return };
     let dir = tempfile::tempdir().expect("temp dir");
     let records = dir.path().join("recordings");
     let script = dir.path().join("script.txt");
     std::fs::write(&script, "0.05 press W\n1.65 release W\n1.7 press E\n2.2 release E\n2.3 keydown Ctrl+Q\n2.31 keyup Ctrl+Q\n")
         .expect("write script");
-    let output = fissure(dir.path())
-        .env("DISPLAY", &x.display)
-        .args(["run", "config/sylvian.ron", "--present-mode", "fifo", "--size", "640x400", "--exit-after", "4", "--record-dir"])
-        .arg(&records)
-        .arg("--script")
-        .arg(&script)
-        .output()
-        .expect("run fissure");
-    let stdout = String::from_utf8_lossy(&output.stdout).to_string();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(output.status.success(), "the window run must exit 0:\nstdout {stdout}\nstderr {stderr}");
+    let args = ["run", "config/sylvian.ron", "--present-mode", "fifo", "--size", "640x400", "--exit-after", "4", "--record-dir"];
+    let mut args: Vec<&std::ffi::OsStr> = args.iter().map(std::ffi::OsStr::new).collect();
+    args.extend([records.as_os_str(), std::ffi::OsStr::new("--script"), script.as_os_str()]);
+    let (stdout, _) = run_window(dir.path(), &x, &args);
     let page = PathBuf::from(line_after(&stdout, "debrief ").expect("the run names its debrief page").trim());
     let recording = PathBuf::from(line_after(&stdout, "recorded ").expect("the session was written as a recording").trim());
     assert_eq!(page.parent(), recording.parent(), "the page is beside the recording");

@@ -48,3 +48,12 @@ pub fn start_xvfb(first: u32) -> Option<Xvfb> {
     }
     None
 }
+
+/// [`start_xvfb`], or `None` after [`super::skip`] when Xvfb is not installed (a failure where every test must run).
+pub fn xvfb_or_skip(first: u32) -> Option<Xvfb> {
+    let x = start_xvfb(first);
+    if x.is_none() {
+        super::skip("Xvfb is not installed (apt-get install xvfb)");
+    }
+    x
+}
