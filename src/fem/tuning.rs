@@ -13,26 +13,26 @@ use std::sync::atomic::{AtomicU32, Ordering};
 /// A measured optimisation of fem/ that can be switched off.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Optimisation {
-    /// The AVX2 build of the surface product's kernel (`compliance/product.rs`; off: the portable build, same bits).
+    /// The AVX2 build of the surface product's kernel (`src/fem/compliance/product.rs`; off: the portable build, same bits).
     Avx2Product,
-    /// Eight columns at a time in the surface product (`compliance/product.rs`; off: one at a time, same order).
+    /// Eight columns at a time in the surface product (`src/fem/compliance/product.rs`; off: one at a time, same order).
     FusedColumns,
     /// The surface product in cache-sized chunks of 512 rows (off: a component's rows in one pass, same sums).
     RowChunks,
-    /// The forced columns' gathered rows kept from frame to frame (`compliance/product.rs`; off: gathered again).
+    /// The forced columns' gathered rows kept from frame to frame (`src/fem/compliance/product.rs`; off: gathered again).
     KeptProductRows,
-    /// W's factor kept across frames and updated (`wfactor.rs`; off: factored in full every time, which differs in
+    /// W's factor kept across frames and updated (`src/linalg/kept_factor.rs`; off: factored in full every time, which differs in
     /// the last bits as an incremental factor does).
     WFactorReuse,
-    /// The contact candidates' K^-1 blocks kept between frames (`constrained/blocks.rs`, compliance over 64 MB; off:
+    /// The contact candidates' K^-1 blocks kept between frames (`src/fem/constrained/blocks.rs`, compliance over 64 MB; off:
     /// read from the compliance every time).
     CandidateBlocks,
-    /// The row-major multi-column sparse solve (`factor.rs`; off: faer's column-major supernodal solve).
+    /// The row-major multi-column sparse solve (`src/linalg/cholesky.rs`; off: faer's column-major supernodal solve).
     RowMajorSolve,
-    /// Huge pages under a computed compliance (`compliance/mod.rs`).
+    /// Huge pages under a computed compliance (`src/fem/compliance/mod.rs`).
     HugePages,
     /// Skipping the inactive candidates that cannot have reached their constraint since last evaluated
-    /// (`constrained/screen.rs`; off: every candidate at every iteration).
+    /// (`src/fem/constrained/screen.rs`; off: every candidate at every iteration).
     CandidateScreen,
 }
 
