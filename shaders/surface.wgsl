@@ -1,13 +1,14 @@
-// Brain surface: per-vertex colour (plain pink or a scalar field), two-sided
-// lighting (the opened fissure shows inner walls), a key light plus a
-// headlight, soft wrap diffuse and a faint wet specular.
+// Brain surface: per-vertex colour (plain pink, darkened in the sulci, or a
+// scalar field), two-sided lighting (the opened fissure shows inner walls), a
+// key light plus a headlight, soft wrap diffuse, a faint specular and, on the
+// plain brain, the wet glint of the microscope's coaxial light.
 // Positions arrive relative to the camera target (metres, f32).
 
 struct Globals {
     view_proj: mat4x4<f32>,
     eye: vec4<f32>,
     light_dir: vec4<f32>,
-    params: vec4<f32>, // x ambient, y specular strength, z shininess
+    params: vec4<f32>, // x ambient, y specular strength, z shininess, w wet (the microscope's coaxial highlight)
 };
 
 @group(0) @binding(0) var<uniform> globals: Globals;
@@ -61,6 +62,8 @@ fn shade(in: VsOut, front: bool) -> vec3<f32> {
     let head = max(dot(n, v), 0.0);
     let h = normalize(l + v);
     let spec = pow(max(dot(n, h), 0.0), globals.params.z) * globals.params.y;
+    // The microscope lights along its own axis: a wet surface glints where it faces the eye.
+    let wet = pow(head, 90.0) * 0.35 * globals.params.w;
     let albedo = in.color.rgb;
-    return albedo * (globals.params.x + 0.5 * key + 0.35 * head) + vec3<f32>(spec);
+    return albedo * (globals.params.x + 0.5 * key + 0.35 * head) + vec3<f32>(spec + wet);
 }

@@ -34,11 +34,16 @@ fn classify(image: &image::RgbaImage) -> (usize, usize, usize, usize) {
 /// Runs `fissure screenshot` on the default scene with `args` into `DIR/name`;
 /// the image, or `None` (after saying so) when the binary finds no GPU adapter.
 fn shoot(name: &str, args: &[&str]) -> Option<(image::RgbaImage, String)> {
+    shoot_scene(&scenario(), name, args)
+}
+
+/// [`shoot`] on another scenario.
+fn shoot_scene(scene: &Path, name: &str, args: &[&str]) -> Option<(image::RgbaImage, String)> {
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join(name);
     let output = Command::new(env!("CARGO_BIN_EXE_fissure"))
         .args(["screenshot"])
-        .arg(scenario())
+        .arg(scene)
         .args(args)
         .arg("-o")
         .arg(&out)
@@ -166,4 +171,24 @@ fn pressure_screenshot_has_a_colour_bar_with_the_injury_line() {
     let Some((plain, _)) = shoot("no_legend.png", &["--size", "400x250", "--set", "solver.cache_dir=None"]) else { return };
     let same = (left..left + width).filter(|x| plain.get_pixel(*x, top + 7) == image.get_pixel(*x, top + 7)).count();
     assert!(same < 20, "without a field there is no bar ({same} of {width} bar pixels unchanged)");
+}
+
+/// A screenshot plays the scene's trajectory as a replay does, its cuts included: on the default scene with its
+/// tethers (the careful track cuts every band before spreading), the blade's force at 4 s is the replay's at 4 s.
+#[test]
+fn a_screenshot_cuts_where_the_trajectory_cuts_as_the_replay_does() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/sylvian_tethers.ron");
+    let Some((_, stdout)) = shoot_scene(&scene, "tethers.png", &["--time", "4", "--size", "160x100"]) else { return };
+    let shot: f64 = stdout.split("frontal ").nth(1).and_then(|s| s.split(" N").next()).and_then(|v| v.parse().ok()).unwrap_or_else(|| panic!("a frontal force in {stdout}"));
+    let dir = tempfile::tempdir().expect("temp dir");
+    let replay = common::fissure(&["replay", scene.to_str().unwrap(), "--set", "duration_s=4", "--set", "solver.cache_dir=None", "--out", dir.path().to_str().unwrap()]);
+    assert!(replay.status.success(), "{}", String::from_utf8_lossy(&replay.stderr));
+    let metrics = std::fs::read_to_string(dir.path().join("metrics.csv")).expect("metrics");
+    let header: Vec<&str> = metrics.lines().next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "frontal_force_n").expect("frontal_force_n");
+    let last: f64 = metrics.lines().last().unwrap().split(',').nth(col).unwrap().parse().unwrap();
+    assert!(last > 0.01, "the blade presses at 4 s: {last} N");
+    assert!((shot - last).abs() <= 0.0005 + 1e-12, "screenshot {shot} N against the replay's {last} N at 4 s (printed to 3 decimals)");
+    let summary = std::fs::read_to_string(dir.path().join("summary.json")).expect("summary");
+    assert!(summary.contains("\"cut\""), "the careful track cuts bands by 4 s");
 }

@@ -406,6 +406,7 @@ impl SceneBuffers {
             self.skull.extend(pipeline_view.skull.iter().copied());
         }
         let mut view = SceneView::new(&snapshot.surface_positions, &pipeline_view.triangles, camera);
+        view.surface.occlusion = &pipeline_view.occlusion;
         view.surface.field = field_scale(options.field, options.pressure_max_mmhg).and_then(|(kind, map, range)| {
             let values: &[f64] = match options.field {
                 SurfaceField::Displacement => &snapshot.displacement_mm,
@@ -457,6 +458,8 @@ pub struct SceneStatic {
     pub relaxation_half_time_s: Option<f64>,
     /// The ischemia model (`None`: the scene has no `Ischemia` effect).
     pub ischemia: Option<crate::scenario::Ischemia>,
+    /// Per surface vertex, the ambient factor at rest (the sulci darker; [`crate::render::occlusion`]).
+    pub occlusion: Vec<f32>,
 }
 
 impl SceneStatic {
@@ -485,6 +488,7 @@ impl SceneStatic {
             relaxing: pipeline.relaxation_ratios().is_some(),
             relaxation_half_time_s: None,
             ischemia: pipeline.ischemia().map(|i| i.model().clone()),
+            occlusion: crate::render::occlusion::surface_occlusion(pipeline.rest_positions(), &pipeline.surface().triangles),
         }
     }
 }

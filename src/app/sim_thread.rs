@@ -728,6 +728,16 @@ fn run_loop(
             };
             input.poses.push(Some(pose));
         }
+        // A blade still on its trajectory cuts where the trajectory's rows say (the frame's interval, as a replay).
+        if let Some(t) = b.trajectory.as_ref().filter(|t| t.has_cuts()) {
+            let after = if b.state.frame == 0 { f64::NEG_INFINITY } else { b.state.time_s };
+            let cutting = (0..b.scenario.spatulas.len().min(64))
+                .filter(|&k| matches!(b.scenario.spatulas[k].input, InputBinding::Trajectory) && !taken_over[k] && t.cuts_between(k, after, t_next))
+                .fold(0u64, |mask, k| mask | 1 << k);
+            for k in (0..64).filter(|k| cutting & (1 << k) != 0) {
+                cut_asked = request_cut(&mut b, k, shared).or(cut_asked);
+            }
+        }
         // Tracker poses the server refused (workspace, speed): say so in the panel when the count grows.
         if let Some(server) = &igtl {
             let refused = lock(server).stats().poses_refused();

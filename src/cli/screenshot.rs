@@ -94,6 +94,7 @@ pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
     let mut report = FrameReport::default();
     for k in 0..steps {
         source.poses_at((k + 1) as f64 * dt, &mut input);
+        source.request_frame_cuts(k, dt, &mut pipeline);
         report = pipeline.step(&mut state, &input).with_context(|| format!("frame {k}"))?.clone();
     }
     if matches!(args.field, FieldArg::Strain) && state.stress.is_empty() {

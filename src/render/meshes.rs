@@ -64,7 +64,10 @@ pub fn surface_vertices(
                 .values
                 .get(i)
                 .map_or(NO_DATA, |&v| f.map.color(v, f.range)),
-            None => BRAIN_PINK,
+            None => {
+                let ao = surface.occlusion.get(i).copied().unwrap_or(1.0);
+                BRAIN_PINK.map(|c| c * ao)
+            }
         };
         // Alpha: the vertex's weight in the hidden-contact pass (the surface
         // pass draws opaque and ignores it): 1 where a blade presses.
@@ -341,7 +344,7 @@ mod tests {
         let tris = [[0, 1, 2], [1, 3, 2], [1, 4, 3]];
         let values = [0.0, 0.0, 12.0, 0.0, f64::NAN];
         let field = |kind| ScalarField { values: &values, kind, map: ColorMap::Inferno, range: (0.0, 30.0) };
-        let view = |f| SurfaceView { positions: &p, triangles: &tris, field: f };
+        let view = |f| SurfaceView { positions: &p, triangles: &tris, field: f, occlusion: &[] };
         let (mut out, mut normals, mut verts) = (Vec::new(), Vec::new(), Vec::new());
         surface_vertices(&view(Some(field(FieldKind::ContactPressureMmHg))), &Vec3::zeros(), &mut normals, &mut verts);
         assert_eq!(verts.iter().map(|v| v.color[3]).collect::<Vec<_>>(), vec![0.0, 0.0, 1.0, 0.0, 0.0], "NaN is not pressure");

@@ -13,6 +13,7 @@ pub mod colormap;
 pub mod gpu_types;
 pub mod legend;
 pub mod meshes;
+pub mod occlusion;
 pub mod renderer;
 pub mod scene;
 pub mod tethers;

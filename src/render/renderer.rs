@@ -602,7 +602,8 @@ impl Renderer {
             view_proj,
             eye: [eye.x as f32, eye.y as f32, eye.z as f32, 0.0],
             light_dir: [light.x as f32, light.y as f32, light.z as f32, 0.0],
-            params: [0.15, 0.08, 32.0, 0.0],
+            // w: the plain brain is wet (a coaxial highlight, the microscope's light); a field is shown matte.
+            params: [0.15, 0.08, 32.0, if view.surface.field.is_none() { 1.0 } else { 0.0 }],
         };
         self.queue
             .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));

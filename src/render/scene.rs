@@ -11,8 +11,9 @@ use super::colormap::ColorMap;
 use crate::geometry::{Pose, SpatulaShape};
 use crate::math::Vec3;
 
-/// Linear-RGB brain colour used when no field is shown (a pale pink).
-pub const BRAIN_PINK: [f32; 3] = [0.78, 0.33, 0.30];
+/// Linear-RGB brain colour used when no field is shown: the pia's pale pink under the microscope's light (darkened
+/// in the sulci by the surface's ambient factor, [`super::occlusion`]).
+pub const BRAIN_PINK: [f32; 3] = [0.80, 0.40, 0.35];
 /// Linear-RGB colour of the blades (brushed steel grey).
 pub const STEEL_GREY: [f32; 3] = [0.55, 0.57, 0.60];
 /// Linear-RGB default background (dark blue-grey).
@@ -73,8 +74,10 @@ pub struct SurfaceView<'a> {
     pub positions: &'a [Vec3],
     /// Triangles in vertex indices, counter-clockwise seen from outside.
     pub triangles: &'a [[u32; 3]],
-    /// Optional colouring; `None` draws the plain brain colour.
+    /// Optional colouring; `None` draws the plain brain colour, shaded by `occlusion` and wet.
     pub field: Option<ScalarField<'a>>,
+    /// Per vertex, the ambient factor of the surface at rest ([`super::occlusion::surface_occlusion`]); empty: 1.
+    pub occlusion: &'a [f32],
 }
 
 /// One spatula, drawn as a solid box over its blade.
@@ -168,6 +171,7 @@ impl<'a> SceneView<'a> {
                 positions,
                 triangles,
                 field: None,
+                occlusion: &[],
             },
             spatulas: &[],
             overlays: Overlays::default(),

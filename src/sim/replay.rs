@@ -109,6 +109,15 @@ impl PoseSource {
         (0..self.initial.len()).filter(|&k| self.trajectory.as_ref().is_some_and(|t| t.cuts_between(k, after_s + origin, until_s + origin))).collect()
     }
 
+    /// Asks `pipeline` for the cuts the trajectory's rows make in frame `k` of `dt` seconds (replay time
+    /// `(k dt, (k + 1) dt]`; the first frame takes those at or before its start too).
+    pub fn request_frame_cuts(&self, k: u64, dt: f64, pipeline: &mut Pipeline) {
+        let after = if k == 0 { f64::NEG_INFINITY } else { k as f64 * dt };
+        for spatula in self.cuts_between(after, (k + 1) as f64 * dt) {
+            pipeline.request_cut(spatula);
+        }
+    }
+
     /// Pose sets over the run, to size the automatic region of interest and refinement: `count + 1` evenly
     /// spaced; and when those lie farther apart than [`MOTION_SAMPLE_S`] (a long run), samples of their own for
     /// the stretches between the trajectory's rows in which a blade moves (at most about `count` more), so that a
@@ -232,11 +241,7 @@ pub fn replay(
             break;
         }
         source.poses_at((k + 1) as f64 * dt, &mut input);
-        // The first frame takes the cuts at or before its start too.
-        let after = if k == 0 { f64::NEG_INFINITY } else { k as f64 * dt };
-        for spatula in source.cuts_between(after, (k + 1) as f64 * dt) {
-            pipeline.request_cut(spatula);
-        }
+        source.request_frame_cuts(k, dt, &mut pipeline);
         // The report borrows the pipeline only until it is written (no per-frame copy).
         match pipeline.step(&mut state, &input) {
             Ok(report) => {
