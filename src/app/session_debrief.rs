@@ -285,11 +285,6 @@ impl SessionDebriefWorker {
         Some(thread.join().unwrap_or_else(|_| Err("the debrief stopped unexpectedly".into())))
     }
 
-    /// Still working.
-    pub fn running(&self) -> bool {
-        self.thread.is_some()
-    }
-
     /// Asks the thread to stop after the frame it is on (the window is closing).
     pub fn stop(&self) {
         self.interrupt.store(true, Ordering::Relaxed);

@@ -404,22 +404,29 @@ impl App {
         }
     }
 
+    /// A new session file in the recordings folder (`session_<unix time>.csv`), the folder created; the error says
+    /// which folder could not be.
+    fn new_session_file(&self) -> Result<PathBuf, String> {
+        let dir = &self.options.record_dir;
+        std::fs::create_dir_all(dir).map_err(|e| format!("cannot create the folder {}: {e} (set another with --record-dir)", dir.display()))?;
+        let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
+        Ok(dir.join(format!("session_{secs}.csv")))
+    }
+
     fn toggle_recording(&mut self, on: bool) {
         if on {
-            let dir = &self.options.record_dir;
-            if let Err(e) = std::fs::create_dir_all(dir) {
-                let message = format!("cannot record: cannot create the folder {}: {e} (set another with --record-dir)", dir.display());
-                tracing::error!("{message}");
-                self.panel.record_error = Some(message);
-                self.panel.recording = false;
-                return;
-            }
-            let secs = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map(|d| d.as_secs())
-                .unwrap_or(0);
+            let path = match self.new_session_file() {
+                Ok(p) => p,
+                Err(e) => {
+                    let message = format!("cannot record: {e}");
+                    tracing::error!("{message}");
+                    self.panel.record_error = Some(message);
+                    self.panel.recording = false;
+                    return;
+                }
+            };
             self.panel.record_error = None;
-            self.send(SimCommand::StartRecording(dir.join(format!("session_{secs}.csv"))));
+            self.send(SimCommand::StartRecording(path));
         } else {
             self.send(SimCommand::StopRecording);
         }
@@ -436,15 +443,16 @@ impl App {
             event_loop.exit();
             return;
         }
-        let dir = self.options.record_dir.clone();
-        if let Err(e) = std::fs::create_dir_all(&dir) {
-            // Nowhere to write the session: say so and close as before.
-            tracing::error!("cannot write the session for its debrief: cannot create the folder {}: {e}", dir.display());
-            event_loop.exit();
-            return;
-        }
-        let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
-        self.send(SimCommand::EndSession(dir.join(format!("session_{secs}.csv"))));
+        let path = match self.new_session_file() {
+            Ok(p) => p,
+            Err(e) => {
+                // Nowhere to write the session: say so and close as before.
+                tracing::error!("cannot write the session for its debrief: {e}");
+                event_loop.exit();
+                return;
+            }
+        };
+        self.send(SimCommand::EndSession(path));
         self.keyboard.release_all();
         self.panel.recording = false;
         self.panel.debrief = Some(DebriefPanel::Working { what: "ending the session".into(), fraction: 0.0 });

@@ -46,7 +46,13 @@ fn recording(args: &DebriefArgs, scenario: &std::path::Path) -> anyhow::Result<(
     };
     let made = fissure::app::session_debrief::debrief_recording(&loaded, rec, &interrupt, &mut progress);
     bar.finish_and_clear();
-    let made = made.with_context(|| format!("debriefing {}", rec.display()))?;
+    let made = match made {
+        Err(fissure::app::session_debrief::SessionDebriefError::Interrupted) => {
+            let what = format!("before the debrief of {} was written (the replayed frames so far are beside it)", rec.display());
+            return Err(super::Interrupted { what }.into());
+        }
+        other => other.with_context(|| format!("debriefing {}", rec.display()))?,
+    };
     println!("wrote {} and {}", made.files.page.display(), made.files.json().display());
     if let Some(why) = &made.no_reference {
         println!("  no reference: {why}");
