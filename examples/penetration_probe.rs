@@ -5,7 +5,7 @@
 use fissure::fem::ConstraintKind;
 use fissure::math::Vec3;
 use fissure::scenario::Scenario;
-use fissure::sim::replay::PoseSource;
+use fissure::sim::poses::TrajectoryPoses;
 use fissure::sim::{BuildOptions, FrameInput, Pipeline};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -13,7 +13,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = args.first().ok_or("usage: penetration_probe SCENARIO [--set PATH=VALUE]...")?;
     let sets: Vec<String> = args.iter().skip(1).filter(|a| *a != "--set").cloned().collect();
     let scenario = Scenario::load(std::path::Path::new(path), &sets)?;
-    let source = PoseSource::for_scenario(&scenario, None)?;
+    let source = TrajectoryPoses::for_scenario(&scenario, None)?;
     let (mut p, mut state) = Pipeline::build(&scenario, BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None, ..BuildOptions::default() })?;
     let mut input = FrameInput::default();
     for k in 0..scenario.step_count() {

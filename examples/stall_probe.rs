@@ -5,7 +5,7 @@
 //! times faster than real time, and work on other threads piles up).
 //! `TRAJ=path.csv` replays that trajectory instead of the scene's own.
 use fissure::scenario::Scenario;
-use fissure::sim::replay::PoseSource;
+use fissure::sim::poses::TrajectoryPoses;
 use fissure::sim::{BuildOptions, FrameInput, Pipeline};
 use std::path::Path;
 use std::time::Instant;
@@ -17,7 +17,7 @@ fn main() {
     let overrides: Vec<String> = args.iter().skip(3).cloned().collect();
     let scenario = Scenario::load(Path::new(path), &overrides).expect("scenario");
     let traj = std::env::var_os("TRAJ").map(std::path::PathBuf::from);
-    let source = PoseSource::for_scenario(&scenario, traj.as_deref()).expect("trajectory");
+    let source = TrajectoryPoses::for_scenario(&scenario, traj.as_deref()).expect("trajectory");
     let (mut pipeline, mut state) =
         Pipeline::build(&scenario, BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None, ..BuildOptions::default() }).expect("build");
     let mut input = FrameInput::default();

@@ -7,7 +7,7 @@
 //! first frame was done, which frames took over 50 ms (waiting for columns),
 //! and when the last column was final.
 use fissure::scenario::Scenario;
-use fissure::sim::replay::PoseSource;
+use fissure::sim::poses::TrajectoryPoses;
 use fissure::sim::{BuildOptions, Pipeline};
 use std::path::Path;
 use std::time::Instant;
@@ -25,7 +25,7 @@ fn main() {
     let free_running = args.iter().any(|a| a == "--free-running");
     let overrides: Vec<String> = args.iter().skip(2).filter(|a| !a.starts_with("--")).cloned().collect();
     let scenario = Scenario::load(Path::new(path), &overrides).expect("scenario");
-    let source = PoseSource::for_scenario(&scenario, None).expect("trajectory");
+    let source = TrajectoryPoses::for_scenario(&scenario, None).expect("trajectory");
     let mut first_progress: Option<f64> = None;
     let mut progress = |done: usize, _total: usize| {
         if done == 0 && first_progress.is_none() {

@@ -17,7 +17,7 @@ use fissure::fem::ConstraintKind;
 use fissure::math::Vec3;
 use fissure::scenario::Scenario;
 use fissure::sim::replay::{ReplayOptions, replay};
-use fissure::sim::{BuildOptions, FrameInput, Pipeline, replay::PoseSource};
+use fissure::sim::{BuildOptions, FrameInput, Pipeline, poses::TrajectoryPoses};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 
@@ -108,7 +108,7 @@ fn fig12_v_valley_holds_steady_once_the_blade_stops() {
 /// Replays in-process and returns, per face, the number of vertices it held or kept
 /// off its plane (an active barrier row) in the last `frames` frames.
 fn faces_over_last_frames(s: &Scenario, traj: &str, frames: usize) -> [usize; 2] {
-    let source = PoseSource::for_scenario(s, Some(&repo(traj))).unwrap();
+    let source = TrajectoryPoses::for_scenario(s, Some(&repo(traj))).unwrap();
     let (mut p, mut state) = Pipeline::build(s, BuildOptions { expected_poses: source.samples(s.duration, 50), progress: None, ..BuildOptions::default() }).unwrap();
     let mut input = FrameInput::default();
     let mut faces = [0; 2];
@@ -161,7 +161,7 @@ impl LazyColumnUse {
 /// them; without the SkullSpheres effect the skull adds nothing.
 #[test]
 fn the_automatic_roi_takes_the_skull_candidates_at_rest_up_to_its_cap() {
-    use fissure::sim::build::{AUTO_ROI_SKULL_MAX, load_mesh, region_of_interest};
+    use fissure::sim::scene_mesh::{AUTO_ROI_SKULL_MAX, load_mesh, region_of_interest};
     use fissure::sim::pipeline::{SKULL_CANDIDATE_BAND_M, skull_gap};
     let roi_of = |sets: &[&str]| {
         let s = Scenario::load(&repo("config/sylvian.ron"), &sets.iter().map(|x| x.to_string()).collect::<Vec<_>>()).unwrap();
@@ -199,7 +199,7 @@ fn the_automatic_roi_takes_the_skull_candidates_at_rest_up_to_its_cap() {
 fn fig14_two_spatulas_open_the_sylvian_fissure_and_the_skull_holds() {
     let traj = "assets/trajectories/paper_fig14_sylvian.csv";
     let s = Scenario::load(&repo("config/sylvian.ron"), &["solver.cache_dir=None".into(), "time_step_s=0.02".into()]).unwrap();
-    let source = PoseSource::for_scenario(&s, Some(&repo(traj))).unwrap();
+    let source = TrajectoryPoses::for_scenario(&s, Some(&repo(traj))).unwrap();
     let (mut p, mut state) = Pipeline::build(&s, BuildOptions { expected_poses: source.samples(s.duration, 100), progress: None, ..BuildOptions::default() }).unwrap();
     let mut input = FrameInput::default();
     let mut max_crossed = 0;

@@ -2,7 +2,9 @@
 //! `crate::<module>` a file of `src/` names in code (a `use`, grouped or not,
 //! or a path inline; comments, strings and `#[cfg(test)]` items aside) is
 //! allowed by the map, and the simulation core names no windowing, UI or
-//! device crate. A failure lists each forbidden import as `file:line`.
+//! device crate; and the files of `src/sim/` use each other in one order, so
+//! that no circle of imports forms among them. A failure lists each forbidden
+//! import as `file:line`.
 
 #[path = "common/source.rs"]
 mod source;
@@ -112,6 +114,72 @@ fn violations(file: &str, text: &str) -> Vec<String> {
         }
     }
     out
+}
+
+/// The files of `src/sim/`, bottom up: each uses only those before it (its
+/// root, `mod.rs`, re-exports from any). The shared error and the stages the
+/// frame runs, the frame's report, the pipeline, the poses a run plays, the
+/// scene's mesh, the preflight that checks it, the build, the replay.
+const SIM_ORDER: [&str; 15] = [
+    "error",
+    "barrier",
+    "monitor",
+    "pose_filter",
+    "tethers",
+    "report",
+    "tissue_time",
+    "contact",
+    "metrics",
+    "pipeline",
+    "poses",
+    "scene_mesh",
+    "preflight",
+    "build",
+    "replay",
+];
+
+/// Each use in a file of `src/sim/` of a file of `src/sim/` that is not
+/// before it in [`SIM_ORDER`], as `file:line: ...`.
+fn sim_order_violations(file: &str, text: &str) -> Vec<String> {
+    let Some(name) = file.strip_prefix("src/sim/").and_then(|f| f.strip_suffix(".rs")) else { return Vec::new() };
+    if name == "mod" {
+        return Vec::new();
+    }
+    let Some(own) = SIM_ORDER.iter().position(|&f| f == name) else {
+        return vec![format!("{file}: not in the order of src/sim/'s files (place it in SIM_ORDER, after the files it uses)")];
+    };
+    let code = without_tests(code_only(text));
+    let mut used: Vec<(usize, String)> = paths_after(&code, "super").into_iter().filter(|(_, p)| p != "super" && !p.starts_with("super::")).collect();
+    used.extend(paths_after(&code, "crate").into_iter().filter_map(|(at, p)| p.strip_prefix("sim::").map(|p| (at, p.to_string()))));
+    let mut out = Vec::new();
+    for (at, path) in used {
+        let sibling = path.split("::").next().unwrap_or(&path);
+        let line = line_of(&code, at);
+        match SIM_ORDER.iter().position(|&f| f == sibling) {
+            Some(k) if k < own => {}
+            Some(_) if sibling == name => {}
+            Some(_) => out.push(format!("{file}:{line}: sim::{path}: `{name}` comes before `{sibling}` in src/sim/'s order, so it may not use it")),
+            None => out.push(format!("{file}:{line}: sim::{path}: name the file it is in (the order of src/sim/'s files is checked by file)")),
+        }
+    }
+    out
+}
+
+#[test]
+fn the_files_of_sim_use_only_those_before_them() {
+    let found: Vec<String> = rust_files().iter().flat_map(|f| sim_order_violations(f, &read(f))).collect();
+    assert!(found.is_empty(), "imports against the order of src/sim/'s files:\n{}", found.join("\n"));
+}
+
+#[test]
+fn a_use_against_sims_order_is_named() {
+    let text = "use super::report::StageId;\nuse super::{build::BuildOptions, error::BuildError};\nfn f() { crate::sim::replay::replay(); super::Pipeline::new(); }\n#[cfg(test)]\nmod tests { use super::super::replay::replay; }\n";
+    let found = sim_order_violations("src/sim/pipeline.rs", text);
+    assert_eq!(found.len(), 3, "{found:?}");
+    assert!(found[0].starts_with("src/sim/pipeline.rs:2: sim::build::BuildOptions"), "{found:?}");
+    assert!(found[1].starts_with("src/sim/pipeline.rs:3: sim::Pipeline::new"), "{found:?}");
+    assert!(found[2].starts_with("src/sim/pipeline.rs:3: sim::replay::replay"), "{found:?}");
+    assert_eq!(sim_order_violations("src/sim/new_stage.rs", "").len(), 1);
 }
 
 #[test]

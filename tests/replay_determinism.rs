@@ -87,7 +87,7 @@ fn two_replays_are_bitwise_identical() {
     assert_eq!(pvd.matches(".vtu").count(), 30);
     let m = fissure::mesh::io::load_tet_mesh(&dir.path().join("run0/frame_00010.vtu")).expect("a written frame loads back");
     // The scene says nothing about refinement: the block refined where the blade reaches.
-    let refined = fissure::sim::build::load_mesh(&s).expect("the scene's mesh").tets.len();
+    let refined = fissure::sim::scene_mesh::load_mesh(&s).expect("the scene's mesh").tets.len();
     assert!(refined > 8 * 8 * 4 * 6, "refine: Auto, the default, refined under the blade");
     assert_eq!(m.tets.len(), refined);
 }

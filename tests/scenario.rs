@@ -442,8 +442,8 @@ fn refine_validates_and_refines_the_loaded_mesh() {
     assert!((r.edge - 0.003).abs() < 1e-15 && r.within.len() == 1, "mm to m: {r:?}");
     assert!(r.within[0].contains(&Vec3::new(-0.068, 0.01, -0.0117)), "the Sylvian entry is inside");
 
-    let coarse = fissure::sim::build::load_mesh(&Scenario::load(&config_dir().join("sylvian.ron"), &["refine=None".into()]).expect("valid")).expect("phantom");
-    let fine = fissure::sim::build::load_mesh(&s).expect("refined phantom");
+    let coarse = fissure::sim::scene_mesh::load_mesh(&Scenario::load(&config_dir().join("sylvian.ron"), &["refine=None".into()]).expect("valid")).expect("phantom");
+    let fine = fissure::sim::scene_mesh::load_mesh(&s).expect("refined phantom");
     assert_eq!(fine.positions[..coarse.node_count()], coarse.positions[..], "every input node kept, same index");
     assert!(fine.node_count() > coarse.node_count() + 50, "{} -> {} nodes", coarse.node_count(), fine.node_count());
     assert!((fine.volume() - coarse.volume()).abs() < 1e-9 * coarse.volume(), "volume kept");
@@ -473,7 +473,7 @@ fn refine_validates_and_refines_the_loaded_mesh() {
     );
     let everywhere = sylvian_text().replacen(anchor, &with("Some((edge_mm: 0.2, within: [Sphere(center_mm: (0.0, 0.0, 0.0), radius_mm: 500.0)]))"), 1);
     let (_dir, path, all) = load_text(&everywhere);
-    let err = fissure::sim::build::load_mesh(&all.expect("valid")).expect_err("0.2 mm everywhere is too many nodes");
+    let err = fissure::sim::scene_mesh::load_mesh(&all.expect("valid")).expect_err("0.2 mm everywhere is too many nodes");
     let message = err.to_string();
     assert!(message.contains(&path.display().to_string()) && message.contains("refine") && message.contains("give a larger edge length"), "{message}");
 }
@@ -513,7 +513,7 @@ fn the_pose_filter_defaults_to_the_tracker_and_refuses_non_physical_parameters()
 /// driven by hand) is refined along the reach from the blades' first poses.
 #[test]
 fn refine_auto_refines_where_the_trajectory_takes_the_blades() {
-    use fissure::sim::build::{AUTO_REFINE_EDGES_ACROSS, auto_edge, load_mesh};
+    use fissure::sim::scene_mesh::{AUTO_REFINE_EDGES_ACROSS, auto_edge, load_mesh};
     let path = config_dir().join("sylvian.ron");
     assert_eq!(Scenario::load(&path, &[]).expect("default scene").refine, fissure::scenario::RefineChoice::Off, "no refinement unless asked");
     let auto = Scenario::load(&path, &["refine=Auto".into()]).expect("Auto");
@@ -529,7 +529,7 @@ fn refine_auto_refines_where_the_trajectory_takes_the_blades() {
     assert_eq!((again.positions.len(), &again.tets), (fine.positions.len(), &fine.tets), "deterministic");
     // Along each blade's centre line at the trajectory's last pose (within its
     // half width), every boundary edge is at most `edge`; 5 cm away they are longer.
-    let last = fissure::sim::replay::PoseSource::for_scenario(&auto, None).expect("poses").samples(auto.duration, 1).pop().expect("a set");
+    let last = fissure::sim::poses::TrajectoryPoses::for_scenario(&auto, None).expect("poses").samples(auto.duration, 1).pop().expect("a set");
     let blades: Vec<(Vec3, Vec3, f64)> = auto
         .spatulas
         .iter()

@@ -7,7 +7,7 @@
 use fissure::app::haptics::{ForceOutput, HAPTIC_RATE_HZ, HapticModel};
 use fissure::math::Vec3;
 use fissure::scenario::Scenario;
-use fissure::sim::replay::PoseSource;
+use fissure::sim::poses::TrajectoryPoses;
 use fissure::sim::{BuildOptions, FrameInput, Pipeline};
 use std::path::Path;
 use std::sync::Arc;
@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 fn force_output_matches_the_simulation_when_the_pose_holds() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/sylvian.ron");
     let scenario = Scenario::load(&path, &[]).expect("default scenario");
-    let source = PoseSource::for_scenario(&scenario, None).expect("trajectory");
+    let source = TrajectoryPoses::for_scenario(&scenario, None).expect("trajectory");
     let (mut pipeline, mut state) = Pipeline::build(
         &scenario,
         BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None, ..BuildOptions::default() },

@@ -589,7 +589,7 @@ mod tests {
     /// value per surface vertex; without `Ischemia` it has no risk.
     #[test]
     fn the_snapshot_captures_the_relaxed_pressure_and_the_risk() {
-        use crate::sim::replay::PoseSource;
+        use crate::sim::poses::TrajectoryPoses;
         use crate::sim::{BuildOptions, FrameInput};
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
         let run = |effects: &str| {
@@ -600,7 +600,7 @@ mod tests {
                 "ischemia.dose_spread_mmhg_min=0.005".to_string(),
             ];
             let scenario = crate::scenario::Scenario::load(&root.join("config/v_valley.ron"), &sets).expect("the V valley loads");
-            let source = PoseSource::for_scenario(&scenario, None).expect("its trajectory");
+            let source = TrajectoryPoses::for_scenario(&scenario, None).expect("its trajectory");
             let options = BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None, ..BuildOptions::default() };
             let (mut pipeline, mut state) = Pipeline::build(&scenario, options).expect("it builds");
             let (mut input, mut report) = (FrameInput::default(), FrameReport::default());

@@ -18,7 +18,8 @@ use std::thread::JoinHandle;
 
 use crate::debrief::{self, Debrief, DebriefReadError};
 use crate::scenario::Scenario;
-use crate::sim::replay::{PoseSource, ReplayError, ReplayOptions, replay};
+use crate::sim::poses::TrajectoryPoses;
+use crate::sim::replay::{ReplayError, ReplayOptions, replay};
 
 /// The files a session's debrief writes beside its recording.
 #[derive(Debug, Clone, PartialEq)]
@@ -134,7 +135,7 @@ pub fn debrief_recording(
 ) -> Result<SessionDebrief, SessionDebriefError> {
     let files = SessionFiles::beside(recording);
     let bad = |message: String| SessionDebriefError::Recording { path: recording.to_path_buf(), message };
-    let source = PoseSource::for_scenario(scenario, Some(recording)).map_err(|e| bad(e.to_string()))?;
+    let source = TrajectoryPoses::for_scenario(scenario, Some(recording)).map_err(|e| bad(e.to_string()))?;
     let end = source.trajectory_end().unwrap_or(0.0);
     if !(end > 0.0) {
         return Err(bad("it spans no time: nothing to replay".into()));

@@ -222,7 +222,7 @@ fn build(scenario: Scenario, shared: &SimShared) -> Result<Built, String> {
     // Blades that follow the trajectory: their path sets the `Auto` region of
     // interest, as in a replay of the scene.
     let follows = scenario.spatulas.iter().any(|s| matches!(s.input, InputBinding::Trajectory));
-    let expected_poses = match crate::sim::replay::PoseSource::for_scenario(&scenario, None) {
+    let expected_poses = match crate::sim::poses::TrajectoryPoses::for_scenario(&scenario, None) {
         Ok(source) if follows => source.samples(scenario.duration, 200),
         _ => Vec::new(),
     };

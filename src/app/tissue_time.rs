@@ -11,7 +11,7 @@
 
 use super::draw::{SceneStatic, Snapshot};
 use crate::scenario::Relaxation;
-use crate::sim::tissue_time::IschemiaFrame;
+use crate::sim::report::IschemiaFrame;
 use crate::ui::tissue_time::{BladeRisk, IschemiaPanel, TissuePanel};
 
 /// The time the relaxation function `G(t) / G(0)` takes to fall to one half, s

@@ -13,7 +13,7 @@ use anyhow::Context;
 use fissure::app::draw::{DrawOptions, SurfaceField, ViewPreset};
 use fissure::render::capture;
 use fissure::scenario::Scenario;
-use fissure::sim::replay::PoseSource;
+use fissure::sim::poses::TrajectoryPoses;
 use fissure::sim::{BuildOptions, FrameInput, FrameReport, Pipeline};
 
 /// Camera preset.
@@ -82,7 +82,7 @@ pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
         scenario.name,
         args.scenario.display()
     );
-    let source = PoseSource::for_scenario(&scenario, None).context("loading the scenario's trajectory")?;
+    let source = TrajectoryPoses::for_scenario(&scenario, None).context("loading the scenario's trajectory")?;
     let (mut pipeline, mut state) = Pipeline::build(
         &scenario,
         BuildOptions { expected_poses: source.samples(scenario.duration.max(args.time), 200), progress: None, ..BuildOptions::default() },

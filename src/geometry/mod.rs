@@ -5,9 +5,11 @@
 //! position and a unit quaternion; hits never carry NaN.
 
 pub mod ray;
+pub mod segment;
 pub mod spatula;
 pub mod triangle;
 
 pub use ray::{LineHit, LineQuery, moller_trumbore};
+pub use segment::distance_to_segment;
 pub use spatula::{LayoutError, NodeLayout, Pose, SpatulaShape, face_normal_local, slerp};
 pub use triangle::{closest_barycentric, closest_point};

@@ -7,17 +7,21 @@
 pub mod barrier;
 pub mod build;
 pub mod contact;
+pub mod error;
 pub mod metrics;
 pub mod monitor;
 pub mod pipeline;
 pub mod pose_filter;
+pub mod poses;
 pub mod preflight;
 pub mod replay;
 pub mod report;
+pub mod scene_mesh;
 pub mod tethers;
 pub mod tissue_time;
 
-pub use build::{BuildError, BuildOptions};
+pub use build::BuildOptions;
+pub use error::BuildError;
 pub use pipeline::{FrameInput, MAX_SUBSTEPS, Pipeline, SUBSTEP_TRAVEL_FRACTION, SimState, SkullStage, StepError, substep_count};
 pub use preflight::{Preflight, preflight};
 pub use report::{FrameReport, SpatulaReport, StageId, StageTimes};

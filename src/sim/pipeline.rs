@@ -238,7 +238,7 @@ impl Pipeline {
         collision: Option<CollisionStage>,
         skull: Option<SkullStage>,
         tethers: Option<super::tethers::TetherStage>,
-    ) -> Result<Self, super::build::BuildError> {
+    ) -> Result<Self, super::error::BuildError> {
         let surface_tets = surface_tets(&mesh, &surface, solver.far_vertices());
         let far_edge = region_edge(&surface.triangles, solver.far_vertices());
         let blades = scenario.spatulas.len();

@@ -5,7 +5,7 @@
 //! In: a validated [`Scenario`] and optionally a trajectory that replaces its
 //! own (`--trajectory`). Out: a [`Preflight`]: the mesh in metres with its
 //! fixed-node mask ([`CheckedMesh`], what `Pipeline::build_checked` takes),
-//! the pose track that will play ([`PoseSource`]), the warnings (the
+//! the pose track that will play ([`TrajectoryPoses`]), the warnings (the
 //! scenario's and the played motion's) and the numbers `check` prints
 //! ([`MeshFacts`], [`BladeTravel`]); or the first problem as a [`BuildError`] that names the scenario
 //! file, line, column and field (or the trajectory file).
@@ -29,9 +29,10 @@
 
 use std::path::Path;
 
-use super::build::{BuildError, fixed_nodes, load_mesh_noting};
+use super::error::BuildError;
 use super::pipeline::FrameInput;
-use super::replay::PoseSource;
+use super::poses::TrajectoryPoses;
+use super::scene_mesh::{fixed_nodes, load_mesh_noting};
 use crate::fem::{self, FemError};
 use crate::geometry::{Pose, SpatulaShape};
 use crate::math::Vec3;
@@ -118,7 +119,7 @@ pub struct Preflight {
     /// The mesh and its fixed nodes.
     pub mesh: CheckedMesh,
     /// The poses the run plays (the trajectory given, else the scenario's, else the initial poses held).
-    pub poses: PoseSource,
+    pub poses: TrajectoryPoses,
     /// The largest travel a step of each spatula that moves (empty without a trajectory).
     pub travel: Vec<BladeTravel>,
     /// The blades whose first pose lies inside the tissue (each warned about).
@@ -152,7 +153,7 @@ pub fn preflight(scenario: &Scenario, trajectory: Option<&Path>) -> Result<Prefl
 /// [`preflight`] on a mesh already loaded (metres).
 pub fn preflight_with_mesh(scenario: &Scenario, mesh: TetMesh, trajectory: Option<&Path>) -> Result<Preflight, BuildError> {
     let mesh = check_mesh(scenario, mesh)?;
-    let poses = PoseSource::for_scenario(scenario, trajectory)?;
+    let poses = TrajectoryPoses::for_scenario(scenario, trajectory)?;
     let travel = blade_travel(scenario, &poses);
     let mut warnings = scenario.warnings.clone();
     let played = trajectory.map(Path::to_path_buf).or_else(|| scenario.trajectory.clone());
@@ -223,7 +224,7 @@ fn blade_samples(shape: &SpatulaShape) -> Vec<Vec3> {
 /// inside when the boundary's winding number about it exceeds one half (the
 /// boundary is closed and oriented outwards), and its depth is its distance
 /// to the nearest boundary triangle.
-pub fn blades_inside_at_start(scenario: &Scenario, mesh: &TetMesh, poses: &PoseSource) -> Vec<BladeInside> {
+pub fn blades_inside_at_start(scenario: &Scenario, mesh: &TetMesh, poses: &TrajectoryPoses) -> Vec<BladeInside> {
     let surface = mesh.boundary();
     let positions = surface.gather_positions(&mesh.positions);
     let (lo, hi) = crate::mesh::bounding_box(&mesh.positions);
@@ -478,7 +479,7 @@ fn corner_travel(shape: &SpatulaShape, a: &Pose, b: &Pose) -> f64 {
 /// played trajectory moves, over the steps a headless run plays (frame `k`
 /// goes from the poses at `k dt` (the initial poses for `k = 0`) to those at
 /// `(k + 1) dt`, as the replay does).
-pub fn blade_travel(scenario: &Scenario, poses: &PoseSource) -> Vec<BladeTravel> {
+pub fn blade_travel(scenario: &Scenario, poses: &TrajectoryPoses) -> Vec<BladeTravel> {
     let Some(end) = poses.trajectory_end() else { return Vec::new() };
     let dt = scenario.time_step;
     // After the trajectory's last row every pose holds: no travel.

@@ -144,5 +144,30 @@ pub struct FrameReport {
     /// Vessels and bands this frame (only with the tether stage).
     pub tethers: Option<super::tethers::TetherFrame>,
     /// Ischemic area and dose (the `Ischemia` effect).
-    pub ischemia: Option<super::tissue_time::IschemiaFrame>,
+    pub ischemia: Option<IschemiaFrame>,
+}
+
+/// Per frame: what the ischemia stage reports.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct IschemiaFrame {
+    /// Surface area whose risk is at or over each of [`RISK_LEVELS`](crate::scenario::tissue_time::RISK_LEVELS), m^2.
+    pub area_over_m2: [f64; 3],
+    /// Per blade (the blade that last pressed each vertex): area at risk (the second level, even odds), m^2.
+    pub blade_area_at_risk_m2: Vec<f64>,
+    /// Largest dose of any vertex, mmHg s, and its risk.
+    pub max_dose_mmhg_s: f64,
+    pub max_risk: f64,
+    /// Longest current stretch of any vertex with its perfusion pressure under 10 mmHg, s.
+    pub longest_low_perfusion_s: f64,
+}
+
+impl IschemiaFrame {
+    /// Copies `other` into `self`, reusing the blade list's memory (the frame path allocates nothing).
+    pub fn copy_from(&mut self, other: &Self) {
+        self.area_over_m2 = other.area_over_m2;
+        self.blade_area_at_risk_m2.clone_from(&other.blade_area_at_risk_m2);
+        self.max_dose_mmhg_s = other.max_dose_mmhg_s;
+        self.max_risk = other.max_risk;
+        self.longest_low_perfusion_s = other.longest_low_perfusion_s;
+    }
 }

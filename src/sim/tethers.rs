@@ -259,7 +259,7 @@ impl TetherStage {
                     continue;
                 }
                 let (a, c) = (l.ends[0].at(positions), l.ends[1].at(positions));
-                if super::build::distance_to_segment(tip, &a, &c) <= CUT_RADIUS_M {
+                if crate::geometry::distance_to_segment(tip, &a, &c) <= CUT_RADIUS_M {
                     let (stretch, tension) = (l.stretch, l.tension);
                     self.links[k].state = LinkState::Cut;
                     solver.set_tether_enabled(k, false);

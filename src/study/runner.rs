@@ -118,7 +118,7 @@ impl MeshStore {
         let fail = |message: String| RunError::Mesh { mesh: choice.label(), message };
         let (mesh, skull) = match choice {
             // As its file has it: the study's refine knob decides what is refined.
-            MeshChoice::Scene => (crate::sim::build::load_unrefined(scene)?, scene.skull.clone()),
+            MeshChoice::Scene => (crate::sim::scene_mesh::load_unrefined(scene)?, scene.skull.clone()),
             MeshChoice::Phantom(name) => {
                 use crate::mesh::phantom::{Landmarks, Preset, UnknownPreset, generate};
                 let preset: Preset = name.parse().map_err(|e: UnknownPreset| fail(e.to_string()))?;
@@ -157,7 +157,7 @@ impl MeshStore {
         let frames = motion.frames(&initial, thickness, REFINE_SAMPLING_SPEED);
         let stride = frames.len().div_ceil(REFINE_SAMPLES).max(1);
         let sets: Vec<Vec<Pose>> = std::iter::once(initial).chain(frames.iter().step_by(stride).map(|f| f.poses.clone())).collect();
-        let mesh = crate::sim::build::refine_along(scene, &self.get(choice, scene)?.mesh, &sets, edges_across)?;
+        let mesh = crate::sim::scene_mesh::refine_along(scene, &self.get(choice, scene)?.mesh, &sets, edges_across)?;
         self.refined.push((choice.clone(), edges_across, mesh));
         Ok(&self.refined.last().expect("just pushed").2)
     }
