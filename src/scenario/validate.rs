@@ -21,8 +21,9 @@ use nalgebra::{Matrix3, Rotation3, Unit};
 
 use super::error::{FieldLocations, Location, ScenarioError, ScenarioWarning};
 use super::file::{
-    CollisionBackend, ComplianceStorage, Effect, FilterFile, FixedFile, RefineChoiceFile, InputFile, LayoutFile, LengthUnit, MeshSourceFile,
-    RegionOfInterestFile, RotationFile, ScenarioFile, SphereFile, SpatulaContact, VolumeFile,
+    CollisionBackend, ComplianceStorage, DisplayFile, Effect, FilterFile, FixedFile, IntegrityFile, RefineChoiceFile, InputFile, LayoutFile,
+    LengthUnit, MaterialFile, MeshSourceFile, OutputsFile, RegionOfInterestFile, RotationFile, ScenarioFile, SkullFile, SolverFile, SphereFile,
+    SpatulaContact, SpatulaFile, VolumeFile,
 };
 use super::overrides::Document;
 use super::trajectory::Trajectory;
@@ -594,344 +595,31 @@ impl Checker<'_> {
 impl Scenario {
     /// Validates a parsed file into SI working objects. `document` supplies the
     /// positions for errors and the scenario's folder for relative paths.
+    /// Sections are checked in this order, so the first error is always the
+    /// same one.
     pub fn validate(file: ScenarioFile, document: &Document) -> Result<Scenario, ScenarioError> {
         let base = document.path.parent().map(Path::to_path_buf).unwrap_or_default();
         let c = Checker { doc: document, base, warnings: Default::default() };
-
         if file.name.trim().is_empty() {
             return Err(c.invalid("name", "must not be empty"));
         }
-
-        let mesh = match &file.mesh {
-            MeshSourceFile::Phantom { preset } => {
-                let _: Preset = preset.parse().map_err(|_| {
-                    let names: Vec<&str> = Preset::ALL.iter().map(|p| p.name()).collect();
-                    c.invalid("mesh.preset", format!("unknown phantom preset \"{preset}\", expected one of {}", quoted(&names)))
-                })?;
-                MeshSource::Phantom { preset: preset.clone() }
-            }
-            MeshSourceFile::File { path, units } => MeshSource::File { path: c.existing_file("mesh.path", path)?, units: *units },
-        };
-
-        let refine = match &file.refine {
-            RefineChoiceFile::Auto => RefineChoice::Auto,
-            RefineChoiceFile::Off => RefineChoice::Off,
-            RefineChoiceFile::Given(r) => {
-                let edge = c.positive("refine.edge_mm", r.edge_mm)? * MM;
-                if r.within.is_empty() {
-                    return Err(c.invalid("refine.within", "give at least one volume (or leave `refine` out for `Auto`, or `refine: None`)"));
-                }
-                let mut within = Vec::with_capacity(r.within.len());
-                for (i, v) in r.within.iter().enumerate() {
-                    let field = format!("refine.within[{i}]");
-                    within.push(match v {
-                        VolumeFile::Box { min_mm, max_mm } => {
-                            let (min, max) = c.box_mm(&field, *min_mm, *max_mm)?;
-                            Volume::Box { min, max }
-                        }
-                        VolumeFile::Sphere { center_mm, radius_mm } => {
-                            Volume::Sphere(c.sphere(&field, &SphereFile { center_mm: *center_mm, radius_mm: *radius_mm })?)
-                        }
-                    });
-                }
-                RefineChoice::Given(Refinement { edge, within })
-            }
-        };
-
-        let material = c.material("material", file.material.young_modulus_pa, file.material.poisson_ratio)?;
-        let mut region_materials = Vec::with_capacity(file.material.regions.len());
-        for (i, r) in file.material.regions.iter().enumerate() {
-            let field = format!("material.regions[{i}]");
-            if region_materials.iter().any(|m: &RegionMaterial| m.region == r.id) {
-                return Err(c.invalid(&format!("{field}.id"), format!("region {} is given twice", r.id)));
-            }
-            region_materials.push(RegionMaterial { region: r.id, material: c.material(&field, r.young_modulus_pa, r.poisson_ratio)? });
-        }
-        region_materials.sort_by_key(|m| m.region);
-
-        if file.fixed.is_empty() {
-            return Err(c.invalid("fixed", "at least one fixed region is needed (without one the stiffness matrix is singular)"));
-        }
-        let mut fixed = Vec::with_capacity(file.fixed.len());
-        for (i, f) in file.fixed.iter().enumerate() {
-            let field = format!("fixed[{i}]");
-            fixed.push(match f {
-                FixedFile::RegionId(id) => FixedRegion::RegionId(*id),
-                FixedFile::Box { min_mm, max_mm } => {
-                    let (min, max) = c.box_mm(&field, *min_mm, *max_mm)?;
-                    FixedRegion::Box { min, max }
-                }
-                FixedFile::Sphere { center_mm, radius_mm } => {
-                    FixedRegion::Sphere(c.sphere(&field, &SphereFile { center_mm: *center_mm, radius_mm: *radius_mm })?)
-                }
-                FixedFile::LowestPerComponent { height_mm } => {
-                    FixedRegion::LowestPerComponent { height: c.positive(&format!("{field}.height_mm"), *height_mm)? * MM }
-                }
-            });
-        }
-
-        let skull = match &file.skull {
-            None => None,
-            Some(s) => {
-                let containing = s.containing.as_ref().map(|x| c.sphere("skull.containing", x)).transpose()?;
-                let excluding = s.excluding.as_ref().map(|x| c.sphere("skull.excluding", x)).transpose()?;
-                if containing.is_none() && excluding.is_none() {
-                    return Err(c.invalid("skull", "give `containing`, `excluding` or both (or leave `skull` out)"));
-                }
-                Some(Skull { containing, excluding })
-            }
-        };
-
-        let trajectory = match &file.trajectory {
-            None => None,
-            Some(p) => {
-                let path = c.existing_file("trajectory", p)?;
-                let track = Trajectory::load(&path).map_err(|e| c.invalid("trajectory", e.to_string()))?;
-                Some((path, track))
-            }
-        };
-
-        if file.spatulas.is_empty() {
-            return Err(c.invalid("spatulas", "at least one spatula is needed"));
-        }
-        if file.spatulas.len() > MAX_SPATULAS {
-            return Err(c.invalid("spatulas", format!("at most {MAX_SPATULAS} spatulas, got {}", file.spatulas.len())));
-        }
-        if let Some((path, track)) = &trajectory
-            && track.spatula_count() > file.spatulas.len()
-        {
-            return Err(c.invalid("trajectory", tracks_beyond_spatulas(path, track, file.spatulas.len())));
-        }
-        let mut spatulas: Vec<SpatulaConfig> = Vec::with_capacity(file.spatulas.len());
-        for (i, s) in file.spatulas.iter().enumerate() {
-            let field = format!("spatulas[{i}]");
-            if s.name.trim().is_empty() {
-                return Err(c.invalid(&format!("{field}.name"), "must not be empty"));
-            }
-            if spatulas.iter().any(|o| o.name == s.name) {
-                return Err(c.invalid(&format!("{field}.name"), format!("the name \"{}\" is used twice", s.name)));
-            }
-            let shape = SpatulaShape {
-                length: c.positive(&format!("{field}.shape.length_mm"), s.shape.length_mm)? * MM,
-                width: c.positive(&format!("{field}.shape.width_mm"), s.shape.width_mm)? * MM,
-                thickness: c.positive(&format!("{field}.shape.thickness_mm"), s.shape.thickness_mm)? * MM,
-            };
-            let lf = format!("{field}.layout");
-            let layout = match &s.layout {
-                LayoutFile::Grid { along, across } => {
-                    if *along == 0 || *across == 0 {
-                        return Err(c.invalid(&lf, format!("a grid needs along >= 1 and across >= 1, got {along} x {across}")));
-                    }
-                    if u64::from(*along) * u64::from(*across) > MAX_NODES_PER_FACE {
-                        return Err(c.invalid(&lf, format!("{along} x {across} nodes exceed {MAX_NODES_PER_FACE} a face")));
-                    }
-                    NodeLayout::Grid { along: *along, across: *across }
-                }
-                LayoutFile::TipConcentrated { count, tip_fraction } => {
-                    if *count == 0 || u64::from(*count) > MAX_NODES_PER_FACE {
-                        return Err(c.invalid(&format!("{lf}.count"), format!("must be in 1..={MAX_NODES_PER_FACE}, got {count}")));
-                    }
-                    let f = c.finite(&format!("{lf}.tip_fraction"), *tip_fraction)?;
-                    if !(f > 0.0 && f <= 1.0) {
-                        return Err(c.invalid(&format!("{lf}.tip_fraction"), format!("must be in (0, 1], got {f}")));
-                    }
-                    NodeLayout::TipConcentrated { count: *count, tip_fraction: f }
-                }
-                LayoutFile::Explicit(points) => {
-                    if points.is_empty() || points.len() as u64 > MAX_NODES_PER_FACE {
-                        return Err(c.invalid(&lf, format!("needs 1..={MAX_NODES_PER_FACE} points, got {}", points.len())));
-                    }
-                    let mut out = Vec::with_capacity(points.len());
-                    for (k, p) in points.iter().enumerate() {
-                        let pf = format!("{lf}[0][{k}]");
-                        let x = c.finite(&format!("{pf}[0]"), p[0])? * MM;
-                        let y = c.finite(&format!("{pf}[1]"), p[1])? * MM;
-                        let tol = 1e-9;
-                        if x < -tol || x > shape.length + tol || y.abs() > shape.width / 2.0 + tol {
-                            return Err(c.invalid(&pf, format!(
-                                "({}, {}) mm lies off the blade: need 0 <= x <= {} and |y| <= {}",
-                                p[0], p[1], s.shape.length_mm, s.shape.width_mm / 2.0
-                            )));
-                        }
-                        out.push([x, y]);
-                    }
-                    NodeLayout::Explicit(out)
-                }
-            };
-            let pf = format!("{field}.pose");
-            let position = c.vec_mm(&format!("{pf}.position_mm"), s.pose.position_mm)?;
-            let rotation = c.rotation(&format!("{pf}.rotation"), &s.pose.rotation)?;
-            let initial_pose = Pose { position, rotation };
-            let input = match &s.input {
-                InputFile::Keyboard => InputBinding::Keyboard,
-                InputFile::Gamepad => InputBinding::Gamepad,
-                InputFile::SpaceMouse => InputBinding::SpaceMouse,
-                InputFile::OpenIgtLink { device, workspace_mm, max_speed_mm_s, connect, mapping, force } => {
-                    let invalid = |field: &str, problem: String| c.invalid(field, problem);
-                    super::devices::device_name(&format!("{field}.input.device"), device, &invalid)?;
-                    let workspace_mm = c.positive(&format!("{field}.input.workspace_mm"), *workspace_mm)?;
-                    let max_speed_mm_s = c.positive(&format!("{field}.input.max_speed_mm_s"), *max_speed_mm_s)?;
-                    let rotation = |field: &str, r: &RotationFile| c.rotation(field, r);
-                    let link = super::devices::validate_link(
-                        &format!("{field}.input"),
-                        device,
-                        connect.as_deref(),
-                        mapping.as_ref(),
-                        force.as_ref(),
-                        &invalid,
-                        &rotation,
-                    )?;
-                    if link.mapping.is_some()
-                        && let Some(j) = spatulas.iter().position(|o: &SpatulaConfig| matches!(&o.input, InputBinding::OpenIgtLink { device: d, .. } if d == device))
-                    {
-                        return Err(c.invalid(&format!("{field}.input.device"), format!(
-                            "\"{device}\" also drives spatulas[{j}]; a mapped stylus drives one blade"
-                        )));
-                    }
-                    if let Some(j) = spatulas.iter().position(|o: &SpatulaConfig| {
-                        matches!(&o.input, InputBinding::OpenIgtLink { device: d, link: l, .. } if d == device && l.mapping.is_some())
-                    }) {
-                        return Err(c.invalid(&format!("{field}.input.device"), format!(
-                            "\"{device}\" is spatulas[{j}]'s mapped stylus; a mapped stylus drives one blade"
-                        )));
-                    }
-                    InputBinding::OpenIgtLink { device: device.clone(), workspace_m: workspace_mm * 1e-3, max_speed_m_s: max_speed_mm_s * 1e-3, link }
-                }
-                InputFile::Trajectory => {
-                    let Some((path, track)) = &trajectory else {
-                        return Err(c.invalid(&format!("{field}.input"), "input `Trajectory` needs the scenario's `trajectory` file"));
-                    };
-                    if track.samples(i).is_empty() {
-                        return Err(c.invalid(&format!("{field}.input"), format!(
-                            "the trajectory {} has no rows for spatula {i}", path.display()
-                        )));
-                    }
-                    InputBinding::Trajectory
-                }
-            };
-            let filter_file = match (&s.filter, &input) {
-                (FilterFile::Auto, InputBinding::OpenIgtLink { .. }) => FilterFile::one_euro_defaults(),
-                (FilterFile::Auto, _) => FilterFile::Off,
-                (other, _) => other.clone(),
-            };
-            let filter = match filter_file {
-                FilterFile::OneEuro { min_cutoff_hz, beta_hz_per_mm_s, d_cutoff_hz } => {
-                    let ff = format!("{field}.filter");
-                    let beta = c.finite(&format!("{ff}.beta_hz_per_mm_s"), beta_hz_per_mm_s)?;
-                    if beta < 0.0 {
-                        return Err(c.invalid(&format!("{ff}.beta_hz_per_mm_s"), format!("must be >= 0, got {beta}")));
-                    }
-                    Some(OneEuro {
-                        min_cutoff_hz: c.positive(&format!("{ff}.min_cutoff_hz"), min_cutoff_hz)?,
-                        beta_per_m: beta * 1e3,
-                        d_cutoff_hz: c.positive(&format!("{ff}.d_cutoff_hz"), d_cutoff_hz)?,
-                    })
-                }
-                FilterFile::Auto | FilterFile::Off => None,
-            };
-            spatulas.push(SpatulaConfig { name: s.name.clone(), shape, layout, initial_pose, input, filter });
-        }
-
-        let mut effects = EffectSet::default();
-        for (i, e) in file.effects.iter().enumerate() {
-            if !effects.insert(*e) {
-                return Err(c.invalid(&format!("effects[{i}]"), format!("{e:?} is listed twice")));
-            }
-        }
-        for (i, e) in file.effects.iter().enumerate() {
-            let field = format!("effects[{i}]");
-            match e {
-                Effect::SkullSpheres if skull.is_none() => {
-                    return Err(c.invalid(&field, "SkullSpheres needs the `skull` spheres, but `skull` is not given"));
-                }
-                Effect::Culling | Effect::ContactPressure if !effects.contains(Effect::Collision) => {
-                    return Err(c.invalid(&field, format!("{e:?} needs the Collision effect")));
-                }
-                Effect::Ischemia if !effects.contains(Effect::ContactPressure) => {
-                    return Err(c.invalid(&field, "Ischemia needs the ContactPressure effect (the pressure it doses)"));
-                }
-                Effect::Relaxation if !effects.contains(Effect::ForceOutput) && !effects.contains(Effect::ContactPressure) => {
-                    return Err(c.invalid(&field, "Relaxation needs ForceOutput or ContactPressure (the forces it relaxes)"));
-                }
-                Effect::Tethers if file.tethers.vessels.is_empty() && file.tethers.bands.is_empty() => {
-                    return Err(c.invalid(&field, "Tethers needs `tethers` with at least one vessel or band, but none is given"));
-                }
-                _ => {}
-            }
-        }
-
-        let tethers = super::tethers::validate(&file.tethers, &|field, problem| c.invalid(field, problem))?;
-        if !tethers.is_empty() && !effects.contains(Effect::Tethers) {
-            c.warn("tethers", "the scene lists tethers but not the Tethers effect: they are not built (add Tethers to `effects`)");
-        }
-        let tethers = if effects.contains(Effect::Tethers) { tethers } else { Default::default() };
-        let relaxation = super::tissue_time::validate_relaxation(&file.relaxation, &|field, problem| c.invalid(field, problem))?;
-        let relaxation = effects.contains(Effect::Relaxation).then_some(relaxation);
-        let ischemia = super::tissue_time::validate_ischemia(&file.ischemia, &|field, problem| c.invalid(field, problem))?;
-        let ischemia = effects.contains(Effect::Ischemia).then_some(ischemia);
+        let mesh = c.mesh(&file.mesh)?;
+        let refine = c.refine(&file.refine)?;
+        let (material, region_materials) = c.materials(&file.material)?;
+        let fixed = c.fixed(&file.fixed)?;
+        let skull = c.skull(file.skull.as_ref())?;
+        let trajectory = c.trajectory(file.trajectory.as_deref())?;
+        let spatulas = c.spatulas(&file.spatulas, trajectory.as_ref())?;
+        let effects = c.effects(&file.effects, skull.is_some(), &file.tethers)?;
+        let (tethers, relaxation, ischemia) = c.tissue(&file, effects)?;
         let igtl_listen = super::devices::validate_listen(&file.openigtlink, &|field, problem| c.invalid(field, problem))?;
         let spacemouse = super::devices::validate_spacemouse(&file.spacemouse, &|field, problem| c.invalid(field, problem))?;
-        let solver = SolverOptions {
-            compliance_storage: file.solver.compliance_storage,
-            region_of_interest: match &file.solver.region_of_interest {
-                RegionOfInterestFile::Auto => RegionOfInterest::Auto,
-                RegionOfInterestFile::All => RegionOfInterest::All,
-                RegionOfInterestFile::Sphere { center_mm, radius_mm } => RegionOfInterest::Sphere(
-                    c.sphere("solver.region_of_interest", &SphereFile { center_mm: *center_mm, radius_mm: *radius_mm })?,
-                ),
-            },
-            cache_dir: match &file.solver.cache_dir {
-                Some(d) if d.trim().is_empty() => return Err(c.invalid("solver.cache_dir", "the path is empty (use None for no cache)")),
-                Some(d) => Some(PathBuf::from(d)),
-                None => None,
-            },
-            spatula_contact: file.solver.spatula_contact,
-            substep_travel: match file.solver.substep_travel {
-                Some(t) if !(0.01..=10.0).contains(&t) => {
-                    return Err(c.invalid("solver.substep_travel", format!("must be in 0.01..=10 blade thicknesses (or None), got {t}")));
-                }
-                t => t,
-            },
-            early_start: file.solver.early_start,
-            row_band: match file.solver.row_band_mm {
-                Some(b) if !(b.is_finite() && b > 0.0 && b <= 1000.0) => {
-                    return Err(c.invalid("solver.row_band_mm", format!("must be in (0, 1000] mm (or None: every surface vertex), got {}", number(b))));
-                }
-                b => b.map(|b| b * 1e-3),
-            },
-        };
-
-        let gravity = c.vec3("gravity_m_s2", file.gravity_m_s2)?;
-        let density = c.finite("density_kg_m3", file.density_kg_m3)?;
-        if !(density > 0.0 && density <= MAX_DENSITY_KG_M3) {
-            return Err(c.invalid("density_kg_m3", format!(
-                "density_kg_m3 must be in (0, {MAX_DENSITY_KG_M3:e}] kg/m^3 (brain tissue: 1040), got {}",
-                number(density)
-            )));
-        }
-        let time_step = c.positive("time_step_s", file.time_step_s)?;
-        let duration = c.positive("duration_s", file.duration_s)?;
-        // A relative tolerance keeps 0.01 s in 0.1 s (0.1 / 10 rounds below 0.01).
-        if time_step > duration / MIN_STEPS * (1.0 + 1e-9) {
-            return Err(c.invalid("time_step_s", format!(
-                "time_step_s must be at most duration_s / {MIN_STEPS} = {} s (a run of {duration} s needs at least {MIN_STEPS} steps), got {time_step}",
-                duration / MIN_STEPS
-            )));
-        }
-        if duration / time_step > 1e9 {
-            return Err(c.invalid("duration_s", format!("{} steps of {time_step} s are too many (at most 1e9)", duration / time_step)));
-        }
-        if file.outputs.dir.trim().is_empty() {
-            return Err(c.invalid("outputs.dir", "must not be empty"));
-        }
-        if file.outputs.record_dir.as_ref().is_some_and(|d| d.trim().is_empty()) {
-            return Err(c.invalid("outputs.record_dir", "must not be empty (leave it out for the user's data directory)"));
-        }
-        let pressure_max_mmhg = file.display.pressure_max_mmhg;
-        if !(pressure_max_mmhg.is_finite() && (1.0..=1000.0).contains(&pressure_max_mmhg)) {
-            return Err(c.invalid("display.pressure_max_mmhg", format!("must be in [1, 1000] mmHg, got {pressure_max_mmhg}")));
-        }
-
+        let solver = c.solver(&file.solver)?;
+        let (gravity, density) = c.body(file.gravity_m_s2, file.density_kg_m3)?;
+        let (time_step, duration) = c.run_time(file.time_step_s, file.duration_s)?;
+        let outputs = c.outputs(&file.outputs)?;
+        let display = c.display(&file.display)?;
+        let integrity = c.integrity(&file.integrity)?;
         Ok(Scenario {
             name: file.name,
             source_path: document.path.clone(),
@@ -951,25 +639,9 @@ impl Scenario {
             time_step,
             duration,
             trajectory: trajectory.map(|(p, _)| p),
-            outputs: Outputs {
-                dir: PathBuf::from(&file.outputs.dir),
-                vtk: file.outputs.vtk,
-                frames: file.outputs.frames,
-                record_dir: file.outputs.record_dir.as_ref().map(PathBuf::from),
-            },
-            display: Display {
-                pressure_max_mmhg,
-                views: Views { overview: c.view("display.overview", file.display.overview)?, microscope: c.view("display.microscope", file.display.microscope)? },
-            },
-            integrity: IntegrityLimits {
-                max_penetration_mm: match file.integrity.max_penetration_mm {
-                    d if d.is_finite() && d >= 0.0 => d,
-                    d => return Err(c.invalid("integrity.max_penetration_mm", format!("must be a finite number >= 0 mm, got {d}"))),
-                },
-                max_inverted_elements: file.integrity.max_inverted_elements,
-                max_crossed_vertices: file.integrity.max_crossed_vertices,
-                max_torn_vessels: file.integrity.max_torn_vessels,
-            },
+            outputs,
+            display,
+            integrity,
             tethers,
             relaxation,
             ischemia,
@@ -1072,6 +744,440 @@ impl Scenario {
         }
         let _ = write!(s, "  outputs:   {} (vtk {}, frames {})", self.outputs.dir.display(), self.outputs.vtk, self.outputs.frames);
         s
+    }
+}
+
+/// One method per section of the scenario, in the order [`Scenario::validate`] calls them.
+impl Checker<'_> {
+    /// `mesh`: a known phantom preset, or a file that exists.
+    fn mesh(&self, mesh: &MeshSourceFile) -> Result<MeshSource, ScenarioError> {
+        Ok(match mesh {
+            MeshSourceFile::Phantom { preset } => {
+                let _: Preset = preset.parse().map_err(|_| {
+                    let names: Vec<&str> = Preset::ALL.iter().map(|p| p.name()).collect();
+                    self.invalid("mesh.preset", format!("unknown phantom preset \"{preset}\", expected one of {}", quoted(&names)))
+                })?;
+                MeshSource::Phantom { preset: preset.clone() }
+            }
+            MeshSourceFile::File { path, units } => MeshSource::File { path: self.existing_file("mesh.path", path)?, units: *units },
+        })
+    }
+
+    /// `refine`: `Auto`, `None`, or an edge and at least one volume.
+    fn refine(&self, refine: &RefineChoiceFile) -> Result<RefineChoice, ScenarioError> {
+        Ok(match refine {
+            RefineChoiceFile::Auto => RefineChoice::Auto,
+            RefineChoiceFile::Off => RefineChoice::Off,
+            RefineChoiceFile::Given(r) => {
+                let edge = self.positive("refine.edge_mm", r.edge_mm)? * MM;
+                if r.within.is_empty() {
+                    return Err(self.invalid("refine.within", "give at least one volume (or leave `refine` out for `Auto`, or `refine: None`)"));
+                }
+                let mut within = Vec::with_capacity(r.within.len());
+                for (i, v) in r.within.iter().enumerate() {
+                    let field = format!("refine.within[{i}]");
+                    within.push(match v {
+                        VolumeFile::Box { min_mm, max_mm } => {
+                            let (min, max) = self.box_mm(&field, *min_mm, *max_mm)?;
+                            Volume::Box { min, max }
+                        }
+                        VolumeFile::Sphere { center_mm, radius_mm } => {
+                            Volume::Sphere(self.sphere(&field, &SphereFile { center_mm: *center_mm, radius_mm: *radius_mm })?)
+                        }
+                    });
+                }
+                RefineChoice::Given(Refinement { edge, within })
+            }
+        })
+    }
+
+    /// `material`: the default and each region's, region ids unique (sorted by id).
+    fn materials(&self, material: &MaterialFile) -> Result<(Material, Vec<RegionMaterial>), ScenarioError> {
+        let default = self.material("material", material.young_modulus_pa, material.poisson_ratio)?;
+        let mut region_materials = Vec::with_capacity(material.regions.len());
+        for (i, r) in material.regions.iter().enumerate() {
+            let field = format!("material.regions[{i}]");
+            if region_materials.iter().any(|m: &RegionMaterial| m.region == r.id) {
+                return Err(self.invalid(&format!("{field}.id"), format!("region {} is given twice", r.id)));
+            }
+            region_materials.push(RegionMaterial { region: r.id, material: self.material(&field, r.young_modulus_pa, r.poisson_ratio)? });
+        }
+        region_materials.sort_by_key(|m| m.region);
+        Ok((default, region_materials))
+    }
+
+    /// `fixed`: at least one selector, each well formed.
+    fn fixed(&self, fixed: &[FixedFile]) -> Result<Vec<FixedRegion>, ScenarioError> {
+        if fixed.is_empty() {
+            return Err(self.invalid("fixed", "at least one fixed region is needed (without one the stiffness matrix is singular)"));
+        }
+        let mut out = Vec::with_capacity(fixed.len());
+        for (i, f) in fixed.iter().enumerate() {
+            let field = format!("fixed[{i}]");
+            out.push(match f {
+                FixedFile::RegionId(id) => FixedRegion::RegionId(*id),
+                FixedFile::Box { min_mm, max_mm } => {
+                    let (min, max) = self.box_mm(&field, *min_mm, *max_mm)?;
+                    FixedRegion::Box { min, max }
+                }
+                FixedFile::Sphere { center_mm, radius_mm } => {
+                    FixedRegion::Sphere(self.sphere(&field, &SphereFile { center_mm: *center_mm, radius_mm: *radius_mm })?)
+                }
+                FixedFile::LowestPerComponent { height_mm } => {
+                    FixedRegion::LowestPerComponent { height: self.positive(&format!("{field}.height_mm"), *height_mm)? * MM }
+                }
+            });
+        }
+        Ok(out)
+    }
+
+    /// `skull`: a containing sphere, an excluding one, or both.
+    fn skull(&self, skull: Option<&SkullFile>) -> Result<Option<Skull>, ScenarioError> {
+        let Some(s) = skull else { return Ok(None) };
+        let containing = s.containing.as_ref().map(|x| self.sphere("skull.containing", x)).transpose()?;
+        let excluding = s.excluding.as_ref().map(|x| self.sphere("skull.excluding", x)).transpose()?;
+        if containing.is_none() && excluding.is_none() {
+            return Err(self.invalid("skull", "give `containing`, `excluding` or both (or leave `skull` out)"));
+        }
+        Ok(Some(Skull { containing, excluding }))
+    }
+
+    /// `trajectory`: a file that exists and parses, with its rows.
+    fn trajectory(&self, trajectory: Option<&str>) -> Result<Option<(PathBuf, Trajectory)>, ScenarioError> {
+        let Some(p) = trajectory else { return Ok(None) };
+        let path = self.existing_file("trajectory", p)?;
+        let track = Trajectory::load(&path).map_err(|e| self.invalid("trajectory", e.to_string()))?;
+        Ok(Some((path, track)))
+    }
+
+    /// `spatulas`: one to [`MAX_SPATULAS`], no fewer than the trajectory has tracks, each checked.
+    fn spatulas(&self, spatulas: &[SpatulaFile], trajectory: Option<&(PathBuf, Trajectory)>) -> Result<Vec<SpatulaConfig>, ScenarioError> {
+        if spatulas.is_empty() {
+            return Err(self.invalid("spatulas", "at least one spatula is needed"));
+        }
+        if spatulas.len() > MAX_SPATULAS {
+            return Err(self.invalid("spatulas", format!("at most {MAX_SPATULAS} spatulas, got {}", spatulas.len())));
+        }
+        if let Some((path, track)) = trajectory
+            && track.spatula_count() > spatulas.len()
+        {
+            return Err(self.invalid("trajectory", tracks_beyond_spatulas(path, track, spatulas.len())));
+        }
+        let mut out: Vec<SpatulaConfig> = Vec::with_capacity(spatulas.len());
+        for (i, s) in spatulas.iter().enumerate() {
+            let spatula = self.spatula(i, s, &out, trajectory)?;
+            out.push(spatula);
+        }
+        Ok(out)
+    }
+
+    /// `spatulas[i]`: a unique name among the `earlier` ones, shape, layout, pose, input and filter.
+    fn spatula(&self, i: usize, s: &SpatulaFile, earlier: &[SpatulaConfig], trajectory: Option<&(PathBuf, Trajectory)>) -> Result<SpatulaConfig, ScenarioError> {
+        let field = format!("spatulas[{i}]");
+        if s.name.trim().is_empty() {
+            return Err(self.invalid(&format!("{field}.name"), "must not be empty"));
+        }
+        if earlier.iter().any(|o| o.name == s.name) {
+            return Err(self.invalid(&format!("{field}.name"), format!("the name \"{}\" is used twice", s.name)));
+        }
+        let shape = SpatulaShape {
+            length: self.positive(&format!("{field}.shape.length_mm"), s.shape.length_mm)? * MM,
+            width: self.positive(&format!("{field}.shape.width_mm"), s.shape.width_mm)? * MM,
+            thickness: self.positive(&format!("{field}.shape.thickness_mm"), s.shape.thickness_mm)? * MM,
+        };
+        let layout = self.layout(&format!("{field}.layout"), s, &shape)?;
+        let pf = format!("{field}.pose");
+        let position = self.vec_mm(&format!("{pf}.position_mm"), s.pose.position_mm)?;
+        let rotation = self.rotation(&format!("{pf}.rotation"), &s.pose.rotation)?;
+        let initial_pose = Pose { position, rotation };
+        let input = self.input(&field, i, &s.input, earlier, trajectory)?;
+        let filter = self.filter(&field, &s.filter, &input)?;
+        Ok(SpatulaConfig { name: s.name.clone(), shape, layout, initial_pose, input, filter })
+    }
+
+    /// `spatulas[i].layout` (field `lf`): a grid, tip-concentrated nodes or points on the blade `shape`.
+    fn layout(&self, lf: &str, s: &SpatulaFile, shape: &SpatulaShape) -> Result<NodeLayout, ScenarioError> {
+        Ok(match &s.layout {
+            LayoutFile::Grid { along, across } => {
+                if *along == 0 || *across == 0 {
+                    return Err(self.invalid(lf, format!("a grid needs along >= 1 and across >= 1, got {along} x {across}")));
+                }
+                if u64::from(*along) * u64::from(*across) > MAX_NODES_PER_FACE {
+                    return Err(self.invalid(lf, format!("{along} x {across} nodes exceed {MAX_NODES_PER_FACE} a face")));
+                }
+                NodeLayout::Grid { along: *along, across: *across }
+            }
+            LayoutFile::TipConcentrated { count, tip_fraction } => {
+                if *count == 0 || u64::from(*count) > MAX_NODES_PER_FACE {
+                    return Err(self.invalid(&format!("{lf}.count"), format!("must be in 1..={MAX_NODES_PER_FACE}, got {count}")));
+                }
+                let f = self.finite(&format!("{lf}.tip_fraction"), *tip_fraction)?;
+                if !(f > 0.0 && f <= 1.0) {
+                    return Err(self.invalid(&format!("{lf}.tip_fraction"), format!("must be in (0, 1], got {f}")));
+                }
+                NodeLayout::TipConcentrated { count: *count, tip_fraction: f }
+            }
+            LayoutFile::Explicit(points) => {
+                if points.is_empty() || points.len() as u64 > MAX_NODES_PER_FACE {
+                    return Err(self.invalid(lf, format!("needs 1..={MAX_NODES_PER_FACE} points, got {}", points.len())));
+                }
+                let mut out = Vec::with_capacity(points.len());
+                for (k, p) in points.iter().enumerate() {
+                    let pf = format!("{lf}[0][{k}]");
+                    let x = self.finite(&format!("{pf}[0]"), p[0])? * MM;
+                    let y = self.finite(&format!("{pf}[1]"), p[1])? * MM;
+                    let tol = 1e-9;
+                    if x < -tol || x > shape.length + tol || y.abs() > shape.width / 2.0 + tol {
+                        return Err(self.invalid(&pf, format!(
+                            "({}, {}) mm lies off the blade: need 0 <= x <= {} and |y| <= {}",
+                            p[0], p[1], s.shape.length_mm, s.shape.width_mm / 2.0
+                        )));
+                    }
+                    out.push([x, y]);
+                }
+                NodeLayout::Explicit(out)
+            }
+        })
+    }
+
+    /// `spatulas[i].input` (`field` is `spatulas[i]`): a device, or the trajectory's track `i`.
+    fn input(
+        &self,
+        field: &str,
+        i: usize,
+        input: &InputFile,
+        earlier: &[SpatulaConfig],
+        trajectory: Option<&(PathBuf, Trajectory)>,
+    ) -> Result<InputBinding, ScenarioError> {
+        Ok(match input {
+            InputFile::Keyboard => InputBinding::Keyboard,
+            InputFile::Gamepad => InputBinding::Gamepad,
+            InputFile::SpaceMouse => InputBinding::SpaceMouse,
+            InputFile::OpenIgtLink { device, workspace_mm, max_speed_mm_s, connect, mapping, force } => {
+                let invalid = |field: &str, problem: String| self.invalid(field, problem);
+                super::devices::device_name(&format!("{field}.input.device"), device, &invalid)?;
+                let workspace_mm = self.positive(&format!("{field}.input.workspace_mm"), *workspace_mm)?;
+                let max_speed_mm_s = self.positive(&format!("{field}.input.max_speed_mm_s"), *max_speed_mm_s)?;
+                let rotation = |field: &str, r: &RotationFile| self.rotation(field, r);
+                let link = super::devices::validate_link(
+                    &format!("{field}.input"),
+                    device,
+                    connect.as_deref(),
+                    mapping.as_ref(),
+                    force.as_ref(),
+                    &invalid,
+                    &rotation,
+                )?;
+                if link.mapping.is_some()
+                    && let Some(j) = earlier.iter().position(|o: &SpatulaConfig| matches!(&o.input, InputBinding::OpenIgtLink { device: d, .. } if d == device))
+                {
+                    return Err(self.invalid(&format!("{field}.input.device"), format!(
+                        "\"{device}\" also drives spatulas[{j}]; a mapped stylus drives one blade"
+                    )));
+                }
+                if let Some(j) = earlier.iter().position(|o: &SpatulaConfig| {
+                    matches!(&o.input, InputBinding::OpenIgtLink { device: d, link: l, .. } if d == device && l.mapping.is_some())
+                }) {
+                    return Err(self.invalid(&format!("{field}.input.device"), format!(
+                        "\"{device}\" is spatulas[{j}]'s mapped stylus; a mapped stylus drives one blade"
+                    )));
+                }
+                InputBinding::OpenIgtLink { device: device.clone(), workspace_m: workspace_mm * 1e-3, max_speed_m_s: max_speed_mm_s * 1e-3, link }
+            }
+            InputFile::Trajectory => {
+                let Some((path, track)) = trajectory else {
+                    return Err(self.invalid(&format!("{field}.input"), "input `Trajectory` needs the scenario's `trajectory` file"));
+                };
+                if track.samples(i).is_empty() {
+                    return Err(self.invalid(&format!("{field}.input"), format!(
+                        "the trajectory {} has no rows for spatula {i}", path.display()
+                    )));
+                }
+                InputBinding::Trajectory
+            }
+        })
+    }
+
+    /// `spatulas[i].filter` (`field` is `spatulas[i]`): `Auto` is the One Euro
+    /// filter's defaults for a tracker, none for any other `input`.
+    fn filter(&self, field: &str, filter: &FilterFile, input: &InputBinding) -> Result<Option<OneEuro>, ScenarioError> {
+        let filter_file = match (filter, input) {
+            (FilterFile::Auto, InputBinding::OpenIgtLink { .. }) => FilterFile::one_euro_defaults(),
+            (FilterFile::Auto, _) => FilterFile::Off,
+            (other, _) => other.clone(),
+        };
+        Ok(match filter_file {
+            FilterFile::OneEuro { min_cutoff_hz, beta_hz_per_mm_s, d_cutoff_hz } => {
+                let ff = format!("{field}.filter");
+                let beta = self.finite(&format!("{ff}.beta_hz_per_mm_s"), beta_hz_per_mm_s)?;
+                if beta < 0.0 {
+                    return Err(self.invalid(&format!("{ff}.beta_hz_per_mm_s"), format!("must be >= 0, got {beta}")));
+                }
+                Some(OneEuro {
+                    min_cutoff_hz: self.positive(&format!("{ff}.min_cutoff_hz"), min_cutoff_hz)?,
+                    beta_per_m: beta * 1e3,
+                    d_cutoff_hz: self.positive(&format!("{ff}.d_cutoff_hz"), d_cutoff_hz)?,
+                })
+            }
+            FilterFile::Auto | FilterFile::Off => None,
+        })
+    }
+
+    /// `effects`: each listed once, each with what it needs (`skull` given,
+    /// `tethers` listing a vessel or band, the effects it builds on).
+    fn effects(&self, listed: &[Effect], skull_given: bool, tethers: &super::tethers::TethersFile) -> Result<EffectSet, ScenarioError> {
+        let mut effects = EffectSet::default();
+        for (i, e) in listed.iter().enumerate() {
+            if !effects.insert(*e) {
+                return Err(self.invalid(&format!("effects[{i}]"), format!("{e:?} is listed twice")));
+            }
+        }
+        for (i, e) in listed.iter().enumerate() {
+            let field = format!("effects[{i}]");
+            match e {
+                Effect::SkullSpheres if !skull_given => {
+                    return Err(self.invalid(&field, "SkullSpheres needs the `skull` spheres, but `skull` is not given"));
+                }
+                Effect::Culling | Effect::ContactPressure if !effects.contains(Effect::Collision) => {
+                    return Err(self.invalid(&field, format!("{e:?} needs the Collision effect")));
+                }
+                Effect::Ischemia if !effects.contains(Effect::ContactPressure) => {
+                    return Err(self.invalid(&field, "Ischemia needs the ContactPressure effect (the pressure it doses)"));
+                }
+                Effect::Relaxation if !effects.contains(Effect::ForceOutput) && !effects.contains(Effect::ContactPressure) => {
+                    return Err(self.invalid(&field, "Relaxation needs ForceOutput or ContactPressure (the forces it relaxes)"));
+                }
+                Effect::Tethers if tethers.vessels.is_empty() && tethers.bands.is_empty() => {
+                    return Err(self.invalid(&field, "Tethers needs `tethers` with at least one vessel or band, but none is given"));
+                }
+                _ => {}
+            }
+        }
+        Ok(effects)
+    }
+
+    /// `tethers`, `relaxation` and `ischemia`: each checked whether or not its
+    /// effect is listed, and kept only when it is (tethers without their
+    /// effect are a warning).
+    fn tissue(
+        &self,
+        file: &ScenarioFile,
+        effects: EffectSet,
+    ) -> Result<(super::tethers::Tethers, Option<super::tissue_time::Relaxation>, Option<super::tissue_time::Ischemia>), ScenarioError> {
+        let tethers = super::tethers::validate(&file.tethers, &|field, problem| self.invalid(field, problem))?;
+        if !tethers.is_empty() && !effects.contains(Effect::Tethers) {
+            self.warn("tethers", "the scene lists tethers but not the Tethers effect: they are not built (add Tethers to `effects`)");
+        }
+        let tethers = if effects.contains(Effect::Tethers) { tethers } else { Default::default() };
+        let relaxation = super::tissue_time::validate_relaxation(&file.relaxation, &|field, problem| self.invalid(field, problem))?;
+        let relaxation = effects.contains(Effect::Relaxation).then_some(relaxation);
+        let ischemia = super::tissue_time::validate_ischemia(&file.ischemia, &|field, problem| self.invalid(field, problem))?;
+        let ischemia = effects.contains(Effect::Ischemia).then_some(ischemia);
+        Ok((tethers, relaxation, ischemia))
+    }
+
+    /// `solver`: the region of interest, the cache folder, the sub-step travel and the row band.
+    fn solver(&self, solver: &SolverFile) -> Result<SolverOptions, ScenarioError> {
+        Ok(SolverOptions {
+            compliance_storage: solver.compliance_storage,
+            region_of_interest: match &solver.region_of_interest {
+                RegionOfInterestFile::Auto => RegionOfInterest::Auto,
+                RegionOfInterestFile::All => RegionOfInterest::All,
+                RegionOfInterestFile::Sphere { center_mm, radius_mm } => RegionOfInterest::Sphere(
+                    self.sphere("solver.region_of_interest", &SphereFile { center_mm: *center_mm, radius_mm: *radius_mm })?,
+                ),
+            },
+            cache_dir: match &solver.cache_dir {
+                Some(d) if d.trim().is_empty() => return Err(self.invalid("solver.cache_dir", "the path is empty (use None for no cache)")),
+                Some(d) => Some(PathBuf::from(d)),
+                None => None,
+            },
+            spatula_contact: solver.spatula_contact,
+            substep_travel: match solver.substep_travel {
+                Some(t) if !(0.01..=10.0).contains(&t) => {
+                    return Err(self.invalid("solver.substep_travel", format!("must be in 0.01..=10 blade thicknesses (or None), got {t}")));
+                }
+                t => t,
+            },
+            early_start: solver.early_start,
+            row_band: match solver.row_band_mm {
+                Some(b) if !(b.is_finite() && b > 0.0 && b <= 1000.0) => {
+                    return Err(self.invalid("solver.row_band_mm", format!("must be in (0, 1000] mm (or None: every surface vertex), got {}", number(b))));
+                }
+                b => b.map(|b| b * 1e-3),
+            },
+        })
+    }
+
+    /// `gravity_m_s2` (m/s^2) and `density_kg_m3` (kg/m^3).
+    fn body(&self, gravity_m_s2: [f64; 3], density_kg_m3: f64) -> Result<(Vec3, f64), ScenarioError> {
+        let gravity = self.vec3("gravity_m_s2", gravity_m_s2)?;
+        let density = self.finite("density_kg_m3", density_kg_m3)?;
+        if !(density > 0.0 && density <= MAX_DENSITY_KG_M3) {
+            return Err(self.invalid("density_kg_m3", format!(
+                "density_kg_m3 must be in (0, {MAX_DENSITY_KG_M3:e}] kg/m^3 (brain tissue: 1040), got {}",
+                number(density)
+            )));
+        }
+        Ok((gravity, density))
+    }
+
+    /// `time_step_s` and `duration_s` (s): at least [`MIN_STEPS`] steps a run, at most 1e9.
+    fn run_time(&self, time_step_s: f64, duration_s: f64) -> Result<(f64, f64), ScenarioError> {
+        let time_step = self.positive("time_step_s", time_step_s)?;
+        let duration = self.positive("duration_s", duration_s)?;
+        // A relative tolerance keeps 0.01 s in 0.1 s (0.1 / 10 rounds below 0.01).
+        if time_step > duration / MIN_STEPS * (1.0 + 1e-9) {
+            return Err(self.invalid("time_step_s", format!(
+                "time_step_s must be at most duration_s / {MIN_STEPS} = {} s (a run of {duration} s needs at least {MIN_STEPS} steps), got {time_step}",
+                duration / MIN_STEPS
+            )));
+        }
+        if duration / time_step > 1e9 {
+            return Err(self.invalid("duration_s", format!("{} steps of {time_step} s are too many (at most 1e9)", duration / time_step)));
+        }
+        Ok((time_step, duration))
+    }
+
+    /// `outputs`: the folders are not empty.
+    fn outputs(&self, outputs: &OutputsFile) -> Result<Outputs, ScenarioError> {
+        if outputs.dir.trim().is_empty() {
+            return Err(self.invalid("outputs.dir", "must not be empty"));
+        }
+        if outputs.record_dir.as_ref().is_some_and(|d| d.trim().is_empty()) {
+            return Err(self.invalid("outputs.record_dir", "must not be empty (leave it out for the user's data directory)"));
+        }
+        Ok(Outputs {
+            dir: PathBuf::from(&outputs.dir),
+            vtk: outputs.vtk,
+            frames: outputs.frames,
+            record_dir: outputs.record_dir.as_ref().map(PathBuf::from),
+        })
+    }
+
+    /// `display`: the pressure scale's top, then the named views.
+    fn display(&self, display: &DisplayFile) -> Result<Display, ScenarioError> {
+        let pressure_max_mmhg = display.pressure_max_mmhg;
+        if !(pressure_max_mmhg.is_finite() && (1.0..=1000.0).contains(&pressure_max_mmhg)) {
+            return Err(self.invalid("display.pressure_max_mmhg", format!("must be in [1, 1000] mmHg, got {pressure_max_mmhg}")));
+        }
+        Ok(Display {
+            pressure_max_mmhg,
+            views: Views { overview: self.view("display.overview", display.overview)?, microscope: self.view("display.microscope", display.microscope)? },
+        })
+    }
+
+    /// `integrity`: the run's pass/fail limits.
+    fn integrity(&self, integrity: &IntegrityFile) -> Result<IntegrityLimits, ScenarioError> {
+        Ok(IntegrityLimits {
+            max_penetration_mm: match integrity.max_penetration_mm {
+                d if d.is_finite() && d >= 0.0 => d,
+                d => return Err(self.invalid("integrity.max_penetration_mm", format!("must be a finite number >= 0 mm, got {d}"))),
+            },
+            max_inverted_elements: integrity.max_inverted_elements,
+            max_crossed_vertices: integrity.max_crossed_vertices,
+            max_torn_vessels: integrity.max_torn_vessels,
+        })
     }
 }
 
