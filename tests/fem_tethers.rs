@@ -137,3 +137,43 @@ fn a_tether_never_pushes_and_a_cut_one_leaves_the_solve() {
     let without = out.owner_forces[0].1;
     assert!(with.x < without.x, "the blade holding A back pushes harder against the tether: {with:?} vs {without:?}");
 }
+
+#[test]
+fn tethers_read_through_their_own_columns_give_the_node_by_node_answers() {
+    // Five links across the gap, some slack, some taut, pulled apart and pushed together over several frames
+    // (links become taut and slack again): the tensions and the surface agree with the node-by-node reading to
+    // rounding, frame by frame; the first frames read links whose columns are not made yet.
+    use fissure::fem::tuning::{Optimisation, Tuning};
+    let mesh = two_blocks();
+    let links: Vec<Tether> = [(0.0041, 0.0117, 0.0095), (0.0093, 0.0117, 0.0099), (0.0152, 0.0061, 0.0102), (0.0093, 0.0052, 0.0088), (0.0148, 0.0149, 0.0097)]
+        .iter()
+        .map(|&(y, z, rest_length)| Tether { ends: [tissue_end(&mesh, Vec3::new(0.03, y, z)), tissue_end(&mesh, Vec3::new(0.04, y, z))], rest_length, stiffness: 25.0 })
+        .collect();
+    let top_a: Vec<u32> = (0..mesh.node_count() as u32).filter(|&n| (mesh.positions[n as usize].z - 0.02).abs() < 1e-12 && mesh.positions[n as usize].x < 0.031).collect();
+    let push = |dx: f64| -> Vec<Constraint> { top_a.iter().map(|&n| Constraint { node: n, owner: 0, kind: ConstraintKind::Enforced { displacement: Vec3::new(dx, 0.0, 0.0) } }).collect() };
+    let run = |columns: bool| {
+        let mut s = solver(&mesh);
+        s.set_tuning(Tuning::ALL_ON.with(Optimisation::TetherColumns, columns));
+        s.set_tethers(&links).unwrap();
+        let mut out = FrameSolution::default();
+        let mut frames = Vec::new();
+        for dx in [0.0, -0.001, -0.002, -0.003, 0.001, -0.0025, -0.004] {
+            s.step(&push(dx), &mut out).unwrap();
+            frames.push((out.tether_tension.clone(), out.displacement_surface.clone(), out.owner_forces[0].1));
+        }
+        frames
+    };
+    let (by_columns, by_nodes) = (run(true), run(false));
+    let mut taut = 0;
+    for ((t1, u1, f1), (t2, u2, f2)) in by_columns.iter().zip(&by_nodes) {
+        let scale = t2.iter().fold(1e-6_f64, |m, t| m.max(t.abs()));
+        for (a, b) in t1.iter().zip(t2) {
+            assert!((a - b).abs() <= 1e-12 * scale, "tension {a} against {b} N");
+            taut += usize::from(*b > 0.0);
+        }
+        let umax = u2.iter().fold(1e-9_f64, |m, u| m.max(u.norm()));
+        assert!(u1.iter().zip(u2).all(|(a, b)| (a - b).norm() <= 1e-12 * umax), "the surface agrees");
+        assert!((f1 - f2).norm() <= 1e-12 * f2.norm().max(1e-9), "the blade's force agrees: {f1:?} against {f2:?}");
+    }
+    assert!(taut >= 8, "links were taut in several frames: {taut}");
+}

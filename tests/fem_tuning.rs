@@ -19,7 +19,7 @@ use fissure::fem::{Compliance, ComplianceStorage, ConstrainedSolver, Constraint,
 use fissure::math::Vec3;
 
 /// The switches documented as leaving every bit unchanged.
-const BITWISE: [Optimisation; 8] = [
+const BITWISE: [Optimisation; 9] = [
     Optimisation::Avx2Product,
     Optimisation::FusedColumns,
     Optimisation::RowChunks,
@@ -28,6 +28,7 @@ const BITWISE: [Optimisation; 8] = [
     Optimisation::RowMajorSolve,
     Optimisation::HugePages,
     Optimisation::CandidateScreen,
+    Optimisation::KeptRowPairs,
 ];
 
 /// The compliance's ROI x ROI entries and the surface displacements of a

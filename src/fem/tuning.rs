@@ -34,11 +34,17 @@ pub enum Optimisation {
     /// Skipping the inactive candidates that cannot have reached their constraint since last evaluated
     /// (`src/fem/constrained/screen.rs`; off: every candidate at every iteration).
     CandidateScreen,
+    /// W's entries between the step's candidate and tether rows kept across its active-set iterations
+    /// (`src/fem/constrained/pairs.rs`; off: the whole block gathered again every iteration, same bits).
+    KeptRowPairs,
+    /// A taut tether's compliance read from its own columns over the stored rows, made once from its nodes'
+    /// (`src/fem/constrained/tethers.rs`; off: node by node from their 3x3 blocks, which differs in the last bits).
+    TetherColumns,
 }
 
 impl Optimisation {
     /// Every switch with its name in `FISSURE_FEM_OFF`, in declaration order.
-    pub const ALL: [(Optimisation, &'static str); 9] = [
+    pub const ALL: [(Optimisation, &'static str); 11] = [
         (Optimisation::Avx2Product, "avx2-product"),
         (Optimisation::FusedColumns, "fused-columns"),
         (Optimisation::RowChunks, "row-chunks"),
@@ -48,6 +54,8 @@ impl Optimisation {
         (Optimisation::RowMajorSolve, "row-major-solve"),
         (Optimisation::HugePages, "huge-pages"),
         (Optimisation::CandidateScreen, "candidate-screen"),
+        (Optimisation::KeptRowPairs, "kept-row-pairs"),
+        (Optimisation::TetherColumns, "tether-columns"),
     ];
 
     /// Its name in `FISSURE_FEM_OFF`.

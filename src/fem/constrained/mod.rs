@@ -38,6 +38,7 @@
 
 mod blocks;
 mod columns;
+mod pairs;
 mod screen;
 mod tethers;
 
@@ -246,7 +247,15 @@ struct System {
     w_es: Vec<f64>,
     w_ss: Vec<f64>,
     lambda: Vec<f64>,
+    /// Force on each node (contact rows and tethers), N.
     node_force: Vec<Vec3>,
+    /// The part of `node_force` applied through the nodes' columns: all but the pulls of tethers with columns of
+    /// their own (`tethers::TetherColumns`), which the surface and the candidates read through those.
+    direct_force: Vec<Vec3>,
+    /// W's entries between the step's rows, kept across its iterations ([`pairs::RowPairs`]).
+    pairs: pairs::RowPairs,
+    /// Scratch: the pair slot of each s row this iteration.
+    row_slots: Vec<usize>,
     solve_scratch: Option<faer::dyn_stack::MemBuffer>,
 }
 
@@ -596,6 +605,7 @@ impl ConstrainedSolver {
         let mut iterations = 0;
         let screening = self.tuning.enabled(Optimisation::CandidateScreen);
         self.cands.screen.begin_frame();
+        self.sys.pairs.begin_step(self.cands.candidates.len() + self.tethers.count(), self.columns.lazy_generation);
         loop {
             iterations += 1;
             self.build_rows();
@@ -614,7 +624,7 @@ impl ConstrainedSolver {
             } else if self.demote_pulling_holds(iterations) {
                 cap(self, worst_active)?;
                 self.arrange_engaged();
-            } else if self.release_most_adhesive()
+            } else if self.release_most_adhesive(iterations)
                 || worst_active > 0.0 && {
                     self.relinearize_active();
                     true
@@ -671,6 +681,7 @@ impl ConstrainedSolver {
                 self.cands.candidates[ci].active = true;
                 if c.limit.is_sphere() {
                     self.cands.candidates[ci].at = self.model.mesh.positions[c.node as usize] + u;
+                    self.sys.pairs.redefine(self.tethers.count() + ci);
                 }
                 self.cands.screen.forget(ci);
             } else if !c.active {
@@ -687,10 +698,23 @@ impl ConstrainedSolver {
     }
 
     /// Releases the most adhesive active candidate row (lambda < 0 pulls the tissue) or the most compressive
-    /// tether (T < 0 would push), whichever is further below zero (a candidate on a tie); returns whether it did.
-    fn release_most_adhesive(&mut self) -> bool {
+    /// tether (T < 0 would push), whichever is further below zero (a candidate on a tie); in the first
+    /// [`BULK_RELEASE_ITERATIONS`] every such row at once (a blade pulled back from a wide contact leaves dozens
+    /// pulling; the solution is the same, W being positive definite). Returns whether it released any.
+    fn release_most_adhesive(&mut self, iterations: usize) -> bool {
         let enforced_rows = 3 * self.tools.enforced_nodes;
         let scale = self.sys.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()));
+        if iterations <= BULK_RELEASE_ITERATIONS {
+            let mut any = false;
+            for (k, &ci) in self.sys.row_candidate.iter().enumerate() {
+                if self.sys.lambda[enforced_rows + k] < -1e-12 * scale {
+                    self.cands.candidates[ci].active = false;
+                    self.cands.screen.forget(ci);
+                    any = true;
+                }
+            }
+            return self.release_compressive_tethers(self.sys.rows.len(), scale) || any;
+        }
         let mut most: Option<(usize, f64)> = None;
         for (k, &ci) in self.sys.row_candidate.iter().enumerate() {
             let l = self.sys.lambda[enforced_rows + k];
@@ -721,6 +745,7 @@ impl ConstrainedSolver {
                 let x = self.model.mesh.positions[node as usize] + self.displacement_of(node);
                 let at = self.cands.candidates[ci].at;
                 self.cands.candidates[ci].at = at + (x - at) * RELINEARIZE_RELAXATION;
+                self.sys.pairs.redefine(self.tethers.count() + ci);
             }
         }
     }
@@ -988,6 +1013,15 @@ impl ConstrainedSolver {
         if let Some(kept) = kept.as_mut() {
             kept.prepare(self.frame, self.columns.lazy_generation, &self.sys.nodes, self.sys.nodes_version);
         }
+        let mut pairs = self.tuning.enabled(Optimisation::KeptRowPairs).then(|| std::mem::take(&mut self.sys.pairs));
+        let mut slots = std::mem::take(&mut self.sys.row_slots);
+        slots.clear();
+        if let Some(pairs) = pairs.as_mut() {
+            pairs.check_generation(self.columns.lazy_generation);
+            let first_candidate = self.tethers.count();
+            slots.extend(self.sys.row_candidate.iter().map(|&ci| pairs.slot(first_candidate + ci)));
+            slots.extend(self.tethers.rows.iter().map(|&(i, _)| pairs.slot(i)));
+        }
         for t in 0..s_c {
             let ri = self.sys.rows[e + t];
             let pi = self.sys.nodes[ri.slot];
@@ -1007,17 +1041,27 @@ impl ConstrainedSolver {
             }
             for u in 0..=t {
                 let rj = self.sys.rows[e + u];
-                let block = match (kept.as_mut(), row.as_mut()) {
-                    (Some(k), Some((base, _))) => self.kept_block(k, *base, pi, rj.slot),
-                    _ => self.kinv(pi, self.sys.nodes[rj.slot]),
+                let mut compute = || {
+                    let block = match (kept.as_mut(), row.as_mut()) {
+                        (Some(k), Some((base, _))) => self.kept_block(k, *base, pi, rj.slot),
+                        _ => self.kinv(pi, self.sys.nodes[rj.slot]),
+                    };
+                    ri.dir.dot(&(block * rj.dir))
                 };
-                let value = ri.dir.dot(&(block * rj.dir));
+                let value = match pairs.as_mut() {
+                    Some(p) => p.get_or(slots[t], slots[u], compute),
+                    None => compute(),
+                };
                 w_ss[u * s + t] = value;
                 w_ss[t * s + u] = value;
             }
         }
         drop(kept);
-        self.gather_tether_rows(e, s, &mut w_es, &mut w_ss);
+        self.gather_tether_rows(e, s, &mut w_es, &mut w_ss, pairs.as_mut().map(|p| (p, slots.as_slice())));
+        if let Some(p) = pairs {
+            self.sys.pairs = p;
+        }
+        self.sys.row_slots = slots;
         (self.sys.w_es, self.sys.w_ss) = (w_es, w_ss);
         self.timings.gather += t.elapsed().as_secs_f64();
         let t = std::time::Instant::now();
@@ -1037,6 +1081,7 @@ impl ConstrainedSolver {
         for (row, l) in self.sys.rows.iter().zip(&self.sys.lambda) {
             self.sys.node_force[row.slot] += row.dir * *l;
         }
+        self.sys.direct_force.clone_from(&self.sys.node_force);
         self.add_tether_forces(self.sys.rows.len());
     }
 
@@ -1058,9 +1103,9 @@ impl ConstrainedSolver {
 
     /// Displacement of one node at the current forces (gravity included).
     fn displacement_of(&self, node: u32) -> Vec3 {
-        let mut u = self.model.gravity_displacement(node);
+        let mut u = self.model.gravity_displacement(node) + self.tether_pull_at(node);
         if !self.keep_candidate_blocks() {
-            for (slot, f) in self.sys.node_force.iter().enumerate() {
+            for (slot, f) in self.sys.direct_force.iter().enumerate() {
                 if *f != Vec3::zeros() {
                     u += self.kinv(node, self.sys.nodes[slot]) * f;
                 }
@@ -1070,7 +1115,7 @@ impl ConstrainedSolver {
         let mut kept = self.cands.candidate_blocks.borrow_mut();
         kept.prepare(self.frame, self.columns.lazy_generation, &self.sys.nodes, self.sys.nodes_version);
         let base = kept.row(node);
-        for (slot, f) in self.sys.node_force.iter().enumerate() {
+        for (slot, f) in self.sys.direct_force.iter().enumerate() {
             if *f != Vec3::zeros() {
                 u += self.kept_block(&mut kept, base, node, slot) * f;
             }
@@ -1085,15 +1130,16 @@ impl ConstrainedSolver {
             *u = self.model.gravity_displacement(n);
         }
         self.surface.col_forces.clear();
-        for (slot, f) in self.sys.node_force.iter().enumerate() {
-            if let Some(c) = self.compliance.col_of(self.sys.nodes[slot]) {
+        for (slot, f) in self.sys.direct_force.iter().enumerate() {
+            // (a node without a direct force adds exactly nothing: a tether's node, whose pull is its link's)
+            if let Some(c) = self.compliance.col_of(self.sys.nodes[slot]).filter(|_| *f != Vec3::zeros()) {
                 self.surface.col_forces.push((c, *f));
             }
         }
         self.surface.col_forces.sort_unstable_by_key(|x| x.0);
         self.compliance.accumulate(&self.surface.col_forces, &mut self.surface.u_rows, &mut self.surface.product);
         let n_free = self.model.dofs.dof_count();
-        for (slot, f) in self.sys.node_force.iter().enumerate() {
+        for (slot, f) in self.sys.direct_force.iter().enumerate() {
             let node = self.sys.nodes[slot];
             if self.compliance.col_of(node).is_some() {
                 continue;
@@ -1109,6 +1155,9 @@ impl ConstrainedSolver {
                 }
             }
         }
+        let mut u_rows = std::mem::take(&mut self.surface.u_rows);
+        self.add_tether_pulls(&mut u_rows);
+        self.surface.u_rows = u_rows;
         std::mem::swap(&mut self.surface.u_rows, &mut self.surface.prev_u_rows);
     }
 

@@ -20,6 +20,7 @@
 //! order (links in the order given, ends a then b, nodes in triangle order).
 
 use super::*;
+use pairs::RowPairs;
 
 /// One end of a tether.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,6 +41,11 @@ pub struct Tether {
     pub stiffness: f64,
 }
 
+/// Links given their [`TetherColumns`] in one step, at most (each reads its nodes' blocks over every stored row, a
+/// few milliseconds on a real brain): a scene's links are all made within its first steps, none of them long, and
+/// a link not made yet is read node by node. A count, not a time, so replays stay bit for bit.
+const COLUMNS_PER_STEP: usize = 1;
+
 /// Most nodes a tether row touches (three a tissue end).
 const TERMS: usize = 6;
 
@@ -49,6 +55,8 @@ pub(super) struct LinearTether {
     terms: [(u32, Vec3); TERMS],
     count: usize,
     target: f64,
+    /// The direction it is linearized along (a to b).
+    dir: Vec3,
 }
 
 impl LinearTether {
@@ -69,12 +77,43 @@ pub(super) struct TetherSet {
     pub(super) rows: Vec<(usize, [usize; TERMS])>,
     /// Per link, the tension of the last frame, N.
     tension: Vec<f64>,
+    /// Per link, its columns over the stored rows ([`TetherColumns`]) once made; `None` where a node has no ROI
+    /// column (the link is then gathered node by node).
+    columns: Vec<Option<TetherColumns>>,
+    /// Per link, whether its columns were tried.
+    columns_tried: Vec<bool>,
+    /// This iteration's pull of each row of a link with columns: (link, `T n`), in row order.
+    pub(super) pulls: Vec<(usize, Vec3)>,
+}
+
+/// A link's compliance over every stored row: `M[r] = sum_k s_k w_k K^-1[row r, node_k]` (3x3, 9 f64 a row, row
+/// major), `s_k` = +1 at end a's nodes, -1 at end b's. The link's row at direction `n` is `K^-1 c^T = M n`, fixed
+/// for the link's life whatever its direction, so a frame reads 9 values a row for a taut link instead of the 3x3
+/// blocks of its six nodes: its entries of W against a contact row at node p along d are `d . M[p] n`, its pull
+/// on the surface `M (T n)`.
+#[derive(Debug, Clone)]
+pub(super) struct TetherColumns {
+    m: Vec<f64>,
+}
+
+impl TetherColumns {
+    /// `M[r] v`.
+    #[inline]
+    fn apply(&self, r: usize, v: &Vec3) -> Vec3 {
+        let b = &self.m[9 * r..9 * r + 9];
+        Vec3::new(b[0] * v.x + b[1] * v.y + b[2] * v.z, b[3] * v.x + b[4] * v.y + b[5] * v.z, b[6] * v.x + b[7] * v.y + b[8] * v.z)
+    }
 }
 
 impl TetherSet {
     /// Whether the solver has any link that still holds.
     pub(super) fn any(&self) -> bool {
         self.enabled.iter().any(|e| *e)
+    }
+
+    /// How many links were set (held or not).
+    pub(super) fn count(&self) -> usize {
+        self.links.len()
     }
 }
 
@@ -114,6 +153,9 @@ impl ConstrainedSolver {
             linear: vec![LinearTether::default(); n],
             rows: Vec::new(),
             tension: vec![0.0; n],
+            columns: vec![None; n],
+            columns_tried: vec![false; n],
+            pulls: Vec::new(),
         };
         Ok(())
     }
@@ -182,6 +224,7 @@ impl ConstrainedSolver {
             return Ok(());
         }
         let mut extra: Vec<u32> = Vec::new();
+        let mut made = 0;
         for i in 0..self.tethers.links.len() {
             if !self.tethers.enabled[i] {
                 continue;
@@ -199,7 +242,7 @@ impl ConstrainedSolver {
             } else {
                 Vec3::z()
             };
-            let mut lin = LinearTether { target: n.dot(&rest_span) - link.rest_length, ..Default::default() };
+            let mut lin = LinearTether { target: n.dot(&rest_span) - link.rest_length, dir: n, ..Default::default() };
             for (end, sign) in link.ends.iter().zip([1.0, -1.0]) {
                 if let TetherEnd::Tissue { nodes, weights } = *end {
                     for (&node, &w) in nodes.iter().zip(&weights) {
@@ -215,8 +258,109 @@ impl ConstrainedSolver {
                 }
             }
             self.tethers.linear[i] = lin;
+            if !self.tethers.columns_tried[i] && made < COLUMNS_PER_STEP && self.tuning.enabled(Optimisation::TetherColumns) {
+                self.tethers.columns_tried[i] = true;
+                self.tethers.columns[i] = self.make_tether_columns(&link);
+                made += 1;
+            }
         }
         self.ensure_lazy(&extra)
+    }
+
+    /// [`TetherColumns`] of `link` from the ROI columns of its nodes: on the ROI rows the exact blocks W is made
+    /// of, on the others the blocks the surface product reads; `None` when a free node of it has no ROI column or
+    /// a column cannot be read.
+    fn make_tether_columns(&self, link: &Tether) -> Option<TetherColumns> {
+        let mut forces: Vec<(usize, f64)> = Vec::new();
+        for (end, sign) in link.ends.iter().zip([1.0, -1.0]) {
+            if let TetherEnd::Tissue { nodes, weights } = *end {
+                for (&node, &w) in nodes.iter().zip(&weights) {
+                    if self.model.is_fixed(node) || w == 0.0 {
+                        continue;
+                    }
+                    let col = self.compliance.col_of(node)?;
+                    self.compliance.wait_column(col).ok()?;
+                    forces.push((col, sign * w));
+                }
+            }
+        }
+        let row_nodes = self.compliance.row_nodes();
+        let mut m = vec![0.0; 9 * row_nodes.len()];
+        for (r, &node) in row_nodes.iter().enumerate() {
+            let roi = self.compliance.col_of(node).is_some();
+            let mut block = Matrix3::zeros();
+            for &(c, sw) in &forces {
+                let b = if roi {
+                    self.compliance.wait_column(r.min(c)).ok()?;
+                    self.compliance.block(r, c)
+                } else {
+                    self.compliance.product_block(r, c)
+                };
+                block += b * sw;
+            }
+            m[9 * r..9 * r + 9].copy_from_slice(&[block[(0, 0)], block[(0, 1)], block[(0, 2)], block[(1, 0)], block[(1, 1)], block[(1, 2)], block[(2, 0)], block[(2, 1)], block[(2, 2)]]);
+        }
+        Some(TetherColumns { m })
+    }
+
+    /// The columns of link `i` when it has them and every node in `nodes` is an ROI node (where they are exact).
+    fn columns_for(&self, i: usize, nodes: impl IntoIterator<Item = u32>) -> Option<&TetherColumns> {
+        let c = self.tethers.columns[i].as_ref()?;
+        nodes.into_iter().all(|n| self.model.is_fixed(n) || self.compliance.col_of(n).is_some()).then_some(c)
+    }
+
+    /// `K^-1[node, ..] c_i^T` of link `i` (its row's column at `node`), from its columns at an ROI node, else node
+    /// by node.
+    fn tether_column_at(&self, i: usize, node: u32) -> Vec3 {
+        if self.model.is_fixed(node) {
+            return Vec3::zeros();
+        }
+        let lin = &self.tethers.linear[i];
+        match (self.tethers.columns[i].as_ref(), self.compliance.col_of(node)) {
+            (Some(c), Some(r)) => c.apply(r, &lin.dir),
+            _ => lin.terms().iter().filter(|(n, _)| !self.model.is_fixed(*n)).map(|(n, coeff)| self.kinv(node, *n) * coeff).sum(),
+        }
+    }
+
+    /// The displacement at `node` from this iteration's pulls of links with columns (the rest are node forces):
+    /// read from the columns at an ROI node, else node by node.
+    pub(super) fn tether_pull_at(&self, node: u32) -> Vec3 {
+        let mut u = Vec3::zeros();
+        if self.tethers.pulls.is_empty() || self.model.is_fixed(node) {
+            return u;
+        }
+        match self.compliance.col_of(node) {
+            Some(r) => {
+                for (i, f) in &self.tethers.pulls {
+                    if let Some(c) = &self.tethers.columns[*i] {
+                        u += c.apply(r, f);
+                    }
+                }
+            }
+            None => {
+                for &(i, f) in &self.tethers.pulls {
+                    let lin = &self.tethers.linear[i];
+                    let tension = f.dot(&lin.dir);
+                    for (n, coeff) in lin.terms() {
+                        if !self.model.is_fixed(*n) {
+                            u += self.kinv(node, *n) * (coeff * tension);
+                        }
+                    }
+                }
+            }
+        }
+        u
+    }
+
+    /// `u[r] += M_i[r] (T n)` over every stored row for this iteration's pulls of links with columns.
+    pub(super) fn add_tether_pulls(&self, u: &mut [Vec3]) {
+        for (i, f) in &self.tethers.pulls {
+            if let Some(c) = &self.tethers.columns[*i] {
+                for (r, x) in u.iter_mut().enumerate() {
+                    *x += c.apply(r, f);
+                }
+            }
+        }
     }
 
     /// Appends a row for every active link, giving its nodes slots in `sys.nodes`.
@@ -249,35 +393,42 @@ impl ConstrainedSolver {
     }
 
     /// Fills the tether rows' part of `w_es` (against the enforced rows) and `w_ss` (against the candidate rows,
-    /// which come first in the s block, and among themselves, with `1 / k` on the diagonal).
-    pub(super) fn gather_tether_rows(&self, e: usize, s: usize, w_es: &mut [f64], w_ss: &mut [f64]) {
+    /// which come first in the s block, and among themselves, with `1 / k` on the diagonal). With `pairs`, the
+    /// entries between s rows are read from / kept in the step's [`RowPairs`] (`slots`: each s row's slot).
+    pub(super) fn gather_tether_rows(&self, e: usize, s: usize, w_es: &mut [f64], w_ss: &mut [f64], mut pairs: Option<(&mut RowPairs, &[usize])>) {
         let s_c = s - self.tethers.rows.len();
         for (k, &(i, _)) in self.tethers.rows.iter().enumerate() {
             let t = s_c + k;
             let terms = self.tethers.linear[i].terms();
             for l in 0..self.tools.enforced_nodes {
                 let q = self.sys.nodes[l];
-                let mut v = Vec3::zeros();
-                for &(node, coeff) in terms {
-                    if !self.model.is_fixed(node) {
-                        v += self.kinv(q, node) * coeff;
-                    }
-                }
+                let v = self.tether_column_at(i, q);
                 for c in 0..3 {
                     w_es[t * e + 3 * l + c] = v[c];
                 }
             }
+            let mut entry = |u: usize, compute: &dyn Fn() -> f64| match pairs.as_mut() {
+                Some((p, slots)) => p.get_or(slots[t], slots[u], compute),
+                None => compute(),
+            };
+            let columns = self.columns_for(i, std::iter::empty());
             for u in 0..s_c {
                 let row = self.sys.rows[e + u];
                 let p = self.sys.nodes[row.slot];
-                let value: f64 = terms.iter().map(|(node, coeff)| self.kinv_dot(p, &row.dir, *node, coeff)).sum();
+                let value = entry(u, &|| match columns.filter(|_| self.compliance.col_of(p).is_some()) {
+                    Some(_) => row.dir.dot(&self.tether_column_at(i, p)),
+                    None => terms.iter().map(|(node, coeff)| self.kinv_dot(p, &row.dir, *node, coeff)).sum(),
+                });
                 w_ss[u * s + t] = value;
                 w_ss[t * s + u] = value;
             }
             for (m, &(j, _)) in self.tethers.rows[..=k].iter().enumerate() {
                 let other = self.tethers.linear[j].terms();
-                let mut value: f64 = terms.iter().map(|(a, ca)| other.iter().map(|(b, cb)| self.kinv_dot(*a, ca, *b, cb)).sum::<f64>()).sum();
                 let u = s_c + m;
+                let mut value = entry(u, &|| match self.columns_for(i, other.iter().map(|x| x.0)) {
+                    Some(_) => other.iter().map(|(b, cb)| cb.dot(&self.tether_column_at(i, *b))).sum(),
+                    None => terms.iter().map(|(a, ca)| other.iter().map(|(b, cb)| self.kinv_dot(*a, ca, *b, cb)).sum::<f64>()).sum(),
+                });
                 if u == t {
                     value += 1.0 / self.tethers.links[i].stiffness;
                 }
@@ -296,12 +447,21 @@ impl ConstrainedSolver {
         }
     }
 
-    /// Adds the tether rows' forces `coeff * T` to their nodes' slots.
+    /// Adds the tether rows' forces `coeff * T` to their nodes' slots; a link without columns adds them to the
+    /// direct forces too, one with columns its pull `T n` to [`TetherSet::pulls`].
     pub(super) fn add_tether_forces(&mut self, first_row: usize) {
+        self.tethers.pulls.clear();
         for (k, &(i, slots)) in self.tethers.rows.iter().enumerate() {
             let tension = self.sys.lambda[first_row + k];
+            let columns = self.tethers.columns[i].is_some();
+            if columns {
+                self.tethers.pulls.push((i, self.tethers.linear[i].dir * tension));
+            }
             for (&(_, coeff), &slot) in self.tethers.linear[i].terms().iter().zip(&slots) {
                 self.sys.node_force[slot] += coeff * tension;
+                if !columns {
+                    self.sys.direct_force[slot] += coeff * tension;
+                }
             }
         }
     }
@@ -338,6 +498,19 @@ impl ConstrainedSolver {
             }
         }
         most
+    }
+
+    /// Releases every active tether row that would push (T < 0); returns whether any.
+    pub(super) fn release_compressive_tethers(&mut self, first_row: usize, scale: f64) -> bool {
+        let mut any = false;
+        for k in 0..self.tethers.rows.len() {
+            let (i, _) = self.tethers.rows[k];
+            if self.sys.lambda[first_row + k] < -1e-12 * scale {
+                self.tethers.active[i] = false;
+                any = true;
+            }
+        }
+        any
     }
 
     /// Releases link `i` (slack: no row until stretched again).
