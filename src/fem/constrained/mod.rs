@@ -1009,18 +1009,10 @@ impl ConstrainedSolver {
         self.sys.w_ss.clear();
         self.sys.w_ss.resize(s * s, 0.0);
         let (mut w_es, mut w_ss) = (std::mem::take(&mut self.sys.w_es), std::mem::take(&mut self.sys.w_ss));
+        let (mut pairs, slots) = self.take_row_pairs();
         let mut kept = self.keep_candidate_blocks().then(|| self.cands.candidate_blocks.borrow_mut());
         if let Some(kept) = kept.as_mut() {
             kept.prepare(self.frame, self.columns.lazy_generation, &self.sys.nodes, self.sys.nodes_version);
-        }
-        let mut pairs = self.tuning.enabled(Optimisation::KeptRowPairs).then(|| std::mem::take(&mut self.sys.pairs));
-        let mut slots = std::mem::take(&mut self.sys.row_slots);
-        slots.clear();
-        if let Some(pairs) = pairs.as_mut() {
-            pairs.check_generation(self.columns.lazy_generation);
-            let first_candidate = self.tethers.count();
-            slots.extend(self.sys.row_candidate.iter().map(|&ci| pairs.slot(first_candidate + ci)));
-            slots.extend(self.tethers.rows.iter().map(|&(i, _)| pairs.slot(i)));
         }
         for t in 0..s_c {
             let ri = self.sys.rows[e + t];
@@ -1083,6 +1075,21 @@ impl ConstrainedSolver {
         }
         self.sys.direct_force.clone_from(&self.sys.node_force);
         self.add_tether_forces(self.sys.rows.len());
+    }
+
+    /// The step's kept W entries (when kept) and the pair slot of each s row (candidate rows, then tethers), taken
+    /// out of the system for the gather.
+    fn take_row_pairs(&mut self) -> (Option<pairs::RowPairs>, Vec<usize>) {
+        let mut pairs = self.tuning.enabled(Optimisation::KeptRowPairs).then(|| std::mem::take(&mut self.sys.pairs));
+        let mut slots = std::mem::take(&mut self.sys.row_slots);
+        slots.clear();
+        if let Some(pairs) = pairs.as_mut() {
+            pairs.check_generation(self.columns.lazy_generation);
+            let first_candidate = self.tethers.count();
+            slots.extend(self.sys.row_candidate.iter().map(|&ci| pairs.slot(first_candidate + ci)));
+            slots.extend(self.tethers.rows.iter().map(|&(i, _)| pairs.slot(i)));
+        }
+        (pairs, slots)
     }
 
     /// `sqrt(|K^-1[node, node]|_F)` for the screen, when the node has a ROI or lazy column; kept once read.
