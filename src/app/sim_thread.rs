@@ -16,6 +16,14 @@
 //! actually used; a recording that cannot be started or written says so in
 //! the panel and the log and keeps every row written so far; a failing frame
 //! is logged and the last state holds.
+//!
+//! The loop reads as its steps: take the window's commands, wait for the
+//! window's scripted actions, take the frame's input, advance (step, record,
+//! publish), keep real time. What belongs to one scene (the built pipeline,
+//! pose guards, history, recording, a cut asked for, peak forces) is a
+//! `Session`, replaced whole when the scene changes (culling, collision
+//! backend, another scenario); what lasts the run (scripts, devices, buffers,
+//! the background solve, the summary) is the `Run` around it.
 
 use super::draw::{Snapshot, vertex_areas};
 use super::exchange::Exchange;
@@ -369,7 +377,7 @@ struct Recording {
 
 /// Starts a recording at session time `origin_s`: t = 0 is now, the history
 /// before it (the run-up the replay needs to rebuild the tissue) at negative times.
-fn start_recording(path: &PathBuf, history: &History, origin_s: f64) -> Result<Recording, String> {
+fn open_recording(path: &std::path::Path, history: &History, origin_s: f64) -> Result<Recording, String> {
     let note = format!(
         "recording: t = 0 is the moment it was started ({origin_s} s into the session); the rows before it are the session from the scene at rest (replay plays them first)"
     );
@@ -385,7 +393,7 @@ fn start_recording(path: &PathBuf, history: &History, origin_s: f64) -> Result<R
 /// Ends the session for the debrief: the recording under way is the session's file (it holds the session from
 /// rest); with none, the whole history is written to `path` as one. `None` when nothing was simulated yet or the
 /// file cannot be written (the status line says which).
-fn end_session(path: &PathBuf, recording: Option<Recording>, history: &History, b: &Built, shared: &SimShared) -> Option<EndedSession> {
+fn end_session(path: &std::path::Path, recording: Option<Recording>, history: &History, b: &Built, shared: &SimShared) -> Option<EndedSession> {
     if history.rows.len() < 2 {
         *lock(&shared.status) = "session ended before its first frame: nothing to debrief".into();
         stopped(shared, recording);
@@ -397,7 +405,7 @@ fn end_session(path: &PathBuf, recording: Option<Recording>, history: &History, 
             stopped(shared, Some(r));
             file
         }
-        None => match start_recording(path, history, b.state.time_s) {
+        None => match open_recording(path, history, b.state.time_s) {
             Ok(r) => r.recorder.path().to_path_buf(),
             Err(e) => {
                 recording_failed(shared, format!("cannot write the session for its debrief: {e}"));
@@ -486,6 +494,13 @@ struct BackgroundSolve {
 const FAR_SURFACE_PERIOD_S: f64 = 0.1;
 
 impl BackgroundSolve {
+    /// Another scene: the worker's factor and mesh, and what it solved, are stale.
+    fn forget_scene(&mut self) {
+        self.worker = None;
+        self.stress.clear();
+        self.nodes.clear();
+    }
+
     /// Posts this frame's forces and picks up the newest finished solve;
     /// true when there is stress to show. Never waits; failures go to the status line once.
     fn update(&mut self, pipeline: &Pipeline, state: &SimState, shared: &SimShared) -> bool {
@@ -521,177 +536,352 @@ impl BackgroundSolve {
     }
 }
 
+/// What lasts the whole run, whatever the scene: the window's shared state and
+/// devices, the scripts, the buffers reused frame after frame, the background
+/// solve and the run's summary.
+struct Run<'a> {
+    shared: &'a SimShared,
+    igtl: Option<Arc<Mutex<IgtlServer>>>,
+    haptics: Option<Arc<ForceOutput>>,
+    /// Stop after this many frames of the scene (None: run until told).
+    max_frames: Option<u64>,
+    free_running: bool,
+    script: Scripted,
+    devices: super::devices::Devices,
+    background: BackgroundSolve,
+    buffers: FrameBuffers,
+    exit: SimExit,
+    /// The poses refused by the guards of the scenes before this one.
+    rejected_before: u64,
+    /// The count of tracker poses the server refused, as last shown in the panel.
+    tracker_refused_shown: u64,
+    /// A failed frame was logged (further failures are only counted).
+    failed_logged: bool,
+    /// The script asked to stop (after the frame under way).
+    quit: bool,
+}
+
+/// The scripted input: the simulation's actions, the times of the window's
+/// own, and the keys the script holds.
+struct Scripted {
+    actions: std::iter::Peekable<std::vec::IntoIter<(f64, ScriptAction)>>,
+    window_times: std::iter::Peekable<std::vec::IntoIter<f64>>,
+    keys: KeyboardController,
+    /// A scripted key came: the script's keys drive the blades from then on.
+    active: bool,
+}
+
+/// Buffers reused frame after frame.
+#[derive(Default)]
+struct FrameBuffers {
+    /// The snapshot being filled (the exchange swaps it with the window's).
+    back: Snapshot,
+    input: FrameInput,
+    haptic_scratch: Vec<f64>,
+}
+
+/// One scene's run from the scene at rest: the built scene and what the loop
+/// keeps about it. A scene change replaces it whole.
+struct Session {
+    scene: Built,
+    /// One per spatula: refuses bad poses, keeps the last good one.
+    guards: Vec<PoseGuard>,
+    history: History,
+    recording: Option<Recording>,
+    /// Per blade: the keys took it over from its trajectory.
+    taken_over: Vec<bool>,
+    /// A cut asked for (the blade): the frame that carries it out says what it cut.
+    cut_asked: Option<usize>,
+    /// Compliance columns computed in the background: the count last shown.
+    columns_shown: Option<usize>,
+    /// Largest |force| per spatula in this scene, N.
+    peak_force_n: Vec<f64>,
+    /// When the next frame is due (real time).
+    next_frame: Instant,
+}
+
+/// What the window's commands leave the loop to do.
+enum Commands {
+    /// None left: go on with the frame.
+    Drained,
+    /// Change the scene to this one (the commands after it apply to the new scene).
+    ChangeScene(Box<Scenario>),
+    /// End the loop.
+    Stop,
+}
+
 fn run_loop(
-    mut b: Built,
+    built: Built,
     shared: &SimShared,
     commands: Receiver<SimCommand>,
     igtl: Option<Arc<Mutex<IgtlServer>>>,
     haptics: Option<Arc<ForceOutput>>,
     options: SimOptions,
 ) -> SimExit {
-    let mut exit = SimExit::default();
-    let mut back = Snapshot::default();
-    let mut input = FrameInput::default();
-    let mut scratch = Vec::new();
-    let mut guards: Vec<PoseGuard> = b.state.poses.iter().map(|p| PoseGuard::new(*p, "window")).collect();
-    let mut history = History::at_rest(&b.state.poses, records_cuts(&b.scenario));
-    let mut recorder: Option<Recording> = None;
-    let mut script = options.script.into_iter().peekable();
-    let mut window_script = options.window_script_times.into_iter().peekable();
-    let mut script_keys = KeyboardController::default();
-    script_keys.set_spatula_count(b.scenario.spatulas.len());
-    // Per blade: the keys took it over from its trajectory.
-    let mut taken_over = vec![false; b.scenario.spatulas.len()];
-    let mut scripted = false;
-    let mut failed_logged = false;
-    exit.peak_force_n = vec![0.0; b.state.poses.len()];
-    let mut next = Instant::now();
-    let mut quit = false;
-    let mut background = BackgroundSolve::default();
-    // A cut asked for (the blade): the frame that carries it out says what it cut.
-    let mut cut_asked: Option<usize> = None;
-    // Guards replaced by a rebuild leave their counts here.
-    let mut rejected_before_rebuild = 0u64;
-    let mut tracker_refused_shown = 0u64;
-    // Compliance columns computed in the background: the count last shown.
-    let mut columns_shown: Option<usize> = None;
-    let mut devices = super::devices::Devices::default();
-    'outer: loop {
-        // Commands from the window.
+    let mut run = Run::new(shared, igtl, haptics, options, &built);
+    let mut session = Session::new(built);
+    loop {
+        match session.take_commands(&commands, &mut run) {
+            Commands::Drained => {}
+            Commands::ChangeScene(scenario) => {
+                // A scene change restarts at rest: the history and any recording end here.
+                match build(*scenario, shared) {
+                    Ok(built) => session = run.change_scene(session, built),
+                    Err(e) => *lock(&shared.status) = format!("rebuild failed, keeping the old scene: {e}"),
+                }
+                continue;
+            }
+            Commands::Stop => break,
+        }
+        if run.quit || run.max_frames.is_some_and(|m| session.scene.state.frame >= m) {
+            break;
+        }
+        session.wait_for_window_script(&mut run);
+        let dt = session.take_input(&mut run);
+        session.advance(&mut run);
+        if !run.free_running {
+            session.keep_real_time(dt);
+        }
+    }
+    run.finish(session)
+}
+
+impl<'a> Run<'a> {
+    fn new(
+        shared: &'a SimShared,
+        igtl: Option<Arc<Mutex<IgtlServer>>>,
+        haptics: Option<Arc<ForceOutput>>,
+        options: SimOptions,
+        built: &Built,
+    ) -> Self {
+        let mut keys = KeyboardController::default();
+        keys.set_spatula_count(built.scenario.spatulas.len());
+        let script = Scripted {
+            actions: options.script.into_iter().peekable(),
+            window_times: options.window_script_times.into_iter().peekable(),
+            keys,
+            active: false,
+        };
+        Self {
+            shared,
+            igtl,
+            haptics,
+            max_frames: options.max_frames,
+            free_running: options.free_running,
+            script,
+            devices: super::devices::Devices::default(),
+            background: BackgroundSolve::default(),
+            buffers: FrameBuffers::default(),
+            exit: SimExit::default(),
+            rejected_before: 0,
+            tracker_refused_shown: 0,
+            failed_logged: false,
+            quit: false,
+        }
+    }
+
+    /// Replaces the session with one of the newly built scene; the old one's
+    /// recording closes, its refused poses stay counted.
+    fn change_scene(&mut self, old: Session, built: Built) -> Session {
+        self.rejected_before += old.rejected_poses();
+        drop(old);
+        self.background.forget_scene();
+        self.script.keys.set_spatula_count(built.scenario.spatulas.len());
+        self.shared.recording.store(false, Ordering::Relaxed);
+        Session::new(built)
+    }
+
+    /// Tracker poses the server refused (workspace, speed): says so in the panel when the count grows.
+    fn show_tracker_refusals(&mut self) {
+        if let Some(server) = &self.igtl {
+            let refused = lock(server).stats().poses_refused();
+            if refused > self.tracker_refused_shown {
+                self.tracker_refused_shown = refused;
+                *lock(&self.shared.status) = format!(
+                    "OpenIGTLink: {refused} poses refused (outside the workspace or too fast); the last good pose holds"
+                );
+            }
+        }
+    }
+
+    /// The run's summary, from the last scene.
+    fn finish(mut self, mut session: Session) -> SimExit {
+        let exit = &mut self.exit;
+        exit.rejected_poses = self.rejected_before + session.rejected_poses();
+        exit.peak_force_n = std::mem::take(&mut session.peak_force_n);
+        let b = &mut session.scene;
+        exit.frames = b.state.frame;
+        exit.time_s = b.state.time_s;
+        exit.final_poses = b.state.poses.clone();
+        exit.state_hash = b.pipeline.state_hash(&b.state).unwrap_or_else(|e| {
+            tracing::error!("the final state's hash: {e}");
+            String::new()
+        });
+        if let Some(server) = &self.igtl {
+            let stats = lock(server).stats();
+            exit.tracker_outside_workspace = stats.poses_outside_workspace;
+            exit.tracker_too_fast = stats.poses_too_fast;
+        }
+        if let Some(c) = b.pipeline.collision() {
+            exit.collision_backend = Some(format!("{:?}", c.backend()).to_lowercase());
+            exit.collision_notes = c.warnings().to_vec();
+        }
+        self.exit
+    }
+}
+
+impl Session {
+    /// A session of a scene just built, at rest.
+    fn new(scene: Built) -> Self {
+        let blades = scene.scenario.spatulas.len();
+        Self {
+            guards: scene.state.poses.iter().map(|p| PoseGuard::new(*p, "window")).collect(),
+            history: History::at_rest(&scene.state.poses, records_cuts(&scene.scenario)),
+            recording: None,
+            taken_over: vec![false; blades],
+            cut_asked: None,
+            columns_shown: None,
+            peak_force_n: vec![0.0; scene.state.poses.len()],
+            next_frame: Instant::now(),
+            scene,
+        }
+    }
+
+    fn rejected_poses(&self) -> u64 {
+        self.guards.iter().map(PoseGuard::rejected).sum()
+    }
+
+    /// Handles the window's commands until none is left, one changes the
+    /// scene, or one ends the loop.
+    fn take_commands(&mut self, commands: &Receiver<SimCommand>, run: &mut Run) -> Commands {
         loop {
             let command = match commands.try_recv() {
                 Ok(c) => c,
-                Err(TryRecvError::Empty) => break,
-                Err(TryRecvError::Disconnected) => break 'outer,
+                Err(TryRecvError::Empty) => return Commands::Drained,
+                Err(TryRecvError::Disconnected) => return Commands::Stop,
             };
-            let mut rebuild: Option<Scenario> = None;
             match command {
-                SimCommand::Quit => break 'outer,
+                SimCommand::Quit => return Commands::Stop,
                 SimCommand::EndSession(path) => {
-                    let ended = end_session(&path, recorder.take(), &history, &b, shared);
-                    if let Some(e) = &ended {
-                        exit.recording = Some(e.recording.clone());
-                    }
-                    *lock(&shared.ended) = Some(ended);
-                    break 'outer;
+                    self.end(&path, run);
+                    return Commands::Stop;
                 }
-                SimCommand::StartRecording(path) => match start_recording(&path, &history, b.state.time_s) {
-                    Ok(r) => {
-                        exit.recording = Some(path.clone());
-                        recorder = Some(r);
-                        started(shared, &path);
-                    }
-                    Err(e) => recording_failed(shared, format!("cannot record: {e}")),
-                },
-                SimCommand::StopRecording => stopped(shared, recorder.take()),
-                SimCommand::SetCulling(on) => {
-                    let mut s = b.scenario.clone();
-                    let mut e = EffectSet::default();
-                    for x in s.effects.iter().filter(|x| *x != Effect::Culling) {
-                        e.insert(x);
-                    }
-                    if on {
-                        e.insert(Effect::Culling);
-                    }
-                    s.effects = e;
-                    rebuild = Some(s);
-                }
+                SimCommand::StartRecording(path) => self.start_recording(path, run),
+                SimCommand::StopRecording => stopped(run.shared, self.recording.take()),
+                SimCommand::SetCulling(on) => return Commands::ChangeScene(Box::new(with_culling(&self.scene.scenario, on))),
                 SimCommand::SetBackend(backend) => {
-                    let mut s = b.scenario.clone();
+                    let mut s = self.scene.scenario.clone();
                     s.collision_backend = backend;
-                    rebuild = Some(s);
+                    return Commands::ChangeScene(Box::new(s));
                 }
                 SimCommand::LoadScenario(path) => match Scenario::load(&path, &[]) {
-                    Ok(s) => rebuild = Some(s),
-                    Err(e) => *lock(&shared.status) = format!("cannot load {}: {e}", path.display()),
+                    Ok(s) => return Commands::ChangeScene(Box::new(s)),
+                    Err(e) => *lock(&run.shared.status) = format!("cannot load {}: {e}", path.display()),
                 },
                 SimCommand::ShowStrain(on) => {
-                    background.wanted = on;
-                    background.stress.clear();
+                    run.background.wanted = on;
+                    run.background.stress.clear();
                 }
-                SimCommand::Cut(k) => cut_asked = request_cut(&mut b, k, shared).or(cut_asked),
-            }
-            if let Some(s) = rebuild {
-                // A rebuild restarts at rest: the history and any recording end here.
-                match build(s, shared) {
-                    Ok(nb) => {
-                        b = nb;
-                        // another model: the worker's factor and mesh are stale
-                        background.worker = None;
-                        background.stress.clear();
-                        background.nodes.clear();
-                        rejected_before_rebuild += guards.iter().map(PoseGuard::rejected).sum::<u64>();
-                        guards = b.state.poses.iter().map(|p| PoseGuard::new(*p, "window")).collect();
-                        history = History::at_rest(&b.state.poses, records_cuts(&b.scenario));
-                        taken_over.clear();
-                        script_keys.set_spatula_count(b.scenario.spatulas.len());
-                        recorder = None;
-                        shared.recording.store(false, Ordering::Relaxed);
-                        exit.peak_force_n = vec![0.0; b.state.poses.len()];
-                        next = Instant::now();
-                    }
-                    Err(e) => *lock(&shared.status) = format!("rebuild failed, keeping the old scene: {e}"),
-                }
+                SimCommand::Cut(k) => self.cut(k, run.shared),
             }
         }
-        if quit || options.max_frames.is_some_and(|m| b.state.frame >= m) {
-            break;
+    }
+
+    /// Records to `path` from this frame on: t = 0 now, the session so far
+    /// before it; a recording that cannot start says so in the panel.
+    fn start_recording(&mut self, path: PathBuf, run: &mut Run) {
+        match open_recording(&path, &self.history, self.scene.state.time_s) {
+            Ok(r) => {
+                started(run.shared, &path);
+                run.exit.recording = Some(path);
+                self.recording = Some(r);
+            }
+            Err(e) => recording_failed(run.shared, format!("cannot record: {e}")),
         }
-        // The window's scripted actions due at this frame's time: wait until it has handled them.
-        while let Some(&due) = window_script.peek() {
-            if due > b.state.time_s + 1e-12 {
+    }
+
+    /// Asks for a cut at blade `k`'s tip in the next frame (a cut asked for before it stays if this one cannot be).
+    fn cut(&mut self, k: usize, shared: &SimShared) {
+        self.cut_asked = request_cut(&mut self.scene, k, shared).or(self.cut_asked);
+    }
+
+    /// Ends the session for the debrief ([`SimShared::ended`]).
+    fn end(&mut self, path: &std::path::Path, run: &mut Run) {
+        let ended = end_session(path, self.recording.take(), &self.history, &self.scene, run.shared);
+        if let Some(e) = &ended {
+            run.exit.recording = Some(e.recording.clone());
+        }
+        *lock(&run.shared.ended) = Some(ended);
+    }
+
+    /// The window's scripted actions due at this frame's time: waits until it has handled them.
+    fn wait_for_window_script(&mut self, run: &mut Run) {
+        while let Some(&due) = run.script.window_times.peek() {
+            if due > self.scene.state.time_s + 1e-12 {
                 break;
             }
             let waiting = Instant::now();
-            while !lock(&shared.window_script_done).is_some_and(|done| done >= due - 1e-12) {
+            while !lock(&run.shared.window_script_done).is_some_and(|done| done >= due - 1e-12) {
                 if waiting.elapsed() > WINDOW_SCRIPT_WAIT {
                     tracing::warn!("the window did not handle its scripted action at t = {due} s within {WINDOW_SCRIPT_WAIT:?}; going on");
                     break;
                 }
                 std::thread::sleep(Duration::from_millis(1));
             }
-            window_script.next();
-            next = Instant::now();
+            run.script.window_times.next();
+            self.next_frame = Instant::now();
         }
-        let dt = b.pipeline.time_step();
-        let t_next = b.state.time_s + dt;
-        // Scripted actions due by this frame's time.
-        while let Some((t, _)) = script.peek() {
+    }
+
+    /// The frame's input: the scripted actions due, each blade's pose from its
+    /// binding, the cuts its trajectory asks for. Returns the time step, s.
+    fn take_input(&mut self, run: &mut Run) -> f64 {
+        let dt = self.scene.pipeline.time_step();
+        let t_next = self.scene.state.time_s + dt;
+        self.take_script(t_next, run);
+        self.drive_poses(t_next, dt, run);
+        self.trajectory_cuts(t_next, run.shared);
+        run.show_tracker_refusals();
+        dt
+    }
+
+    /// Scripted actions due by this frame's time `t_next`.
+    fn take_script(&mut self, t_next: f64, run: &mut Run) {
+        while let Some((t, _)) = run.script.actions.peek() {
             if *t > t_next + 1e-12 {
                 break;
             }
-            let Some((_, action)) = script.next() else { break };
-            scripted |= action.is_scripted_key();
+            let Some((_, action)) = run.script.actions.next() else { break };
+            run.script.active |= action.is_scripted_key();
             match action {
-                ScriptAction::Press(key) => script_keys.apply(KeyEvent { key, pressed: true }),
-                ScriptAction::Release(key) => script_keys.apply(KeyEvent { key, pressed: false }),
-                ScriptAction::Record(path) => match start_recording(&path, &history, b.state.time_s) {
-                    Ok(r) => {
-                        started(shared, &path);
-                        exit.recording = Some(path);
-                        recorder = Some(r);
-                    }
-                    Err(e) => recording_failed(shared, format!("cannot record: {e}")),
-                },
-                ScriptAction::Stop => stopped(shared, recorder.take()),
+                ScriptAction::Press(key) => run.script.keys.apply(KeyEvent { key, pressed: true }),
+                ScriptAction::Release(key) => run.script.keys.apply(KeyEvent { key, pressed: false }),
+                ScriptAction::Record(path) => self.start_recording(path, run),
+                ScriptAction::Stop => stopped(run.shared, self.recording.take()),
                 ScriptAction::Cut(blade) => {
-                    let active = if scripted { script_keys.command().spatula } else { lock(&shared.input).keyboard.spatula };
-                    cut_asked = request_cut(&mut b, blade.unwrap_or(active), shared).or(cut_asked);
+                    let active =
+                        if run.script.active { run.script.keys.command().spatula } else { lock(&run.shared.input).keyboard.spatula };
+                    self.cut(blade.unwrap_or(active), run.shared);
                 }
-                ScriptAction::Quit => quit = true,
+                ScriptAction::Quit => run.quit = true,
                 _ => {}
             }
         }
-        // Poses from the bindings.
+    }
+
+    /// Each blade's pose from its binding (keys, gamepad, SpaceMouse, tracker,
+    /// trajectory at `t_next`), as a recording holds it, through its guard.
+    fn drive_poses(&mut self, t_next: f64, dt: f64, run: &mut Run) {
+        let shared = run.shared;
         let live = *lock(&shared.input);
-        let keyboard = if scripted { script_keys.command() } else { live.keyboard };
-        back.scripted_spatula = scripted.then_some(keyboard.spatula);
-        let mouse = devices.poll(&b.scenario, igtl.as_ref(), &shared.status);
-        input.poses.clear();
-        back.drivers.clear();
-        taken_over.resize(b.scenario.spatulas.len(), false);
-        for (k, spatula) in b.scenario.spatulas.iter().enumerate() {
-            let current = b.state.poses.get(k).copied().unwrap_or(spatula.initial_pose);
+        let keyboard = if run.script.active { run.script.keys.command() } else { live.keyboard };
+        let buffers = &mut run.buffers;
+        buffers.back.scripted_spatula = run.script.active.then_some(keyboard.spatula);
+        let mouse = run.devices.poll(&self.scene.scenario, run.igtl.as_ref(), &shared.status);
+        buffers.input.poses.clear();
+        buffers.back.drivers.clear();
+        for (k, spatula) in self.scene.scenario.spatulas.iter().enumerate() {
+            let current = self.scene.state.poses.get(k).copied().unwrap_or(spatula.initial_pose);
             let mut offers = DeviceOffers {
                 keys: (keyboard.spatula == k).then_some(keyboard.velocity),
                 keys_moving: keyboard.moving,
@@ -705,18 +895,18 @@ fn run_loop(
                 }
                 InputBinding::SpaceMouse => mouse.offer(k, &mut offers),
                 InputBinding::OpenIgtLink { device, .. } => {
-                    offers.tracker = igtl.as_ref().and_then(|s| lock(s).latest(device)).map(|t| t.pose);
+                    offers.tracker = run.igtl.as_ref().and_then(|s| lock(s).latest(device)).map(|t| t.pose);
                     BindingKind::Tracker
                 }
                 InputBinding::Trajectory => {
-                    offers.trajectory = b.trajectory.as_ref().and_then(|t| t.sample(k, t_next));
+                    offers.trajectory = self.scene.trajectory.as_ref().and_then(|t| t.sample(k, t_next));
                     BindingKind::Trajectory
                 }
             };
-            let (candidate, driver) = drive(binding, &current, &offers, &mut taken_over[k], dt);
-            back.drivers.push(driver);
+            let (candidate, driver) = drive(binding, &current, &offers, &mut self.taken_over[k], dt);
+            buffers.back.drivers.push(driver);
             let candidate = as_recorded(candidate);
-            let pose = match guards.get_mut(k) {
+            let pose = match self.guards.get_mut(k) {
                 Some(g) => {
                     let pose = g.offer(candidate);
                     if let Some(warning) = g.take_warning() {
@@ -726,113 +916,125 @@ fn run_loop(
                 }
                 None => candidate,
             };
-            input.poses.push(Some(pose));
+            buffers.input.poses.push(Some(pose));
         }
-        // A blade still on its trajectory cuts where the trajectory's rows say (the frame's interval, as a replay).
-        if let Some(t) = b.trajectory.as_ref().filter(|t| t.has_cuts()) {
-            let after = if b.state.frame == 0 { f64::NEG_INFINITY } else { b.state.time_s };
-            let cutting = (0..b.scenario.spatulas.len().min(64))
-                .filter(|&k| matches!(b.scenario.spatulas[k].input, InputBinding::Trajectory) && !taken_over[k] && t.cuts_between(k, after, t_next))
-                .fold(0u64, |mask, k| mask | 1 << k);
-            for k in (0..64).filter(|k| cutting & (1 << k) != 0) {
-                cut_asked = request_cut(&mut b, k, shared).or(cut_asked);
-            }
+    }
+
+    /// A blade still on its trajectory cuts where the trajectory's rows say
+    /// (the frame's interval up to `t_next`, as a replay).
+    fn trajectory_cuts(&mut self, t_next: f64, shared: &SimShared) {
+        let b = &self.scene;
+        let Some(t) = b.trajectory.as_ref().filter(|t| t.has_cuts()) else { return };
+        let after = if b.state.frame == 0 { f64::NEG_INFINITY } else { b.state.time_s };
+        let cutting = (0..b.scenario.spatulas.len().min(64))
+            .filter(|&k| matches!(b.scenario.spatulas[k].input, InputBinding::Trajectory) && !self.taken_over[k] && t.cuts_between(k, after, t_next))
+            .fold(0u64, |mask, k| mask | 1 << k);
+        for k in (0..64).filter(|k| cutting & (1 << k) != 0) {
+            self.cut(k, shared);
         }
-        // Tracker poses the server refused (workspace, speed): say so in the panel when the count grows.
-        if let Some(server) = &igtl {
-            let refused = lock(server).stats().poses_refused();
-            if refused > tracker_refused_shown {
-                tracker_refused_shown = refused;
-                *lock(&shared.status) = format!(
-                    "OpenIGTLink: {refused} poses refused (outside the workspace or too fast); the last good pose holds"
-                );
-            }
-        }
+    }
+
+    /// Steps the pipeline with the frame's input, then records and publishes
+    /// the frame; a failing frame is counted (logged once) and the last state holds.
+    fn advance(&mut self, run: &mut Run) {
         let started = Instant::now();
-        match b.pipeline.step(&mut b.state, &input) {
+        match self.scene.pipeline.step(&mut self.scene.state, &run.buffers.input) {
             Ok(report) => {
                 let report = report.clone();
-                exit.step_ms.push(started.elapsed().as_secs_f64() * 1e3);
-                for (peak, s) in exit.peak_force_n.iter_mut().zip(&report.spatulas) {
-                    *peak = peak.max(s.force.norm());
-                }
-                // The input as it came (before the scenario's pose filter, which
-                // a replay of the recording applies again in the same frames),
-                // or the pose the blade kept where the input was refused.
-                let raw: Vec<Pose> = input.poses.iter().zip(&b.state.poses).map(|(i, s)| i.filter(Pose::is_valid).unwrap_or(*s)).collect();
-                // The blade whose cut this frame carried out: its row says so, and a replay cuts in the same frame.
-                let cut_now = cut_asked;
-                if let Some(r) = recorder.as_mut() {
-                    let t = b.state.time_s - r.origin_s;
-                    if let Some(e) = raw.iter().enumerate().find_map(|(k, p)| r.recorder.record_with_cut(t, k, p, cut_now == Some(k)).err()) {
-                        let path = r.recorder.path().display().to_string();
-                        recording_failed(shared, format!("recording stopped: {e} (the rows before are kept in {path})"));
-                        recorder = None;
-                    }
-                }
-                history.push(b.state.time_s, raw, cut_now);
-                if let Some(h) = &haptics {
-                    let model = HapticModel::of_frame(&b.pipeline, &b.state.poses, &report, &mut scratch);
-                    h.publish(Arc::new(model));
-                }
-                if let Some(k) = cut_asked.take() {
-                    say_what_was_cut(&b, k, &report, shared);
-                }
-                back.capture(&b.pipeline, &b.state, &report, &b.areas);
-                if background.update(&b.pipeline, &b.state, shared) {
-                    back.set_strain(b.pipeline.surface(), &background.stress);
-                    exit.background_strain_frames += 1;
-                }
-                back.set_far_surface(&b.pipeline, &background.nodes);
-                shared.frames.publish(&mut back);
-                match b.pipeline.solver().compliance().fill_progress() {
-                    Some((done, total)) if columns_shown != Some(done) => {
-                        columns_shown = Some(done);
-                        *lock(&shared.status) = format!(
-                            "compliance {done} / {total} columns, the rest in the background (a blade on tissue not yet computed waits for it)"
-                        );
-                    }
-                    None if columns_shown.take().is_some() => *lock(&shared.status) = "compliance complete".into(),
-                    _ => {}
-                }
+                run.exit.step_ms.push(started.elapsed().as_secs_f64() * 1e3);
+                self.record(&report, run);
+                self.publish(&report, run);
             }
             Err(e) => {
-                exit.failed_frames += 1;
-                if !failed_logged {
-                    failed_logged = true;
+                run.exit.failed_frames += 1;
+                if !run.failed_logged {
+                    run.failed_logged = true;
                     tracing::warn!(error = %e, "a simulation frame failed; the last state holds (further failures are counted)");
                 }
-                *lock(&shared.status) = format!("frame failed: {e}");
-            }
-        }
-        if !options.free_running {
-            next += Duration::from_secs_f64(dt);
-            let now = Instant::now();
-            if next > now {
-                std::thread::sleep(next - now);
-            } else if now - next > Duration::from_secs_f64(dt * 5.0) {
-                next = now; // slower than real time: do not try to catch up in a burst
+                *lock(&run.shared.status) = format!("frame failed: {e}");
             }
         }
     }
-    exit.frames = b.state.frame;
-    exit.time_s = b.state.time_s;
-    exit.final_poses = b.state.poses.clone();
-    exit.state_hash = b.pipeline.state_hash(&b.state).unwrap_or_else(|e| {
-        tracing::error!("the final state's hash: {e}");
-        String::new()
-    });
-    exit.rejected_poses = rejected_before_rebuild + guards.iter().map(PoseGuard::rejected).sum::<u64>();
-    if let Some(server) = &igtl {
-        let stats = lock(server).stats();
-        exit.tracker_outside_workspace = stats.poses_outside_workspace;
-        exit.tracker_too_fast = stats.poses_too_fast;
+
+    /// Keeps the frame: the peak forces, the recording's row, the history a later recording starts from.
+    fn record(&mut self, report: &crate::sim::FrameReport, run: &mut Run) {
+        for (peak, s) in self.peak_force_n.iter_mut().zip(&report.spatulas) {
+            *peak = peak.max(s.force.norm());
+        }
+        // The input as it came (before the scenario's pose filter, which
+        // a replay of the recording applies again in the same frames),
+        // or the pose the blade kept where the input was refused.
+        let raw: Vec<Pose> =
+            run.buffers.input.poses.iter().zip(&self.scene.state.poses).map(|(i, s)| i.filter(Pose::is_valid).unwrap_or(*s)).collect();
+        // The blade whose cut this frame carried out: its row says so, and a replay cuts in the same frame.
+        let cut_now = self.cut_asked;
+        if let Some(r) = self.recording.as_mut() {
+            let t = self.scene.state.time_s - r.origin_s;
+            if let Some(e) = raw.iter().enumerate().find_map(|(k, p)| r.recorder.record_with_cut(t, k, p, cut_now == Some(k)).err()) {
+                let path = r.recorder.path().display().to_string();
+                recording_failed(run.shared, format!("recording stopped: {e} (the rows before are kept in {path})"));
+                self.recording = None;
+            }
+        }
+        self.history.push(self.scene.state.time_s, raw, cut_now);
     }
-    if let Some(c) = b.pipeline.collision() {
-        exit.collision_backend = Some(format!("{:?}", c.backend()).to_lowercase());
-        exit.collision_notes = c.warnings().to_vec();
+
+    /// Publishes the frame: the haptic model, the snapshot for the renderer
+    /// (with the background solve's strain and far surface), the status line.
+    fn publish(&mut self, report: &crate::sim::FrameReport, run: &mut Run) {
+        let b = &self.scene;
+        if let Some(h) = &run.haptics {
+            let model = HapticModel::of_frame(&b.pipeline, &b.state.poses, report, &mut run.buffers.haptic_scratch);
+            h.publish(Arc::new(model));
+        }
+        if let Some(k) = self.cut_asked.take() {
+            say_what_was_cut(b, k, report, run.shared);
+        }
+        let back = &mut run.buffers.back;
+        back.capture(&b.pipeline, &b.state, report, &b.areas);
+        if run.background.update(&b.pipeline, &b.state, run.shared) {
+            back.set_strain(b.pipeline.surface(), &run.background.stress);
+            run.exit.background_strain_frames += 1;
+        }
+        back.set_far_surface(&b.pipeline, &run.background.nodes);
+        run.shared.frames.publish(back);
+        match b.pipeline.solver().compliance().fill_progress() {
+            Some((done, total)) if self.columns_shown != Some(done) => {
+                self.columns_shown = Some(done);
+                *lock(&run.shared.status) = format!(
+                    "compliance {done} / {total} columns, the rest in the background (a blade on tissue not yet computed waits for it)"
+                );
+            }
+            None if self.columns_shown.take().is_some() => *lock(&run.shared.status) = "compliance complete".into(),
+            _ => {}
+        }
     }
-    exit
+
+    /// Waits until the next frame is due, `dt` after this one; slower than
+    /// real time, it does not try to catch up in a burst.
+    fn keep_real_time(&mut self, dt: f64) {
+        self.next_frame += Duration::from_secs_f64(dt);
+        let now = Instant::now();
+        if self.next_frame > now {
+            std::thread::sleep(self.next_frame - now);
+        } else if now - self.next_frame > Duration::from_secs_f64(dt * 5.0) {
+            self.next_frame = now;
+        }
+    }
+}
+
+/// The scenario with His-flag culling on or off.
+fn with_culling(scenario: &Scenario, on: bool) -> Scenario {
+    let mut s = scenario.clone();
+    let mut e = EffectSet::default();
+    for x in s.effects.iter().filter(|x| *x != Effect::Culling) {
+        e.insert(x);
+    }
+    if on {
+        e.insert(Effect::Culling);
+    }
+    s.effects = e;
+    s
 }
 
 #[cfg(test)]
@@ -859,7 +1061,7 @@ mod tests {
             history.push(f64::from(frame) * dt, vec![at_x(f64::from(frame) * 1e-3)], None);
         }
         let origin = 30.0 * dt;
-        let mut rec = start_recording(&path, &history, origin).expect("recording starts");
+        let mut rec = open_recording(&path, &history, origin).expect("recording starts");
         for frame in 31..=40u32 {
             let t = f64::from(frame) * dt;
             rec.recorder.record(t - rec.origin_s, 0, &at_x(f64::from(frame) * 1e-3)).expect("row");
@@ -877,7 +1079,7 @@ mod tests {
         assert_eq!(t.sample(0, replay_t).map(|p| p.position.x), Some(0.035), "replay time 0.35 s is the window's frame 35, bit for bit");
         // A folder that does not exist: an error, no panic, nothing created.
         let bad = dir.path().join("missing").join("rec.csv");
-        let e = start_recording(&bad, &history, origin).err().expect("cannot create");
+        let e = open_recording(&bad, &history, origin).err().expect("cannot create");
         assert!(e.contains("missing"), "the error names the file: {e}");
     }
 }
