@@ -17,16 +17,6 @@ fn model(e: f64) -> FemModel {
     FemModel::new(&mesh, &uniform(Material { young_modulus: e, poisson_ratio: 0.45 }), &fixed, &FemOptions::default()).unwrap()
 }
 
-fn all_blocks(c: &Compliance) -> Vec<f64> {
-    let mut v = Vec::new();
-    for col in 0..c.column_count() {
-        for row in 0..c.row_nodes().len() {
-            v.extend(c.block(row, col).iter().copied());
-        }
-    }
-    v
-}
-
 #[test]
 fn reload_is_bitwise_equal_and_corruption_is_rebuilt() {
     let dir = tempfile::tempdir().unwrap();
@@ -37,7 +27,7 @@ fn reload_is_bitwise_equal_and_corruption_is_rebuilt() {
     assert!(!a.stats().from_cache && calls > 1, "first call computes, with progress");
     let b = Compliance::compute(&m, &roi, ComplianceStorage::F64, Some(dir.path()), &mut |_, _| {}).unwrap();
     assert!(b.stats().from_cache, "second call must load the cache");
-    assert_eq!(all_blocks(&a), all_blocks(&b), "reloaded entries must be bitwise equal");
+    assert_eq!(all_block_bits(&a), all_block_bits(&b), "reloaded entries must be bitwise equal");
     // corrupt one byte in the middle of the data
     let file = std::fs::read_dir(dir.path()).unwrap().next().unwrap().unwrap().path();
     let mut bytes = std::fs::read(&file).unwrap();
@@ -46,7 +36,7 @@ fn reload_is_bitwise_equal_and_corruption_is_rebuilt() {
     std::fs::write(&file, &bytes).unwrap();
     let c = Compliance::compute(&m, &roi, ComplianceStorage::F64, Some(dir.path()), &mut |_, _| {}).unwrap();
     assert!(!c.stats().from_cache, "a corrupt cache must be rebuilt, not trusted");
-    assert_eq!(all_blocks(&a), all_blocks(&c));
+    assert_eq!(all_block_bits(&a), all_block_bits(&c));
     // truncated file
     std::fs::write(&file, &bytes[..100]).unwrap();
     let d = Compliance::compute(&m, &roi, ComplianceStorage::F64, Some(dir.path()), &mut |_, _| {}).unwrap();
@@ -64,7 +54,7 @@ fn reload_is_bitwise_equal_and_corruption_is_rebuilt() {
     assert_eq!(f.stats().bytes, a.stats().bytes / 2 + 2 * roi_lower_entries, "f32 halves the storage, plus 2 bytes a ROI x ROI entry");
     let g = Compliance::compute(&m, &roi, ComplianceStorage::F32, Some(dir.path()), &mut |_, _| {}).unwrap();
     assert!(g.stats().from_cache);
-    assert_eq!(all_blocks(&f), all_blocks(&g), "reloaded f32 entries (with their corrections) must be bitwise equal");
+    assert_eq!(all_block_bits(&f), all_block_bits(&g), "reloaded f32 entries (with their corrections) must be bitwise equal");
     // ROI x ROI entries carry their correction: f64 to about 1e-12; the others are f32.
     let (mut worst_roi, mut worst_f32) = (0.0f64, 0.0f64);
     for col in 0..n {
@@ -181,5 +171,5 @@ fn an_unwritable_cache_directory_is_not_an_error() {
     let cached = Compliance::compute(&m, &roi, ComplianceStorage::F64, Some(&blocker.join("cache")), &mut |_, _| {}).unwrap();
     let plain = Compliance::compute(&m, &roi, ComplianceStorage::F64, None, &mut |_, _| {}).unwrap();
     assert!(!cached.stats().from_cache);
-    assert_eq!(all_blocks(&cached), all_blocks(&plain));
+    assert_eq!(all_block_bits(&cached), all_block_bits(&plain));
 }

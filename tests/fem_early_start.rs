@@ -38,16 +38,6 @@ fn options<'a>(storage: ComplianceStorage, reach: &'a [u32], background: bool) -
     ComputeOptions { reach: Some(reach), background, ..ComputeOptions::new(storage) }
 }
 
-fn all_blocks(c: &Compliance) -> Vec<u64> {
-    let mut v = Vec::new();
-    for col in 0..c.column_count() {
-        for row in 0..c.row_nodes().len() {
-            v.extend(c.block(row, col).iter().map(|x| x.to_bits()));
-        }
-    }
-    v
-}
-
 #[test]
 fn a_compliance_read_while_it_fills_equals_one_built_first() {
     let m = model();
@@ -60,7 +50,7 @@ fn a_compliance_read_while_it_fills_equals_one_built_first() {
         let filling = Compliance::compute_with(&m, &roi, options(storage, &reach, true), &mut |d, t| calls.push((d, t))).unwrap();
         assert_eq!(calls, vec![(0, waited.column_count())], "{storage:?}: the build reports no columns and returns");
         // Read at once: each read waits for the columns it needs.
-        assert_eq!(all_blocks(&filling), all_blocks(&waited), "{storage:?}: entries read while filling");
+        assert_eq!(all_block_bits(&filling), all_block_bits(&waited), "{storage:?}: entries read while filling");
         filling.wait_complete().unwrap();
         assert_eq!(filling.fill_progress(), None);
         assert!(filling.stats().compute_seconds > 0.0, "the filling's time is kept");
@@ -151,11 +141,11 @@ fn the_cache_the_background_writes_is_read_at_the_next_start() {
     let written_at = std::fs::metadata(&written[0]).unwrap().len();
     // The next start reads it in the background, batch by batch.
     let second = Compliance::compute_with(&m, &roi, opts(true), &mut |_, _| {}).unwrap();
-    assert_eq!(all_blocks(&second), all_blocks(&first), "read while it loads, equal bit for bit");
+    assert_eq!(all_block_bits(&second), all_block_bits(&first), "read while it loads, equal bit for bit");
     second.wait_complete().unwrap();
     assert!(second.stats().from_cache, "the next start reads it");
     assert_eq!(second.fill_progress(), None, "nothing left to fill");
-    assert_eq!(all_blocks(&second), all_blocks(&first));
+    assert_eq!(all_block_bits(&second), all_block_bits(&first));
     assert_eq!(std::fs::metadata(&written[0]).unwrap().len(), written_at);
 }
 
@@ -232,7 +222,7 @@ fn a_corrupt_batch_is_computed_again_and_the_file_rewritten() {
             let again = Compliance::compute_with(&m, &roi, opts, &mut |_, _| {}).unwrap();
             again.wait_complete().unwrap();
             assert!(!again.stats().from_cache, "{storage:?}: a corrupt batch is not read");
-            assert_eq!(all_blocks(&again), all_blocks(&first), "{storage:?}: the batch computed again equals the one written");
+            assert_eq!(all_block_bits(&again), all_block_bits(&first), "{storage:?}: the batch computed again equals the one written");
             // The rewrite (by the filling thread, in the background) puts the byte back.
             let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
             while std::fs::read(&file).map(|b| b[at] == bytes[at]).unwrap_or(true) && std::time::Instant::now() < deadline {
@@ -240,7 +230,7 @@ fn a_corrupt_batch_is_computed_again_and_the_file_rewritten() {
             }
             let third = Compliance::compute_with(&m, &roi, ComputeOptions { background: false, ..opts }, &mut |_, _| {}).unwrap();
             assert!(third.stats().from_cache, "{storage:?}: the rewritten file is read");
-            assert_eq!(all_blocks(&third), all_blocks(&first));
+            assert_eq!(all_block_bits(&third), all_block_bits(&first));
         }
     }
 }
@@ -276,7 +266,7 @@ fn a_start_that_waits_until_ahead_returns_once_the_rest_keeps_ahead_of_the_blade
     filling.wait_until_ahead(&|_| 0.0, &mut |d, t| seen.push((d, t))).unwrap();
     assert_eq!(filling.fill_progress(), None, "nothing left to fill when every column is due now");
     assert!(seen.windows(2).all(|w| w[0].0 <= w[1].0), "progress only grows: {seen:?}");
-    assert_eq!(all_blocks(&filling), all_blocks(&waited));
+    assert_eq!(all_block_bits(&filling), all_block_bits(&waited));
     // No column ever due: back once the rate is measured (or all is done),
     // and the entries read afterwards are those of the build that waited.
     let filling = Compliance::compute_with(&m, &roi, options(ComplianceStorage::F64, &reach, true), &mut |_, _| {}).unwrap();
@@ -284,7 +274,7 @@ fn a_start_that_waits_until_ahead_returns_once_the_rest_keeps_ahead_of_the_blade
     if let Some((done, total)) = filling.fill_progress() {
         assert!(done > 0 && done < total, "{done} / {total}");
     }
-    assert_eq!(all_blocks(&filling), all_blocks(&waited));
+    assert_eq!(all_block_bits(&filling), all_block_bits(&waited));
     // A compliance built first: at once.
     waited.wait_until_ahead(&|_| 0.0, &mut |_, _| panic!("nothing is filling")).unwrap();
 }

@@ -11,6 +11,8 @@
 //! unit tests; the `cargo fuzz` targets in `fuzz/` run the same entry points.
 
 mod common;
+#[path = "fem_common/mod.rs"]
+mod fem_common;
 
 use fissure::fem::{Compliance, ComplianceStorage, FemModel, FemOptions, Material, RegionMaterials};
 use fissure::fsio::{Cap, read_regular};
@@ -347,16 +349,6 @@ fn small_model() -> FemModel {
     FemModel::new(&mesh, &RegionMaterials { default: m, by_region: vec![] }, &fixed, &FemOptions::default()).expect("model")
 }
 
-fn all_blocks(c: &Compliance) -> Vec<f64> {
-    let mut v = Vec::new();
-    for row in 0..c.row_nodes().len() {
-        for col in 0..c.column_count() {
-            v.extend(c.block(row, col).iter().copied());
-        }
-    }
-    v
-}
-
 fn cache_file(dir: &Path) -> PathBuf {
     let files: Vec<PathBuf> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "bin")).collect();
     assert_eq!(files.len(), 1, "one cache file expected in {}: {files:?}", dir.display());
@@ -371,7 +363,7 @@ fn corrupt_or_missing_compliance_cache_is_rebuilt_not_trusted() {
     let compute = || Compliance::compute(&model, &roi, ComplianceStorage::F64, Some(dir.path()), &mut |_, _| {}).expect("compute");
     let first = compute();
     assert!(!first.stats().from_cache, "no cache yet: computed");
-    let reference = all_blocks(&first);
+    let reference = fem_common::all_block_bits(&first);
     let path = cache_file(dir.path());
     let good_bytes = std::fs::read(&path).unwrap();
     assert!(compute().stats().from_cache, "an intact cache is used");
@@ -391,14 +383,14 @@ fn corrupt_or_missing_compliance_cache_is_rebuilt_not_trusted() {
         std::fs::write(&path, &bytes).unwrap();
         let c = compute();
         assert!(!c.stats().from_cache, "cache with {what} must not be trusted");
-        assert_eq!(all_blocks(&c), reference, "cache with {what}: the rebuilt compliance must equal the original bit for bit");
+        assert_eq!(fem_common::all_block_bits(&c), reference, "cache with {what}: the rebuilt compliance must equal the original bit for bit");
         assert_eq!(std::fs::read(&path).unwrap(), good_bytes, "cache with {what}: the rebuilt file is rewritten intact");
     }
     // Missing: deleted between runs.
     std::fs::remove_file(&path).unwrap();
     let c = compute();
     assert!(!c.stats().from_cache);
-    assert_eq!(all_blocks(&c), reference);
+    assert_eq!(fem_common::all_block_bits(&c), reference);
     assert!(compute().stats().from_cache, "the rewritten cache is used next time");
 }
 
@@ -415,7 +407,7 @@ fn an_unwritable_cache_folder_never_gives_a_wrong_compliance() {
     match c {
         Ok(c) => {
             let direct = Compliance::compute(&model, &roi, ComplianceStorage::F64, None, &mut |_, _| {}).unwrap();
-            assert_eq!(all_blocks(&c), all_blocks(&direct), "the compliance is the same without its cache");
+            assert_eq!(fem_common::all_block_bits(&c), fem_common::all_block_bits(&direct), "the compliance is the same without its cache");
         }
         Err(e) => {
             let msg = e.to_string();

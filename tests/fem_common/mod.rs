@@ -3,7 +3,7 @@
 #![allow(dead_code)]
 
 use fissure::mesh::fixtures::{box_mesh, linspace};
-use fissure::fem::{Material, RegionMaterials};
+use fissure::fem::{Compliance, Material, RegionMaterials};
 use fissure::math::Vec3;
 use fissure::mesh::TetMesh;
 
@@ -32,4 +32,16 @@ pub fn rel_error(a: &[Vec3], b: &[Vec3]) -> f64 {
     assert_eq!(a.len(), b.len(), "compared fields differ in length");
     let diff = a.iter().zip(b).fold(0.0_f64, |m, (x, y)| m.max((x - y).norm()));
     diff / max_norm(b).max(f64::MIN_POSITIVE)
+}
+
+/// Every stored block of a compliance (column by column, every row), as bits: two compliances compare equal only
+/// when every entry is the same bit pattern (0.0 and -0.0 differ, NaN equals itself).
+pub fn all_block_bits(c: &Compliance) -> Vec<u64> {
+    let mut v = Vec::new();
+    for col in 0..c.column_count() {
+        for row in 0..c.row_nodes().len() {
+            v.extend(c.block(row, col).iter().map(|x| x.to_bits()));
+        }
+    }
+    v
 }
