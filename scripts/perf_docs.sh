@@ -227,12 +227,24 @@ mkdir -p "$PERF/replay"
 : > "$PERF/replays.tsv"
 parse_replay() {
     local tag=$1 k=$2 base=$3
-    local logf="$base.log" frames p50 p95 max stages hash integrity wall peak_kb peak cv forces
-    frames=$(grab "$logf" '^.*: \([0-9][0-9]*\) frames (.* s simulated).*$')
-    read -r p50 p95 max < <(awk '$1 == "frame" && $2 == "time" && $3 == "p50" { print $4, $7, $10; exit }' "$logf") || true
-    stages=$(awk '$2 == "p50" && $4 == "ms" && $5 == "p95" { printf "%s%s %s / %s", sep, $1, $3, $6; sep = "; " }' "$logf")
-    hash=$(grab "$logf" '^  final state \([0-9a-f][0-9a-f]*\).*$')
-    if grep -q '^  integrity: pass' "$logf"; then integrity=pass; else integrity=FAIL; fi
+    local frames p50 p95 max stages hash integrity wall peak_kb peak cv forces substeps jumps
+    # The figures as the replay wrote them in summary.json (src/sim/report.rs's types), not as it printed them: a
+    # missing field stops the run naming it.
+    IFS=$'\t' read -r frames p50 p95 max stages hash integrity substeps jumps < <(python3 - "$base/summary.json" <<'PY'
+import json, sys
+try:
+    d = json.load(open(sys.argv[1]))
+    f = d["frame"]
+    stages = "; ".join(f"{name} {s['p50_ms']:.3f} / {s['p95_ms']:.3f}" for name, s in d["stages"])
+    jumps = "/".join(f"{s['p95_force_jump_n']:.4f}" for s in d["spatulas"]) or "-"
+    print("\t".join(str(x) for x in (d["frames"], f"{f['p50_ms']:.3f}", f"{f['p95_ms']:.3f}", f"{f['max_ms']:.3f}", stages,
+                                      d["final_state_hash"], "pass" if d["integrity"]["passed"] else "FAIL", d["max_substeps"], jumps)))
+except (OSError, ValueError, KeyError, TypeError) as e:
+    print(f"{sys.argv[1]}: {type(e).__name__}: {e}", file=sys.stderr)
+    sys.exit(1)
+PY
+) || true
+    [ -n "${p95:-}" ] && [ -n "${hash:-}" ] || die "replay $tag: could not read its figures from $base/summary.json"
     read -r wall peak_kb < <(tail -n 1 "$base.time") || true
     peak=$(awk -v k="$peak_kb" 'BEGIN { if (k == "n/a" || k == "") print "n/a"; else printf "%.0f\n", k / 1024 }')
     read -r cv forces < <(awk -F, '
@@ -244,12 +256,6 @@ parse_replay() {
             t = ""; for (j = 1; j <= m; j++) t = t (j > 1 ? "/" : "") sprintf("%.3f", v[f[j]])
             print (s == "" ? "-" : s), (t == "" ? "-" : t)
         }' "$base/metrics.csv") || true
-    [ -n "$p95" ] && [ -n "$hash" ] || die "replay $tag: could not read its frame times or final state from $logf"
-    # Most sub-steps a frame (1 when the replay says nothing of fast blades) and
-    # each blade's p95 force change from one frame to the next, N.
-    local substeps jumps
-    substeps=$(grab "$logf" '^  fast blades: up to \([0-9][0-9]*\) sub-steps a frame.*$')
-    jumps=$(awk '/: force change from one frame to the next at most/ { printf "%s%s", sep, $(NF - 1); sep = "/" }' "$logf")
     printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' \
         "$tag" "$k" "$frames" "$p50" "$p95" "$max" "$stages" "$wall" "$peak" "$cv" "$forces" "$integrity" "$hash" "${substeps:-1}" "${jumps:--}" >> "$PERF/replays.tsv"
 }
