@@ -46,6 +46,10 @@ pub struct Tether {
 /// a link not made yet is read node by node. A count, not a time, so replays stay bit for bit.
 const COLUMNS_PER_STEP: usize = 1;
 
+/// Most memory the links' columns take together (72 bytes a stored row a link: a real brain's Sylvian scene, 3726
+/// rows, 268 kB a link); links past it are read node by node, as a scene of thousands of vessel segments would be.
+const COLUMNS_MAX_BYTES: usize = 256 << 20;
+
 /// Most nodes a tether row touches (three a tissue end).
 const TERMS: usize = 6;
 
@@ -82,6 +86,8 @@ pub(super) struct TetherSet {
     columns: Vec<Option<TetherColumns>>,
     /// Per link, whether its columns were tried.
     columns_tried: Vec<bool>,
+    /// Bytes of the links' columns made so far (at most [`COLUMNS_MAX_BYTES`]).
+    columns_bytes: usize,
     /// This iteration's pull of each row of a link with columns: (link, `T n`), in row order.
     pub(super) pulls: Vec<(usize, Vec3)>,
 }
@@ -155,6 +161,7 @@ impl ConstrainedSolver {
             tension: vec![0.0; n],
             columns: vec![None; n],
             columns_tried: vec![false; n],
+            columns_bytes: 0,
             pulls: Vec::new(),
         };
         Ok(())
@@ -258,9 +265,17 @@ impl ConstrainedSolver {
                 }
             }
             self.tethers.linear[i] = lin;
-            if !self.tethers.columns_tried[i] && made < COLUMNS_PER_STEP && self.tuning.enabled(Optimisation::TetherColumns) {
+            let bytes = 72 * self.compliance.row_nodes().len();
+            if !self.tethers.columns_tried[i]
+                && made < COLUMNS_PER_STEP
+                && self.tethers.columns_bytes + bytes <= COLUMNS_MAX_BYTES
+                && self.tuning.enabled(Optimisation::TetherColumns)
+            {
                 self.tethers.columns_tried[i] = true;
                 self.tethers.columns[i] = self.make_tether_columns(&link);
+                if self.tethers.columns[i].is_some() {
+                    self.tethers.columns_bytes += bytes;
+                }
                 made += 1;
             }
         }
