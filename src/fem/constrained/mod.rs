@@ -1122,7 +1122,11 @@ impl ConstrainedSolver {
         let mut kept = self.cands.candidate_blocks.borrow_mut();
         kept.prepare(self.frame, self.columns.lazy_generation, &self.sys.nodes, self.sys.nodes_version);
         let base = kept.row(node);
+        for slot in 0..blocks::PREFETCH_AHEAD {
+            kept.prefetch(base, slot);
+        }
         for (slot, f) in self.sys.direct_force.iter().enumerate() {
+            kept.prefetch(base, slot + blocks::PREFETCH_AHEAD);
             if *f != Vec3::zeros() {
                 u += self.kept_block(&mut kept, base, node, slot) * f;
             }
