@@ -136,7 +136,7 @@ impl CandidateBlocks {
 }
 
 /// Slots ahead whose kept block [`CandidateBlocks::prefetch`] asks for: about a memory latency's worth of blocks.
-pub(super) const PREFETCH_AHEAD: usize = 8;
+pub(super) const PREFETCH_AHEAD: usize = 16;
 
 impl CandidateBlocks {
     /// Asks the CPU to bring the block of `slot` in the row at `base` into cache, if the slot exists. The blocks a
