@@ -100,6 +100,28 @@ fn index(x: f64, limit: f64) -> Option<u64> {
 /// Parses a legacy VTK file held in memory; `path` is only used in messages.
 pub fn parse(path: &Path, data: &[u8]) -> Result<TetMesh, MeshFileError> {
     let mut c = Cursor::new(path, data);
+    let (major, binary) = header(&mut c)?;
+    let mut s = Sections { binary, major, ..Sections::default() };
+    while let Some((tok, line)) = c.token() {
+        s.read(&mut c, tok, line)?;
+    }
+    let points = s.points.ok_or_else(|| c.eof("POINTS"))?;
+    let (offsets, conn, cell_places) = s.cells.ok_or_else(|| c.eof("CELLS"))?;
+    let (types, types_line) = s.types.ok_or_else(|| c.eof("CELL_TYPES"))?;
+    s.region_candidates.sort_by_key(|&(rank, _, _)| rank);
+    let regions = s.region_candidates.first().map(|(_, v, line)| (v.as_slice(), Place::line(*line)));
+    let cells = Cells {
+        offsets: &offsets,
+        connectivity: &conn,
+        places: &cell_places,
+        types: &types.data,
+        types_place: Place::line(types_line),
+    };
+    assemble(path, &points.data, &points.places, &cells, regions)
+}
+
+/// The header up to `DATASET UNSTRUCTURED_GRID`: the file's major version and whether its data is binary.
+fn header(c: &mut Cursor<'_>) -> Result<(u8, bool), MeshFileError> {
     let header = c.rest_of_line();
     let Some(version) = header.strip_prefix(b"# vtk DataFile Version ") else {
         return Err(c.err_at(1, K::Expected { expected: "\"# vtk DataFile Version x.y\"".into(), found: shown(header) }));
@@ -108,7 +130,7 @@ pub fn parse(path: &Path, data: &[u8]) -> Result<TetMesh, MeshFileError> {
     if !(1..=5).contains(&major) {
         return Err(c.err_at(1, K::UnsupportedVersion { version: shown(version) }));
     }
-    if c.pos >= data.len() {
+    if c.pos >= c.data.len() {
         return Err(c.eof("a title line"));
     }
     c.rest_of_line();
@@ -123,198 +145,193 @@ pub fn parse(path: &Path, data: &[u8]) -> Result<TetMesh, MeshFileError> {
     if !dataset.eq_ignore_ascii_case(b"UNSTRUCTURED_GRID") {
         return Err(c.err_at(line, K::Unsupported(format!("VTK dataset {} (only UNSTRUCTURED_GRID)", shown(dataset)))));
     }
+    Ok((major, binary))
+}
 
-    let mut points: Option<Values> = None;
-    // Cells as (offsets into connectivity, connectivity), with the place of each cell.
-    let mut cells: Option<(Vec<f64>, Vec<f64>, Vec<Place>)> = None;
-    let mut types: Option<(Values, usize)> = None;
-    let mut region_candidates: Vec<(usize, Vec<f64>, usize)> = Vec::new();
-    let mut attribute_count: u64 = 0;
-    let mut in_cell_data = false;
+/// Cells as (offsets into connectivity, connectivity), with the place of each cell.
+type CellLists = (Vec<f64>, Vec<f64>, Vec<Place>);
 
-    while let Some((tok, line)) = c.token() {
+/// What the sections after the header have given so far.
+#[derive(Default)]
+struct Sections {
+    binary: bool,
+    major: u8,
+    points: Option<Values>,
+    cells: Option<CellLists>,
+    types: Option<(Values, usize)>,
+    /// Cell scalars that may hold the region: (rank in [`REGION_NAMES`], values, line).
+    region_candidates: Vec<(usize, Vec<f64>, usize)>,
+    attribute_count: u64,
+    in_cell_data: bool,
+}
+
+impl Sections {
+    /// Reads the section that keyword `tok` (on `line`) opens.
+    fn read(&mut self, c: &mut Cursor<'_>, tok: &[u8], line: usize) -> Result<(), MeshFileError> {
+        let binary = self.binary;
         let key = tok.to_ascii_uppercase();
         match key.as_slice() {
             b"POINTS" => {
                 let n = c.uint(|| "the number of points".into())?;
                 let ty = c.need("the point data type")?;
-                if binary {
-                    c.skip_line();
-                }
-                let v = values(&mut c, binary, ty, n.saturating_mul(3), "point coordinates", true)?;
-                points = Some(v);
+                self.points = Some(self.block(c, ty, n.saturating_mul(3), "point coordinates", true)?);
             }
-            b"CELLS" => {
-                let a = c.uint(|| "the number of cells".into())?;
-                let b = c.uint(|| "the cell list size".into())?;
-                if major >= 5 {
-                    c.keyword("OFFSETS")?;
-                    let ty = c.need("the offsets data type")?;
-                    if binary {
-                        c.skip_line();
-                    }
-                    let offsets = values(&mut c, binary, ty, a, "cell offsets", true)?;
-                    c.keyword("CONNECTIVITY")?;
-                    let ty = c.need("the connectivity data type")?;
-                    if binary {
-                        c.skip_line();
-                    }
-                    let conn = values(&mut c, binary, ty, b, "cell connectivity", false)?;
-                    let mut places = offsets.places;
-                    places.pop();
-                    cells = Some((offsets.data, conn.data, places));
-                } else {
-                    if binary {
-                        c.skip_line();
-                    }
-                    let list = values(&mut c, binary, (b"int", line), b, "cell list", true)?;
-                    let mut offsets = Vec::with_capacity(capacity(a, list.data.len(), 1) + 1);
-                    let mut conn = Vec::with_capacity(list.data.len());
-                    let mut places = Vec::with_capacity(offsets.capacity());
-                    offsets.push(0.0);
-                    let mut k = 0usize;
-                    for cell in 0..a {
-                        let Some(&npts) = list.data.get(k) else {
-                            return Err(c.err_at(line, K::CountMismatch { what: "cells", announced: a, found: cell }));
-                        };
-                        let place = list.places[k];
-                        let npts = index(npts, 1e9)
-                            .ok_or_else(|| place.error(path, K::Invalid(format!("cell {cell} has {npts} points"))))?
-                            as usize;
-                        let ids = list.data.get(k + 1..k + 1 + npts).ok_or_else(|| {
-                            place.error(path, K::Invalid(format!("cell {cell} runs past the cell list size {b}")))
-                        })?;
-                        conn.extend_from_slice(ids);
-                        offsets.push(conn.len() as f64);
-                        places.push(place);
-                        k += 1 + npts;
-                    }
-                    if k != list.data.len() {
-                        return Err(c.err_at(line, K::Invalid(format!("cell list size {b} but the cells use {k}"))));
-                    }
-                    cells = Some((offsets, conn, places));
-                }
-            }
+            b"CELLS" => self.cells = Some(self.read_cells(c, line)?),
             b"CELL_TYPES" => {
                 let n = c.uint(|| "the number of cell types".into())?;
-                if binary {
-                    c.skip_line();
-                }
-                types = Some((values(&mut c, binary, (b"int", line), n, "cell types", false)?, line));
+                self.types = Some((self.block(c, (b"int", line), n, "cell types", false)?, line));
             }
             b"CELL_DATA" | b"POINT_DATA" => {
-                attribute_count = c.uint(|| "the number of attribute values".into())?;
-                in_cell_data = key == b"CELL_DATA";
+                self.attribute_count = c.uint(|| "the number of attribute values".into())?;
+                self.in_cell_data = key == b"CELL_DATA";
             }
-            b"SCALARS" => {
-                let (name, _) = c.need("a scalar name")?;
-                let ty = c.need("a scalar data type")?;
-                let rest = c.rest_of_line();
-                let ncomp = match rest.split(|b| b.is_ascii_whitespace()).find(|t| !t.is_empty()) {
-                    Some(t) => super::cursor::parse_int(t)
-                        .filter(|&n| (1..=4).contains(&n))
-                        .ok_or_else(|| c.err_at(line, K::BadNumber { token: shown(t), what: "number of components".into() }))?
-                        as u64,
-                    None => 1,
-                };
-                let save = (c.pos, c.line);
-                match c.token() {
-                    Some((t, _)) if t.eq_ignore_ascii_case(b"LOOKUP_TABLE") => {
-                        c.need("a lookup table name")?;
-                        if binary {
-                            c.skip_line();
-                        }
-                    }
-                    _ => (c.pos, c.line) = save,
-                }
-                let what = format!("scalars \"{}\"", shown(name));
-                let v = values(&mut c, binary, ty, attribute_count.saturating_mul(ncomp), &what, false)?;
-                if in_cell_data && ncomp == 1 {
-                    if let Some(rank) = REGION_NAMES.iter().position(|r| r.as_bytes() == name) {
-                        region_candidates.push((rank, v.data, line));
-                    }
-                }
-            }
+            b"SCALARS" => self.read_scalars(c, line)?,
             b"VECTORS" | b"NORMALS" | b"TENSORS" => {
                 c.need("an attribute name")?;
                 let ty = c.need("an attribute data type")?;
-                if binary {
-                    c.skip_line();
-                }
                 let per = if key == b"TENSORS" { 9 } else { 3 };
-                values(&mut c, binary, ty, attribute_count.saturating_mul(per), "attribute values", false)?;
+                self.block(c, ty, self.attribute_count.saturating_mul(per), "attribute values", false)?;
             }
             b"TEXTURE_COORDINATES" => {
                 c.need("an attribute name")?;
                 let dim = c.uint(|| "texture dimension".into())?;
                 let ty = c.need("an attribute data type")?;
-                if binary {
-                    c.skip_line();
-                }
-                values(&mut c, binary, ty, attribute_count.saturating_mul(dim.min(3)), "texture coordinates", false)?;
+                self.block(c, ty, self.attribute_count.saturating_mul(dim.min(3)), "texture coordinates", false)?;
             }
             b"COLOR_SCALARS" => {
                 c.need("an attribute name")?;
                 let per = c.uint(|| "number of colour values".into())?;
                 let ty: &[u8] = if binary { b"unsigned_char" } else { b"float" };
-                if binary {
-                    c.skip_line();
-                }
-                values(&mut c, binary, (ty, line), attribute_count.saturating_mul(per.min(4)), "colours", false)?;
+                self.block(c, (ty, line), self.attribute_count.saturating_mul(per.min(4)), "colours", false)?;
             }
             b"LOOKUP_TABLE" => {
                 c.need("a lookup table name")?;
                 let n = c.uint(|| "lookup table size".into())?;
                 let ty: &[u8] = if binary { b"unsigned_char" } else { b"float" };
-                if binary {
-                    c.skip_line();
-                }
-                values(&mut c, binary, (ty, line), n.saturating_mul(4), "lookup table", false)?;
+                self.block(c, (ty, line), n.saturating_mul(4), "lookup table", false)?;
             }
-            b"FIELD" => {
-                c.need("a field name")?;
-                let arrays = c.uint(|| "number of field arrays".into())?;
-                for _ in 0..arrays {
-                    let (name, _) = c.need("a field array name")?;
-                    let ncomp = c.uint(|| "number of components".into())?;
-                    let tuples = c.uint(|| "number of tuples".into())?;
-                    let ty = c.need("a field array data type")?;
-                    if binary {
-                        c.skip_line();
-                    }
-                    let what = format!("field array \"{}\"", shown(name));
-                    let v = values(&mut c, binary, ty, ncomp.saturating_mul(tuples), &what, false)?;
-                    if in_cell_data && ncomp == 1 {
-                        if let Some(rank) = REGION_NAMES.iter().position(|r| r.as_bytes() == name) {
-                            region_candidates.push((rank, v.data, line));
-                        }
-                    }
-                }
-            }
+            b"FIELD" => self.read_field(c, line)?,
             b"METADATA" => {
                 // Runs to the next blank line.
                 c.skip_line();
-                while c.pos < data.len() && !c.rest_of_line().iter().all(|b| b.is_ascii_whitespace()) {}
+                while c.pos < c.data.len() && !c.rest_of_line().iter().all(|b| b.is_ascii_whitespace()) {}
             }
             _ => {
                 return Err(c.err_at(line, K::Expected { expected: "a VTK section keyword such as POINTS".into(), found: shown(tok) }));
             }
         }
+        Ok(())
     }
 
-    let points = points.ok_or_else(|| c.eof("POINTS"))?;
-    let (offsets, conn, cell_places) = cells.ok_or_else(|| c.eof("CELLS"))?;
-    let (types, types_line) = types.ok_or_else(|| c.eof("CELL_TYPES"))?;
-    region_candidates.sort_by_key(|&(rank, _, _)| rank);
-    let regions = region_candidates.first().map(|(_, v, line)| (v.as_slice(), Place::line(*line)));
-    let cells = Cells {
-        offsets: &offsets,
-        connectivity: &conn,
-        places: &cell_places,
-        types: &types.data,
-        types_place: Place::line(types_line),
-    };
-    assemble(path, &points.data, &points.places, &cells, regions)
+    /// A data block after its header line: binary data starts on the next line.
+    fn block(&self, c: &mut Cursor<'_>, ty: (&[u8], usize), count: u64, what: &str, with_places: bool) -> Result<Values, MeshFileError> {
+        if self.binary {
+            c.skip_line();
+        }
+        values(c, self.binary, ty, count, what, with_places)
+    }
+
+    /// `CELLS`: version 5's OFFSETS and CONNECTIVITY arrays, or the older counted cell list.
+    fn read_cells(&self, c: &mut Cursor<'_>, line: usize) -> Result<CellLists, MeshFileError> {
+        let a = c.uint(|| "the number of cells".into())?;
+        let b = c.uint(|| "the cell list size".into())?;
+        if self.major < 5 {
+            let list = self.block(c, (b"int", line), b, "cell list", true)?;
+            return counted_cells(c, &list, (a, b), line);
+        }
+        c.keyword("OFFSETS")?;
+        let ty = c.need("the offsets data type")?;
+        let offsets = self.block(c, ty, a, "cell offsets", true)?;
+        c.keyword("CONNECTIVITY")?;
+        let ty = c.need("the connectivity data type")?;
+        let conn = self.block(c, ty, b, "cell connectivity", false)?;
+        let mut places = offsets.places;
+        places.pop();
+        Ok((offsets.data, conn.data, places))
+    }
+
+    /// `SCALARS name type [components]`, an optional `LOOKUP_TABLE`, the values; single-component cell scalars
+    /// named as a region are kept.
+    fn read_scalars(&mut self, c: &mut Cursor<'_>, line: usize) -> Result<(), MeshFileError> {
+        let (name, _) = c.need("a scalar name")?;
+        let ty = c.need("a scalar data type")?;
+        let rest = c.rest_of_line();
+        let ncomp = match rest.split(|b| b.is_ascii_whitespace()).find(|t| !t.is_empty()) {
+            Some(t) => super::cursor::parse_int(t)
+                .filter(|&n| (1..=4).contains(&n))
+                .ok_or_else(|| c.err_at(line, K::BadNumber { token: shown(t), what: "number of components".into() }))?
+                as u64,
+            None => 1,
+        };
+        let save = (c.pos, c.line);
+        match c.token() {
+            Some((t, _)) if t.eq_ignore_ascii_case(b"LOOKUP_TABLE") => {
+                c.need("a lookup table name")?;
+                if self.binary {
+                    c.skip_line();
+                }
+            }
+            _ => (c.pos, c.line) = save,
+        }
+        let what = format!("scalars \"{}\"", shown(name));
+        let v = values(c, self.binary, ty, self.attribute_count.saturating_mul(ncomp), &what, false)?;
+        self.keep_region(name, ncomp, v.data, line);
+        Ok(())
+    }
+
+    /// `FIELD name count` and its arrays; single-component cell arrays named as a region are kept.
+    fn read_field(&mut self, c: &mut Cursor<'_>, line: usize) -> Result<(), MeshFileError> {
+        c.need("a field name")?;
+        let arrays = c.uint(|| "number of field arrays".into())?;
+        for _ in 0..arrays {
+            let (name, _) = c.need("a field array name")?;
+            let ncomp = c.uint(|| "number of components".into())?;
+            let tuples = c.uint(|| "number of tuples".into())?;
+            let ty = c.need("a field array data type")?;
+            let what = format!("field array \"{}\"", shown(name));
+            let v = self.block(c, ty, ncomp.saturating_mul(tuples), &what, false)?;
+            self.keep_region(name, ncomp, v.data, line);
+        }
+        Ok(())
+    }
+
+    /// Keeps cell data `name` as a region candidate when it has one component and a region's name.
+    fn keep_region(&mut self, name: &[u8], ncomp: u64, data: Vec<f64>, line: usize) {
+        if self.in_cell_data && ncomp == 1 {
+            if let Some(rank) = REGION_NAMES.iter().position(|r| r.as_bytes() == name) {
+                self.region_candidates.push((rank, data, line));
+            }
+        }
+    }
+}
+
+/// The older cell list (`npts id id ...` for each of `a` cells, `b` numbers) as offsets and connectivity.
+fn counted_cells(c: &Cursor<'_>, list: &Values, (a, b): (u64, u64), line: usize) -> Result<CellLists, MeshFileError> {
+    let path = c.path;
+    let mut offsets = Vec::with_capacity(capacity(a, list.data.len(), 1) + 1);
+    let mut conn = Vec::with_capacity(list.data.len());
+    let mut places = Vec::with_capacity(offsets.capacity());
+    offsets.push(0.0);
+    let mut k = 0usize;
+    for cell in 0..a {
+        let Some(&npts) = list.data.get(k) else {
+            return Err(c.err_at(line, K::CountMismatch { what: "cells", announced: a, found: cell }));
+        };
+        let place = list.places[k];
+        let npts = index(npts, 1e9).ok_or_else(|| place.error(path, K::Invalid(format!("cell {cell} has {npts} points"))))? as usize;
+        let ids = list
+            .data
+            .get(k + 1..k + 1 + npts)
+            .ok_or_else(|| place.error(path, K::Invalid(format!("cell {cell} runs past the cell list size {b}"))))?;
+        conn.extend_from_slice(ids);
+        offsets.push(conn.len() as f64);
+        places.push(place);
+        k += 1 + npts;
+    }
+    if k != list.data.len() {
+        return Err(c.err_at(line, K::Invalid(format!("cell list size {b} but the cells use {k}"))));
+    }
+    Ok((offsets, conn, places))
 }
 
 /// Cells as VTK states them: `offsets` has one more entry than there are cells
