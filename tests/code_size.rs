@@ -35,8 +35,6 @@ const OFFENDERS: &[(&str, &str, usize)] = &[
     ("src/render/renderer.rs", "fn with_device", 195),
     ("src/render/renderer.rs", "fn prepare", 128),
     ("src/scenario/file.rs", "struct ScenarioFile", 23),
-    ("src/scenario/overrides.rs", "fn apply", 101),
-    ("src/scenario/tree.rs", "fn value", 125),
     ("src/scenario/validate.rs", "struct Scenario", 28),
     ("src/sim/barrier.rs", "fn push_rows_from", 108),
     ("src/sim/metrics.rs", "struct Summary", 24),

@@ -222,6 +222,9 @@ fn comments_and_literals_are_blanked_in_place() {
     assert!(!code.contains("crate::"), "{code}");
     assert!(code.contains("fn f<'a>(x: &'a str) {}"), "{code}");
     assert_eq!(code.lines().count(), 2);
+    // byte literals too: an unmatched `b'{'` must not open a block for the function-size count
+    let bytes = String::from_utf8(code_only("match c { b'{' => 1, b'\\'' => 2, _ => 3 } sub'x'")).unwrap();
+    assert_eq!(bytes, "match c { b' ' => 1, b'  ' => 2, _ => 3 } sub'x'");
 }
 
 #[test]

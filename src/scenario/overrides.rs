@@ -88,77 +88,62 @@ impl Document {
                 value_in_argument,
             },
             Lookup::Missing { depth, parent } => {
-                let rest = &path[depth..];
-                let mut keys = Vec::with_capacity(rest.len());
-                for seg in rest {
-                    match seg {
-                        Segment::Key(k) => keys.push(k.as_str()),
-                        Segment::Index(_) => {
-                            return Err(bad(format!(
-                                "`{}` is not in the scenario, so it has no element to index; set the whole field instead",
-                                tree::path_to_string(&path[..depth + 1])
-                            )));
-                        }
-                    }
-                }
-                let NodeKind::Struct { fields, close, .. } = &parent.kind else {
-                    return Err(bad("internal: a missing key outside a struct".into()));
-                };
-                let needs_comma = match fields.last() {
-                    Some(last) => !self.text[last.value.end..*close].contains(','),
-                    None => false,
-                };
-                let mut inserted = String::new();
-                if needs_comma {
-                    inserted.push_str(", ");
-                }
-                for (i, k) in keys.iter().enumerate() {
-                    inserted.push_str(k);
-                    inserted.push_str(": ");
-                    if i + 1 < keys.len() {
-                        inserted.push('(');
-                    }
-                }
-                let value_in_new = inserted.len();
-                inserted.push_str(value);
-                for _ in 1..keys.len() {
-                    inserted.push(')');
-                }
-                inserted.push_str(", ");
-                let at = *close;
-                self.text.insert_str(at, &inserted);
-                self.splices.push(Splice {
-                    at,
-                    old_len: 0,
-                    new_len: inserted.len(),
-                    argument: argument_index,
-                    value_in_new,
-                    value_in_argument,
-                });
+                let inserted = self.missing_field(&path, depth, parent, value).map_err(bad)?;
+                self.splices.push(Splice { argument: argument_index, value_in_argument, ..inserted });
                 self.overrides.push(argument.to_string());
                 return Ok(());
             }
-            Lookup::Mismatch { depth, node } => {
-                let here = tree::path_to_string(&path[..depth]);
-                let here = if here.is_empty() { "the scenario".to_string() } else { format!("`{here}`") };
-                let problem = match (&path[depth], &node.kind) {
-                    (Segment::Index(i), NodeKind::List { items } | NodeKind::Tuple { items, .. }) => {
-                        format!("index {i} is out of range: {here} has {} element(s)", items.len())
-                    }
-                    (Segment::Index(i), _) => format!("{here} is not a list or tuple, so `[{i}]` does not apply"),
-                    (Segment::Key(k), NodeKind::Struct { .. }) => format!("no field `{k}` in {here}"),
-                    (Segment::Key(k), NodeKind::Tuple { name: Some(n), .. }) => {
-                        format!("{here} is `{n}(...)` with positional values; use an index like [0] instead of `.{k}`")
-                    }
-                    (Segment::Key(k), _) => format!("{here} is a single value with no fields, so `.{k}` does not apply"),
-                };
-                return Err(bad(problem));
-            }
+            Lookup::Mismatch { depth, node } => return Err(bad(mismatch_problem(&path, depth, node))),
         };
         self.text.replace_range(splice.at..splice.at + splice.old_len, value);
         self.splices.push(splice);
         self.overrides.push(argument.to_string());
         Ok(())
+    }
+
+    /// Inserts the fields `path[depth..]` that the scenario lacks, nested, with `value` innermost, at the end of
+    /// struct `parent`; returns the splice made (its argument fields for the caller to fill).
+    fn missing_field(&mut self, path: &[Segment], depth: usize, parent: &tree::Node, value: &str) -> Result<Splice, String> {
+        let rest = &path[depth..];
+        let mut keys = Vec::with_capacity(rest.len());
+        for seg in rest {
+            match seg {
+                Segment::Key(k) => keys.push(k.as_str()),
+                Segment::Index(_) => {
+                    return Err(format!(
+                        "`{}` is not in the scenario, so it has no element to index; set the whole field instead",
+                        tree::path_to_string(&path[..depth + 1])
+                    ));
+                }
+            }
+        }
+        let NodeKind::Struct { fields, close, .. } = &parent.kind else {
+            return Err("internal: a missing key outside a struct".into());
+        };
+        let needs_comma = match fields.last() {
+            Some(last) => !self.text[last.value.end..*close].contains(','),
+            None => false,
+        };
+        let mut inserted = String::new();
+        if needs_comma {
+            inserted.push_str(", ");
+        }
+        for (i, k) in keys.iter().enumerate() {
+            inserted.push_str(k);
+            inserted.push_str(": ");
+            if i + 1 < keys.len() {
+                inserted.push('(');
+            }
+        }
+        let value_in_new = inserted.len();
+        inserted.push_str(value);
+        for _ in 1..keys.len() {
+            inserted.push(')');
+        }
+        inserted.push_str(", ");
+        let at = *close;
+        self.text.insert_str(at, &inserted);
+        Ok(Splice { at, old_len: 0, new_len: inserted.len(), argument: 0, value_in_new, value_in_argument: 0 })
     }
 
     /// Where a byte offset of `text` came from.
@@ -202,6 +187,23 @@ impl Document {
             Ok(root) => tree::path_to_string(&root.path_at(offset)),
             Err(_) => String::new(),
         }
+    }
+}
+
+/// Why `path` cannot be followed past `path[..depth]`, where `node` stands.
+fn mismatch_problem(path: &[Segment], depth: usize, node: &tree::Node) -> String {
+    let here = tree::path_to_string(&path[..depth]);
+    let here = if here.is_empty() { "the scenario".to_string() } else { format!("`{here}`") };
+    match (&path[depth], &node.kind) {
+        (Segment::Index(i), NodeKind::List { items } | NodeKind::Tuple { items, .. }) => {
+            format!("index {i} is out of range: {here} has {} element(s)", items.len())
+        }
+        (Segment::Index(i), _) => format!("{here} is not a list or tuple, so `[{i}]` does not apply"),
+        (Segment::Key(k), NodeKind::Struct { .. }) => format!("no field `{k}` in {here}"),
+        (Segment::Key(k), NodeKind::Tuple { name: Some(n), .. }) => {
+            format!("{here} is `{n}(...)` with positional values; use an index like [0] instead of `.{k}`")
+        }
+        (Segment::Key(k), _) => format!("{here} is a single value with no fields, so `.{k}` does not apply"),
     }
 }
 

@@ -234,70 +234,14 @@ impl Parser<'_> {
         match self.peek() {
             None => Err(self.err("expected a value, found the end of the text")),
             Some(b'(') => self.parens(start, None, depth),
-            Some(b'[') => {
-                self.pos += 1;
-                let mut items = Vec::new();
-                loop {
-                    self.skip_ws()?;
-                    if self.peek() == Some(b']') {
-                        self.pos += 1;
-                        break;
-                    }
-                    items.push(self.value(depth + 1)?);
-                    self.skip_ws()?;
-                    match self.peek() {
-                        Some(b',') => self.pos += 1,
-                        Some(b']') => {}
-                        _ => return Err(self.err("expected `,` or `]` in a list")),
-                    }
-                }
-                Ok(Node { kind: NodeKind::List { items }, start, end: self.pos })
-            }
-            Some(b'{') => {
-                self.pos += 1;
-                let mut entries = Vec::new();
-                loop {
-                    self.skip_ws()?;
-                    if self.peek() == Some(b'}') {
-                        self.pos += 1;
-                        break;
-                    }
-                    let key = self.value(depth + 1)?;
-                    self.skip_ws()?;
-                    if self.peek() != Some(b':') {
-                        return Err(self.err("expected `:` in a map"));
-                    }
-                    self.pos += 1;
-                    self.skip_ws()?;
-                    let value = self.value(depth + 1)?;
-                    entries.push((key, value));
-                    self.skip_ws()?;
-                    match self.peek() {
-                        Some(b',') => self.pos += 1,
-                        Some(b'}') => {}
-                        _ => return Err(self.err("expected `,` or `}` in a map")),
-                    }
-                }
-                Ok(Node { kind: NodeKind::Map { entries }, start, end: self.pos })
-            }
+            Some(b'[') => self.list(start, depth),
+            Some(b'{') => self.map(start, depth),
             Some(b'"') => {
                 self.string()?;
                 Ok(Node { kind: NodeKind::Atom, start, end: self.pos })
             }
             Some(b'\'') => {
-                self.pos += 1;
-                loop {
-                    match self.peek() {
-                        None => return Err(self.err("unterminated char")),
-                        Some(b'\\') => self.pos += 2,
-                        Some(b'\'') => {
-                            self.pos += 1;
-                            break;
-                        }
-                        Some(_) => self.pos += 1,
-                    }
-                }
-                self.pos = self.pos.min(self.bytes.len());
+                self.char_literal()?;
                 Ok(Node { kind: NodeKind::Atom, start, end: self.pos })
             }
             Some(c) if c == b'+' || c == b'-' || c == b'.' || c.is_ascii_digit() => {
@@ -337,6 +281,74 @@ impl Parser<'_> {
                 }
             }
         }
+    }
+
+    /// `[a, b, ...]` from its opening bracket.
+    fn list(&mut self, start: usize, depth: usize) -> Result<Node, OutlineError> {
+        self.pos += 1;
+        let mut items = Vec::new();
+        loop {
+            self.skip_ws()?;
+            if self.peek() == Some(b']') {
+                self.pos += 1;
+                break;
+            }
+            items.push(self.value(depth + 1)?);
+            self.skip_ws()?;
+            match self.peek() {
+                Some(b',') => self.pos += 1,
+                Some(b']') => {}
+                _ => return Err(self.err("expected `,` or `]` in a list")),
+            }
+        }
+        Ok(Node { kind: NodeKind::List { items }, start, end: self.pos })
+    }
+
+    /// `{key: value, ...}` from its opening brace.
+    fn map(&mut self, start: usize, depth: usize) -> Result<Node, OutlineError> {
+        self.pos += 1;
+        let mut entries = Vec::new();
+        loop {
+            self.skip_ws()?;
+            if self.peek() == Some(b'}') {
+                self.pos += 1;
+                break;
+            }
+            let key = self.value(depth + 1)?;
+            self.skip_ws()?;
+            if self.peek() != Some(b':') {
+                return Err(self.err("expected `:` in a map"));
+            }
+            self.pos += 1;
+            self.skip_ws()?;
+            let value = self.value(depth + 1)?;
+            entries.push((key, value));
+            self.skip_ws()?;
+            match self.peek() {
+                Some(b',') => self.pos += 1,
+                Some(b'}') => {}
+                _ => return Err(self.err("expected `,` or `}` in a map")),
+            }
+        }
+        Ok(Node { kind: NodeKind::Map { entries }, start, end: self.pos })
+    }
+
+    /// A `'c'` literal from its opening quote.
+    fn char_literal(&mut self) -> Result<(), OutlineError> {
+        self.pos += 1;
+        loop {
+            match self.peek() {
+                None => return Err(self.err("unterminated char")),
+                Some(b'\\') => self.pos += 2,
+                Some(b'\'') => {
+                    self.pos += 1;
+                    break;
+                }
+                Some(_) => self.pos += 1,
+            }
+        }
+        self.pos = self.pos.min(self.bytes.len());
+        Ok(())
     }
 
     fn string(&mut self) -> Result<(), OutlineError> {

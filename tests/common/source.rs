@@ -96,9 +96,11 @@ pub fn code_only(text: &str) -> Vec<u8> {
                 blank(&mut code, i + 1, j);
                 i = j + 1;
             }
-            b'\'' if !before_is_ident => {
+            // a character literal, or a byte literal (`b'{'`), not a lifetime
+            b'\'' if !before_is_ident || (b[i - 1] == b'b' && (i == 1 || !is_ident(b[i - 2]))) => {
                 if b.get(i + 1) == Some(&b'\\') {
-                    let end = b[i + 2..].iter().position(|&c| c == b'\'').map_or(b.len(), |p| i + 2 + p);
+                    // the escaped character may itself be a quote: the literal closes after it
+                    let end = b.get(i + 3..).and_then(|r| r.iter().position(|&c| c == b'\'')).map_or(b.len(), |p| i + 3 + p);
                     blank(&mut code, i + 1, end);
                     i = end + 1;
                 } else {
