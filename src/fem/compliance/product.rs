@@ -33,7 +33,6 @@ impl Compliance {
         let layout = &self.layout;
         // (a chunk is never longer than the rows: off, one chunk holds them all)
         let chunk = workspace.chunk().min(u.len()).max(1);
-        let split_from = workspace.split_from();
         match &self.values {
             Values::F64(d) => {
                 let region = |k: usize| {
@@ -43,7 +42,7 @@ impl Compliance {
                 let t = Instant::now();
                 workspace.gathered = workspace.rows64.prepare(&region, layout, forces, workspace.tuning.enabled(Optimisation::KeptProductRows));
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows64.rows, tuning: workspace.tuning }, u, (&mut workspace.acc, &mut workspace.acc2), chunk, split_from)
+                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows64.rows, tuning: workspace.tuning }, u, &mut workspace.acc, chunk)
             }
             Values::F32(d) => {
                 let region = |k: usize| {
@@ -53,7 +52,7 @@ impl Compliance {
                 let t = Instant::now();
                 workspace.gathered = workspace.rows32.prepare(&region, layout, forces, workspace.tuning.enabled(Optimisation::KeptProductRows));
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows32.rows, tuning: workspace.tuning }, u, (&mut workspace.acc, &mut workspace.acc2), chunk, split_from)
+                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows32.rows, tuning: workspace.tuning }, u, &mut workspace.acc, chunk)
             }
         }
     }
@@ -83,9 +82,8 @@ impl Entry for f32 {
 /// strided read once. Rows of columns no longer forced are reused. With another compliance (key) it starts over.
 #[derive(Debug, Default)]
 pub struct ProductWorkspace {
-    /// Partial sums (9 f64 a row of a chunk), and the second thread's.
+    /// Partial sums (9 f64 a row of a chunk).
     acc: Vec<f64>,
-    acc2: Vec<f64>,
     rows32: RowStore<f32>,
     rows64: RowStore<f64>,
     key: [u8; 32],
@@ -93,8 +91,6 @@ pub struct ProductWorkspace {
     gather_seconds: f64,
     /// Rows a chunk of the product (0: [`ROW_CHUNK`]).
     chunk_rows: usize,
-    /// Bytes read from which the product runs on two threads (0: [`SPLIT_FROM_BYTES`]).
-    split_bytes: usize,
     /// The optimisations the product uses (from when the workspace was made).
     pub(crate) tuning: Tuning,
 }
@@ -110,16 +106,6 @@ impl ProductWorkspace {
     #[doc(hidden)]
     pub fn with_chunk_rows(rows: usize) -> Self {
         Self { chunk_rows: rows.max(1), ..Self::default() }
-    }
-
-    /// A workspace whose product runs on two threads from `bytes` read on (1: always), for tests on small meshes.
-    #[doc(hidden)]
-    pub fn with_split_from(bytes: usize) -> Self {
-        Self { split_bytes: bytes.max(1), ..Self::default() }
-    }
-
-    fn split_from(&self) -> usize {
-        if self.split_bytes != 0 { self.split_bytes } else { SPLIT_FROM_BYTES }
     }
 
     fn chunk(&self) -> usize {
@@ -139,7 +125,7 @@ impl ProductWorkspace {
 
     /// Bytes reserved (partial sums, kept and spare rows): flat once the frames' force sets have been seen.
     pub fn bytes(&self) -> usize {
-        8 * (self.acc.capacity() + self.acc2.capacity()) + self.rows32.bytes() + self.rows64.bytes()
+        8 * self.acc.capacity() + self.rows32.bytes() + self.rows64.bytes()
     }
 }
 
@@ -272,10 +258,6 @@ fn add_scaled_runs<T: Entry, const N: usize>(out: &mut [f64], runs: [&[T]; N], p
     }
 }
 
-/// Bytes a product reads from which it runs on two threads: about 0.1 ms of one core's memory traffic, well above
-/// what waking the second thread costs.
-const SPLIT_FROM_BYTES: usize = 1 << 20;
-
 /// Columns streamed together by the surface product (see [`add_scaled_runs`]).
 const FUSED_COLUMNS: usize = 8;
 
@@ -328,13 +310,10 @@ fn upper_pattern(f: &Vec3) -> [f64; 9] {
 /// from the gathered row of `c` (`rows[k]` for `forces[k]`), likewise with `f[e % 3]`. Rows go in chunks of
 /// [`ROW_CHUNK`] within one component's ROI or other rows; in a chunk, the columns covering all of it stream
 /// together ([`add_columns`]) and those whose diagonal falls inside go one by one, so every row sums its forces
-/// in ascending column order. No fused multiply-add: SIMD and scalar builds give the same bits. Only the rows
-/// `lo..lo + u.len()` are computed (`u[i - lo]` is row i's): a row's sums do not depend on which others run with it.
+/// in ascending column order. No fused multiply-add: SIMD and scalar builds give the same bits.
 #[inline(always)]
-fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, lo: usize, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
+fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
     let Product { region, layout, forces, rows, tuning } = p;
-    let hi = lo + u.len();
-    let clip = |a: usize, b: usize| (a.max(lo), b.min(hi));
     let fused = tuning.enabled(Optimisation::FusedColumns);
     acc.clear();
     acc.resize(9 * chunk, 0.0);
@@ -350,9 +329,9 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
         let fk = &forces[f_lo..f_hi];
         let rows_k = &rows[f_lo..f_hi];
         // Lower part, ROI rows: columns c <= r0 cover the chunk, r0 < c < r1 its rows from c on.
-        let (mut r0, end) = clip(s[0], s[1]);
-        while r0 < end {
-            let r1 = (r0 + chunk).min(end);
+        let mut r0 = s[0];
+        while r0 < s[1] {
+            let r1 = (r0 + chunk).min(s[1]);
             let (len, out) = zeroed_partials(acc, r1 - r0);
             let n_full = fk.partition_point(|f| f.0 <= r0);
             let n_part = fk.partition_point(|f| f.0 < r1);
@@ -370,13 +349,13 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
                 let o = 9 * col_off(c);
                 add_scaled_runs::<T, 1>(&mut out[9 * (c - r0)..], [&v[o..o + 9 * (r1 - c)]], [lower_pattern(&f)]);
             }
-            flush_lower(&mut u[r0 - lo..r1 - lo], out);
+            flush_lower(&mut u[r0..r1], out);
             r0 = r1;
         }
         // Lower part, the component's other rows: every column covers every chunk.
-        let (mut r0, end) = clip(s[2], s[3]);
-        while r0 < end {
-            let r1 = (r0 + chunk).min(end);
+        let mut r0 = s[2];
+        while r0 < s[3] {
+            let r1 = (r0 + chunk).min(s[3]);
             let (len, out) = zeroed_partials(acc, r1 - r0);
             add_columns(
                 out,
@@ -389,20 +368,19 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
                 },
                 |i| lower_pattern(&fk[i].1),
             );
-            flush_lower(&mut u[r0 - lo..r1 - lo], out);
+            flush_lower(&mut u[r0..r1], out);
             r0 = r1;
         }
-        add_upper(fk, rows_k, s[0], (lo, u), acc, chunk, fused);
+        add_upper(fk, rows_k, s[0], u, acc, chunk, fused);
     }
 }
 
-/// The upper part of one component's product (ROI rows `s0 <= i < c` of each forced column `c`) from `rows_k`,
-/// over the rows `lo..lo + u.len()`.
+/// The upper part of one component's product (ROI rows `s0 <= i < c` of each forced column `c`) from `rows_k`.
 #[inline(always)]
-fn add_upper<T: Entry>(fk: &[(usize, Vec3)], rows_k: &[Vec<T>], s0: usize, (lo, u): (usize, &mut [Vec3]), acc: &mut [f64], chunk: usize, fused: bool) {
+fn add_upper<T: Entry>(fk: &[(usize, Vec3)], rows_k: &[Vec<T>], s0: usize, u: &mut [Vec3], acc: &mut [f64], chunk: usize, fused: bool) {
     // Columns r0 < c < r1 cover [r0, c); columns c >= r1 the whole chunk.
-    let top = fk[fk.len() - 1].0.min(lo + u.len());
-    let mut r0 = s0.max(lo);
+    let top = fk[fk.len() - 1].0;
+    let mut r0 = s0;
     while r0 < top {
         let r1 = (r0 + chunk).min(top);
         let (len, out) = zeroed_partials(acc, r1 - r0);
@@ -414,7 +392,7 @@ fn add_upper<T: Entry>(fk: &[(usize, Vec3)], rows_k: &[Vec<T>], s0: usize, (lo, 
         }
         let (fu, ru) = (&fk[n_part..], &rows_k[n_part..]);
         add_columns(out, fu.len(), fused, |i| &ru[i][o..o + len], |i| upper_pattern(&fu[i].1));
-        for (ui, a) in u[r0 - lo..r1 - lo].iter_mut().zip(out.chunks_exact(9)) {
+        for (ui, a) in u[r0..r1].iter_mut().zip(out.chunks_exact(9)) {
             // the transposed blocks: partial e belongs to component e / 3
             *ui += Vec3::new(a[0] + a[1] + a[2], a[3] + a[4] + a[5], a[6] + a[7] + a[8]);
         }
@@ -424,8 +402,8 @@ fn add_upper<T: Entry>(fk: &[(usize, Vec3)], rows_k: &[Vec<T>], s0: usize, (lo, 
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn accumulate_avx2<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, lo: usize, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
-    accumulate_kernel(p, lo, u, acc, chunk)
+unsafe fn accumulate_avx2<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
+    accumulate_kernel(p, u, acc, chunk)
 }
 
 /// What the surface product reads: each component's storage (`region(k)`: its final columns and their first
@@ -447,32 +425,12 @@ impl<R, T> Copy for Product<'_, R, T> {}
 
 /// Dispatches the kernel to an AVX2 build when the CPU has it (runtime detection, no `RUSTFLAGS`); both builds
 /// round identically. (AVX-512 is no faster: the kernel waits on memory.)
-fn accumulate_rows<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, lo: usize, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
+fn accumulate_impl<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") && p.tuning.enabled(Optimisation::Avx2Product) {
         // SAFETY: the CPU supports AVX2 (checked just above).
-        unsafe { accumulate_avx2(p, lo, u, acc, chunk) };
+        unsafe { accumulate_avx2(p, u, acc, chunk) };
         return;
     }
-    accumulate_kernel(p, lo, u, acc, chunk)
-}
-
-/// The product over every row: on two threads, each over half of the rows with its own partial sums, when it reads
-/// at least `split_from` bytes (one core cannot draw the memory a wide contact's product streams; a row's sums are
-/// the same on either thread, so the bits are too), else on this one.
-fn accumulate_impl<'a, T: Entry + Sync + 'a, R: Fn(usize) -> (&'a [T], usize) + Sync>(
-    p: Product<'_, R, T>,
-    u: &mut [Vec3],
-    (acc, acc2): (&mut Vec<f64>, &mut Vec<f64>),
-    chunk: usize,
-    split_from: usize,
-) {
-    let bytes = 9 * std::mem::size_of::<T>() * u.len() * p.forces.len();
-    if p.tuning.enabled(Optimisation::ThreadedProduct) && bytes >= split_from && u.len() >= 2 {
-        let mid = u.len() / 2;
-        let (a, b) = u.split_at_mut(mid);
-        rayon::join(|| accumulate_rows(p, 0, a, acc, chunk), || accumulate_rows(p, mid, b, acc2, chunk));
-    } else {
-        accumulate_rows(p, 0, u, acc, chunk)
-    }
+    accumulate_kernel(p, u, acc, chunk)
 }
