@@ -28,7 +28,6 @@ const OFFENDERS: &[(&str, &str, usize)] = &[
     ("src/collision/backend/gpu.rs", "struct GpuCaster", 40),
     ("src/collision/backend/gpu.rs", "fn new", 223),
     ("src/collision/mod.rs", "fn step", 123),
-    ("src/mesh/io/vtu.rs", "fn parse_with_fields", 157),
     ("src/mesh/tetrahedralize/stuffing.rs", "fn stuff", 125),
     ("src/mesh/trisurface.rs", "fn self_intersections", 103),
     ("src/render/renderer.rs", "struct Renderer", 25),

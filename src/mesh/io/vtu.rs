@@ -166,28 +166,63 @@ pub fn parse(path: &Path, data: &[u8]) -> Result<TetMesh, MeshFileError> {
 /// fields are kept only when every cell is a tetrahedron (so they align with
 /// the mesh's tets); their lengths are checked like the writer's.
 pub fn parse_with_fields(path: &Path, data: &[u8]) -> Result<(TetMesh, FieldData), MeshFileError> {
-    // Appended raw data is not XML: cut it off before parsing.
-    let (xml, appended_tag) = match find(data, b"<AppendedData") {
-        Some(start) => (&data[..start], Some(start)),
-        None => (data, None),
+    let (xml, appended) = split_appended(path, data)?;
+    let mut layout = Layout { endian: Endian::Little, header_bytes: 4, appended };
+    let arrays = read_arrays(path, xml, &mut layout)?;
+    let find_array = |section: &[u8], name: Option<&[u8]>| {
+        arrays.iter().find(|a| a.section == section && name.is_none_or(|n| a.name == n))
     };
-    let mut appended: Option<(&[u8], bool)> = None;
-    if let Some(start) = appended_tag {
-        let tag_end = data[start..].iter().position(|&b| b == b'>').map(|k| start + k);
-        let tag_end = tag_end.ok_or_else(|| MeshFileError::new(path, K::UnexpectedEof { expected: "the end of <AppendedData>".into() }))?;
-        let tag = &data[start..tag_end];
-        let raw = find(tag, b"raw").is_some();
-        let underscore = data[tag_end..].iter().position(|&b| b == b'_').map(|k| tag_end + k + 1);
-        let underscore = underscore
-            .ok_or_else(|| MeshFileError::new(path, K::UnexpectedEof { expected: "the '_' that starts appended data".into() }))?;
-        appended = Some((&data[underscore..], raw));
-    }
+    let missing = |what: &str| MeshFileError::new(path, K::UnexpectedEof { expected: what.into() });
+    let points = find_array(b"Points", None).ok_or_else(|| missing("a Points DataArray"))?;
+    let conn = find_array(b"Cells", Some(b"connectivity")).ok_or_else(|| missing("a connectivity DataArray"))?;
+    let offs = find_array(b"Cells", Some(b"offsets")).ok_or_else(|| missing("an offsets DataArray"))?;
+    let types = find_array(b"Cells", Some(b"types")).ok_or_else(|| missing("a types DataArray"))?;
+    let region = REGION_NAMES.iter().find_map(|r| find_array(b"CellData", Some(r.as_bytes())));
 
+    let point_values = decode_array(path, points, &layout)?;
+    let conn_values = decode_array(path, conn, &layout)?;
+    let mut offsets = vec![0.0];
+    offsets.extend(decode_array(path, offs, &layout)?);
+    let type_values = decode_array(path, types, &layout)?;
+    let region_values = region.map(|r| decode_array(path, r, &layout)).transpose()?;
+    let point_places = vec![Place::line(points.line); point_values.len()];
+    let cells = Cells {
+        offsets: &offsets,
+        connectivity: &conn_values,
+        places: &[],
+        types: &type_values,
+        types_place: Place::line(conn.line),
+    };
+    let regions = region.zip(region_values.as_deref()).map(|(r, v)| (v, Place::line(r.line)));
+    let mesh = assemble(path, &point_values, &point_places, &cells, regions)?;
+    let all_tets = type_values.iter().all(|&t| t == 10.0);
+    let fields = read_fields(path, &arrays, &layout, &mesh, all_tets)?;
+    Ok((mesh, fields))
+}
+
+/// The XML part of the file and its appended raw data (from after the `_` that starts it; whether it is `raw`
+/// rather than base64), if any: appended raw data is not XML, so it is cut off before parsing.
+fn split_appended<'a>(path: &Path, data: &'a [u8]) -> Result<(&'a [u8], Option<(&'a [u8], bool)>), MeshFileError> {
+    let Some(start) = find(data, b"<AppendedData") else {
+        return Ok((data, None));
+    };
+    let tag_end = data[start..].iter().position(|&b| b == b'>').map(|k| start + k);
+    let tag_end = tag_end.ok_or_else(|| MeshFileError::new(path, K::UnexpectedEof { expected: "the end of <AppendedData>".into() }))?;
+    let tag = &data[start..tag_end];
+    let raw = find(tag, b"raw").is_some();
+    let underscore = data[tag_end..].iter().position(|&b| b == b'_').map(|k| tag_end + k + 1);
+    let underscore =
+        underscore.ok_or_else(|| MeshFileError::new(path, K::UnexpectedEof { expected: "the '_' that starts appended data".into() }))?;
+    Ok((&data[..start], Some((&data[underscore..], raw))))
+}
+
+/// Every DataArray of the XML with its section and text; the VTKFile element's byte order and header size go
+/// into `layout`. One Piece, uncompressed.
+fn read_arrays(path: &Path, xml: &[u8], layout: &mut Layout<'_>) -> Result<Vec<ArrayDesc>, MeshFileError> {
     let mut reader = quick_xml::Reader::from_reader(xml);
     let mut stack: Vec<Vec<u8>> = Vec::new();
     let mut arrays: Vec<ArrayDesc> = Vec::new();
     let mut current: Option<ArrayDesc> = None;
-    let mut layout = Layout { endian: Endian::Little, header_bytes: 4, appended };
     let mut pieces = 0usize;
     let mut seen_file = false;
     loop {
@@ -202,19 +237,7 @@ pub fn parse_with_fields(path: &Path, data: &[u8]) -> Result<(TetMesh, FieldData
                 match name.as_slice() {
                     b"VTKFile" => {
                         seen_file = true;
-                        let ty = attr(e, b"type").unwrap_or_default();
-                        if ty != b"UnstructuredGrid" {
-                            return Err(MeshFileError::at_line(path, here(), K::Unsupported(format!("VTK XML type \"{}\" (only UnstructuredGrid)", shown(&ty)))));
-                        }
-                        if attr(e, b"byte_order").as_deref() == Some(b"BigEndian") {
-                            layout.endian = Endian::Big;
-                        }
-                        if attr(e, b"header_type").as_deref() == Some(b"UInt64") {
-                            layout.header_bytes = 8;
-                        }
-                        if attr(e, b"compressor").is_some_and(|c| !c.is_empty()) {
-                            return Err(MeshFileError::at_line(path, here(), K::Unsupported("compressed VTU data (save without compression)".into())));
-                        }
+                        file_attributes(e, layout).map_err(|kind| MeshFileError::at_line(path, here(), kind))?;
                     }
                     b"Piece" => {
                         pieces += 1;
@@ -223,19 +246,7 @@ pub fn parse_with_fields(path: &Path, data: &[u8]) -> Result<(TetMesh, FieldData
                         }
                     }
                     b"DataArray" => {
-                        let desc = ArrayDesc {
-                            section: stack.last().cloned().unwrap_or_default(),
-                            name: attr(e, b"Name").unwrap_or_default(),
-                            ty: attr(e, b"type").unwrap_or_default(),
-                            format: attr(e, b"format").unwrap_or_else(|| b"ascii".to_vec()),
-                            components: attr(e, b"NumberOfComponents")
-                                .and_then(|c| super::cursor::parse_int(&c))
-                                .and_then(|c| usize::try_from(c).ok())
-                                .unwrap_or(1),
-                            offset: attr(e, b"offset").and_then(|o| super::cursor::parse_int(&o)).and_then(|o| usize::try_from(o).ok()),
-                            text: Vec::new(),
-                            line: here(),
-                        };
+                        let desc = array_desc(e, stack.last().cloned().unwrap_or_default(), here());
                         if empty {
                             arrays.push(desc);
                         } else {
@@ -268,35 +279,49 @@ pub fn parse_with_fields(path: &Path, data: &[u8]) -> Result<(TetMesh, FieldData
     if !seen_file {
         return Err(MeshFileError::new(path, K::Expected { expected: "a <VTKFile> element".into(), found: shown(&xml[..xml.len().min(40)]) }));
     }
-    let find_array = |section: &[u8], name: Option<&[u8]>| {
-        arrays.iter().find(|a| a.section == section && name.is_none_or(|n| a.name == n))
-    };
-    let missing = |what: &str| MeshFileError::new(path, K::UnexpectedEof { expected: what.into() });
-    let points = find_array(b"Points", None).ok_or_else(|| missing("a Points DataArray"))?;
-    let conn = find_array(b"Cells", Some(b"connectivity")).ok_or_else(|| missing("a connectivity DataArray"))?;
-    let offs = find_array(b"Cells", Some(b"offsets")).ok_or_else(|| missing("an offsets DataArray"))?;
-    let types = find_array(b"Cells", Some(b"types")).ok_or_else(|| missing("a types DataArray"))?;
-    let region = REGION_NAMES.iter().find_map(|r| find_array(b"CellData", Some(r.as_bytes())));
+    Ok(arrays)
+}
 
-    let point_values = decode_array(path, points, &layout)?;
-    let conn_values = decode_array(path, conn, &layout)?;
-    let mut offsets = vec![0.0];
-    offsets.extend(decode_array(path, offs, &layout)?);
-    let type_values = decode_array(path, types, &layout)?;
-    let region_values = region.map(|r| decode_array(path, r, &layout)).transpose()?;
-    let point_places = vec![Place::line(points.line); point_values.len()];
-    let cells = Cells {
-        offsets: &offsets,
-        connectivity: &conn_values,
-        places: &[],
-        types: &type_values,
-        types_place: Place::line(conn.line),
-    };
-    let regions = region.zip(region_values.as_deref()).map(|(r, v)| (v, Place::line(r.line)));
-    let mesh = assemble(path, &point_values, &point_places, &cells, regions)?;
+/// The VTKFile element: an UnstructuredGrid, uncompressed; its byte order and header size into `layout`.
+fn file_attributes(e: &quick_xml::events::BytesStart<'_>, layout: &mut Layout<'_>) -> Result<(), K> {
+    let ty = attr(e, b"type").unwrap_or_default();
+    if ty != b"UnstructuredGrid" {
+        return Err(K::Unsupported(format!("VTK XML type \"{}\" (only UnstructuredGrid)", shown(&ty))));
+    }
+    if attr(e, b"byte_order").as_deref() == Some(b"BigEndian") {
+        layout.endian = Endian::Big;
+    }
+    if attr(e, b"header_type").as_deref() == Some(b"UInt64") {
+        layout.header_bytes = 8;
+    }
+    if attr(e, b"compressor").is_some_and(|c| !c.is_empty()) {
+        return Err(K::Unsupported("compressed VTU data (save without compression)".into()));
+    }
+    Ok(())
+}
+
+/// A DataArray element's description (its text still to come), in `section`, on `line`.
+fn array_desc(e: &quick_xml::events::BytesStart<'_>, section: Vec<u8>, line: usize) -> ArrayDesc {
+    ArrayDesc {
+        section,
+        name: attr(e, b"Name").unwrap_or_default(),
+        ty: attr(e, b"type").unwrap_or_default(),
+        format: attr(e, b"format").unwrap_or_else(|| b"ascii".to_vec()),
+        components: attr(e, b"NumberOfComponents")
+            .and_then(|c| super::cursor::parse_int(&c))
+            .and_then(|c| usize::try_from(c).ok())
+            .unwrap_or(1),
+        offset: attr(e, b"offset").and_then(|o| super::cursor::parse_int(&o)).and_then(|o| usize::try_from(o).ok()),
+        text: Vec::new(),
+        line,
+    }
+}
+
+/// The point and cell arrays of 1 or 3 components other than the region, checked against the mesh's counts (cell
+/// arrays only when every cell is a tetrahedron).
+fn read_fields(path: &Path, arrays: &[ArrayDesc], layout: &Layout<'_>, mesh: &TetMesh, all_tets: bool) -> Result<FieldData, MeshFileError> {
     let mut fields = FieldData::default();
-    let all_tets = type_values.iter().all(|&t| t == 10.0);
-    for a in &arrays {
+    for a in arrays {
         let list = match a.section.as_slice() {
             b"PointData" => &mut fields.point,
             b"CellData" if all_tets => &mut fields.cell,
@@ -305,7 +330,7 @@ pub fn parse_with_fields(path: &Path, data: &[u8]) -> Result<(TetMesh, FieldData
         if a.components != 1 && a.components != 3 || REGION_NAMES.iter().any(|r| r.as_bytes() == a.name) {
             continue;
         }
-        let v = decode_array(path, a, &layout)?;
+        let v = decode_array(path, a, layout)?;
         let ragged = v.len() % a.components != 0;
         let field = if a.components == 1 {
             Field::Scalar(v)
@@ -320,7 +345,7 @@ pub fn parse_with_fields(path: &Path, data: &[u8]) -> Result<(TetMesh, FieldData
         }
         list.push((String::from_utf8_lossy(&a.name).into_owned(), field));
     }
-    Ok((mesh, fields))
+    Ok(fields)
 }
 
 fn data_array(s: &mut String, ty: &str, name: Option<&str>, components: usize, bytes: &[u8]) {
