@@ -38,8 +38,6 @@ const OFFENDERS: &[(&str, &str, usize)] = &[
     ("src/sim/barrier.rs", "fn push_rows_from", 108),
     ("src/sim/metrics.rs", "struct Summary", 24),
     ("src/sim/pipeline.rs", "struct Pipeline", 37),
-    ("src/sim/pipeline.rs", "fn advance", 101),
-    ("src/sim/replay.rs", "fn replay", 103),
     ("src/study/mod.rs", "fn run_plan_inner", 102),
     ("src/study/output.rs", "fn write_report", 154),
     ("src/study/plan.rs", "fn from_values", 134),

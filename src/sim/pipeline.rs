@@ -621,14 +621,10 @@ impl Pipeline {
         })
     }
 
-    /// One sub-step at the poses in `state`: collision, skull rows, the exact
-    /// solve and surface update, the tunnelling monitor. Saves what
-    /// [`Self::undo_substep`] needs to put the last feasible state back.
-    fn advance(&mut self, state: &mut SimState, frame: u64) -> Result<(), StepError> {
-        self.constraints.clear();
+    /// The sub-step's collision: the rays' targets (claims unless contact slides), then the barrier rows, into
+    /// `constraints`; the per-spatula counts into the report.
+    fn collide(&mut self, state: &SimState, frame: u64) -> Result<(), StepError> {
         let r = &mut self.report;
-
-        // Collision: pairs, culling, enforced displacements.
         if let Some(collision) = &mut self.collision {
             let t = Instant::now();
             collision.save_history(&mut self.saved_history);
@@ -682,6 +678,16 @@ impl Pipeline {
             }
             r.times.add(StageId::Collision, t.elapsed().as_secs_f64());
         }
+        Ok(())
+    }
+
+    /// One sub-step at the poses in `state`: collision, skull rows, the exact
+    /// solve and surface update, the tunnelling monitor. Saves what
+    /// [`Self::undo_substep`] needs to put the last feasible state back.
+    fn advance(&mut self, state: &mut SimState, frame: u64) -> Result<(), StepError> {
+        self.constraints.clear();
+        self.collide(state, frame)?;
+        let r = &mut self.report;
 
         // Skull: unilateral candidate rows.
         if let Some(skull) = &self.skull {

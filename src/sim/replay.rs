@@ -16,6 +16,7 @@ use super::build::BuildOptions;
 use super::error::BuildError;
 use super::metrics::{MetricsWriter, OutputError, Summary, SummaryBuilder, write_summary};
 use super::pipeline::{FrameInput, Pipeline, SimState, StepError};
+use super::report::StageId;
 use crate::mesh::io::{Field, FieldData, save_tet_mesh, write_pvd};
 use crate::scenario::Scenario;
 use std::path::{Path, PathBuf};
@@ -89,20 +90,7 @@ pub fn replay(
     let vessel_names: Option<Vec<String>> = pipeline.tethers().map(|t| t.vessel_names().map(|(n, _)| n.to_string()).collect());
     let columns = super::metrics::EffectColumns { vessels: vessel_names.as_deref(), ischemia: pipeline.ischemia().is_some() };
     let mut writer = MetricsWriter::create_with(&options.out_dir.join("metrics.csv"), &stages, &names, columns)?;
-    let mut summary = SummaryBuilder::new(&scenario.name, &stages, &names).with_limits(scenario.integrity);
-    if let Some(t) = pipeline.tethers() {
-        summary = summary.with_tethers(t.tethers());
-    }
-    if let Some(i) = pipeline.ischemia() {
-        summary = summary.with_ischemia(i.model().mean_arterial_pressure_mmhg);
-    }
-    let cs = pipeline.solver().compliance().stats();
-    summary.set_compliance(super::metrics::ComplianceSummary {
-        rows: cs.rows,
-        surface_vertices: pipeline.surface().vertices.len(),
-        columns: cs.cols,
-        megabytes: cs.bytes as f64 / 1e6,
-    });
+    let mut summary = summary_for(scenario, &pipeline, &stages, &names);
     let total = scenario.step_count();
     let dt = scenario.time_step;
     let mut input = FrameInput::default();
@@ -170,6 +158,26 @@ pub fn replay(
             Ok(result)
         }
     }
+}
+
+/// The summary a replay of `scenario` on `pipeline` fills: its stages, spatulas, integrity limits, tethers,
+/// ischemia and compliance.
+fn summary_for(scenario: &Scenario, pipeline: &Pipeline, stages: &[StageId], names: &[String]) -> SummaryBuilder {
+    let mut summary = SummaryBuilder::new(&scenario.name, stages, names).with_limits(scenario.integrity);
+    if let Some(t) = pipeline.tethers() {
+        summary = summary.with_tethers(t.tethers());
+    }
+    if let Some(i) = pipeline.ischemia() {
+        summary = summary.with_ischemia(i.model().mean_arterial_pressure_mmhg);
+    }
+    let cs = pipeline.solver().compliance().stats();
+    summary.set_compliance(super::metrics::ComplianceSummary {
+        rows: cs.rows,
+        surface_vertices: pipeline.surface().vertices.len(),
+        columns: cs.cols,
+        megabytes: cs.bytes as f64 / 1e6,
+    });
+    summary
 }
 
 /// The per-vertex pressure file a replay writes beside `metrics.csv`.
