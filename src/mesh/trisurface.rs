@@ -127,26 +127,10 @@ impl TriSurface {
             .iter()
             .map(|t| t.iter().all(|&v| (v as usize) < n && is_finite3(&self.positions[v as usize])))
             .collect();
-        let (mut lo, mut hi) = (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY));
-        let mut edge_sum = 0.0;
-        let mut edge_count = 0usize;
-        for (t, tri) in self.triangles.iter().enumerate() {
-            if !valid[t] {
-                continue;
-            }
-            for k in 0..3 {
-                let p = self.positions[tri[k] as usize];
-                lo = lo.inf(&p);
-                hi = hi.sup(&p);
-                edge_sum += (self.positions[tri[(k + 1) % 3] as usize] - p).norm();
-                edge_count += 1;
-            }
-        }
-        if edge_count == 0 {
+        let Some((lo, hi, mean_edge)) = self.bounds_and_mean_edge(&valid) else {
             return found;
-        }
+        };
         let extent = hi - lo;
-        let mean_edge = edge_sum / edge_count as f64;
         let diag = extent.norm().max(f64::MIN_POSITIVE);
         // Cell size: about the mean edge, but at most ~2M cells.
         let mut cell = mean_edge.max(diag * 1e-6);
@@ -218,6 +202,26 @@ impl TriSurface {
         found.dedup();
         found.truncate(limit);
         found
+    }
+
+    /// The bounding box of the `valid` triangles and their mean edge length (`None`: no valid triangle).
+    fn bounds_and_mean_edge(&self, valid: &[bool]) -> Option<(Vec3, Vec3, f64)> {
+        let (mut lo, mut hi) = (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY));
+        let mut edge_sum = 0.0;
+        let mut edge_count = 0usize;
+        for (t, tri) in self.triangles.iter().enumerate() {
+            if !valid[t] {
+                continue;
+            }
+            for k in 0..3 {
+                let p = self.positions[tri[k] as usize];
+                lo = lo.inf(&p);
+                hi = hi.sup(&p);
+                edge_sum += (self.positions[tri[(k + 1) % 3] as usize] - p).norm();
+                edge_count += 1;
+            }
+        }
+        (edge_count > 0).then(|| (lo, hi, edge_sum / edge_count as f64))
     }
 
     /// Volume enclosed by the surface by the divergence theorem (positive when

@@ -379,6 +379,25 @@ fn measured_against(trace: &RunTrace, reference: &Result<(RunTrace, Option<Strin
     m
 }
 
+/// The reference run's row: measured against itself (the comparison marked as the reference), or its error.
+fn reference_row(spec: &RunSpec, reference: &Result<(RunTrace, Option<String>), RunError>, plan: &StudyPlan) -> RunRow {
+    RunRow {
+        knob: None,
+        label: spec.label.clone(),
+        value: spec.value,
+        settings: spec.settings.clone(),
+        outcome: match reference {
+            Ok((t, note)) => {
+                let mut m = measure(t, &plan.motion);
+                m.accuracy = Some(Accuracy { comparison: Comparison::Reference, ..accuracy::compare(t, t, true, &plan.motion) });
+                m.note = note.clone();
+                Ok(m)
+            }
+            Err(e) => Err(e.to_string()),
+        },
+    }
+}
+
 fn run_plan_inner(
     plan: &StudyPlan,
     scene: &Scenario,
@@ -401,21 +420,7 @@ fn run_plan_inner(
     progress(StudyProgress { done: 0, total, label: format!("reference: {}", spec.label) });
     interrupted |= stopped();
     let reference = if interrupted { Err(RunError::Interrupted) } else { reference_trace(scene, spec, plan, &mut meshes, cache) };
-    rows.push(RunRow {
-        knob: None,
-        label: spec.label.clone(),
-        value: spec.value,
-        settings: spec.settings.clone(),
-        outcome: match &reference {
-            Ok((t, note)) => {
-                let mut m = measure(t, &plan.motion);
-                m.accuracy = Some(Accuracy { comparison: Comparison::Reference, ..accuracy::compare(t, t, true, &plan.motion) });
-                m.note = note.clone();
-                Ok(m)
-            }
-            Err(e) => Err(e.to_string()),
-        },
-    });
+    rows.push(reference_row(spec, &reference, plan));
     let mut done = 1;
     let mesh_reference = plan.mesh_reference.as_ref().map(|spec| {
         progress(StudyProgress { done, total, label: format!("mesh reference: {}", spec.label) });
