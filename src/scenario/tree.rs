@@ -241,7 +241,7 @@ impl Parser<'_> {
                 Ok(Node { kind: NodeKind::Atom, start, end: self.pos })
             }
             Some(b'\'') => {
-                self.char_literal()?;
+                self.quoted(b'\'', "unterminated char")?;
                 Ok(Node { kind: NodeKind::Atom, start, end: self.pos })
             }
             Some(c) if c == b'+' || c == b'-' || c == b'.' || c.is_ascii_digit() => {
@@ -333,14 +333,14 @@ impl Parser<'_> {
         Ok(Node { kind: NodeKind::Map { entries }, start, end: self.pos })
     }
 
-    /// A `'c'` literal from its opening quote.
-    fn char_literal(&mut self) -> Result<(), OutlineError> {
+    /// A `"string"` (`quote` `"`) or `'c'` literal (`quote` `'`) from its opening quote, escapes skipped.
+    fn quoted(&mut self, quote: u8, unterminated: &'static str) -> Result<(), OutlineError> {
         self.pos += 1;
         loop {
             match self.peek() {
-                None => return Err(self.err("unterminated char")),
+                None => return Err(self.err(unterminated)),
                 Some(b'\\') => self.pos += 2,
-                Some(b'\'') => {
+                Some(c) if c == quote => {
                     self.pos += 1;
                     break;
                 }
@@ -352,20 +352,7 @@ impl Parser<'_> {
     }
 
     fn string(&mut self) -> Result<(), OutlineError> {
-        self.pos += 1;
-        loop {
-            match self.peek() {
-                None => return Err(self.err("unterminated string")),
-                Some(b'\\') => self.pos += 2,
-                Some(b'"') => {
-                    self.pos += 1;
-                    break;
-                }
-                Some(_) => self.pos += 1,
-            }
-        }
-        self.pos = self.pos.min(self.bytes.len());
-        Ok(())
+        self.quoted(b'"', "unterminated string")
     }
 
     fn raw_string(&mut self) -> Result<(), OutlineError> {

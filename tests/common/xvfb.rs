@@ -16,6 +16,15 @@ impl Drop for Xvfb {
     }
 }
 
+/// Whether display `n` belongs to a running X server: its lock file names a live process. A lock left by a
+/// server that was killed (its process gone) is stale, and Xvfb takes the number over.
+fn display_taken(n: u32) -> bool {
+    match std::fs::read_to_string(format!("/tmp/.X{n}-lock")) {
+        Ok(pid) => pid.trim().parse::<u32>().map_or(true, |pid| Path::new(&format!("/proc/{pid}")).exists()),
+        Err(_) => Path::new(&format!("/tmp/.X11-unix/X{n}")).exists(),
+    }
+}
+
 /// Starts Xvfb on a free display number in `first..first + 50`; None when Xvfb is not installed.
 pub fn start_xvfb(first: u32) -> Option<Xvfb> {
     let found = Command::new("sh").args(["-c", "command -v Xvfb"]).output().ok()?;
@@ -23,7 +32,7 @@ pub fn start_xvfb(first: u32) -> Option<Xvfb> {
         return None;
     }
     for n in first..first + 50 {
-        if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() || Path::new(&format!("/tmp/.X{n}-lock")).exists() {
+        if display_taken(n) {
             continue;
         }
         let display = format!(":{n}");
