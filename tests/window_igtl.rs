@@ -34,9 +34,12 @@ fn a_pyigtl_client_moves_a_spatula_and_the_recording_shows_it() {
     std::fs::write(&script, format!("0.0 record {}\n", recording.display())).expect("script");
     // A pose above the brain (no contact), identity rotation, in millimetres.
     let target = [-120.0, 10.0, 30.0];
+    // A port free now, so that no other server on the machine (the default 18944 included) takes the client.
+    let port = std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).expect("a free loopback port").port();
+    let listen = format!("openigtlink.listen=\"127.0.0.1:{port}\"");
     let window = fissure(dir.path())
         .env("DISPLAY", &x.display)
-        .args(["run", "config/sylvian.ron", "--set", "spatulas[0].input=OpenIgtLink(device: \"Frontal\")"])
+        .args(["run", "config/sylvian.ron", "--set", "spatulas[0].input=OpenIgtLink(device: \"Frontal\")", "--set", &listen])
         .args(["--present-mode", "fifo", "--size", "320x200", "--frames", "800", "--no-haptics", "--script"])
         .arg(&script)
         .stdout(Stdio::piped())
@@ -45,7 +48,7 @@ fn a_pyigtl_client_moves_a_spatula_and_the_recording_shows_it() {
         .expect("start the window");
     let sender = Command::new("python3")
         .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/igtl/stream_pose.py"))
-        .args(["18944", "Frontal"])
+        .args([port.to_string().as_str(), "Frontal"])
         .args(target.map(|v| v.to_string()))
         .arg("30")
         .output()
@@ -54,9 +57,10 @@ fn a_pyigtl_client_moves_a_spatula_and_the_recording_shows_it() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "window run failed:\n{stdout}\n{stderr}");
+    assert!(!stderr.contains("headless instead"), "the window must open under Xvfb, not fall back: {stderr}");
     assert!(
         sender.status.success(),
-        "the pyigtl client must connect and send: {}{}",
+        "the pyigtl client must connect and send: {}{}\nwindow:\n{stdout}\n{stderr}",
         String::from_utf8_lossy(&sender.stdout),
         String::from_utf8_lossy(&sender.stderr)
     );
