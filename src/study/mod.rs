@@ -204,6 +204,8 @@ impl RunRow {
 #[derive(Debug, Clone, PartialEq)]
 pub struct StudyResults {
     pub plan_name: String,
+    /// The settings each sweep changed one knob of ([`StudyPlan::base`]).
+    pub base: plan::Settings,
     /// What the report says about the plan's reference (see [`StudyPlan::notes`]).
     pub notes: Vec<String>,
     /// The motion every run replayed.
@@ -471,6 +473,7 @@ fn run_plan_inner(
     progress(StudyProgress { done: total, total, label: "writing the report".into() });
     let mut results = StudyResults {
         plan_name: plan.name.clone(),
+        base: plan.base.clone(),
         notes: plan.notes.clone(),
         motion: plan.motion,
         scene_name: scene.name.clone(),

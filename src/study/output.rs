@@ -8,7 +8,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::plan::{backend_name, contact_name, refine_label, skull_label, substep_label};
+use super::plan::{backend_name, contact_name, describe_base, refine_label, skull_label, substep_label};
 use super::{Comparison, Knob, RunMeasure, RunRow, StudyError, StudyResults};
 use crate::sim::StageId;
 
@@ -492,9 +492,9 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         m.insert_step_m * 1e3,
         m.open_m * 1e3
     );
+    let _ = write!(t, "Every sweep changes one knob from the base ({}) ", describe_base(&results.base));
     t.push_str(
-        "Every sweep changes one knob from the base (150 grid nodes a face, BVH, culling on, 0.5 blade thicknesses a frame, \
-         f64 compliance, automatic region of interest, sliding contact, sub-steps of 1/8 blade thickness, the skull simulated) and every run is compared with \
+        "and every run is compared with \
          one *reference* run, the finest setting of every knob at once, which no swept run equals. The reference is \
          run once and kept in the cache folder; a later study by the same build with the same scene, mesh, motion and settings reads it back.\n\n\
          - **RMS / max error**: surface displacement vs the reference, mm, at the frames where both runs are at the same \
@@ -515,14 +515,27 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
     for n in &results.notes {
         let _ = writeln!(t, "{n}\n");
     }
+    write_front(&mut t, results);
+    write_beside_paper(&mut t, results);
+    write_sweeps(&mut t, results);
+    t.push_str(
+        "Files: `results.csv` (every number above, one row a run), `pareto`, `knobs`, `budget`, `fig13_collision_vs_nodes`, \
+         `speed_vs_error`, `force_path` (each `.png` and `.svg`).\n",
+    );
+    crate::fsio::write_atomic(path, t.as_bytes()).map_err(|e| io(path)(e.source))?;
+    Ok(path.to_path_buf())
+}
+
+/// The summary, the reference's row and the Pareto front.
+fn write_front(t: &mut String, results: &StudyResults) {
     t.push_str("## Summary\n\n");
-    write_summary(&mut t, results);
+    write_summary(t, results);
     t.push_str("\n![For a frame budget, the most accurate setting](budget.png)\n\n![One panel a knob](knobs.png)\n\n");
 
     t.push_str("## Reference\n\n");
     t.push_str(RUN_TABLE_HEADER);
     for r in results.rows.iter().filter(|r| r.is_reference()).chain(&results.mesh_reference) {
-        run_table_row(&mut t, r);
+        run_table_row(t, r);
     }
     t.push('\n');
 
@@ -545,7 +558,10 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         );
     }
     t.push_str("\n![Pareto front](pareto.png)\n\n");
+}
 
+/// The paper's Fig. 13 and loop time beside ours.
+fn write_beside_paper(t: &mut String, results: &StudyResults) {
     t.push_str("## Beside the paper\n\n");
     t.push_str("| quantity | paper (Fukuhara et al. 2014) | ours |\n|---|---|---|\n");
     // Our backend rows nearest to the paper's 500 nodes a face.
@@ -584,8 +600,8 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         "| collision, 500 nodes a face, {PAPER_TRIANGLES} triangles, GPU (Fig. 13) | {PAPER_COLLISION_GPU_MS:.0} ms (GPU) | {} |",
         ours_for(&[B::Gpu])
     );
-    // The base setting: the 150-node run of the node sweep (else any run).
-    let base = results.rows.iter().find(|r| r.knob == Some(Knob::SourceNodes) && r.settings.nodes_per_face() == 150).or_else(|| results.rows.first());
+    // The base setting's run (a sweep's run at the base), else any run.
+    let base = results.rows.iter().find(|r| r.knob.is_some() && r.settings == results.base).or_else(|| results.rows.first());
     if let Some(base) = base
         && let Some(m) = measure_of(base)
     {
@@ -600,7 +616,10 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         );
     }
     t.push_str("\n![Collision time vs source nodes per backend](fig13_collision_vs_nodes.png)\n\n");
+}
 
+/// A table a swept knob, with what its finest value and the mesh's own reference say.
+fn write_sweeps(t: &mut String, results: &StudyResults) {
     for knob in Knob::ALL {
         let rows: Vec<&RunRow> = results.rows.iter().filter(|r| r.knob == Some(knob)).collect();
         if rows.is_empty() {
@@ -609,21 +628,15 @@ pub fn write_report(results: &StudyResults, path: &Path) -> Result<PathBuf, Stud
         let _ = writeln!(t, "## Sweep: {}\n", knob.name());
         t.push_str(RUN_TABLE_HEADER);
         for r in &rows {
-            run_table_row(&mut t, r);
+            run_table_row(t, r);
         }
-        write_against_finest(&mut t, knob, &rows);
-        write_against_mesh_reference(&mut t, results, &rows);
+        write_against_finest(t, knob, &rows);
+        write_against_mesh_reference(t, results, &rows);
         if knob == Knob::Contact {
             t.push_str("\n![Culling under both contact models](speed_vs_error.png)\n");
         }
         t.push('\n');
     }
-    t.push_str(
-        "Files: `results.csv` (every number above, one row a run), `pareto`, `knobs`, `budget`, `fig13_collision_vs_nodes`, \
-         `speed_vs_error`, `force_path` (each `.png` and `.svg`).\n",
-    );
-    crate::fsio::write_atomic(path, t.as_bytes()).map_err(|e| io(path)(e.source))?;
-    Ok(path.to_path_buf())
 }
 
 #[cfg(test)]
@@ -705,6 +718,7 @@ mod tests {
         let (coarse, fine) = (MeshChoice::Phantom("small".into()), MeshChoice::Phantom("paper-9k".into()));
         let results = StudyResults {
             plan_name: "brain".into(),
+            base: base_settings(coarse.clone()),
             notes: Vec::new(),
             motion: crate::study::Motion::default(),
             scene_name: "scene".into(),

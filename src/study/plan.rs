@@ -217,6 +217,8 @@ pub struct StudyPlan {
     /// Name in the report ("quick", "full", "ci").
     pub name: String,
     pub motion: Motion,
+    /// The settings each sweep changes one knob of.
+    pub base: Settings,
     /// The run every other run is compared with.
     pub reference: RunSpec,
     pub sweeps: Vec<Sweep>,
@@ -289,137 +291,14 @@ impl StudyPlan {
     /// Builds the reference and the sweeps from knob values.
     pub fn from_values(name: &str, motion: Motion, v: &PlanValues) -> StudyPlan {
         let base = &v.base;
-        let mut sweeps = Vec::new();
-        if !v.nodes.is_empty() {
-            let mut runs: Vec<RunSpec> = v
-                .nodes
-                .iter()
-                .map(|&n| RunSpec { label: format!("grid {n}"), value: n as f64, settings: Settings { layout: grid(n), ..base.clone() } })
-                .collect();
-            runs.extend(v.tip_nodes.iter().map(|&n| RunSpec {
-                label: format!("tip {n}"),
-                value: n as f64,
-                settings: Settings { layout: NodeLayout::TipConcentrated { count: n, tip_fraction: 0.3 }, ..base.clone() },
-            }));
-            sweeps.push(Sweep { knob: Knob::SourceNodes, runs });
-        }
-        if v.meshes.len() > 1 {
-            let runs: Vec<RunSpec> = v
-                .meshes
-                .iter()
-                .enumerate()
-                .map(|(k, m)| RunSpec { label: m.label(), value: k as f64, settings: Settings { mesh: m.clone(), ..base.clone() } })
-                .collect();
-            sweeps.push(Sweep { knob: Knob::Mesh, runs });
-        }
-        if !v.speeds.is_empty() {
-            let runs = v
-                .speeds
-                .iter()
-                .map(|&s| RunSpec { label: format!("{s} h/frame"), value: s, settings: Settings { speed: s, ..base.clone() } })
-                .collect();
-            sweeps.push(Sweep { knob: Knob::Speed, runs });
-        }
-        if !v.contact_speeds.is_empty() {
-            let mut runs = Vec::new();
-            for contact in [SpatulaContact::Sliding, SpatulaContact::Unilateral, SpatulaContact::Bilateral] {
-                for culling in [true, false] {
-                    for &s in &v.contact_speeds {
-                        runs.push(RunSpec {
-                            label: format!("{}, culling {}, {s} h/frame", contact_name(contact), if culling { "on" } else { "off" }),
-                            value: s,
-                            settings: Settings { speed: s, culling, contact, ..base.clone() },
-                        });
-                    }
-                }
-            }
-            sweeps.push(Sweep { knob: Knob::Contact, runs });
-        }
-        if !v.substeps.is_empty() {
-            let runs = v
-                .substeps
-                .iter()
-                .map(|&t| RunSpec {
-                    label: substep_label(t),
-                    value: t.unwrap_or(f64::INFINITY),
-                    settings: Settings { speed: v.substep_speed, substep_travel: t, ..base.clone() },
-                })
-                .collect();
-            sweeps.push(Sweep { knob: Knob::Substeps, runs });
-        }
-        if !v.backends.is_empty() {
-            let mut runs = Vec::new();
-            for &n in &v.backend_nodes {
-                for &b in &v.backends {
-                    runs.push(RunSpec {
-                        label: format!("{} {n}", backend_name(b)),
-                        value: n as f64,
-                        settings: Settings { backend: b, layout: grid(n), ..base.clone() },
-                    });
-                }
-            }
-            sweeps.push(Sweep { knob: Knob::Backend, runs });
-        }
-        if v.storage {
-            // Exact f64 against rounded f32: memory and time against accuracy.
-            let runs = [ComplianceStorage::F64, ComplianceStorage::F32]
-                .into_iter()
-                .enumerate()
-                .map(|(k, s)| RunSpec { label: storage_label(s), value: k as f64, settings: Settings { storage: s, ..base.clone() } })
-                .collect();
-            sweeps.push(Sweep { knob: Knob::Storage, runs });
-        }
-        if !v.roi_radii_m.is_empty() {
-            let mut runs: Vec<RunSpec> = v
-                .roi_radii_m
-                .iter()
-                .map(|&r| RunSpec {
-                    label: RoiChoice::Sphere { radius_m: r }.label(),
-                    value: r * 1e3,
-                    settings: Settings { roi: RoiChoice::Sphere { radius_m: r }, ..base.clone() },
-                })
-                .collect();
-            runs.push(RunSpec { label: "auto".into(), value: f64::NAN, settings: Settings { roi: RoiChoice::Auto, ..base.clone() } });
-            runs.push(RunSpec { label: "all".into(), value: f64::INFINITY, settings: Settings { roi: RoiChoice::All, ..base.clone() } });
-            sweeps.push(Sweep { knob: Knob::RegionOfInterest, runs });
-        }
-        if v.skull {
-            let runs = [false, true]
-                .into_iter()
-                .map(|on| RunSpec { label: skull_label(on).into(), value: on as u8 as f64, settings: Settings { skull: on, ..base.clone() } })
-                .collect();
-            sweeps.push(Sweep { knob: Knob::Skull, runs });
-        }
-        if !v.refine.is_empty() {
-            let runs = v
-                .refine
-                .iter()
-                .map(|&r| RunSpec { label: refine_label(r), value: r.unwrap_or(0.0), settings: Settings { refine: r, ..base.clone() } })
-                .collect();
-            sweeps.push(Sweep { knob: Knob::Refine, runs });
-        }
-        let mut notes = Vec::new();
-        if v.reference_backend != CollisionBackend::Reference {
-            notes.push(format!(
-                "The reference collides with `{}` instead of the brute-force `reference` backend, which would take hours here; \
-                 the two give the same triangles bit for bit (tests/collision_backends.rs, the real brains at 2000 nodes a face included).",
-                backend_name(v.reference_backend)
-            ));
-        }
-        if v.reference_roi != RoiChoice::All {
-            notes.push(format!(
-                "The reference's region of interest is `{}`, not the whole surface, whose compliance would not fit in memory; \
-                 the region decides which compliance columns are precomputed and which are solved when first touched, not the answer.",
-                v.reference_roi.label()
-            ));
-        }
+        let sweeps = SWEEPS.iter().filter_map(|sweep| sweep(v)).collect();
         let reference = reference_run(v);
         let mesh_reference = (reference.settings.mesh != base.mesh).then(|| RunSpec {
             label: format!("{}, every other knob as the reference", base.mesh.label()),
             value: f64::NAN,
             settings: Settings { mesh: base.mesh.clone(), ..reference.settings.clone() },
         });
-        StudyPlan { name: name.to_string(), motion, reference, sweeps, notes, mesh_reference }
+        StudyPlan { name: name.to_string(), motion, base: base.clone(), reference, sweeps, notes: reference_notes(v), mesh_reference }
     }
 
     /// Keeps only the sweeps of `knobs` (all when empty); the reference stays.
@@ -433,6 +312,128 @@ impl StudyPlan {
     pub fn run_count(&self) -> usize {
         1 + usize::from(self.mesh_reference.is_some()) + self.sweeps.iter().map(|s| s.runs.len()).sum::<usize>()
     }
+}
+
+/// The sweeps a plan can have, in the report's order; each is `None` where the plan does not sweep its knob.
+const SWEEPS: [fn(&PlanValues) -> Option<Sweep>; 10] =
+    [node_sweep, mesh_sweep, speed_sweep, contact_sweep, substep_sweep, backend_sweep, storage_sweep, roi_sweep, skull_sweep, refine_sweep];
+
+/// A run that changes the base by `change`.
+fn run(v: &PlanValues, label: String, value: f64, change: impl FnOnce(&mut Settings)) -> RunSpec {
+    let mut settings = v.base.clone();
+    change(&mut settings);
+    RunSpec { label, value, settings }
+}
+
+fn sweep(knob: Knob, runs: Vec<RunSpec>) -> Option<Sweep> {
+    (!runs.is_empty()).then_some(Sweep { knob, runs })
+}
+
+/// Grid node counts a face, then tip-concentrated ones.
+fn node_sweep(v: &PlanValues) -> Option<Sweep> {
+    if v.nodes.is_empty() {
+        return None;
+    }
+    let grids = v.nodes.iter().map(|&n| run(v, format!("grid {n}"), n as f64, |s| s.layout = grid(n)));
+    let tips = v.tip_nodes.iter().map(|&n| {
+        run(v, format!("tip {n}"), n as f64, |s| s.layout = NodeLayout::TipConcentrated { count: n, tip_fraction: 0.3 })
+    });
+    sweep(Knob::SourceNodes, grids.chain(tips).collect())
+}
+
+fn mesh_sweep(v: &PlanValues) -> Option<Sweep> {
+    if v.meshes.len() < 2 {
+        return None;
+    }
+    sweep(Knob::Mesh, v.meshes.iter().enumerate().map(|(k, m)| run(v, m.label(), k as f64, |s| s.mesh = m.clone())).collect())
+}
+
+fn speed_sweep(v: &PlanValues) -> Option<Sweep> {
+    sweep(Knob::Speed, v.speeds.iter().map(|&x| run(v, format!("{x} h/frame"), x, |s| s.speed = x)).collect())
+}
+
+/// Every contact model with culling on and off, at each of the contact sweep's speeds.
+fn contact_sweep(v: &PlanValues) -> Option<Sweep> {
+    let mut runs = Vec::new();
+    for contact in [SpatulaContact::Sliding, SpatulaContact::Unilateral, SpatulaContact::Bilateral] {
+        for culling in [true, false] {
+            for &x in &v.contact_speeds {
+                let label = format!("{}, culling {}, {x} h/frame", contact_name(contact), if culling { "on" } else { "off" });
+                runs.push(run(v, label, x, |s| (s.speed, s.culling, s.contact) = (x, culling, contact)));
+            }
+        }
+    }
+    sweep(Knob::Contact, runs)
+}
+
+fn substep_sweep(v: &PlanValues) -> Option<Sweep> {
+    let runs = v.substeps.iter().map(|&t| {
+        run(v, substep_label(t), t.unwrap_or(f64::INFINITY), |s| (s.speed, s.substep_travel) = (v.substep_speed, t))
+    });
+    sweep(Knob::Substeps, runs.collect())
+}
+
+/// Every backend at each of the backend sweep's node counts.
+fn backend_sweep(v: &PlanValues) -> Option<Sweep> {
+    let runs = v.backend_nodes.iter().flat_map(|&n| {
+        v.backends.iter().map(move |&b| run(v, format!("{} {n}", backend_name(b)), n as f64, |s| (s.backend, s.layout) = (b, grid(n))))
+    });
+    sweep(Knob::Backend, runs.collect())
+}
+
+/// Exact f64 against rounded f32: memory and time against accuracy.
+fn storage_sweep(v: &PlanValues) -> Option<Sweep> {
+    let runs = [ComplianceStorage::F64, ComplianceStorage::F32].into_iter().enumerate();
+    v.storage.then(|| Sweep { knob: Knob::Storage, runs: runs.map(|(k, x)| run(v, storage_label(x), k as f64, |s| s.storage = x)).collect() })
+}
+
+/// The swept sphere radii, then the automatic region and the whole surface.
+fn roi_sweep(v: &PlanValues) -> Option<Sweep> {
+    if v.roi_radii_m.is_empty() {
+        return None;
+    }
+    let spheres = v.roi_radii_m.iter().map(|&r| RoiChoice::Sphere { radius_m: r }).map(|roi| (roi.label(), roi_value(roi), roi));
+    let rest = [("auto".to_string(), f64::NAN, RoiChoice::Auto), ("all".to_string(), f64::INFINITY, RoiChoice::All)];
+    sweep(Knob::RegionOfInterest, spheres.chain(rest).map(|(label, value, roi)| run(v, label, value, |s| s.roi = roi)).collect())
+}
+
+fn roi_value(roi: RoiChoice) -> f64 {
+    match roi {
+        RoiChoice::Sphere { radius_m } => radius_m * 1e3,
+        RoiChoice::Auto => f64::NAN,
+        RoiChoice::All => f64::INFINITY,
+    }
+}
+
+fn skull_sweep(v: &PlanValues) -> Option<Sweep> {
+    v.skull.then(|| Sweep {
+        knob: Knob::Skull,
+        runs: [false, true].into_iter().map(|on| run(v, skull_label(on).into(), on as u8 as f64, |s| s.skull = on)).collect(),
+    })
+}
+
+fn refine_sweep(v: &PlanValues) -> Option<Sweep> {
+    sweep(Knob::Refine, v.refine.iter().map(|&r| run(v, refine_label(r), r.unwrap_or(0.0), |s| s.refine = r)).collect())
+}
+
+/// What the report says where the plan's reference is not the finest of every knob.
+fn reference_notes(v: &PlanValues) -> Vec<String> {
+    let mut notes = Vec::new();
+    if v.reference_backend != CollisionBackend::Reference {
+        notes.push(format!(
+            "The reference collides with `{}` instead of the brute-force `reference` backend, which would take hours here; \
+             the two give the same triangles bit for bit (tests/collision_backends.rs, the real brains at 2000 nodes a face included).",
+            backend_name(v.reference_backend)
+        ));
+    }
+    if v.reference_roi != RoiChoice::All {
+        notes.push(format!(
+            "The reference's region of interest is `{}`, not the whole surface, whose compliance would not fit in memory; \
+             the region decides which compliance columns are precomputed and which are solved when first touched, not the answer.",
+            v.reference_roi.label()
+        ));
+    }
+    notes
 }
 
 /// The finest setting of every knob at once: the finest mesh of the family,
@@ -524,6 +525,47 @@ pub fn base_settings(mesh: MeshChoice) -> Settings {
     }
 }
 
+/// The base in words, as the report gives it: "150 grid nodes a face, BVH, culling on, 0.5 blade thicknesses a
+/// frame, f64 compliance, automatic region of interest, sliding contact, sub-steps of 1/8 blade thickness, the skull
+/// simulated" (the mesh and a refinement are named where the base refines).
+pub fn describe_base(s: &Settings) -> String {
+    let layout = match &s.layout {
+        NodeLayout::Grid { .. } => format!("{} grid nodes a face", s.nodes_per_face()),
+        _ => format!("{} nodes a face ({})", s.nodes_per_face(), s.layout_label()),
+    };
+    let roi = match s.roi {
+        RoiChoice::Auto => "automatic region of interest".to_string(),
+        RoiChoice::All => "the whole surface as the region of interest".to_string(),
+        RoiChoice::Sphere { radius_m } => format!("a {:.0} mm sphere as the region of interest", radius_m * 1e3),
+    };
+    let substeps = match s.substep_travel {
+        None => "one step a frame".to_string(),
+        Some(t) if (1.0 / t).fract() == 0.0 && t < 1.0 => format!("sub-steps of 1/{} blade thickness", 1.0 / t),
+        Some(t) => format!("sub-steps of {t} blade thicknesses"),
+    };
+    let mut parts = vec![
+        layout,
+        match s.backend {
+            CollisionBackend::Reference => "brute-force collision",
+            CollisionBackend::Bvh => "BVH",
+            CollisionBackend::Gpu => "GPU",
+            CollisionBackend::Auto => "the automatic backend",
+        }
+        .to_string(),
+        format!("culling {}", if s.culling { "on" } else { "off" }),
+        format!("{} blade thicknesses a frame", s.speed),
+        format!("{} compliance", storage_label(s.storage)),
+        roi,
+        format!("{} contact", contact_name(s.contact)),
+        substeps,
+        if s.skull { "the skull simulated" } else { "no skull" }.to_string(),
+    ];
+    if let Some(e) = s.refine {
+        parts.push(format!("the mesh refined to {e} edges across a blade"));
+    }
+    parts.join(", ")
+}
+
 /// Lower-case backend name.
 pub fn backend_name(b: CollisionBackend) -> &'static str {
     match b {
@@ -556,111 +598,117 @@ pub const FILE_FIX_HEIGHT_M: f64 = 0.010;
 /// matter there. Non-empty `mesh_files` replace any preset's mesh family.
 pub fn preset_plan(preset: super::StudyPreset, mesh_files: &[PathBuf]) -> StudyPlan {
     use super::StudyPreset as P;
-    let all = vec![CollisionBackend::Reference, CollisionBackend::Bvh, CollisionBackend::Gpu];
     let files: Vec<MeshChoice> = mesh_files.iter().map(|path| MeshChoice::File { path: path.clone(), fix_height_m: FILE_FIX_HEIGHT_M }).collect();
-    let phantoms = |names: &[&str]| names.iter().map(|s| MeshChoice::Phantom(s.to_string())).collect::<Vec<_>>();
     let (name, motion, mut values) = match preset {
-        P::Full => (
-            "full",
-            Motion::default(),
-            PlanValues {
-                base: base_settings(MeshChoice::Phantom("paper-12k".into())),
-                nodes: vec![8, 30, 150, 500, 2000],
-                tip_nodes: vec![30, 150],
-                meshes: phantoms(&["small", "paper-9k", "paper-12k"]),
-                speeds: vec![0.25, 0.5, 1.0, 2.0, 5.0],
-                contact_speeds: vec![0.5, 5.0],
-                substeps: vec![None, Some(2.0), Some(1.0), Some(0.5), Some(0.125)],
-                substep_speed: 5.0,
-                backends: all,
-                backend_nodes: vec![30, 150, 500, 2000],
-                storage: true,
-                roi_radii_m: vec![0.015, 0.030, 0.060],
-                skull: true,
-                refine: vec![None, Some(2.0), Some(4.0)],
-                reference_backend: CollisionBackend::Reference,
-                reference_roi: RoiChoice::All,
-            },
-        ),
-        P::Quick => (
-            "quick",
-            Motion::default(),
-            PlanValues {
-                base: base_settings(MeshChoice::Phantom("paper-9k".into())),
-                nodes: vec![8, 30, 150, 500, 2000],
-                tip_nodes: vec![30],
-                meshes: phantoms(&["small", "paper-9k"]),
-                speeds: vec![0.25, 0.5, 1.0, 2.0, 5.0],
-                contact_speeds: vec![0.5, 5.0],
-                substeps: vec![None, Some(2.0), Some(0.5), Some(0.125)],
-                substep_speed: 5.0,
-                backends: all,
-                backend_nodes: vec![30, 150, 500],
-                storage: true,
-                roi_radii_m: vec![0.015, 0.030],
-                skull: true,
-                refine: vec![None, Some(2.0), Some(4.0)],
-                reference_backend: CollisionBackend::Reference,
-                reference_roi: RoiChoice::All,
-            },
-        ),
-        P::Ci => (
-            "ci",
-            // The paper-9k phantom's fissure is 9.4 mm wide: opening 10 mm pushes about 5 mm into the wall.
-            Motion { insert_m: 0.030, insert_step_m: 0.010, open_m: 0.010 },
-            PlanValues {
-                base: base_settings(MeshChoice::Phantom("paper-9k".into())),
-                nodes: vec![8, 150],
-                tip_nodes: Vec::new(),
-                meshes: Vec::new(),
-                speeds: vec![0.5, 5.0],
-                contact_speeds: vec![5.0],
-                substeps: vec![None, Some(0.5)],
-                substep_speed: 5.0,
-                backends: vec![CollisionBackend::Reference, CollisionBackend::Bvh],
-                backend_nodes: vec![30],
-                // Storage and ROI sweeps need extra compliance precomputes: presets only.
-                storage: false,
-                roi_radii_m: Vec::new(),
-                // The reference simulates the skull; its sweep is the presets'.
-                skull: false,
-                // A refined mesh is another compliance precompute: presets only.
-                refine: Vec::new(),
-                reference_backend: CollisionBackend::Reference,
-                reference_roi: RoiChoice::All,
-            },
-        ),
-        P::Brain => (
-            "brain",
-            Motion::default(),
-            PlanValues {
-                base: base_settings(files.first().cloned().unwrap_or(MeshChoice::Scene)),
-                nodes: vec![30, 150, 500, 2000],
-                tip_nodes: Vec::new(),
-                meshes: files.clone(),
-                speeds: vec![0.5, 2.0],
-                contact_speeds: vec![0.5],
-                substeps: vec![None, Some(0.5)],
-                substep_speed: 5.0,
-                // The GPU's figures on the real brains: `fissure bench collision`.
-                backends: Vec::new(),
-                backend_nodes: Vec::new(),
-                storage: false,
-                roi_radii_m: Vec::new(),
-                skull: true,
-                refine: vec![None, Some(4.0)],
-                // Brute force at 2000 nodes a face on 67.7k triangles: seconds a frame.
-                reference_backend: CollisionBackend::Bvh,
-                // The whole surface of a real brain: tens of GB of compliance.
-                reference_roi: RoiChoice::Auto,
-            },
-        ),
+        P::Full => ("full", Motion::default(), full_values()),
+        P::Quick => ("quick", Motion::default(), quick_values()),
+        // The paper-9k phantom's fissure is 9.4 mm wide: opening 10 mm pushes about 5 mm into the wall.
+        P::Ci => ("ci", Motion { insert_m: 0.030, insert_step_m: 0.010, open_m: 0.010 }, ci_values()),
+        P::Brain => ("brain", Motion::default(), brain_values(&files)),
     };
     if !files.is_empty() && preset != P::Brain {
         values.base.mesh = files[0].clone();
         values.meshes = files;
     }
     StudyPlan::from_values(name, motion, &values)
+}
+
+fn phantoms(names: &[&str]) -> Vec<MeshChoice> {
+    names.iter().map(|s| MeshChoice::Phantom(s.to_string())).collect()
+}
+
+/// `full`: the paper-12k phantom, every knob, the three phantom resolutions.
+fn full_values() -> PlanValues {
+    PlanValues {
+        base: base_settings(MeshChoice::Phantom("paper-12k".into())),
+        nodes: vec![8, 30, 150, 500, 2000],
+        tip_nodes: vec![30, 150],
+        meshes: phantoms(&["small", "paper-9k", "paper-12k"]),
+        speeds: vec![0.25, 0.5, 1.0, 2.0, 5.0],
+        contact_speeds: vec![0.5, 5.0],
+        substeps: vec![None, Some(2.0), Some(1.0), Some(0.5), Some(0.125)],
+        substep_speed: 5.0,
+        backends: vec![CollisionBackend::Reference, CollisionBackend::Bvh, CollisionBackend::Gpu],
+        backend_nodes: vec![30, 150, 500, 2000],
+        storage: true,
+        roi_radii_m: vec![0.015, 0.030, 0.060],
+        skull: true,
+        refine: vec![None, Some(2.0), Some(4.0)],
+        reference_backend: CollisionBackend::Reference,
+        reference_roi: RoiChoice::All,
+    }
+}
+
+/// `quick`: the paper-9k phantom, every knob, a few values each.
+fn quick_values() -> PlanValues {
+    PlanValues {
+        base: base_settings(MeshChoice::Phantom("paper-9k".into())),
+        nodes: vec![8, 30, 150, 500, 2000],
+        tip_nodes: vec![30],
+        meshes: phantoms(&["small", "paper-9k"]),
+        speeds: vec![0.25, 0.5, 1.0, 2.0, 5.0],
+        contact_speeds: vec![0.5, 5.0],
+        substeps: vec![None, Some(2.0), Some(0.5), Some(0.125)],
+        substep_speed: 5.0,
+        backends: vec![CollisionBackend::Reference, CollisionBackend::Bvh, CollisionBackend::Gpu],
+        backend_nodes: vec![30, 150, 500],
+        storage: true,
+        roi_radii_m: vec![0.015, 0.030],
+        skull: true,
+        refine: vec![None, Some(2.0), Some(4.0)],
+        reference_backend: CollisionBackend::Reference,
+        reference_roi: RoiChoice::All,
+    }
+}
+
+/// `ci`: the knobs that need no extra compliance precompute, a few values each.
+fn ci_values() -> PlanValues {
+    PlanValues {
+        base: base_settings(MeshChoice::Phantom("paper-9k".into())),
+        nodes: vec![8, 150],
+        tip_nodes: Vec::new(),
+        meshes: Vec::new(),
+        speeds: vec![0.5, 5.0],
+        contact_speeds: vec![5.0],
+        substeps: vec![None, Some(0.5)],
+        substep_speed: 5.0,
+        backends: vec![CollisionBackend::Reference, CollisionBackend::Bvh],
+        backend_nodes: vec![30],
+        // Storage and ROI sweeps need extra compliance precomputes: presets only.
+        storage: false,
+        roi_radii_m: Vec::new(),
+        // The reference simulates the skull; its sweep is the presets'.
+        skull: false,
+        // A refined mesh is another compliance precompute: presets only.
+        refine: Vec::new(),
+        reference_backend: CollisionBackend::Reference,
+        reference_roi: RoiChoice::All,
+    }
+}
+
+/// `brain`: the mesh family from files, coarsest the base, finest the reference.
+fn brain_values(files: &[MeshChoice]) -> PlanValues {
+    PlanValues {
+        base: base_settings(files.first().cloned().unwrap_or(MeshChoice::Scene)),
+        nodes: vec![30, 150, 500, 2000],
+        tip_nodes: Vec::new(),
+        meshes: files.to_vec(),
+        speeds: vec![0.5, 2.0],
+        contact_speeds: vec![0.5],
+        substeps: vec![None, Some(0.5)],
+        substep_speed: 5.0,
+        // The GPU's figures on the real brains: `fissure bench collision`.
+        backends: Vec::new(),
+        backend_nodes: Vec::new(),
+        storage: false,
+        roi_radii_m: Vec::new(),
+        skull: true,
+        refine: vec![None, Some(4.0)],
+        // Brute force at 2000 nodes a face on 67.7k triangles: seconds a frame.
+        reference_backend: CollisionBackend::Bvh,
+        // The whole surface of a real brain: tens of GB of compliance.
+        reference_roi: RoiChoice::Auto,
+    }
 }
 
 /// Short label of a compliance storage: `f64`, `f32`.
@@ -674,6 +722,26 @@ pub fn storage_label(s: ComplianceStorage) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The report's words for the base come from the settings the plan ran: the shipped base reads as it always
+    /// has, and a changed knob changes the words.
+    #[test]
+    fn the_base_is_described_from_its_settings() {
+        let base = base_settings(MeshChoice::Scene);
+        assert_eq!(
+            describe_base(&base),
+            "150 grid nodes a face, BVH, culling on, 0.5 blade thicknesses a frame, f64 compliance, automatic region of interest, \
+             sliding contact, sub-steps of 1/8 blade thickness, the skull simulated"
+        );
+        let other = Settings { culling: false, substep_travel: None, skull: false, refine: Some(4.0), ..base.clone() };
+        let words = describe_base(&other);
+        for expected in ["culling off", "one step a frame", "no skull", "refined to 4 edges across a blade"] {
+            assert!(words.contains(expected), "{expected}: {words}");
+        }
+        for preset in [crate::study::StudyPreset::Quick, crate::study::StudyPreset::Ci] {
+            assert_eq!(preset_plan(preset, &[]).base, base_settings(MeshChoice::Phantom("paper-9k".into())), "{preset:?}");
+        }
+    }
 
     #[test]
     fn the_reference_is_finer_than_every_swept_run_in_every_knob() {
