@@ -59,21 +59,21 @@ fn fig11_culling_keeps_tissue_out_of_the_blade_and_without_it_tissue_is_pulled_t
     let culled: f64 = column(&csv_with, "spatula_culled_pairs").iter().sum();
     println!(
         "Fig. 11: with culling: max crossed {}, culled pairs (sum) {culled}; without: max crossed {}, max displacement {:.2} vs {:.2} mm",
-        with.max_crossed_vertices, without.max_crossed_vertices, with.max_displacement_mm, without.max_displacement_mm
+        with.worst.max_crossed_vertices, without.worst.max_crossed_vertices, with.worst.max_displacement_mm, without.worst.max_displacement_mm
     );
-    assert_eq!(with.max_crossed_vertices, 0, "with culling no surface vertex may be pulled through the spatula");
+    assert_eq!(with.worst.max_crossed_vertices, 0, "with culling no surface vertex may be pulled through the spatula");
     assert!(culled > 0.0, "the one-frame jump must make culling cancel pairs");
-    assert!(without.max_crossed_vertices > 0, "without culling the far wall is pulled through the blade (paper Fig. 11b)");
+    assert!(without.worst.max_crossed_vertices > 0, "without culling the far wall is pulled through the blade (paper Fig. 11b)");
     assert_eq!(column(&csv_without, "spatula_culled_pairs").iter().sum::<f64>(), 0.0);
     // With sub-steps the jump is continuous: nothing is pulled through even without culling.
     let (substepped, _) = run("config/interhemispheric.ron", traj, &["duration_s=2.5", "effects=[Collision, ForceOutput]", claims]);
-    println!("Fig. 11 with sub-steps, no culling: max crossed {}, up to {} sub-steps", substepped.max_crossed_vertices, substepped.max_substeps);
+    println!("Fig. 11 with sub-steps, no culling: max crossed {}, up to {} sub-steps", substepped.worst.max_crossed_vertices, substepped.max_substeps);
     assert!(substepped.max_substeps > 1, "the 5-thickness jump must be split");
-    assert_eq!(substepped.max_crossed_vertices, 0, "sub-steps alone keep the far wall out of the blade");
+    assert_eq!(substepped.worst.max_crossed_vertices, 0, "sub-steps alone keep the far wall out of the blade");
     // Sliding (the default): no claims, so the one-frame jump without culling pulls nothing through either.
     let (sliding, csv_sliding) = run("config/interhemispheric.ron", traj, &["duration_s=2.5", "effects=[Collision, ForceOutput]", "solver.substep_travel=None"]);
     assert!(column(&csv_sliding, "spatula_force_n").iter().any(|&f| f > 0.0), "the sliding blade must push the wall");
-    assert_eq!(sliding.max_crossed_vertices, 0, "sliding contact pulls no vertex through the blade");
+    assert_eq!(sliding.worst.max_crossed_vertices, 0, "sliding contact pulls no vertex through the blade");
 }
 
 #[test]
@@ -82,11 +82,11 @@ fn fig12_v_valley_both_faces_push_and_culling_cancels_none() {
     let (s, csv) = run("config/v_valley.ron", "assets/trajectories/paper_fig12_v_valley.csv", &["solver.spatula_contact=Unilateral"]);
     let culled: f64 = column(&csv, "spatula_culled_pairs").iter().sum();
     let feasible = column(&csv, "spatula_feasible_pairs");
-    println!("Fig. 12 V: final feasible pairs {}, culled total {culled}, max displacement {:.2} mm", feasible.last().unwrap(), s.max_displacement_mm);
+    println!("Fig. 12 V: final feasible pairs {}, culled total {culled}, max displacement {:.2} mm", feasible.last().unwrap(), s.worst.max_displacement_mm);
     assert_eq!(culled, 0.0, "in the V valley culling cancels none of the feasible pairs");
     // The valley's apex line lies exactly on the blade's mid-plane (x = 0) at rest: whichever
     // face claims it moves it to its side, which the monitor counts as one crossing. Nothing else may cross.
-    assert!(s.max_crossed_vertices <= 1, "only the apex vertex on the mid-plane may change side: {}", s.max_crossed_vertices);
+    assert!(s.worst.max_crossed_vertices <= 1, "only the apex vertex on the mid-plane may change side: {}", s.worst.max_crossed_vertices);
     // Both faces: checked over the last two frames with the collision stage's per-face targets
     // and the active barrier rows (the apex line once alternated between the faces every frame;
     // `fig12_v_valley_holds_steady_once_the_blade_stops` guards the fix).

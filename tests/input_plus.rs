@@ -341,7 +341,7 @@ fn the_shipped_plus_configuration_matches_the_shipped_touch_scene() {
     assert!(names.contains(&device.as_str()) && names.contains(&clutch.as_str()), "PlusServer sends what fissure reads: {names:?}");
 
     let tracker = device_of_type("OpenIGTLinkTracker");
-    assert_eq!(tracker.get("ServerPort").map(str::to_string), Some(scenario.igtl_listen.port().to_string()), "PLUS's force channel connects to fissure's server");
+    assert_eq!(tracker.get("ServerPort").map(str::to_string), Some(scenario.devices.igtl_listen.port().to_string()), "PLUS's force channel connects to fissure's server");
     assert_eq!(tracker.get("MessageType"), Some("TRANSFORM"));
     let tracker_id = tracker.get("Id").expect("id");
     let force_tool = all

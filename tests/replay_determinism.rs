@@ -81,7 +81,7 @@ fn two_replays_are_bitwise_identical() {
     assert_eq!(runs[0].1, runs[1].1, "final-state hashes differ");
     let s0 = &runs[0].2;
     assert!(s0.spatulas[0].peak_force_n > 0.0, "the blade pressed the block");
-    assert!(s0.max_displacement_mm > 1.0 && s0.max_displacement_mm < 10.0, "{}", s0.max_displacement_mm);
+    assert!(s0.worst.max_displacement_mm > 1.0 && s0.worst.max_displacement_mm < 10.0, "{}", s0.worst.max_displacement_mm);
     // The VTK series of the first run: a .pvd naming 30 .vtu files that load back.
     let pvd = std::fs::read_to_string(dir.path().join("run0/series.pvd")).unwrap();
     assert_eq!(pvd.matches(".vtu").count(), 30);

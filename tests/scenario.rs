@@ -98,11 +98,11 @@ fn sylvian_scene_is_converted_to_si() {
     let z = sp.initial_pose.transform_vector(&Vec3::z());
     let normal = Vec3::new(0.0, 0.343, 0.939).normalize();
     assert!((x - Vec3::x()).norm() < 1e-8 && (z - normal).norm() < 1e-3, "pose axes: x {x:?}, z {z:?}");
-    assert!((s.material.young_modulus - 3000.0).abs() < 1e-12 && (s.material.poisson_ratio - 0.45).abs() < 1e-15);
+    assert!((s.body.material.young_modulus - 3000.0).abs() < 1e-12 && (s.body.material.poisson_ratio - 0.45).abs() < 1e-15);
     assert_eq!(s.fixed, vec![FixedRegion::RegionId(3)], "fixed near the brain stem");
     let containing = s.skull.and_then(|k| k.containing).expect("containing sphere");
     assert!((containing.radius - 0.101).abs() < 1e-15, "skull radius in m: {}", containing.radius);
-    assert_eq!(s.collision_backend, CollisionBackend::Bvh);
+    assert_eq!(s.collision.backend, CollisionBackend::Bvh);
     assert_eq!(s.step_count(), 500, "5 s at 10 ms");
 }
 
@@ -250,12 +250,12 @@ fn overrides_change_values() {
         "density_kg_m3=1000".to_string(),
     ];
     let s = Scenario::load(&path, &sets).expect("overrides are valid");
-    assert_eq!(s.collision_backend, CollisionBackend::Gpu);
-    assert_eq!(s.material.poisson_ratio, 0.49);
+    assert_eq!(s.collision.backend, CollisionBackend::Gpu);
+    assert_eq!(s.body.material.poisson_ratio, 0.49);
     assert_eq!(s.spatulas[0].layout, NodeLayout::Grid { along: 20, across: 4 });
     assert!((s.spatulas[1].initial_pose.position.z + 0.0075).abs() < 1e-15);
     assert!(s.effects.contains(Effect::Gravity) && !s.effects.contains(Effect::SkullSpheres));
-    assert_eq!(s.density, 1000.0, "an optional field absent from the file is inserted");
+    assert_eq!(s.body.density, 1000.0, "an optional field absent from the file is inserted");
 }
 
 #[test]
@@ -345,12 +345,12 @@ fn poisson_ratio_near_one_half_is_valid_with_a_locking_warning() {
     let line = 1 + text.lines().position(|l| l.contains("poisson_ratio: 0.4999999")).expect("the material line");
     let (_dir, path, result) = load_text(&text);
     let s = result.expect("nu = 0.4999999 is in range");
-    assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
-    let w = s.warnings[0].to_string();
+    assert_eq!(s.checks.warnings.len(), 1, "{:?}", s.checks.warnings);
+    let w = s.checks.warnings[0].to_string();
     assert!(w.starts_with(&format!("{}:{line}:", path.display())), "the warning names file and line: {w}");
     assert!(w.contains("material.poisson_ratio: poisson_ratio 0.4999999 is above 0.49") && w.contains("lock volumetrically"), "{w}");
     let shipped = Scenario::load(&config_dir().join("sylvian.ron"), &[]).expect("valid");
-    assert!(shipped.warnings.is_empty(), "the shipped scene warns of nothing: {:?}", shipped.warnings);
+    assert!(shipped.checks.warnings.is_empty(), "the shipped scene warns of nothing: {:?}", shipped.checks.warnings);
 }
 
 /// A storage the solver does not have is refused, naming the file, the line
@@ -382,13 +382,13 @@ fn display_pressure_scale_and_record_dir_validate() {
     let (_dir, _path, default) = load_text(&sylvian_text());
     let default = default.expect("the Sylvian scene loads");
     assert_eq!(default.display.pressure_max_mmhg, 30.0);
-    assert_eq!(default.outputs.record_dir, None, "no record_dir: the user's data directory");
+    assert_eq!(default.run.outputs.record_dir, None, "no record_dir: the user's data directory");
     let anchor = "outputs: (dir: \"out/sylvian\", vtk: false, frames: false),";
     let text = sylvian_text().replacen(anchor, "outputs: (dir: \"out/sylvian\", record_dir: \"my/recs\"),\n    display: (pressure_max_mmhg: 15.0),", 1);
     let (_dir, _path, set) = load_text(&text);
     let set = set.expect("valid display and record_dir");
     assert_eq!(set.display.pressure_max_mmhg, 15.0);
-    assert_eq!(set.outputs.record_dir.as_deref(), Some(Path::new("my/recs")));
+    assert_eq!(set.run.outputs.record_dir.as_deref(), Some(Path::new("my/recs")));
     assert_bad(anchor, "outputs: (dir: \"out\"), display: (pressure_max_mmhg: 0.5),", "display.pressure_max_mmhg", "must be in [1, 1000] mmHg, got 0.5");
     assert_bad(anchor, "outputs: (dir: \"out\", record_dir: \" \"),", "outputs.record_dir", "must not be empty");
     let text = sylvian_text().replacen(anchor, "display: (pressure_top: 20.0),", 1);

@@ -45,17 +45,17 @@ fn a_full_stylus_binding_and_a_spacemouse_validate_into_si() {
     assert!(s.spatulas[0].filter.is_some(), "a stylus keeps the tracker's One Euro filter by default");
     assert_eq!(s.spatulas[1].input, InputBinding::SpaceMouse);
     assert!(s.spatulas[1].filter.is_none(), "a rate device is not filtered");
-    assert!((s.spacemouse.max_speed_m_s - 0.010).abs() < 1e-15 && s.spacemouse.dead_zone == 0.1);
-    assert!((s.spacemouse.max_rate_rad_s - 0.8).abs() < 1e-12, "the gamepad's turn rate by default");
-    assert_eq!(s.igtl_listen.port(), 18945);
+    assert!((s.devices.spacemouse.max_speed_m_s - 0.010).abs() < 1e-15 && s.devices.spacemouse.dead_zone == 0.1);
+    assert!((s.devices.spacemouse.max_rate_rad_s - 0.8).abs() < 1e-12, "the gamepad's turn rate by default");
+    assert_eq!(s.devices.igtl_listen.port(), 18945);
     let s = load(&[]).expect("the default scene");
-    assert_eq!(s.igtl_listen.to_string(), "127.0.0.1:18944", "the server's address as before");
+    assert_eq!(s.devices.igtl_listen.to_string(), "127.0.0.1:18944", "the server's address as before");
     // Every force field defaults: `force: ()`; a section's field is set on its own.
     let s = load(&[&stylus(", force: ()"), "spacemouse.dead_zone=0.5", "openigtlink.listen=\"0.0.0.0:18946\""]).expect("defaults");
     let InputBinding::OpenIgtLink { link, .. } = &s.spatulas[0].input else { panic!("a binding") };
     let f = link.force.as_ref().expect("force");
     assert_eq!((f.max_force_n, f.rate_hz, f.rotation), (3.3, 100.0, Quat::identity()), "a Touch's 3.3 N at 100 Hz, the same axes without a mapping");
-    assert_eq!((s.spacemouse.dead_zone, s.igtl_listen.port()), (0.5, 18946));
+    assert_eq!((s.devices.spacemouse.dead_zone, s.devices.igtl_listen.port()), (0.5, 18946));
 }
 
 #[test]

@@ -78,8 +78,8 @@ proptest! {
         let binding = "spatulas[0].input=OpenIgtLink(device: \"StylusToBase\", connect: \"127.0.0.1:18944\", mapping: (scale: 0.5, clutch: (device: \"ButtonsToBase\")), force: ())".to_string();
         for set in [format!("spatulas[0].input.{field}={value}"), format!("{section}={section_value}")] {
             if let Ok(s) = Scenario::from_str(SYLVIAN, origin(), &[binding.clone(), set]) {
-                prop_assert!(s.spacemouse.dead_zone.is_finite() && (0.0..=0.9).contains(&s.spacemouse.dead_zone));
-                prop_assert!(s.spacemouse.max_speed_m_s > 0.0 && s.spacemouse.max_rate_rad_s > 0.0 && s.spacemouse.full_scale_counts > 0.0);
+                prop_assert!(s.devices.spacemouse.dead_zone.is_finite() && (0.0..=0.9).contains(&s.devices.spacemouse.dead_zone));
+                prop_assert!(s.devices.spacemouse.max_speed_m_s > 0.0 && s.devices.spacemouse.max_rate_rad_s > 0.0 && s.devices.spacemouse.full_scale_counts > 0.0);
                 if let fissure::scenario::InputBinding::OpenIgtLink { device, link, .. } = &s.spatulas[0].input {
                     prop_assert!(!device.is_empty() && device.len() <= 20);
                     if let Some(m) = &link.mapping {

@@ -140,5 +140,5 @@ fn the_effects_need_what_they_act_on() {
     let e = Scenario::load(&root().join("config/v_valley.ron"), &[OVER_TIME.into(), "ischemia.mean_arterial_pressure_mmhg=-5.0".into()]).expect_err("a negative MAP");
     assert!(e.to_string().contains("ischemia.mean_arterial_pressure_mmhg"), "{e}");
     let plain = load(PLAIN).expect("plain");
-    assert!(plain.relaxation.is_none() && plain.ischemia.is_none(), "a scene without the effects builds nothing of them");
+    assert!(plain.tissue_time.relaxation.is_none() && plain.tissue_time.ischemia.is_none(), "a scene without the effects builds nothing of them");
 }

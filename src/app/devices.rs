@@ -32,7 +32,7 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 
 /// The endpoint the scene's `OpenIgtLink` bindings need; `None` when none has one.
 pub fn igtl_config(scenario: &Scenario) -> Option<IgtlConfig> {
-    let mut config = IgtlConfig { bind: scenario.igtl_listen, listen: false, ..IgtlConfig::default() };
+    let mut config = IgtlConfig { bind: scenario.devices.igtl_listen, listen: false, ..IgtlConfig::default() };
     let mut bound = false;
     for s in &scenario.spatulas {
         let InputBinding::OpenIgtLink { device, workspace_m, max_speed_m_s, link } = &s.input else { continue };
@@ -151,7 +151,7 @@ impl Devices {
         if bound == 0 {
             self.spacemouse = None;
         } else {
-            let mapping = mapping_of(&scenario.spacemouse);
+            let mapping = mapping_of(&scenario.devices.spacemouse);
             let mouse = self.spacemouse.get_or_insert_with(|| SpaceMouseInput::start(mapping, Sources::system()));
             mouse.controller.mapping = mapping;
             let command = mouse.poll(bound);

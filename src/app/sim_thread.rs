@@ -242,7 +242,7 @@ fn build(scenario: Scenario, shared: &SimShared) -> Result<Built, String> {
     let areas = vertex_areas(pipeline.rest_positions(), &pipeline.surface().triangles);
     *lock(&shared.scene) = Arc::new(super::draw::SceneStatic {
         display: Some(scenario.display),
-        relaxation_half_time_s: scenario.relaxation.as_ref().and_then(super::tissue_time::half_time_s),
+        relaxation_half_time_s: scenario.tissue_time.relaxation.as_ref().and_then(super::tissue_time::half_time_s),
         ..super::draw::SceneStatic::of(&pipeline)
     });
     shared.generation.fetch_add(1, Ordering::Relaxed);
@@ -771,7 +771,7 @@ impl Session {
                 SimCommand::SetCulling(on) => return Commands::ChangeScene(Box::new(with_culling(&self.scene.scenario, on))),
                 SimCommand::SetBackend(backend) => {
                     let mut s = self.scene.scenario.clone();
-                    s.collision_backend = backend;
+                    s.collision.backend = backend;
                     return Commands::ChangeScene(Box::new(s));
                 }
                 SimCommand::LoadScenario(path) => match Scenario::load(&path, &[]) {

@@ -21,8 +21,8 @@ use super::draw::{DrawOptions, SceneBuffers, SceneStatic, Snapshot, SurfaceField
 use super::sim_thread::BuildProgress;
 use super::haptics::{ForceOutput, HAPTIC_RATE_HZ};
 use super::script::ScriptAction;
-use super::sim_thread::{SimCommand, SimExit, SimOptions, SimThread};
-use crate::input::gamepad::{GamepadInput, GamepadMapping};
+use super::sim_thread::{SimCommand, SimExit, SimOptions, SimShared, SimThread};
+use crate::input::gamepad::{GamepadInput, GamepadMapping, PadCommand};
 use crate::input::rumble::{RumbleSettings, RumbleStatus};
 use crate::input::bindings::{KeyAction, KeyRoute, route};
 use crate::input::keyboard::{KeyEvent, KeyboardController, KeyboardMapping, map_mouse};
@@ -156,45 +156,93 @@ struct App {
     egui: egui::Context,
     front: Snapshot,
     scene: Arc<SceneStatic>,
+    /// The scene's generation and the frame last shown.
+    seen: Seen,
+    view: ViewState,
+    keyboard: KeyboardController,
+    pad: Pad,
+    pointer: Pointer,
+    ui: PanelUi,
+    window_script: std::iter::Peekable<std::vec::IntoIter<(f64, ScriptAction)>>,
+    clock: PresentClock,
+    adapter: String,
+    session: SessionEnd,
+}
+
+/// What the window last took from the simulation.
+#[derive(Default)]
+struct Seen {
+    /// The scene's generation (a new one after a scene is loaded).
     generation: u64,
+    /// The newest frame taken.
+    frame: u64,
+}
+
+/// How the scene is drawn and from where.
+struct ViewState {
     buffers: SceneBuffers,
     draw: DrawOptions,
     /// What the simulation was last told about the strain colour.
     strain_told: bool,
     camera: OrbitCamera,
     camera_set: bool,
-    keyboard: KeyboardController,
-    gamepad: GamepadInput,
-    /// Gamepad force feedback: the settings (H toggles) and what it did last.
+}
+
+/// The gamepad: its input, force feedback (the settings H toggles, and what it did last), and its blade sides.
+struct Pad {
+    input: GamepadInput,
     rumble: RumbleSettings,
-    rumble_status: RumbleStatus,
+    status: RumbleStatus,
     /// The pad's last LB / RB choice, and whether it maps to the other blade (the
     /// first blade stood on the right of the screen at that press).
-    pad_slot: Option<crate::input::SpatulaSlot>,
-    pad_swap: bool,
+    slot: Option<crate::input::SpatulaSlot>,
+    swap: bool,
+}
+
+/// The mouse and the modifier keys.
+#[derive(Default)]
+struct Pointer {
     cursor: Option<(f64, f64)>,
     left_down: bool,
+    /// Ctrl held (for Ctrl+Q).
+    ctrl: bool,
+}
+
+/// The panel and the status bar's own state.
+struct PanelUi {
     panel: PanelState,
     history: TimingHistory,
     backend: CollisionBackend,
     load_path: String,
-    window_script: std::iter::Peekable<std::vec::IntoIter<(f64, ScriptAction)>>,
-    started: Instant,
-    first_present: Option<Instant>,
-    presented: u64,
-    fps_window: (Instant, u64, f64),
-    last_frame_seen: u64,
-    adapter: String,
-    /// Ctrl held (for Ctrl+Q).
-    ctrl: bool,
     /// The panel's text field (the one widget that may keep the keys).
     load_field: Option<egui::Id>,
     /// Where the keys went last frame (true: the scene).
     keys_to_scene: bool,
-    /// The session's end, once asked for (Ctrl+Q, closing, the End session button, a script's `end`).
+}
+
+/// Frames presented and the frame rate.
+struct PresentClock {
+    started: Instant,
+    first_present: Option<Instant>,
+    presented: u64,
+    fps_window: (Instant, u64, f64),
+}
+
+/// The end of the session, once asked for (Ctrl+Q, closing, the End session button, a script's `end`), and the
+/// debrief page once written.
+#[derive(Default)]
+struct SessionEnd {
     ending: Option<Ending>,
-    /// The debrief page, once written.
     debrief_page: Option<PathBuf>,
+}
+
+/// What one frame of the panel gave: egui's output to draw, the actions asked for, the backend chosen, whether a
+/// scenario is to be loaded.
+struct PanelFrame {
+    full: egui::FullOutput,
+    actions: Vec<PanelAction>,
+    backend: CollisionBackend,
+    load: bool,
 }
 
 /// Where the end of a session is: the simulation writing the session's recording, the debrief being made, done.
@@ -231,6 +279,37 @@ fn display_error(e: &dyn std::fmt::Display) -> String {
     }
 }
 
+/// The 1 kHz force output: it reads the OpenIGTLink poses of the blades bound to a device, and sends each
+/// blade's force back to the server's clients.
+fn start_haptics(scenario: &Scenario, igtl: Option<Arc<Mutex<crate::input::igtl::IgtlServer>>>, names: &[String]) -> Arc<ForceOutput> {
+    let devices: Vec<Option<String>> = scenario
+        .spatulas
+        .iter()
+        .map(|s| match &s.input {
+            InputBinding::OpenIgtLink { device, .. } => Some(device.clone()),
+            _ => None,
+        })
+        .collect();
+    let probe_server = igtl.clone();
+    let probe = Box::new(move |k: usize, _since: f64| {
+        let device = devices.get(k)?.as_ref()?;
+        probe_server.as_ref().and_then(|s| lock(s).latest(device)).map(|t| t.pose)
+    });
+    let sink = igtl.map(|server| {
+        let names = names.to_vec();
+        Box::new(move |k: usize, _t: f64, f: crate::math::Vec3| {
+            let unix = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map(|d| d.as_secs_f64())
+                .unwrap_or(0.0);
+            if let Some(name) = names.get(k) {
+                lock(&server).send_force(name, unix, [f.x, f.y, f.z]);
+            }
+        }) as super::haptics::ForceSink
+    });
+    Arc::new(ForceOutput::start(scenario.spatulas.len(), HAPTIC_RATE_HZ, probe, sink))
+}
+
 /// Runs the window on `scenario` until closed; see the module docs.
 pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSummary, WindowError> {
     let rumble_on = options.rumble;
@@ -243,38 +322,9 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
     // OpenIGTLink when any spatula is bound to it: server, links, force back.
     let igtl = super::devices::start_igtl(&scenario);
     let names: Vec<String> = scenario.spatulas.iter().map(|s| s.name.clone()).collect();
-    let haptics = if options.haptics {
-        let devices: Vec<Option<String>> = scenario
-            .spatulas
-            .iter()
-            .map(|s| match &s.input {
-                InputBinding::OpenIgtLink { device, .. } => Some(device.clone()),
-                _ => None,
-            })
-            .collect();
-        let probe_server = igtl.clone();
-        let probe = Box::new(move |k: usize, _since: f64| {
-            let device = devices.get(k)?.as_ref()?;
-            probe_server.as_ref().and_then(|s| lock(s).latest(device)).map(|t| t.pose)
-        });
-        let sink = igtl.clone().map(|server| {
-            let names = names.clone();
-            Box::new(move |k: usize, _t: f64, f: crate::math::Vec3| {
-                let unix = std::time::SystemTime::now()
-                    .duration_since(std::time::UNIX_EPOCH)
-                    .map(|d| d.as_secs_f64())
-                    .unwrap_or(0.0);
-                if let Some(name) = names.get(k) {
-                    lock(&server).send_force(name, unix, [f.x, f.y, f.z]);
-                }
-            }) as super::haptics::ForceSink
-        });
-        Some(Arc::new(ForceOutput::start(scenario.spatulas.len(), HAPTIC_RATE_HZ, probe, sink)))
-    } else {
-        None
-    };
+    let haptics = options.haptics.then(|| start_haptics(&scenario, igtl.clone(), &names));
     let (sim_script, window_script): (Vec<_>, Vec<_>) = options.script.iter().cloned().partition(|(_, a)| a.is_simulation());
-    let backend = scenario.collision_backend;
+    let backend = scenario.collision.backend;
     let pressure_max_mmhg = scenario.display.pressure_max_mmhg;
     let views = scenario.display.views;
     let scenario_path = scenario.source_path.clone();
@@ -305,82 +355,86 @@ pub fn run_window(scenario: Scenario, options: WindowOptions) -> Result<WindowSu
         egui: egui::Context::default(),
         front: Snapshot::default(),
         scene,
-        generation: 0,
-        buffers: SceneBuffers::default(),
-        draw: DrawOptions { views, ..DrawOptions::default() },
-        strain_told: false,
-        camera: OrbitCamera::default(),
-        camera_set: false,
+        seen: Seen::default(),
+        view: ViewState {
+            buffers: SceneBuffers::default(),
+            draw: DrawOptions { views, ..DrawOptions::default() },
+            strain_told: false,
+            camera: OrbitCamera::default(),
+            camera_set: false,
+        },
         keyboard: {
             let mut k = KeyboardController::new(KeyboardMapping::default());
             k.set_spatula_count(names_len);
             k
         },
-        gamepad: GamepadInput::new(GamepadMapping::default()),
-        rumble: RumbleSettings { enabled: rumble_on, ..RumbleSettings::default() },
-        rumble_status: RumbleStatus::NoPad,
-        pad_slot: None,
-        pad_swap: false,
-        cursor: None,
-        left_down: false,
-        panel: PanelState { record_dir: record_dir_display, pressure_max_mmhg, ..PanelState::default() },
-        history: TimingHistory::new(&stage_names, 240),
-        backend,
-        load_path: scenario_path.display().to_string(),
+        pad: Pad {
+            input: GamepadInput::new(GamepadMapping::default()),
+            rumble: RumbleSettings { enabled: rumble_on, ..RumbleSettings::default() },
+            status: RumbleStatus::NoPad,
+            slot: None,
+            swap: false,
+        },
+        pointer: Pointer::default(),
+        ui: PanelUi {
+            panel: PanelState { record_dir: record_dir_display, pressure_max_mmhg, ..PanelState::default() },
+            history: TimingHistory::new(&stage_names, 240),
+            backend,
+            load_path: scenario_path.display().to_string(),
+            load_field: None,
+            keys_to_scene: true,
+        },
         window_script: window_script.into_iter().peekable(),
-        started: Instant::now(),
-        first_present: None,
-        presented: 0,
-        fps_window: (Instant::now(), 0, 0.0),
-        last_frame_seen: 0,
+        clock: PresentClock { started: Instant::now(), first_present: None, presented: 0, fps_window: (Instant::now(), 0, 0.0) },
         adapter: String::new(),
-        ctrl: false,
-        load_field: None,
-        keys_to_scene: true,
-        ending: None,
-        debrief_page: None,
+        session: SessionEnd::default(),
     };
-    app.camera = OrbitCamera::framing(app.scene.bounds.0, app.scene.bounds.1);
-    app.generation = app.sim.as_ref().map(|s| s.shared.generation.load(std::sync::atomic::Ordering::Relaxed)).unwrap_or(0);
+    app.view.camera = OrbitCamera::framing(app.scene.bounds.0, app.scene.bounds.1);
+    app.seen.generation = app.sim.as_ref().map(|s| s.shared.generation.load(std::sync::atomic::Ordering::Relaxed)).unwrap_or(0);
     let result = event_loop.run_app(&mut app);
-    let wall_s = app.first_present.map(|t| t.elapsed().as_secs_f64()).unwrap_or(0.0);
-    let sim_exit = app.sim.take().map(SimThread::stop).unwrap_or_default();
-    let debrief_unfinished = match app.ending.take() {
-        Some(Ending::Debriefing(worker)) => {
-            worker.stop();
-            Some(worker.recording.clone())
-        }
-        _ => None,
-    };
-    let (haptic_ticks, haptic_s) = app.haptics.as_ref().map(|h| (h.ticks(), h.elapsed_s())).unwrap_or((0, 0.0));
-    if let Some(e) = app.error.take() {
-        return Err(e);
-    }
-    result.map_err(|e| WindowError::EventLoop(e.to_string()))?;
-    Ok(WindowSummary {
-        presented: app.presented,
-        wall_s,
-        haptic_ticks,
-        haptic_s,
-        sim: sim_exit,
-        adapter: app.adapter,
-        debrief: app.debrief_page,
-        debrief_unfinished,
-    })
+    app.finish(result)
 }
 
 impl App {
+    /// Stops the simulation (and an unfinished debrief) and sums the session up.
+    fn finish(mut self, result: Result<(), winit::error::EventLoopError>) -> Result<WindowSummary, WindowError> {
+        let wall_s = self.clock.first_present.map(|t| t.elapsed().as_secs_f64()).unwrap_or(0.0);
+        let sim_exit = self.sim.take().map(SimThread::stop).unwrap_or_default();
+        let debrief_unfinished = match self.session.ending.take() {
+            Some(Ending::Debriefing(worker)) => {
+                worker.stop();
+                Some(worker.recording.clone())
+            }
+            _ => None,
+        };
+        let (haptic_ticks, haptic_s) = self.haptics.as_ref().map(|h| (h.ticks(), h.elapsed_s())).unwrap_or((0, 0.0));
+        if let Some(e) = self.error.take() {
+            return Err(e);
+        }
+        result.map_err(|e| WindowError::EventLoop(e.to_string()))?;
+        Ok(WindowSummary {
+            presented: self.clock.presented,
+            wall_s,
+            haptic_ticks,
+            haptic_s,
+            sim: sim_exit,
+            adapter: self.adapter,
+            debrief: self.session.debrief_page,
+            debrief_unfinished,
+        })
+    }
+
     fn preset(&mut self, preset: ViewPreset) {
         // camera_for needs the pipeline only for the mesh box and blade shapes, both in SceneStatic.
-        self.camera = camera_for_static(preset, &self.scene, &self.front.poses, &self.draw.views);
+        self.view.camera = camera_for_static(preset, &self.scene, &self.front.poses, &self.view.draw.views);
     }
 
     /// Tells the simulation whether the strain colour is shown (it then
     /// computes stress in the background when the scene has no StressField stage).
     fn tell_strain(&mut self) {
-        let on = self.draw.field == SurfaceField::Strain;
-        if on != self.strain_told {
-            self.strain_told = on;
+        let on = self.view.draw.field == SurfaceField::Strain;
+        if on != self.view.strain_told {
+            self.view.strain_told = on;
             self.send(SimCommand::ShowStrain(on));
         }
     }
@@ -388,8 +442,8 @@ impl App {
     /// Shows `field` (infarct risk only where the scene has it: else none).
     fn set_field(&mut self, field: SurfaceField) {
         let field = if field == SurfaceField::Risk && self.scene.ischemia.is_none() { SurfaceField::None } else { field };
-        self.draw.field = field;
-        self.panel.field = match field {
+        self.view.draw.field = field;
+        self.ui.panel.field = match field {
             SurfaceField::None => FieldChoice::None,
             SurfaceField::Displacement => FieldChoice::Field(FieldKind::DisplacementMm),
             SurfaceField::Pressure => FieldChoice::Field(FieldKind::ContactPressureMmHg),
@@ -420,17 +474,17 @@ impl App {
                 Err(e) => {
                     let message = format!("cannot record: {e}");
                     tracing::error!("{message}");
-                    self.panel.record_error = Some(message);
-                    self.panel.recording = false;
+                    self.ui.panel.record_error = Some(message);
+                    self.ui.panel.recording = false;
                     return;
                 }
             };
-            self.panel.record_error = None;
+            self.ui.panel.record_error = None;
             self.send(SimCommand::StartRecording(path));
         } else {
             self.send(SimCommand::StopRecording);
         }
-        self.panel.recording = on;
+        self.ui.panel.recording = on;
     }
 
     /// Ends the session (Ctrl+Q, closing the window, the End session button, a script's `end`): the first time, the
@@ -439,7 +493,7 @@ impl App {
     /// built, when nothing was simulated), the window closes.
     fn end_session(&mut self, event_loop: &ActiveEventLoop) {
         let running = self.sim.as_ref().is_some_and(|s| s.shared.running.load(std::sync::atomic::Ordering::Acquire) && !s.finished());
-        if self.ending.is_some() || !running {
+        if self.session.ending.is_some() || !running {
             event_loop.exit();
             return;
         }
@@ -454,15 +508,15 @@ impl App {
         };
         self.send(SimCommand::EndSession(path));
         self.keyboard.release_all();
-        self.panel.recording = false;
-        self.panel.debrief = Some(DebriefPanel::Working { what: "ending the session".into(), fraction: 0.0 });
-        self.ending = Some(Ending::WaitingForSim);
+        self.ui.panel.recording = false;
+        self.ui.panel.debrief = Some(DebriefPanel::Working { what: "ending the session".into(), fraction: 0.0 });
+        self.session.ending = Some(Ending::WaitingForSim);
     }
 
     /// Moves the session's end along: starts the debrief once the simulation has written the session, shows its
     /// progress, then its verdicts and where the page is.
     fn advance_ending(&mut self) {
-        let Some(ending) = self.ending.as_mut() else { return };
+        let Some(ending) = self.session.ending.as_mut() else { return };
         match ending {
             Ending::WaitingForSim => {
                 let Some(sim) = self.sim.as_ref().filter(|s| s.finished()) else { return };
@@ -472,16 +526,16 @@ impl App {
                     Some(Some(session)) => match super::session_debrief::SessionDebriefWorker::start(session.scenario, session.recording) {
                         Ok(worker) => *ending = Ending::Debriefing(worker),
                         Err(e) => {
-                            self.panel.debrief = Some(DebriefPanel::Failed(e));
+                            self.ui.panel.debrief = Some(DebriefPanel::Failed(e));
                             *ending = Ending::Done;
                         }
                     },
                     Some(None) => {
-                        self.panel.debrief = Some(DebriefPanel::Failed(status));
+                        self.ui.panel.debrief = Some(DebriefPanel::Failed(status));
                         *ending = Ending::Done;
                     }
                     None => {
-                        self.panel.debrief = Some(DebriefPanel::Failed("the simulation stopped before the session was written".into()));
+                        self.ui.panel.debrief = Some(DebriefPanel::Failed("the simulation stopped before the session was written".into()));
                         *ending = Ending::Done;
                     }
                 }
@@ -489,20 +543,20 @@ impl App {
             Ending::Debriefing(worker) => match worker.poll() {
                 None => {
                     let p = worker.progress();
-                    self.panel.debrief = Some(DebriefPanel::Working { what: p.step.words().into(), fraction: p.fraction });
+                    self.ui.panel.debrief = Some(DebriefPanel::Working { what: p.step.words().into(), fraction: p.fraction });
                 }
                 Some(result) => {
                     let status = match result {
                         Ok(d) => {
                             let page = d.files.page.clone();
                             tracing::info!("debrief written to {}", page.display());
-                            self.panel.debrief = Some(DebriefPanel::Ready(super::session_debrief::panel_summary(&d)));
-                            self.debrief_page = Some(page.clone());
+                            self.ui.panel.debrief = Some(DebriefPanel::Ready(super::session_debrief::panel_summary(&d)));
+                            self.session.debrief_page = Some(page.clone());
                             format!("debrief written to {}", page.display())
                         }
                         Err(e) => {
                             tracing::error!("the session's debrief failed: {e}");
-                            self.panel.debrief = Some(DebriefPanel::Failed(format!("the debrief failed: {e}")));
+                            self.ui.panel.debrief = Some(DebriefPanel::Failed(format!("the debrief failed: {e}")));
                             format!("the debrief failed: {e}")
                         }
                     };
@@ -518,7 +572,7 @@ impl App {
 
     /// The session is ending and its debrief not yet made (the window waits for it before a timed exit).
     fn debriefing(&self) -> bool {
-        matches!(self.ending, Some(Ending::WaitingForSim | Ending::Debriefing(_)))
+        matches!(self.session.ending, Some(Ending::WaitingForSim | Ending::Debriefing(_)))
     }
 
     /// Moves the first build's error, if any, into `self.error` (the window then
@@ -537,45 +591,76 @@ impl App {
             event_loop.exit();
             return;
         }
-        // Newest frame (and new static data after a rebuild).
+        self.take_scene_change(&shared);
+        self.take_frame(&shared);
+        let scripted_through = self.run_window_script(event_loop);
+        let pad = self.drive_devices(&shared);
+        if self.gpu.is_none() {
+            if let Some(t) = scripted_through {
+                *lock(&shared.window_script_done) = Some(t);
+            }
+            return;
+        }
+        let previous_culling = self.ui.panel.culling;
+        let Some(mut frame) = self.run_panel(&shared, &pad) else { return };
+        self.apply_panel(event_loop, &mut frame, previous_culling);
+        if let Some(t) = scripted_through {
+            // This frame's scripted actions are in the keys (and the panel's
+            // focus): the simulation, held at `t`, may go on.
+            lock(&shared.input).keyboard = self.keyboard.command();
+            *lock(&shared.window_script_done) = Some(t);
+        }
+        self.present(event_loop, frame.full);
+    }
+
+    /// New static data after a rebuild: the scene, its cameras and colour bar; the pad's sides are decided again.
+    fn take_scene_change(&mut self, shared: &SimShared) {
         let generation = shared.generation.load(std::sync::atomic::Ordering::Relaxed);
-        if generation != self.generation {
-            self.generation = generation;
+        if generation != self.seen.generation {
+            self.seen.generation = generation;
             self.scene = lock(&shared.scene).clone();
-            self.camera_set = false;
+            self.view.camera_set = false;
             // Other blades: the next LB / RB decides their sides again.
-            self.pad_slot = None;
-            self.pad_swap = false;
+            self.pad.slot = None;
+            self.pad.swap = false;
             // Another scene was loaded: its colour-bar top and its cameras.
             if let Some(display) = self.scene.display {
-                self.draw.views = display.views;
-                self.panel.pressure_max_mmhg = display.pressure_max_mmhg;
+                self.view.draw.views = display.views;
+                self.ui.panel.pressure_max_mmhg = display.pressure_max_mmhg;
             }
             // A scene without infarct risk shows none of it.
-            if self.draw.field == SurfaceField::Risk {
+            if self.view.draw.field == SurfaceField::Risk {
                 self.set_field(SurfaceField::Risk);
             }
         }
-        if shared.frames.take_latest(&mut self.front) && self.front.frame != self.last_frame_seen {
+    }
+
+    /// The newest frame: the timing graph and the pressure monitors, and the first camera once there are poses.
+    fn take_frame(&mut self, shared: &SimShared) {
+        if shared.frames.take_latest(&mut self.front) && self.front.frame != self.seen.frame {
             let ms: Vec<f64> = StageId::ALL.iter().map(|s| self.front.report.times.get(*s).unwrap_or(0.0) * 1e3).collect();
-            self.history.push(&ms);
-            let dt = if self.front.frame > self.last_frame_seen && self.last_frame_seen > 0 {
-                (self.front.frame - self.last_frame_seen) as f64 * self.front.time_s / self.front.frame.max(1) as f64
+            self.ui.history.push(&ms);
+            let dt = if self.front.frame > self.seen.frame && self.seen.frame > 0 {
+                (self.front.frame - self.seen.frame) as f64 * self.front.time_s / self.front.frame.max(1) as f64
             } else {
                 0.0
             };
-            self.last_frame_seen = self.front.frame;
+            self.seen.frame = self.front.frame;
             let data = self.panel_data();
-            update_monitors(&mut self.panel, &data, dt);
+            update_monitors(&mut self.ui.panel, &data, dt);
         }
-        if !self.camera_set && !self.front.poses.is_empty() {
-            self.camera = match self.draw.views.overview {
+        if !self.view.camera_set && !self.front.poses.is_empty() {
+            self.view.camera = match self.view.draw.views.overview {
                 Some(v) => OrbitCamera::looking(v.eye, v.target, v.fov_y_rad),
                 None => OrbitCamera::framing(self.scene.bounds.0, self.scene.bounds.1),
             };
-            self.camera_set = true;
+            self.view.camera_set = true;
         }
-        // Window-side script actions by simulated time.
+    }
+
+    /// Carries out the window's script actions due by the newest frame's simulated time; the time they ran
+    /// through, if any ran.
+    fn run_window_script(&mut self, event_loop: &ActiveEventLoop) -> Option<f64> {
         let mut scripted_through = None;
         while let Some((t, _)) = self.window_script.peek() {
             if *t > self.front.time_s + 1e-12 {
@@ -592,7 +677,7 @@ impl App {
                     let _ = self.on_key(event_loop, route(binding.code, binding.ctrl, down, panel_has_keys), down, false);
                 }
                 ScriptAction::FocusPanel => {
-                    if let Some(id) = self.load_field {
+                    if let Some(id) = self.ui.load_field {
                         self.egui.memory_mut(|m| m.request_focus(id));
                     }
                 }
@@ -600,53 +685,55 @@ impl App {
                 _ => {}
             }
         }
-        // Devices.
-        let mut pad = self.gamepad.poll();
+        scripted_through
+    }
+
+    /// Polls the gamepad (its blade sides, the camera it orbits) and hands the keys and the pad to the simulation.
+    fn drive_devices(&mut self, shared: &SimShared) -> PadCommand {
+        let mut pad = self.pad.input.poll();
         // LB / RB name blades by their side on the screen, decided at the press.
-        if self.pad_slot != Some(pad.spatula) && self.front.poses.len() >= 2 {
-            self.pad_slot = Some(pad.spatula);
+        if self.pad.slot != Some(pad.spatula) && self.front.poses.len() >= 2 {
+            self.pad.slot = Some(pad.spatula);
             let centre = |k: usize| {
                 let p = &self.front.poses[k];
                 let half = self.scene.shapes.get(k).map_or(0.0, |s| 0.5 * s.length);
                 p.position + p.rotation * crate::math::Vec3::new(half, 0.0, 0.0)
             };
-            self.pad_swap = crate::input::gamepad::screen_order_swaps(centre(0), centre(1), self.camera.right_up().0);
+            self.pad.swap = crate::input::gamepad::screen_order_swaps(centre(0), centre(1), self.view.camera.right_up().0);
         }
-        if self.pad_swap {
+        if self.pad.swap {
             pad.spatula = pad.spatula.other();
         }
         if pad.camera_orbit_rad_s != [0.0, 0.0] {
-            let dt = 1.0 / self.fps_window.2.max(30.0);
-            self.camera.orbit(pad.camera_orbit_rad_s[0] * dt, pad.camera_orbit_rad_s[1] * dt);
+            let dt = 1.0 / self.clock.fps_window.2.max(30.0);
+            self.view.camera.orbit(pad.camera_orbit_rad_s[0] * dt, pad.camera_orbit_rad_s[1] * dt);
         }
         {
             let mut input = lock(&shared.input);
             input.keyboard = self.keyboard.command();
             input.pad = pad;
         }
-        let Some(gpu) = self.gpu.as_mut() else {
-            if let Some(t) = scripted_through {
-                *lock(&shared.window_script_done) = Some(t);
-            }
-            return;
-        };
-        // The panel.
+        pad
+    }
+
+    /// Runs the panel, the status bar and the legends through egui; `None` without a window.
+    fn run_panel(&mut self, shared: &SimShared, pad: &PadCommand) -> Option<PanelFrame> {
+        let gpu = self.gpu.as_mut()?;
         let raw = gpu.egui_state.take_egui_input(&gpu.window);
-        let mut data = panel_data_of(&self.front, self.fps_window.2);
+        let mut data = panel_data_of(&self.front, self.clock.fps_window.2);
         data.active_spatula = self.front.scripted_spatula.unwrap_or(self.keyboard.spatula);
-        data.keys_to_scene = self.keys_to_scene;
+        data.keys_to_scene = self.ui.keys_to_scene;
         data.has_skull = !self.scene.skull.is_empty();
         data.tethers = self.scene.tethers.as_ref().map(|info| super::tethers::panel(info, &self.front.tethers, self.front.report.tethers.as_ref()));
         data.tissue = super::tissue_time::panel(&self.scene, &self.front);
         let mut actions = Vec::new();
-        let previous_culling = self.panel.culling;
-        let mut backend = self.backend;
+        let mut backend = self.ui.backend;
         let mut load = false;
         let status = lock(&shared.status).clone();
         if let Some(e) = lock(&shared.record_error).take() {
             // The sim could not start or had to stop the recording (its rows so far are kept).
-            self.panel.record_error = Some(e);
-            self.panel.recording = false;
+            self.ui.panel.record_error = Some(e);
+            self.ui.panel.recording = false;
         }
         let haptic: Vec<(f64, f64)> = (0..self.spatula_names.len())
             .map(|k| self.haptics.as_ref().and_then(|h| h.latest(k)).map(|(f, t)| (f.norm(), t)).unwrap_or((0.0, 0.0)))
@@ -658,19 +745,19 @@ impl App {
             Some(_) => haptic.get(driven).map_or(0.0, |h| h.0),
             None => data.spatulas.get(driven).map_or(0.0, |s| crate::math::Vec3::from(s.force_n).norm()),
         };
-        self.rumble_status = self.gamepad.rumble(pad_force, &self.rumble);
-        let rumble_line = self.rumble_status.describe();
+        self.pad.status = self.pad.input.rumble(pad_force, &self.pad.rumble);
+        let rumble_line = self.pad.status.describe();
         let names = &self.spatula_names;
-        let load_path = &mut self.load_path;
-        let panel = &mut self.panel;
-        let history = &self.history;
+        let load_path = &mut self.ui.load_path;
+        let panel = &mut self.ui.panel;
+        let history = &self.ui.history;
         let time_s = self.front.time_s;
-        let legend = super::draw::legend_for(&self.draw, &self.front);
-        let mut load_field = self.load_field;
+        let legend = super::draw::legend_for(&self.view.draw, &self.front);
+        let mut load_field = self.ui.load_field;
         let building = *lock(&shared.progress);
         let loading = (self.front.surface_positions.is_empty() || building.is_some()).then(|| self.scenario_path.display().to_string());
         let vessel_legend = self.scene.vessel_legend.as_ref().filter(|_| loading.is_none());
-        let mut full = self.egui.run_ui(raw, |ui| {
+        let full = self.egui.run_ui(raw, |ui| {
             if let Some(scene_name) = &loading {
                 loading_screen(ui, scene_name, building, &status);
             }
@@ -710,19 +797,25 @@ impl App {
                 crate::ui::legend::paint_vessel_legend(&painter, ui.available_rect_before_wrap(), vessels);
             }
         });
-        self.load_field = load_field;
+        self.ui.load_field = load_field;
         // Only the text field may keep the keys: a clicked button, slider or
         // checkbox hands them straight back to the scene.
         if !self.egui.text_edit_focused() {
             self.egui.memory_mut(|m| m.stop_text_input());
         }
         let keys_to_scene = !self.egui.text_edit_focused();
-        if !keys_to_scene && self.keys_to_scene {
+        if !keys_to_scene && self.ui.keys_to_scene {
             self.keyboard.release_all(); // a key held while the focus moved must not drive on
         }
-        self.keys_to_scene = keys_to_scene;
+        self.ui.keys_to_scene = keys_to_scene;
         gpu.egui_state.handle_platform_output(&gpu.window, full.platform_output.clone());
-        for action in actions {
+        Some(PanelFrame { full, actions, backend, load })
+    }
+
+    /// Carries out what the panel asked for and shows what it set.
+    fn apply_panel(&mut self, event_loop: &ActiveEventLoop, frame: &mut PanelFrame, previous_culling: bool) {
+        let (backend, mut load) = (frame.backend, frame.load);
+        for action in std::mem::take(&mut frame.actions) {
             match action {
                 PanelAction::StartRecording => self.toggle_recording(true),
                 PanelAction::StopRecording => self.toggle_recording(false),
@@ -739,34 +832,32 @@ impl App {
                 }
             }
         }
-        if let Some(t) = scripted_through {
-            // This frame's scripted actions are in the keys (and the panel's
-            // focus): the simulation, held at `t`, may go on.
-            lock(&shared.input).keyboard = self.keyboard.command();
-            *lock(&shared.window_script_done) = Some(t);
-        }
         if load {
-            self.send(SimCommand::LoadScenario(PathBuf::from(self.load_path.trim())));
+            self.send(SimCommand::LoadScenario(PathBuf::from(self.ui.load_path.trim())));
         }
-        if self.panel.culling != previous_culling {
-            self.send(SimCommand::SetCulling(self.panel.culling));
+        if self.ui.panel.culling != previous_culling {
+            self.send(SimCommand::SetCulling(self.ui.panel.culling));
         }
-        if backend != self.backend {
-            self.backend = backend;
+        if backend != self.ui.backend {
+            self.ui.backend = backend;
             self.send(SimCommand::SetBackend(backend));
         }
-        self.draw.source_nodes = self.panel.show_source_nodes;
-        self.draw.pairs = self.panel.show_pairs;
-        self.draw.skull = self.panel.show_skull;
-        self.draw.pressure_max_mmhg = self.panel.pressure_max_mmhg;
-        match self.panel.field {
-            FieldChoice::None => self.draw.field = SurfaceField::None,
-            FieldChoice::Field(FieldKind::DisplacementMm) => self.draw.field = SurfaceField::Displacement,
-            FieldChoice::Field(FieldKind::ContactPressureMmHg) => self.draw.field = SurfaceField::Pressure,
-            FieldChoice::Field(FieldKind::Strain) => self.draw.field = SurfaceField::Strain,
-            FieldChoice::Field(FieldKind::InfarctRisk) => self.draw.field = SurfaceField::Risk,
+        self.view.draw.source_nodes = self.ui.panel.show_source_nodes;
+        self.view.draw.pairs = self.ui.panel.show_pairs;
+        self.view.draw.skull = self.ui.panel.show_skull;
+        self.view.draw.pressure_max_mmhg = self.ui.panel.pressure_max_mmhg;
+        match self.ui.panel.field {
+            FieldChoice::None => self.view.draw.field = SurfaceField::None,
+            FieldChoice::Field(FieldKind::DisplacementMm) => self.view.draw.field = SurfaceField::Displacement,
+            FieldChoice::Field(FieldKind::ContactPressureMmHg) => self.view.draw.field = SurfaceField::Pressure,
+            FieldChoice::Field(FieldKind::Strain) => self.view.draw.field = SurfaceField::Strain,
+            FieldChoice::Field(FieldKind::InfarctRisk) => self.view.draw.field = SurfaceField::Risk,
         }
         self.tell_strain();
+    }
+
+    /// Draws the scene and the panel and presents them; counts the frames presented.
+    fn present(&mut self, event_loop: &ActiveEventLoop, mut full: egui::FullOutput) {
         let Some(gpu) = self.gpu.as_mut() else { return };
         let mut textures = std::mem::take(&mut full.textures_delta);
         let paint_jobs = self.egui.tessellate(full.shapes, full.pixels_per_point);
@@ -785,7 +876,7 @@ impl App {
         // and the loading screen are drawn, over an empty scene.
         let empty = SceneStatic::default();
         let scene = if self.front.surface_positions.is_empty() { &empty } else { &*self.scene };
-        let view = self.buffers.view(scene, &self.front, &self.draw, self.camera);
+        let view = self.view.buffers.view(scene, &self.front, &self.view.draw, self.view.camera);
         let egui_renderer = &mut gpu.egui_renderer;
         let outcome = gpu.renderer.render(&view, |device, queue, encoder, target| {
             let extra = super::overlay::egui_pass(egui_renderer, device, queue, encoder, target, &paint_jobs, &screen);
@@ -797,13 +888,13 @@ impl App {
         textures.clear();
         match outcome {
             Ok(FrameOutcome::Presented) => {
-                self.presented += 1;
+                self.clock.presented += 1;
                 let now = Instant::now();
-                self.first_present.get_or_insert(now);
-                let (since, count, _) = self.fps_window;
+                self.clock.first_present.get_or_insert(now);
+                let (since, count, _) = self.clock.fps_window;
                 let elapsed = now.duration_since(since).as_secs_f64();
                 if elapsed >= 0.5 {
-                    self.fps_window = (now, self.presented, (self.presented - count) as f64 / elapsed);
+                    self.clock.fps_window = (now, self.clock.presented, (self.clock.presented - count) as f64 / elapsed);
                 }
             }
             Ok(FrameOutcome::Skipped) => {}
@@ -825,23 +916,23 @@ impl App {
             KeyRoute::Ignore => {}
             KeyRoute::ReturnToScene => {
                 self.egui.memory_mut(|m| m.stop_text_input());
-                self.keys_to_scene = true;
+                self.ui.keys_to_scene = true;
             }
             KeyRoute::Scene(KeyAction::Blade(key)) => self.keyboard.apply(KeyEvent { key, pressed }),
             KeyRoute::Scene(action) if pressed && !repeat => match action {
                 KeyAction::Quit => self.end_session(event_loop),
                 KeyAction::SceneFocus => {
                     self.egui.memory_mut(|m| m.stop_text_input());
-                    self.keys_to_scene = true;
+                    self.ui.keys_to_scene = true;
                 }
                 KeyAction::Microscope => self.preset(ViewPreset::Microscope),
                 KeyAction::Overview => self.preset(ViewPreset::Overview),
-                KeyAction::CycleField => self.set_field(self.draw.field.next(self.scene.ischemia.is_some())),
+                KeyAction::CycleField => self.set_field(self.view.draw.field.next(self.scene.ischemia.is_some())),
                 KeyAction::Record => {
-                    let on = !self.panel.recording;
+                    let on = !self.ui.panel.recording;
                     self.toggle_recording(on);
                 }
-                KeyAction::Rumble => self.rumble.enabled = !self.rumble.enabled,
+                KeyAction::Rumble => self.pad.rumble.enabled = !self.pad.rumble.enabled,
                 KeyAction::Cut => self.cut(),
                 KeyAction::Blade(_) => {}
             },
@@ -856,7 +947,7 @@ impl App {
     }
 
     fn panel_data(&self) -> PanelData {
-        panel_data_of(&self.front, self.fps_window.2)
+        panel_data_of(&self.front, self.clock.fps_window.2)
     }
 }
 
@@ -953,7 +1044,7 @@ impl ApplicationHandler for App {
             let pressed = key.state == ElementState::Pressed;
             let to_panel = match key.physical_key {
                 PhysicalKey::Code(code) => {
-                    let routed = route(code, self.ctrl, pressed, self.egui.text_edit_focused());
+                    let routed = route(code, self.pointer.ctrl, pressed, self.egui.text_edit_focused());
                     self.on_key(event_loop, routed, pressed, key.repeat)
                 }
                 PhysicalKey::Unidentified(_) => self.egui.text_edit_focused(),
@@ -976,25 +1067,25 @@ impl ApplicationHandler for App {
             }
             WindowEvent::RedrawRequested => self.redraw(event_loop),
             WindowEvent::Focused(false) => self.keyboard.release_all(),
-            WindowEvent::ModifiersChanged(modifiers) => self.ctrl = modifiers.state().control_key(),
+            WindowEvent::ModifiersChanged(modifiers) => self.pointer.ctrl = modifiers.state().control_key(),
             WindowEvent::MouseInput { button: MouseButton::Left, state: ElementState::Pressed, .. } if !self.egui.is_pointer_over_egui() => {
                 // A click on the scene gives the keys back to it (and starts an orbit).
                 self.egui.memory_mut(|m| m.stop_text_input());
-                self.keys_to_scene = true;
-                self.left_down = true;
+                self.ui.keys_to_scene = true;
+                self.pointer.left_down = true;
             }
             WindowEvent::MouseInput { button: MouseButton::Left, state, .. } => {
-                self.left_down = state == ElementState::Pressed && !consumed;
+                self.pointer.left_down = state == ElementState::Pressed && !consumed;
             }
             WindowEvent::CursorMoved { position, .. } => {
-                if let Some((x, y)) = self.cursor
-                    && self.left_down
+                if let Some((x, y)) = self.pointer.cursor
+                    && self.pointer.left_down
                     && !self.egui.egui_wants_pointer_input()
                 {
                     let nudge = map_mouse([position.x - x, position.y - y], true, 0.0, &self.keyboard.mapping);
-                    self.camera.orbit(nudge.orbit_rad[0], nudge.orbit_rad[1]);
+                    self.view.camera.orbit(nudge.orbit_rad[0], nudge.orbit_rad[1]);
                 }
-                self.cursor = Some((position.x, position.y));
+                self.pointer.cursor = Some((position.x, position.y));
             }
             WindowEvent::MouseWheel { delta, .. } if !consumed => {
                 let lines = match delta {
@@ -1002,7 +1093,7 @@ impl ApplicationHandler for App {
                     MouseScrollDelta::PixelDelta(p) => p.y / 40.0,
                 };
                 let nudge = map_mouse([0.0, 0.0], false, lines, &self.keyboard.mapping);
-                self.camera.zoom(nudge.zoom_factor);
+                self.view.camera.zoom(nudge.zoom_factor);
             }
             _ => {}
         }
@@ -1017,8 +1108,8 @@ impl ApplicationHandler for App {
         }
         self.advance_ending();
         // An ended session stays open on its debrief until closed; a timed exit waits for the debrief.
-        let timed_out = self.options.exit_after_s.is_some_and(|t| self.started.elapsed().as_secs_f64() >= t) && !self.debriefing();
-        if (sim_done && self.ending.is_none()) || timed_out {
+        let timed_out = self.options.exit_after_s.is_some_and(|t| self.clock.started.elapsed().as_secs_f64() >= t) && !self.debriefing();
+        if (sim_done && self.session.ending.is_none()) || timed_out {
             event_loop.exit();
             return;
         }

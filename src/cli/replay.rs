@@ -59,9 +59,9 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
     // First, so a Ctrl-C during the load or the precompute is a graceful stop too.
     let interrupt = interrupt_flag();
     let scenario = Scenario::load(args.scenario, args.set).with_context(|| format!("loading {}", args.scenario.display()))?;
-    let out_dir = args.out.clone().unwrap_or_else(|| scenario.outputs.dir.clone());
-    let vtk = args.vtk || scenario.outputs.vtk;
-    let frames = args.frames || scenario.outputs.frames;
+    let out_dir = args.out.clone().unwrap_or_else(|| scenario.run.outputs.dir.clone());
+    let vtk = args.vtk || scenario.run.outputs.vtk;
+    let frames = args.frames || scenario.run.outputs.frames;
     let options = ReplayOptions { out_dir: out_dir.clone(), trajectory: args.trajectory.clone(), vtk };
     let precompute = bar(0, "compliance");
     let mut told = false;
@@ -90,6 +90,27 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
     let result = replay(&scenario, &options, &interrupt, &mut on_frame, Some(&mut on_precompute));
     progress.finish_and_clear();
     let summary = result.with_context(|| format!("replaying {}", args.scenario.display()))?;
+    print_summary(&scenario, &summary, &out_dir, vtk);
+    if summary.interrupted {
+        return Err(super::Interrupted {
+            what: format!(
+                "after {} of {} frames; partial results in {} (summary.json says \"interrupted\": true)",
+                summary.frames,
+                scenario.step_count(),
+                out_dir.display()
+            ),
+        }
+        .into());
+    }
+    if args.strict && !summary.integrity.passed {
+        return Err(super::IntegrityFailed { what: format!("{}: {}", args.scenario.display(), summary.integrity.failures.join("; ")) }.into());
+    }
+    Ok(summary)
+}
+
+/// What a replay prints: frame times a stage, each spatula's force and pressure, the tissue's ischemia, then
+/// [`print_model`]. `scripts/perf_docs.sh` reads these lines; `summary.json` carries the same figures.
+fn print_summary(scenario: &Scenario, summary: &Summary, out_dir: &Path, vtk: bool) {
     println!("{}: {} frames ({:.2} s simulated){}", scenario.name, summary.frames, summary.simulated_s, if summary.interrupted { ", INTERRUPTED" } else { "" });
     println!("  frame time p50 {:.3} ms, p95 {:.3} ms, max {:.3} ms", summary.frame.p50_ms, summary.frame.p95_ms, summary.frame.max_ms);
     for (stage, p) in &summary.stages {
@@ -123,12 +144,18 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
             if i.low_perfusion_over_tolerance { " (over the 6 minutes that preceded infarcts)" } else { "" }
         );
     }
+    print_model(summary, out_dir, vtk);
+}
+
+/// The compliance, the displacement, the collision backend and its notes, the sub-steps, the integrity check, the
+/// final state's hash and the files written.
+fn print_model(summary: &Summary, out_dir: &Path, vtk: bool) {
     let c = &summary.compliance;
     println!(
         "  compliance: {} rows (the working region, of {} surface vertices) x {} columns, {:.0} MB",
         c.rows, c.surface_vertices, c.columns, c.megabytes
     );
-    println!("  max displacement {:.2} mm, tissue pulled through a blade: {} vertices (max in a frame)", summary.max_displacement_mm, summary.max_crossed_vertices);
+    println!("  max displacement {:.2} mm, tissue pulled through a blade: {} vertices (max in a frame)", summary.worst.max_displacement_mm, summary.worst.max_crossed_vertices);
     if let Some(b) = &summary.collision_backend {
         println!("  collision backend: {b}");
     }
@@ -141,11 +168,11 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
     match summary.integrity.failures.as_slice() {
         [] => println!(
             "  integrity: pass (penetration {:.3} mm <= {} mm, inverted elements {} <= {}, pulled through {} <= {})",
-            summary.max_penetration_mm,
+            summary.worst.max_penetration_mm,
             summary.integrity.limits.max_penetration_mm,
-            summary.max_inverted_elements,
+            summary.worst.max_inverted_elements,
             summary.integrity.limits.max_inverted_elements,
-            summary.max_crossed_vertices,
+            summary.worst.max_crossed_vertices,
             summary.integrity.limits.max_crossed_vertices
         ),
         failures => {
@@ -156,19 +183,4 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
     }
     println!("  final state {}", summary.final_state_hash);
     println!("  wrote {}/metrics.csv, {}/summary.json{}", out_dir.display(), out_dir.display(), if vtk { ", series.pvd" } else { "" });
-    if summary.interrupted {
-        return Err(super::Interrupted {
-            what: format!(
-                "after {} of {} frames; partial results in {} (summary.json says \"interrupted\": true)",
-                summary.frames,
-                scenario.step_count(),
-                out_dir.display()
-            ),
-        }
-        .into());
-    }
-    if args.strict && !summary.integrity.passed {
-        return Err(super::IntegrityFailed { what: format!("{}: {}", args.scenario.display(), summary.integrity.failures.join("; ")) }.into());
-    }
-    Ok(summary)
 }

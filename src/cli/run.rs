@@ -100,7 +100,7 @@ pub fn run(scenario: Option<&Path>, set: &[String], headless_only: bool, args: &
     if let Some(size) = args.size {
         options.size = size;
     }
-    options.record_dir = fissure::app::window::record_dir_for(args.record_dir.as_deref(), loaded.outputs.record_dir.as_deref());
+    options.record_dir = fissure::app::window::record_dir_for(args.record_dir.as_deref(), loaded.run.outputs.record_dir.as_deref());
     let names: Vec<String> = loaded.spatulas.iter().map(|s| s.name.clone()).collect();
     let dt = loaded.time_step;
     match run_window(loaded, options) {

@@ -77,7 +77,7 @@ pub fn run(args: &ScreenshotArgs) -> anyhow::Result<()> {
     let scenario = Scenario::load(&args.scenario, &args.set).with_context(|| format!("loading {}", args.scenario.display()))?;
     // Risk is dosed frame by frame by the `Ischemia` stage: a scene without it has none to show (fail before building).
     anyhow::ensure!(
-        !matches!(args.field, FieldArg::Risk) || scenario.ischemia.is_some(),
+        !matches!(args.field, FieldArg::Risk) || scenario.tissue_time.ischemia.is_some(),
         "--field risk needs the Ischemia effect, and scene '{}' ({}) does not list it in `effects` (Ischemia, with ContactPressure: docs/usage.md, Tissue over time)",
         scenario.name,
         args.scenario.display()

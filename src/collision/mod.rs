@@ -361,6 +361,43 @@ impl CollisionStage {
     /// One frame: `current` = deformed surface-vertex positions (same order as
     /// `rest`), `poses` one per spatula. On error nothing changes (flags included).
     pub fn step(&mut self, current: &[Vec3], poses: &[Pose]) -> Result<&CollisionOutput, CollisionError> {
+        self.check_inputs(current, poses)?;
+        self.cast_rays(poses);
+        self.cast_lines(current)?;
+        for (l, h) in self.line_slots.iter().zip(&self.work.pair_hits) {
+            self.work.hits[l.slots[0]] = h.face0;
+            self.work.hits[l.slots[1]] = h.face1;
+        }
+        self.find_pairs(current);
+        let out = &mut self.output;
+        let other_side = displacement::OtherSide {
+            shapes: &self.shapes,
+            previous: self.previous_poses.as_deref(),
+            tolerances: &self.contact_tolerances,
+        };
+        displacement::resolve_targets(
+            &self.triangles,
+            current,
+            &self.rest,
+            &self.work.rays,
+            &out.feasible_pairs,
+            &self.spatula_offsets,
+            &self.contact_tolerances,
+            &other_side,
+            &mut self.work.claims,
+            &mut out.targets,
+        );
+
+        match &mut self.previous_poses {
+            Some(v) => v.copy_from_slice(poses),
+            None => self.previous_poses = Some(poses.to_vec()),
+        }
+        self.count();
+        Ok(&self.output)
+    }
+
+    /// The frame's inputs: a position a surface vertex, a valid pose a spatula, every number finite.
+    fn check_inputs(&self, current: &[Vec3], poses: &[Pose]) -> Result<(), CollisionError> {
         if current.len() != self.rest.len() {
             return Err(CollisionError::VertexCount { expected: self.rest.len(), got: current.len() });
         }
@@ -371,8 +408,11 @@ impl CollisionStage {
             return Err(CollisionError::InvalidPose { spatula });
         }
         check_finite(current)?;
+        Ok(())
+    }
 
-        // Rays of this frame.
+    /// This frame's rays, a source node each, and the lines of the nodes paired across a blade.
+    fn cast_rays(&mut self, poses: &[Pose]) {
         let rays = &mut self.work.rays;
         rays.clear();
         // Every node of a face shares its direction: one rotation per (spatula, face).
@@ -394,12 +434,10 @@ impl CollisionStage {
             let r = &self.work.rays[l.slots[0]];
             self.work.lines.push(PairLine { origin: r.origin, direction: r.direction, thickness: l.thickness });
         }
-        self.cast_lines(current)?;
-        for (l, h) in self.line_slots.iter().zip(&self.work.pair_hits) {
-            self.work.hits[l.slots[0]] = h.face0;
-            self.work.hits[l.slots[1]] = h.face1;
-        }
+    }
 
+    /// Candidate pairs from the hits, culled by the flags (and by the blades' sweep), and the flags for next frame.
+    fn find_pairs(&mut self, current: &[Vec3]) {
         let out = &mut self.output;
         out.candidate_pairs.clear();
         out.culled_pairs.clear();
@@ -432,28 +470,11 @@ impl CollisionStage {
             let slot = self.spatula_offsets[p.spatula as usize] + p.node as usize;
             self.flags.set(slot, true);
         }
-        let other_side = displacement::OtherSide {
-            shapes: &self.shapes,
-            previous: self.previous_poses.as_deref(),
-            tolerances: &self.contact_tolerances,
-        };
-        displacement::resolve_targets(
-            &self.triangles,
-            current,
-            &self.rest,
-            &self.work.rays,
-            &out.feasible_pairs,
-            &self.spatula_offsets,
-            &self.contact_tolerances,
-            &other_side,
-            &mut self.work.claims,
-            &mut out.targets,
-        );
+    }
 
-        match &mut self.previous_poses {
-            Some(v) => v.copy_from_slice(poses),
-            None => self.previous_poses = Some(poses.to_vec()),
-        }
+    /// Per-spatula counts and the source nodes as the overlays show them.
+    fn count(&mut self) {
+        let out = &mut self.output;
         for p in &out.candidate_pairs {
             out.per_spatula[p.spatula as usize].candidates += 1;
         }
@@ -481,7 +502,6 @@ impl CollisionStage {
                 flagged,
             });
         }
-        Ok(&self.output)
     }
 
     /// Casts this frame's lines into `work.pair_hits`: the caster, an `Auto` trial

@@ -124,11 +124,26 @@ pub struct Renderer {
     sample_count: u32,
     globals: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
-    surface_pipeline: wgpu::RenderPipeline,
-    blade_pipeline: wgpu::RenderPipeline,
-    skull_pipeline: wgpu::RenderPipeline,
-    overlay_pipeline: wgpu::RenderPipeline,
-    hidden_contact_pipeline: wgpu::RenderPipeline,
+    pipelines: Pipelines,
+    buffers: SceneBuffers,
+    background: wgpu::Color,
+    attachments: Option<Attachments>,
+    pub(crate) offscreen: Option<OffscreenTarget>,
+    scratch: Scratch,
+    gpu_error: Arc<Mutex<Option<String>>>,
+}
+
+/// The scene's render pipelines.
+struct Pipelines {
+    surface: wgpu::RenderPipeline,
+    blade: wgpu::RenderPipeline,
+    skull: wgpu::RenderPipeline,
+    overlay: wgpu::RenderPipeline,
+    hidden_contact: wgpu::RenderPipeline,
+}
+
+/// The frame's geometry on the GPU, and what it holds.
+struct SceneBuffers {
     surface_vertices: GrowBuffer,
     surface_indices: GrowBuffer,
     /// The triangles under pressure (a pressure field only), for the hidden-contact pass.
@@ -138,11 +153,78 @@ pub struct Renderer {
     index_count: u32,
     uploaded_triangles: Vec<[u32; 3]>,
     ranges: ToolRanges,
-    background: wgpu::Color,
-    attachments: Option<Attachments>,
-    pub(crate) offscreen: Option<OffscreenTarget>,
-    scratch: Scratch,
-    gpu_error: Arc<Mutex<Option<String>>>,
+}
+
+impl Pipelines {
+    /// The scene's pipelines over the globals' `layout`, drawing into `color_format` with `sample_count` samples.
+    fn new(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, color_format: wgpu::TextureFormat, sample_count: u32) -> Self {
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("scene pipeline layout"),
+            bind_group_layouts: &[Some(layout)],
+            immediate_size: 0,
+        });
+        let surface_shader =
+            device.create_shader_module(wgpu::include_wgsl!("../../shaders/surface.wgsl"));
+        let tools_shader =
+            device.create_shader_module(wgpu::include_wgsl!("../../shaders/tools.wgsl"));
+
+        let make = |label: &'static str,
+                    shader: &wgpu::ShaderModule,
+                    fragment: &'static str,
+                    topology: wgpu::PrimitiveTopology,
+                    cull: Option<wgpu::Face>,
+                    depth_write: bool,
+                    depth_compare: wgpu::CompareFunction,
+                    blend: Option<wgpu::BlendState>| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: shader,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(Vertex::layout())],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology,
+                    cull_mode: cull,
+                    front_face: wgpu::FrontFace::Ccw,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(depth_write),
+                    depth_compare: Some(depth_compare),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: wgpu::MultisampleState {
+                    count: sample_count,
+                    ..Default::default()
+                },
+                fragment: Some(wgpu::FragmentState {
+                    module: shader,
+                    entry_point: Some(fragment),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: color_format,
+                        blend,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        use wgpu::CompareFunction::{Always, Greater, Less};
+        use wgpu::PrimitiveTopology::TriangleList;
+        let surface = make("surface pipeline", &surface_shader, "fs_main", TriangleList, None, true, Less, None);
+        let blade = make("blade pipeline", &tools_shader, "fs_lit", TriangleList, Some(wgpu::Face::Back), true, Less, None);
+        let skull = make("skull pipeline", &tools_shader, "fs_lit", TriangleList, Some(wgpu::Face::Back), false, Less, Some(wgpu::BlendState::ALPHA_BLENDING));
+        let hidden_contact = make("hidden contact pipeline", &surface_shader, "fs_hidden", TriangleList, None, false, Greater, Some(wgpu::BlendState::ALPHA_BLENDING));
+        let overlay = make("overlay pipeline", &tools_shader, "fs_unlit", TriangleList, None, false, Always, None);
+        Pipelines { surface, blade, skull, overlay, hidden_contact }
+    }
 }
 
 /// Requests a headless device: honours `WGPU_BACKEND` (e.g. `vulkan`) and the
@@ -240,124 +322,18 @@ impl Renderer {
                 resource: globals.as_entire_binding(),
             }],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("scene pipeline layout"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let surface_shader =
-            device.create_shader_module(wgpu::include_wgsl!("../../shaders/surface.wgsl"));
-        let tools_shader =
-            device.create_shader_module(wgpu::include_wgsl!("../../shaders/tools.wgsl"));
-
-        let make = |label: &'static str,
-                    shader: &wgpu::ShaderModule,
-                    fragment: &'static str,
-                    topology: wgpu::PrimitiveTopology,
-                    cull: Option<wgpu::Face>,
-                    depth_write: bool,
-                    depth_compare: wgpu::CompareFunction,
-                    blend: Option<wgpu::BlendState>| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(label),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: shader,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(Vertex::layout())],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology,
-                    cull_mode: cull,
-                    front_face: wgpu::FrontFace::Ccw,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(depth_write),
-                    depth_compare: Some(depth_compare),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: wgpu::MultisampleState {
-                    count: sample_count,
-                    ..Default::default()
-                },
-                fragment: Some(wgpu::FragmentState {
-                    module: shader,
-                    entry_point: Some(fragment),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: color_format,
-                        blend,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        use wgpu::CompareFunction::{Always, Greater, Less};
-        use wgpu::PrimitiveTopology::TriangleList;
-        let surface_pipeline = make(
-            "surface pipeline",
-            &surface_shader,
-            "fs_main",
-            TriangleList,
-            None,
-            true,
-            Less,
-            None,
-        );
-        let blade_pipeline = make(
-            "blade pipeline",
-            &tools_shader,
-            "fs_lit",
-            TriangleList,
-            Some(wgpu::Face::Back),
-            true,
-            Less,
-            None,
-        );
-        let skull_pipeline = make(
-            "skull pipeline",
-            &tools_shader,
-            "fs_lit",
-            TriangleList,
-            Some(wgpu::Face::Back),
-            false,
-            Less,
-            Some(wgpu::BlendState::ALPHA_BLENDING),
-        );
-        let hidden_contact_pipeline = make(
-            "hidden contact pipeline",
-            &surface_shader,
-            "fs_hidden",
-            TriangleList,
-            None,
-            false,
-            Greater,
-            Some(wgpu::BlendState::ALPHA_BLENDING),
-        );
-        let overlay_pipeline = make(
-            "overlay pipeline",
-            &tools_shader,
-            "fs_unlit",
-            TriangleList,
-            None,
-            false,
-            Always,
-            None,
-        );
-
+        let pipelines = Pipelines::new(&device, &layout, color_format, sample_count);
         let vertex_usage = wgpu::BufferUsages::VERTEX;
-        let surface_vertices = GrowBuffer::new(&device, "surface vertices", vertex_usage);
-        let surface_indices =
-            GrowBuffer::new(&device, "surface indices", wgpu::BufferUsages::INDEX);
-        let contact_indices =
-            GrowBuffer::new(&device, "contact indices", wgpu::BufferUsages::INDEX);
-        let tool_vertices = GrowBuffer::new(&device, "tool vertices", vertex_usage);
+        let buffers = SceneBuffers {
+            surface_vertices: GrowBuffer::new(&device, "surface vertices", vertex_usage),
+            surface_indices: GrowBuffer::new(&device, "surface indices", wgpu::BufferUsages::INDEX),
+            contact_indices: GrowBuffer::new(&device, "contact indices", wgpu::BufferUsages::INDEX),
+            contact_index_count: 0,
+            tool_vertices: GrowBuffer::new(&device, "tool vertices", vertex_usage),
+            index_count: 0,
+            uploaded_triangles: Vec::new(),
+            ranges: ToolRanges::default(),
+        };
         let scratch = Scratch {
             unit_sphere: meshes::unit_sphere(24, 48),
             unit_cap: meshes::unit_sphere(4, meshes::TUBE_SIDES),
@@ -371,19 +347,8 @@ impl Renderer {
             sample_count,
             globals,
             bind_group,
-            surface_pipeline,
-            blade_pipeline,
-            skull_pipeline,
-            overlay_pipeline,
-            hidden_contact_pipeline,
-            surface_vertices,
-            surface_indices,
-            contact_indices,
-            contact_index_count: 0,
-            tool_vertices,
-            index_count: 0,
-            uploaded_triangles: Vec::new(),
-            ranges: ToolRanges::default(),
+            pipelines,
+            buffers,
             background: wgpu::Color::BLACK,
             attachments: None,
             offscreen: None,
@@ -502,46 +467,7 @@ impl Renderer {
                 vertices: count,
             });
         }
-        if surface.triangles != self.uploaded_triangles.as_slice() {
-            for (triangle, t) in surface.triangles.iter().enumerate() {
-                if let Some(&index) = t.iter().find(|&&i| i as usize >= count) {
-                    return Err(RenderError::TriangleIndex {
-                        triangle,
-                        index,
-                        vertices: count,
-                    });
-                }
-            }
-            self.surface_indices.write(
-                &self.device,
-                &self.queue,
-                bytemuck::cast_slice(surface.triangles),
-            );
-            self.uploaded_triangles.clear();
-            self.uploaded_triangles.extend_from_slice(surface.triangles);
-            self.index_count = (surface.triangles.len() * 3) as u32;
-        } else if surface
-            .triangles
-            .iter()
-            .any(|t| t.iter().any(|&i| i as usize >= count))
-        {
-            // Same topology, fewer vertices than before.
-            let (triangle, t) = surface
-                .triangles
-                .iter()
-                .enumerate()
-                .find(|(_, t)| t.iter().any(|&i| i as usize >= count))
-                .expect("just found");
-            let index = *t
-                .iter()
-                .find(|&&i| i as usize >= count)
-                .expect("just found");
-            return Err(RenderError::TriangleIndex {
-                triangle,
-                index,
-                vertices: count,
-            });
-        }
+        self.upload_triangles(surface.triangles, count)?;
         let cam = &view.camera;
         if !(cam.target.iter().all(|c| c.is_finite())
             && cam.distance_m.is_finite()
@@ -552,15 +478,48 @@ impl Renderer {
         let origin = cam.target;
         let s = &mut self.scratch;
         meshes::surface_vertices(surface, &origin, &mut s.normals, &mut s.surface);
-        self.surface_vertices
+        self.buffers.surface_vertices
             .write(&self.device, &self.queue, bytemuck::cast_slice(&s.surface));
         meshes::pressed_triangles(surface.triangles, &s.surface, &mut s.contact);
         if !s.contact.is_empty() {
-            self.contact_indices
+            self.buffers.contact_indices
                 .write(&self.device, &self.queue, bytemuck::cast_slice(&s.contact));
         }
-        self.contact_index_count = (s.contact.len() * 3) as u32;
+        self.buffers.contact_index_count = (s.contact.len() * 3) as u32;
+        self.upload_tools(view);
+        self.upload_globals(view, size);
+        let [r, g, b] = view.background.map(|c| {
+            if c.is_finite() {
+                c.clamp(0.0, 1.0) as f64
+            } else {
+                0.0
+            }
+        });
+        self.background = wgpu::Color { r, g, b, a: 1.0 };
+        self.ensure_attachments(size);
+        Ok(())
+    }
 
+    /// Uploads the surface's triangles where they changed, each index checked against the `count` vertices.
+    fn upload_triangles(&mut self, triangles: &[[u32; 3]], count: usize) -> Result<(), RenderError> {
+        let out_of_range = triangles.iter().enumerate().find_map(|(k, t)| t.iter().find(|&&i| i as usize >= count).map(|&i| (k, i)));
+        if let Some((triangle, index)) = out_of_range {
+            return Err(RenderError::TriangleIndex { triangle, index, vertices: count });
+        }
+        if triangles != self.buffers.uploaded_triangles.as_slice() {
+            self.buffers.surface_indices.write(&self.device, &self.queue, bytemuck::cast_slice(triangles));
+            self.buffers.uploaded_triangles.clear();
+            self.buffers.uploaded_triangles.extend_from_slice(triangles);
+            self.buffers.index_count = (triangles.len() * 3) as u32;
+        }
+        Ok(())
+    }
+
+    /// The blades, the tethers, the skull spheres and the overlays, one vertex buffer with their ranges.
+    fn upload_tools(&mut self, view: &SceneView) {
+        let cam = &view.camera;
+        let origin = cam.target;
+        let s = &mut self.scratch;
         s.tools.clear();
         meshes::blade_vertices(view.spatulas, &origin, &mut s.tools);
         meshes::tube_vertices(view.tethers, true, &s.unit_cap, &origin, &mut s.tools);
@@ -578,14 +537,19 @@ impl Renderer {
             &mut s.tools,
         );
         let overlays_end = s.tools.len() as u32;
-        self.ranges = ToolRanges {
+        self.buffers.ranges = ToolRanges {
             blades: (0, blades_end),
             skull: (blades_end, skull_end),
             overlays: (skull_end, overlays_end),
         };
-        self.tool_vertices
+        self.buffers.tool_vertices
             .write(&self.device, &self.queue, bytemuck::cast_slice(&s.tools));
 
+    }
+
+    /// The camera, the eye and the key light.
+    fn upload_globals(&mut self, view: &SceneView, size: (u32, u32)) {
+        let cam = &view.camera;
         let aspect = size.0 as f64 / size.1 as f64;
         let m = cam.view_projection(aspect);
         let mut view_proj = [[0f32; 4]; 4];
@@ -607,16 +571,6 @@ impl Renderer {
         };
         self.queue
             .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
-        let [r, g, b] = view.background.map(|c| {
-            if c.is_finite() {
-                c.clamp(0.0, 1.0) as f64
-            } else {
-                0.0
-            }
-        });
-        self.background = wgpu::Color { r, g, b, a: 1.0 };
-        self.ensure_attachments(size);
-        Ok(())
     }
 
     /// Records the scene pass into `encoder`, drawing into `target` (a view of a
@@ -658,26 +612,26 @@ impl Renderer {
         let surface = |pass: &mut wgpu::RenderPass<'_>, pipeline, indices: &GrowBuffer, count: u32| {
             if count > 0 {
                 pass.set_pipeline(pipeline);
-                pass.set_vertex_buffer(0, self.surface_vertices.buffer.slice(..));
+                pass.set_vertex_buffer(0, self.buffers.surface_vertices.buffer.slice(..));
                 pass.set_index_buffer(indices.buffer.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed(0..count, 0, 0..1);
             }
         };
-        surface(&mut pass, &self.surface_pipeline, &self.surface_indices, self.index_count);
-        pass.set_vertex_buffer(0, self.tool_vertices.buffer.slice(..));
-        let r = self.ranges;
+        surface(&mut pass, &self.pipelines.surface, &self.buffers.surface_indices, self.buffers.index_count);
+        pass.set_vertex_buffer(0, self.buffers.tool_vertices.buffer.slice(..));
+        let r = self.buffers.ranges;
         if r.blades.1 > r.blades.0 {
-            pass.set_pipeline(&self.blade_pipeline);
+            pass.set_pipeline(&self.pipelines.blade);
             pass.draw(r.blades.0..r.blades.1, 0..1);
         }
         // After everything opaque, so the depth buffer knows what hides the patch.
-        if self.contact_index_count > 0 {
-            surface(&mut pass, &self.hidden_contact_pipeline, &self.contact_indices, self.contact_index_count);
-            pass.set_vertex_buffer(0, self.tool_vertices.buffer.slice(..));
+        if self.buffers.contact_index_count > 0 {
+            surface(&mut pass, &self.pipelines.hidden_contact, &self.buffers.contact_indices, self.buffers.contact_index_count);
+            pass.set_vertex_buffer(0, self.buffers.tool_vertices.buffer.slice(..));
         }
         for (pipeline, (start, end)) in [
-            (&self.skull_pipeline, r.skull),
-            (&self.overlay_pipeline, r.overlays),
+            (&self.pipelines.skull, r.skull),
+            (&self.pipelines.overlay, r.overlays),
         ] {
             if end > start {
                 pass.set_pipeline(pipeline);

@@ -391,10 +391,8 @@ pub struct Scenario {
     pub mesh: MeshSource,
     /// Local refinement of the mesh's boundary, when asked for.
     pub refine: RefineChoice,
-    /// Material of every region without an override.
-    pub material: Material,
-    /// Per-region overrides, sorted by region id, ids unique.
-    pub region_materials: Vec<RegionMaterial>,
+    /// The tissue's material and its body force.
+    pub body: Body,
     /// Fixed-node selectors (non-empty; their union is fixed).
     pub fixed: Vec<FixedRegion>,
     /// Skull spheres, when given.
@@ -403,38 +401,82 @@ pub struct Scenario {
     pub spatulas: Vec<SpatulaConfig>,
     /// The stages the scene asked for.
     pub effects: EffectSet,
-    /// Collision backend.
-    pub collision_backend: CollisionBackend,
-    /// Swept-side culling on top of the paper's His-flags (see `collision` docs, rule 3b).
-    pub swept_culling: bool,
+    /// The collision backend and its culling.
+    pub collision: CollisionOptions,
     /// Solver options.
     pub solver: SolverOptions,
-    /// Gravity, m/s^2 (finite).
-    pub gravity: Vec3,
-    /// Density, kg/m^3, in (0, 1e5].
-    pub density: f64,
     /// Fixed time step, s (> 0, <= duration / 10).
     pub time_step: f64,
     /// Headless run length, s (> 0).
     pub duration: f64,
     /// Recorded trajectory, resolved against the scenario's folder (exists and parses at validation).
     pub trajectory: Option<PathBuf>,
-    /// Outputs.
-    pub outputs: Outputs,
+    /// What a run writes and the limits of its integrity verdict.
+    pub run: RunOutputs,
     /// Display options.
     pub display: Display,
-    /// Pass/fail limits of the run's integrity verdict.
-    pub integrity: IntegrityLimits,
     /// Vessels and arachnoid bands (empty unless the scene has the `Tethers` effect).
     pub tethers: super::tethers::Tethers,
+    /// Tissue over time: relaxation and ischemia.
+    pub tissue_time: TissueTime,
+    /// The input devices' settings.
+    pub devices: DeviceSettings,
+    /// What validation found: warnings and where the fields are.
+    pub checks: Checks,
+}
+
+/// The tissue's material and the body force on it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Body {
+    /// Material of every region without an override.
+    pub material: Material,
+    /// Per-region overrides, sorted by region id, ids unique.
+    pub region_materials: Vec<RegionMaterial>,
+    /// Gravity, m/s^2 (finite).
+    pub gravity: Vec3,
+    /// Density, kg/m^3, in (0, 1e5].
+    pub density: f64,
+}
+
+/// The collision stage's backend and culling.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CollisionOptions {
+    /// Collision backend.
+    pub backend: CollisionBackend,
+    /// Swept-side culling on top of the paper's His-flags (see `collision` docs, rule 3b).
+    pub swept_culling: bool,
+}
+
+/// What a run writes, and the limits its integrity verdict holds it to.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunOutputs {
+    /// Outputs.
+    pub outputs: Outputs,
+    /// Pass/fail limits of the run's integrity verdict.
+    pub integrity: IntegrityLimits,
+}
+
+/// The tissue over time (each with its effect only).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TissueTime {
     /// The relaxation function, with the `Relaxation` effect only.
     pub relaxation: Option<super::tissue_time::Relaxation>,
     /// The ischemia model, with the `Ischemia` effect only.
     pub ischemia: Option<super::tissue_time::Ischemia>,
+}
+
+/// The input devices' settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeviceSettings {
     /// Where fissure's OpenIGTLink server listens (`openigtlink.listen`).
     pub igtl_listen: std::net::SocketAddr,
     /// The SpaceMouse's tuning (`spacemouse`).
     pub spacemouse: super::devices::SpaceMouseSettings,
+}
+
+/// What validation found beside errors.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Checks {
     /// Legal but doubtful values, in the order found (`fissure check` prints
     /// them; the pipeline's build logs them).
     pub warnings: Vec<ScenarioWarning>,
@@ -625,37 +667,32 @@ impl Scenario {
             source_path: document.path.clone(),
             mesh,
             refine,
-            material,
-            region_materials,
+            body: Body { material, region_materials, gravity, density },
             fixed,
             skull,
             spatulas,
             effects,
-            collision_backend: file.collision.backend,
-            swept_culling: file.collision.swept_culling,
+            collision: CollisionOptions { backend: file.collision.backend, swept_culling: file.collision.swept_culling },
             solver,
-            gravity,
-            density,
             time_step,
             duration,
             trajectory: trajectory.map(|(p, _)| p),
-            outputs,
+            run: RunOutputs { outputs, integrity },
             display,
-            integrity,
             tethers,
-            relaxation,
-            ischemia,
-            igtl_listen,
-            spacemouse,
-            warnings: c.warnings.take(),
-            locations: field_locations(document, file.fixed.len(), file.spatulas.len(), &file.tethers),
+            tissue_time: TissueTime { relaxation, ischemia },
+            devices: DeviceSettings { igtl_listen, spacemouse },
+            checks: Checks {
+                warnings: c.warnings.take(),
+                locations: field_locations(document, file.fixed.len(), file.spatulas.len(), &file.tethers),
+            },
         })
     }
 
     /// Where `field` is written (its own position or the nearest enclosing
     /// recorded one, see [`Scenario::locations`]); the file's start otherwise.
     pub fn locate(&self, field: &str) -> Location {
-        self.locations.get(field).cloned().unwrap_or_else(|| Location {
+        self.checks.locations.get(field).cloned().unwrap_or_else(|| Location {
             origin: super::error::Origin::File(self.source_path.clone()),
             line: 1,
             column: 1,
@@ -698,9 +735,9 @@ impl Scenario {
         let _ = writeln!(
             s,
             "  material:  E = {} Pa, nu = {}{}",
-            self.material.young_modulus,
-            self.material.poisson_ratio,
-            if self.region_materials.is_empty() { String::new() } else { format!(", {} region override(s)", self.region_materials.len()) }
+            self.body.material.young_modulus,
+            self.body.material.poisson_ratio,
+            if self.body.region_materials.is_empty() { String::new() } else { format!(", {} region override(s)", self.body.region_materials.len()) }
         );
         let _ = writeln!(s, "  fixed:     {} selector(s)", self.fixed.len());
         match &self.skull {
@@ -737,12 +774,12 @@ impl Scenario {
         }
         let effects: Vec<String> = self.effects.iter().map(|e| format!("{e:?}")).collect();
         let _ = writeln!(s, "  effects:   {}", if effects.is_empty() { "none".to_string() } else { effects.join(", ") });
-        let _ = writeln!(s, "  collision: {:?}; compliance {:?}, region of interest {:?}", self.collision_backend, self.solver.compliance_storage, self.solver.region_of_interest);
+        let _ = writeln!(s, "  collision: {:?}; compliance {:?}, region of interest {:?}", self.collision.backend, self.solver.compliance_storage, self.solver.region_of_interest);
         let _ = writeln!(s, "  time:      step {} s, duration {} s ({} steps)", self.time_step, self.duration, self.step_count());
         if let Some(t) = &self.trajectory {
             let _ = writeln!(s, "  trajectory: {}", t.display());
         }
-        let _ = write!(s, "  outputs:   {} (vtk {}, frames {})", self.outputs.dir.display(), self.outputs.vtk, self.outputs.frames);
+        let _ = write!(s, "  outputs:   {} (vtk {}, frames {})", self.run.outputs.dir.display(), self.run.outputs.vtk, self.run.outputs.frames);
         s
     }
 }
@@ -1283,7 +1320,7 @@ mod tests {
     fn the_good_scene_is_valid_without_warnings() {
         let (_, result) = load("", "");
         let s = result.expect("valid");
-        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        assert!(s.checks.warnings.is_empty(), "{:?}", s.checks.warnings);
     }
 
     #[test]
@@ -1305,15 +1342,15 @@ mod tests {
         }
         refused("{RNU}", "0.5", "regions:", "material.regions[0].poisson_ratio", "poisson_ratio must be in [0, 0.5), got 0.5");
         let (_, ok) = load("{NU}", "0.0");
-        assert!(ok.is_ok_and(|s| s.warnings.is_empty()), "nu = 0 is allowed, silently");
+        assert!(ok.is_ok_and(|s| s.checks.warnings.is_empty()), "nu = 0 is allowed, silently");
     }
 
     #[test]
     fn poisson_ratio_above_0_49_warns_of_volumetric_locking() {
         let (text, result) = load("{NU}", "0.495");
         let s = result.expect("nu = 0.495 is valid");
-        assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
-        let w = &s.warnings[0];
+        assert_eq!(s.checks.warnings.len(), 1, "{:?}", s.checks.warnings);
+        let w = &s.checks.warnings[0];
         assert_eq!(w.field, "material.poisson_ratio");
         assert_eq!((w.location.line, w.location.column), position(&text, "material:", "0.495"));
         let shown = w.to_string();
@@ -1322,9 +1359,9 @@ mod tests {
         // Per region too; 0.49 itself is quiet.
         let (_, result) = load("{RNU}", "0.4999999");
         let s = result.expect("valid");
-        assert_eq!(s.warnings.iter().map(|w| w.field.as_str()).collect::<Vec<_>>(), ["material.regions[0].poisson_ratio"]);
+        assert_eq!(s.checks.warnings.iter().map(|w| w.field.as_str()).collect::<Vec<_>>(), ["material.regions[0].poisson_ratio"]);
         let (_, result) = load("{NU}", "0.49");
-        assert!(result.expect("valid").warnings.is_empty(), "0.49 is the threshold, not above it");
+        assert!(result.expect("valid").checks.warnings.is_empty(), "0.49 is the threshold, not above it");
     }
 
     #[test]

@@ -306,61 +306,91 @@ impl BarrierStage {
         self.end_candidates.clear();
         let before = out.len();
         for (s, ((shape, pb), pa)) in blades.shapes.iter().zip(blades.before).zip(blades.after).enumerate() {
-            let half = 0.5 * shape.thickness;
             let band = BARRIER_BAND_M + travel(shape, pb, pa);
-            let bit = 1u32 << (s as u32).min(31);
-            let axis = pa.rotation * Vec3::z();
-            // Rules 1 and 4 reach no vertex outside the footprint grown by the
-            // band beyond the tip and the side edges, and by the band off the faces.
-            let reach = Vec3::new(shape.length + band, 0.5 * shape.width + band, half + band);
-            let bounds = world_bounds(pa, &Vec3::new(0.0, -reach.y, -reach.z), &reach, BOUNDS_SLACK_M);
-            // Rule 1: over the footprint.
-            for (v, p) in surface.start.iter().enumerate() {
-                if self.claimed[v] & bit != 0 || outside_bounds(p, &bounds) {
-                    continue;
-                }
-                let q1 = local(pa, p);
-                if q1.z.abs() > half + band {
-                    continue;
-                }
-                if !over_footprint(shape, &q1, 0.0) {
-                    // Rule 4 (after rules 2 and 3): beyond the tip or a side edge.
-                    if let Some((n, face_point)) = end_face(shape, pa, &q1, band) {
-                        self.end_candidates.push((v as u32, s as u8, n, face_point));
-                    }
-                    continue;
-                }
-                let q0 = local(pb, p);
-                let side = if over_footprint(shape, &q0, 0.0) && q0.z.abs() >= half - SIDE_TOLERANCE_M {
-                    q0.z.signum()
-                } else if q1.z < 0.0 {
-                    -1.0
-                } else {
-                    1.0
-                };
-                self.push(v, s, axis * side, pa.position + axis * (side * half), surface, out);
+            self.footprint_rows(s, shape, (pb, pa), band, surface, out);
+            if let Some(rays) = rays {
+                self.ray_rows(s, rays, band, surface, out);
             }
-            // Rule 2: along the rays (front hits within the band, unclaimed vertices of feasible triangles).
-            let Some(rays) = rays else { continue };
-            let Some(first) = rays.source_nodes.iter().position(|n| n.spatula as usize == s) else { continue };
-            for (node, hits) in rays.source_nodes[first..].iter().zip(&rays.hits[first.min(rays.hits.len())..]).take_while(|(n, _)| n.spatula as usize == s) {
-                if let Some(h) = hits.front {
-                    if h.t <= band {
-                        self.bar_triangle(h.triangle, s, node.normal, node.position, surface, out);
-                    }
-                }
+        }
+        self.previous_claim_rows(blades, surface, out);
+        // Rule 4: around the tip and side edges, for vertices no rule above covers.
+        for i in 0..self.end_candidates.len() {
+            let (v, s, n, face_point) = self.end_candidates[i];
+            let (v, s) = (v as usize, s as usize);
+            if (self.claimed[v] | self.barred[v]) & (1u32 << (s as u32).min(31)) == 0 {
+                self.push(v, s, n, face_point, surface, out);
             }
-            for pair in rays.feasible.iter().filter(|p| p.spatula as usize == s) {
-                // Source nodes are in slot order: spatula s's node j is at `first + j`.
-                match rays.source_nodes.get(first + pair.node as usize) {
-                    Some(node) if node.spatula == pair.spatula && node.node == pair.node => {
-                        self.bar_triangle(pair.triangle, s, node.normal, node.position, surface, out);
-                    }
-                    _ => {}
+        }
+        self.previous_claims.clear();
+        self.previous_claims.extend(targets.iter().map(|t| (t.vertex, t.spatula, t.face)));
+        out.len() - before
+    }
+
+    /// Rule 1 for spatula `s`, moving from `pb` to `pa`: every unclaimed vertex over its footprint within `band` of
+    /// its faces gets a row on the face it was on before the move; the vertices beyond the tip or a side edge are
+    /// kept for rule 4.
+    fn footprint_rows(&mut self, s: usize, shape: &SpatulaShape, (pb, pa): (&Pose, &Pose), band: f64, surface: SurfaceState<'_>, out: &mut Vec<Constraint>) {
+        let half = 0.5 * shape.thickness;
+        let bit = 1u32 << (s as u32).min(31);
+        let axis = pa.rotation * Vec3::z();
+        // Rules 1 and 4 reach no vertex outside the footprint grown by the
+        // band beyond the tip and the side edges, and by the band off the faces.
+        let reach = Vec3::new(shape.length + band, 0.5 * shape.width + band, half + band);
+        let bounds = world_bounds(pa, &Vec3::new(0.0, -reach.y, -reach.z), &reach, BOUNDS_SLACK_M);
+        // Rule 1: over the footprint.
+        for (v, p) in surface.start.iter().enumerate() {
+            if self.claimed[v] & bit != 0 || outside_bounds(p, &bounds) {
+                continue;
+            }
+            let q1 = local(pa, p);
+            if q1.z.abs() > half + band {
+                continue;
+            }
+            if !over_footprint(shape, &q1, 0.0) {
+                // Rule 4 (after rules 2 and 3): beyond the tip or a side edge.
+                if let Some((n, face_point)) = end_face(shape, pa, &q1, band) {
+                    self.end_candidates.push((v as u32, s as u8, n, face_point));
+                }
+                continue;
+            }
+            let q0 = local(pb, p);
+            let side = if over_footprint(shape, &q0, 0.0) && q0.z.abs() >= half - SIDE_TOLERANCE_M {
+                q0.z.signum()
+            } else if q1.z < 0.0 {
+                -1.0
+            } else {
+                1.0
+            };
+            self.push(v, s, axis * side, pa.position + axis * (side * half), surface, out);
+        }
+    }
+
+    /// Rule 2 for spatula `s`: the front hits of its rays within `band`, and the unclaimed vertices of its feasible
+    /// triangles.
+    fn ray_rows(&mut self, s: usize, rays: Rays<'_>, band: f64, surface: SurfaceState<'_>, out: &mut Vec<Constraint>) {
+        let Some(first) = rays.source_nodes.iter().position(|n| n.spatula as usize == s) else { return };
+        for (node, hits) in rays.source_nodes[first..].iter().zip(&rays.hits[first.min(rays.hits.len())..]).take_while(|(n, _)| n.spatula as usize == s) {
+            if let Some(h) = hits.front {
+                if h.t <= band {
+                    self.bar_triangle(h.triangle, s, node.normal, node.position, surface, out);
                 }
             }
         }
-        // Rule 3: claimed last frame.
+        for pair in rays.feasible.iter().filter(|p| p.spatula as usize == s) {
+            // Source nodes are in slot order: spatula s's node j is at `first + j`.
+            match rays.source_nodes.get(first + pair.node as usize) {
+                Some(node) if node.spatula == pair.spatula && node.node == pair.node => {
+                    self.bar_triangle(pair.triangle, s, node.normal, node.position, surface, out);
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// Rule 3: a vertex claimed last frame, no longer claimed nor barred, still over the footprint and not behind
+    /// the face it was claimed on, keeps a row on that face.
+    fn previous_claim_rows(&mut self, blades: Blades<'_>, surface: SurfaceState<'_>, out: &mut Vec<Constraint>) {
+        let n_vertices = surface.start.len();
         for i in 0..self.previous_claims.len() {
             let (v, s, face) = self.previous_claims[i];
             let (v, s) = (v as usize, s as usize);
@@ -381,17 +411,6 @@ impl BarrierStage {
             }
             self.push(v, s, n, face_point, surface, out);
         }
-        // Rule 4: around the tip and side edges, for vertices no rule above covers.
-        for i in 0..self.end_candidates.len() {
-            let (v, s, n, face_point) = self.end_candidates[i];
-            let (v, s) = (v as usize, s as usize);
-            if (self.claimed[v] | self.barred[v]) & (1u32 << (s as u32).min(31)) == 0 {
-                self.push(v, s, n, face_point, surface, out);
-            }
-        }
-        self.previous_claims.clear();
-        self.previous_claims.extend(targets.iter().map(|t| (t.vertex, t.spatula, t.face)));
-        out.len() - before
     }
 
     /// Rule 2 for one triangle seen from a face (outward normal `n`, a point `face_point` on it).

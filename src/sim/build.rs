@@ -127,13 +127,13 @@ impl Pipeline {
         let CheckedMesh { mesh, fixed, .. } = checked;
         let to_fem = |m: crate::scenario::Material| fem::Material { young_modulus: m.young_modulus, poisson_ratio: m.poisson_ratio };
         let materials = RegionMaterials {
-            default: to_fem(scenario.material),
-            by_region: scenario.region_materials.iter().map(|r| (r.region, to_fem(r.material))).collect(),
+            default: to_fem(scenario.body.material),
+            by_region: scenario.body.region_materials.iter().map(|r| (r.region, to_fem(r.material))).collect(),
         };
         let fem_options = FemOptions {
             gravity: effects
                 .contains(Effect::Gravity)
-                .then_some(BodyForce { density: scenario.density, acceleration: scenario.gravity }),
+                .then_some(BodyForce { density: scenario.body.density, acceleration: scenario.body.gravity }),
         };
         let initial: Vec<Pose> = scenario.spatulas.iter().map(|s| s.initial_pose).collect();
         let mut pose_sets = vec![initial.clone()];
@@ -284,7 +284,7 @@ fn surface_side(scenario: &Scenario, mesh: &TetMesh, surface: &crate::mesh::Boun
     let reach = if early { reach_ranks(scenario, mesh, &roi, pose_sets) } else { Vec::new() };
     let collision = if scenario.effects.contains(Effect::Collision) {
         let config = CollisionConfig {
-            backend: match scenario.collision_backend {
+            backend: match scenario.collision.backend {
                 CollisionBackend::Reference => BackendKind::Reference,
                 CollisionBackend::Bvh => BackendKind::Bvh,
                 CollisionBackend::Gpu => BackendKind::Gpu,
@@ -295,7 +295,7 @@ fn surface_side(scenario: &Scenario, mesh: &TetMesh, surface: &crate::mesh::Boun
         let specs: Vec<SpatulaSpec> = scenario.spatulas.iter().map(|s| SpatulaSpec { shape: s.shape, layout: s.layout.clone() }).collect();
         let rest: Vec<Vec3> = surface.gather_positions(&mesh.positions);
         let mut stage = CollisionStage::new(config, &surface.triangles, &rest, &specs)?;
-        stage.set_swept_culling(scenario.swept_culling);
+        stage.set_swept_culling(scenario.collision.swept_culling);
         Some(stage)
     } else {
         None

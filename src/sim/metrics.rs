@@ -259,12 +259,9 @@ pub struct Summary {
     /// Percentiles of the whole frame.
     pub frame: Percentiles,
     pub spatulas: Vec<SpatulaSummary>,
-    pub max_displacement_mm: f64,
-    pub max_crossed_vertices: u32,
-    pub max_penetrating_vertices: u32,
-    pub max_inverted_elements: u32,
-    /// Deepest penetration of a surface vertex into a blade at the end of a frame, mm.
-    pub max_penetration_mm: f64,
+    /// The worst the tissue came to over the run (in `summary.json` at this level).
+    #[serde(flatten)]
+    pub worst: Worst,
     pub rejected_poses: u64,
     /// Most sub-steps one frame was split into (fast tools).
     pub max_substeps: u32,
@@ -292,6 +289,19 @@ pub struct Summary {
     pub bands: Option<BandSummary>,
     /// Injury from retractor pressure over time (None without the `Ischemia` effect).
     pub ischemia: Option<IschemiaSummary>,
+}
+
+/// The worst the tissue came to over a run, each the largest over its frames.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Worst {
+    pub max_displacement_mm: f64,
+    /// Surface vertices pulled through a blade in one frame.
+    pub max_crossed_vertices: u32,
+    /// Surface vertices inside a blade at the end of one frame.
+    pub max_penetrating_vertices: u32,
+    pub max_inverted_elements: u32,
+    /// Deepest penetration of a surface vertex into a blade at the end of a frame, mm.
+    pub max_penetration_mm: f64,
 }
 
 /// Ischemia over a run: areas, dose, perfusion.
@@ -484,11 +494,11 @@ impl SummaryBuilder {
         }
         let m = &mut self.summary;
         m.frames += 1;
-        m.max_displacement_mm = m.max_displacement_mm.max(r.max_displacement_m * 1e3);
-        m.max_crossed_vertices = m.max_crossed_vertices.max(r.crossed_vertices);
-        m.max_penetrating_vertices = m.max_penetrating_vertices.max(r.penetrating_vertices);
-        m.max_inverted_elements = m.max_inverted_elements.max(r.inverted_elements);
-        m.max_penetration_mm = m.max_penetration_mm.max(r.max_penetration_m * 1e3);
+        m.worst.max_displacement_mm = m.worst.max_displacement_mm.max(r.max_displacement_m * 1e3);
+        m.worst.max_crossed_vertices = m.worst.max_crossed_vertices.max(r.crossed_vertices);
+        m.worst.max_penetrating_vertices = m.worst.max_penetrating_vertices.max(r.penetrating_vertices);
+        m.worst.max_inverted_elements = m.worst.max_inverted_elements.max(r.inverted_elements);
+        m.worst.max_penetration_mm = m.worst.max_penetration_mm.max(r.max_penetration_m * 1e3);
         m.rejected_poses += r.rejected_poses as u64;
         m.max_substeps = m.max_substeps.max(r.substeps);
         m.capped_frames += u64::from(r.solver_capped);
@@ -550,9 +560,9 @@ impl SummaryBuilder {
         self.summary.interrupted = interrupted;
         let (m, l) = (&self.summary, self.limits);
         let worst = [
-            format!("max penetration into a blade {:.3} mm > {} mm", m.max_penetration_mm, l.max_penetration_mm),
-            format!("inverted elements {} > {}", m.max_inverted_elements, l.max_inverted_elements),
-            format!("vertices pulled through a blade {} > {}", m.max_crossed_vertices, l.max_crossed_vertices),
+            format!("max penetration into a blade {:.3} mm > {} mm", m.worst.max_penetration_mm, l.max_penetration_mm),
+            format!("inverted elements {} > {}", m.worst.max_inverted_elements, l.max_inverted_elements),
+            format!("vertices pulled through a blade {} > {}", m.worst.max_crossed_vertices, l.max_crossed_vertices),
         ];
         let torn = m.vessels.iter().filter(|v| v.torn).count();
         let torn_text = format!("torn vessels {torn} > {}", l.max_torn_vessels);

@@ -161,31 +161,28 @@ pub struct Pipeline {
     skull: Option<SkullStage>,
     /// Vessels and arachnoid bands (the `Tethers` effect).
     tethers: Option<super::tethers::TetherStage>,
-    /// The blades' forces relaxing while held (the `Relaxation` effect).
-    relaxation: Option<super::tissue_time::RelaxationStage>,
-    /// Dose and risk per surface vertex (the `Ischemia` effect), and its frame's pressed vertices.
-    ischemia: Option<super::tissue_time::IschemiaStage>,
-    pressed: Vec<(u32, u16, f64)>,
-    /// Lumped area per surface vertex at rest (with `Ischemia` only), m^2.
-    vertex_areas: Vec<f64>,
-    /// Frames in a row solved at unchanged poses, and the last one's rows and surface: a scene with tissue over
-    /// time skips the solve once two of them agree (a long hold costs next to nothing).
-    still: StillFrames,
-    /// What a spatula target becomes: a sticking `Contact`, a bilateral
-    /// `Enforced` hold, or a sliding `Barrier` row.
-    contact_law: SpatulaContact,
-    /// Largest blade travel of a sub-step, in thicknesses (`None`: one step a frame).
-    substep_travel: Option<f64>,
-    /// Blade barrier rows for unclaimed vertices near a blade (unilateral contact only).
-    barrier: Option<super::barrier::BarrierStage>,
+    /// Tissue over time: relaxation, ischemia and the held frames that skip the solve.
+    time: TissueTime,
+    /// A frame's rows, solution and contact patches, reused from frame to frame.
+    scratch: FrameScratch,
+    /// How a blade holds the tissue.
+    contact: ContactRules,
     /// Tets whose four nodes are on the surface, as surface vertex indices
     /// (inverted check without an interior solve), sorted for locality.
     surface_tets: Vec<[u32; 4]>,
-    // scratch
-    constraints: Vec<Constraint>,
-    solution: FrameSolution,
-    patches: Vec<ContactPatch>,
-    contact_scratch: super::contact::ContactScratch,
+    /// The blades between sub-steps: the surface and the poses at the start of the sub-step and of the frame, the
+    /// frame's targets, each blade's input filter.
+    sub: SubSteps,
+    /// What an iteration cap puts back.
+    rollback: Rollback,
+    /// The far surface kept up to date near the blades.
+    far: FarTrack,
+    report: FrameReport,
+}
+
+/// The blades between sub-steps: the surface and the poses at the start of the sub-step and of the frame, the frame's
+/// targets, each blade's input filter.
+struct SubSteps {
     /// Surface positions at the start of the current sub-step.
     previous_positions: Vec<Vec3>,
     /// Poses at the start of the current sub-step.
@@ -196,17 +193,57 @@ pub struct Pipeline {
     /// Each spatula's input smoothing (the scenario's `filter`), applied to
     /// the frame's input before sub-steps are counted.
     pose_filters: Vec<Option<super::pose_filter::PoseFilter>>,
+}
+
+/// What an iteration cap puts back.
+struct Rollback {
     /// The rows of the last sub-step that converged, and the collision history
     /// before the current one: what an iteration cap puts back.
     feasible_constraints: Vec<Constraint>,
     saved_history: crate::collision::CollisionHistory,
     saved_claims: Vec<(u32, u8, u8)>,
+}
+
+/// The far surface kept up to date near the blades.
+struct FarTrack {
     /// The far surface vertices near a blade this sub-step ([`Self::track_far`]), and the blades' boxes it grows.
     near_far: Vec<u32>,
     blade_boxes: Vec<(Vec3, Vec3)>,
     /// The working region's edge: vertices with rows that share a triangle with a far one.
     far_edge: Vec<u32>,
-    report: FrameReport,
+}
+
+/// A frame's rows, solution and contact patches, reused from frame to frame.
+struct FrameScratch {
+    constraints: Vec<Constraint>,
+    solution: FrameSolution,
+    patches: Vec<ContactPatch>,
+    contact_scratch: super::contact::ContactScratch,
+    pressed: Vec<(u32, u16, f64)>,
+}
+
+/// Tissue over time: relaxation, ischemia and the held frames that skip the solve.
+struct TissueTime {
+    /// The blades' forces relaxing while held (the `Relaxation` effect).
+    relaxation: Option<super::tissue_time::RelaxationStage>,
+    /// Dose and risk per surface vertex (the `Ischemia` effect), and its frame's pressed vertices.
+    ischemia: Option<super::tissue_time::IschemiaStage>,
+    /// Lumped area per surface vertex at rest (with `Ischemia` only), m^2.
+    vertex_areas: Vec<f64>,
+    /// Frames in a row solved at unchanged poses, and the last one's rows and surface: a scene with tissue over
+    /// time skips the solve once two of them agree (a long hold costs next to nothing).
+    still: StillFrames,
+}
+
+/// How a blade holds the tissue.
+struct ContactRules {
+    /// What a spatula target becomes: a sticking `Contact`, a bilateral
+    /// `Enforced` hold, or a sliding `Barrier` row.
+    law: SpatulaContact,
+    /// Largest blade travel of a sub-step, in thicknesses (`None`: one step a frame).
+    substep_travel: Option<f64>,
+    /// Blade barrier rows for unclaimed vertices near a blade (unilateral contact only).
+    barrier: Option<super::barrier::BarrierStage>,
 }
 
 /// Held blades: how many frames in a row were solved at the same poses, and what the last one gave.
@@ -242,9 +279,9 @@ impl Pipeline {
         let surface_tets = surface_tets(&mesh, &surface, solver.far_vertices());
         let far_edge = region_edge(&surface.triangles, solver.far_vertices());
         let blades = scenario.spatulas.len();
-        let relaxation = scenario.relaxation.as_ref().map(|r| super::tissue_time::RelaxationStage::new(r, scenario.time_step, blades));
-        let vertex_areas = if scenario.ischemia.is_some() { crate::mesh::surface::vertex_areas(&rest, &surface.triangles) } else { Vec::new() };
-        let ischemia = scenario.ischemia.as_ref().map(|m| super::tissue_time::IschemiaStage::new(m, scenario.time_step, vertex_areas.clone(), blades));
+        let relaxation = scenario.tissue_time.relaxation.as_ref().map(|r| super::tissue_time::RelaxationStage::new(r, scenario.time_step, blades));
+        let vertex_areas = if scenario.tissue_time.ischemia.is_some() { crate::mesh::surface::vertex_areas(&rest, &surface.triangles) } else { Vec::new() };
+        let ischemia = scenario.tissue_time.ischemia.as_ref().map(|m| super::tissue_time::IschemiaStage::new(m, scenario.time_step, vertex_areas.clone(), blades));
         let contact_scratch = super::contact::ContactScratch::for_surface(&surface);
         let n = scenario.spatulas.len();
         let contact_law = scenario.solver.spatula_contact;
@@ -252,24 +289,20 @@ impl Pipeline {
         let barrier = (contact_law != SpatulaContact::Bilateral && collision.is_some()).then(|| super::barrier::BarrierStage::new(surface.vertices.len()));
         Ok(Self {
             name: scenario.name.clone(),
-            contact_law,
-            substep_travel: scenario.solver.substep_travel,
-            barrier,
+            contact: ContactRules { law: contact_law, substep_travel: scenario.solver.substep_travel, barrier },
             effects: scenario.effects,
             time_step: scenario.time_step,
             shapes: scenario.spatulas.iter().map(|s| s.shape).collect(),
             names: scenario.spatulas.iter().map(|s| s.name.clone()).collect(),
-            previous_positions: rest.clone(),
-            previous_poses: scenario.spatulas.iter().map(|s| s.initial_pose).collect(),
-            frame_start_poses: Vec::new(),
-            target_poses: Vec::new(),
-            pose_filters: scenario.spatulas.iter().map(|s| s.filter.map(|f| super::pose_filter::PoseFilter::new(f, &s.shape))).collect(),
-            feasible_constraints: Vec::new(),
-            saved_history: Default::default(),
-            saved_claims: Vec::new(),
-            near_far: Vec::new(),
-            blade_boxes: Vec::new(),
-            far_edge,
+            sub: SubSteps {
+                previous_positions: rest.clone(),
+                previous_poses: scenario.spatulas.iter().map(|s| s.initial_pose).collect(),
+                frame_start_poses: Vec::new(),
+                target_poses: Vec::new(),
+                pose_filters: scenario.spatulas.iter().map(|s| s.filter.map(|f| super::pose_filter::PoseFilter::new(f, &s.shape))).collect(),
+            },
+            rollback: Rollback { feasible_constraints: Vec::new(), saved_history: Default::default(), saved_claims: Vec::new() },
+            far: FarTrack { near_far: Vec::new(), blade_boxes: Vec::new(), far_edge },
             mesh,
             surface,
             rest,
@@ -277,16 +310,15 @@ impl Pipeline {
             collision,
             skull,
             tethers,
-            relaxation,
-            ischemia,
-            pressed: Vec::new(),
-            vertex_areas,
-            still: StillFrames::default(),
+            time: TissueTime { relaxation, ischemia, vertex_areas, still: StillFrames::default() },
             surface_tets,
-            constraints: Vec::new(),
-            solution: FrameSolution::default(),
-            patches: Vec::new(),
-            contact_scratch,
+            scratch: FrameScratch {
+                constraints: Vec::new(),
+                solution: FrameSolution::default(),
+                patches: Vec::new(),
+                contact_scratch,
+                pressed: Vec::new(),
+            },
             report: FrameReport { spatulas: vec![SpatulaReport::default(); n], ..Default::default() },
         })
     }
@@ -351,13 +383,13 @@ impl Pipeline {
 
     /// The dose and risk per surface vertex (the `Ischemia` effect).
     pub fn ischemia(&self) -> Option<&super::tissue_time::IschemiaStage> {
-        self.ischemia.as_ref()
+        self.time.ischemia.as_ref()
     }
 
     /// Per blade, its relaxed over its elastic force this frame (the `Relaxation` effect): what each of its
     /// contact pressures is scaled by.
     pub fn relaxation_ratios(&self) -> Option<&[f64]> {
-        self.relaxation.as_ref().map(|r| r.ratios())
+        self.time.relaxation.as_ref().map(|r| r.ratios())
     }
     /// Asks the microscissors at blade `spatula`'s tip to cut the arachnoid
     /// bands within [`super::tethers::CUT_RADIUS_M`] of it at the next frame
@@ -382,11 +414,11 @@ impl Pipeline {
     }
     /// The solver's last frame solution.
     pub fn last_solution(&self) -> &FrameSolution {
-        &self.solution
+        &self.scratch.solution
     }
     /// The constraints of the last frame.
     pub fn last_constraints(&self) -> &[Constraint] {
-        &self.constraints
+        &self.scratch.constraints
     }
     /// Which stages are built, in frame order.
     pub fn built_stages(&self) -> Vec<StageId> {
@@ -419,7 +451,7 @@ impl Pipeline {
         if let Some(c) = &mut self.collision {
             c.reset_history();
         }
-        if let Some(b) = &mut self.barrier {
+        if let Some(b) = &mut self.contact.barrier {
             b.reset();
         }
     }
@@ -437,15 +469,15 @@ impl Pipeline {
             return Err(StepError::PoseCount { frame, count: input.poses.len(), expected: state.poses.len() });
         }
         // The last sub-step ended with no row in W and no blade inside the tissue.
-        let free = self.solution.rows == 0 && self.report.spatulas.iter().all(|s| s.candidate_pairs == 0);
+        let free = self.scratch.solution.rows == 0 && self.report.spatulas.iter().all(|s| s.candidate_pairs == 0);
         let r = &mut self.report;
         r.times = Default::default();
         r.rejected_poses = 0;
         r.solver_capped = false;
         r.crossed_vertices = 0;
-        self.frame_start_poses.clone_from(&state.poses);
-        self.target_poses.clone_from(&state.poses);
-        for ((slot, new), filter) in self.target_poses.iter_mut().zip(&input.poses).zip(&mut self.pose_filters) {
+        self.sub.frame_start_poses.clone_from(&state.poses);
+        self.sub.target_poses.clone_from(&state.poses);
+        for ((slot, new), filter) in self.sub.target_poses.iter_mut().zip(&input.poses).zip(&mut self.sub.pose_filters) {
             let accepted = match new {
                 Some(p) if p.is_valid() => Some(*p),
                 Some(_) => {
@@ -461,9 +493,9 @@ impl Pipeline {
         }
         // Held blades: with tissue over time, a frame at the poses of two frames that gave the same rows and
         // surface is that answer again (the solve is a function of them), so it is not solved.
-        let still = self.target_poses == self.frame_start_poses && !self.tethers.as_ref().is_some_and(|t| t.has_pending_cuts());
-        let over_time = self.relaxation.is_some() || self.ischemia.is_some();
-        if still && over_time && self.still.settled {
+        let still = self.sub.target_poses == self.sub.frame_start_poses && !self.tethers.as_ref().is_some_and(|t| t.has_pending_cuts());
+        let over_time = self.time.relaxation.is_some() || self.time.ischemia.is_some();
+        if still && over_time && self.time.still.settled {
             self.report.substeps = 0;
             return self.finish_frame(state, frame);
         }
@@ -476,7 +508,7 @@ impl Pipeline {
         if let Some(t) = &mut self.tethers {
             t.begin_frame();
         }
-        let mut substeps = substep_count(&self.shapes, &self.frame_start_poses, &self.target_poses, self.substep_travel);
+        let mut substeps = substep_count(&self.shapes, &self.sub.frame_start_poses, &self.sub.target_poses, self.contact.substep_travel);
         if substeps > 1 && free && self.sweeps_clear(&state.surface_positions) {
             // Nothing near the blades' path and nothing held: every sub-step
             // would find no contact and solve to the same free state.
@@ -484,12 +516,12 @@ impl Pipeline {
         }
         self.report.substeps = substeps;
         for k in 1..=substeps {
-            self.previous_poses.clone_from(&state.poses);
+            self.sub.previous_poses.clone_from(&state.poses);
             if k == substeps {
-                state.poses.clone_from(&self.target_poses);
+                state.poses.clone_from(&self.sub.target_poses);
             } else {
                 let alpha = k as f64 / substeps as f64;
-                for ((p, a), b) in state.poses.iter_mut().zip(&self.frame_start_poses).zip(&self.target_poses) {
+                for ((p, a), b) in state.poses.iter_mut().zip(&self.sub.frame_start_poses).zip(&self.sub.target_poses) {
                     *p = a.interpolate(b, alpha);
                 }
             }
@@ -513,15 +545,15 @@ impl Pipeline {
     /// After a frame solved at unchanged poses (`still`), whether it agreed with the one before bit for bit.
     fn note_still(&mut self, still: bool, state: &SimState) {
         let events = self.tethers.as_ref().is_some_and(|t| !t.frame().events.is_empty());
-        let w = &mut self.still;
+        let w = &mut self.time.still;
         if !still || events || self.report.solver_capped {
             w.count = 0;
             w.settled = false;
             return;
         }
-        w.settled = w.count > 0 && w.constraints == self.constraints && w.displacement == state.surface_displacement;
+        w.settled = w.count > 0 && w.constraints == self.scratch.constraints && w.displacement == state.surface_displacement;
         w.count += 1;
-        w.constraints.clone_from(&self.constraints);
+        w.constraints.clone_from(&self.scratch.constraints);
         w.displacement.clone_from(&state.surface_displacement);
     }
 
@@ -535,7 +567,7 @@ impl Pipeline {
                 // The collision's counts stay (a settled still frame keeps the last solved frame's); what follows is this frame's.
                 (s.force, s.contact_area_m2, s.contact_vertices, s.mean_pressure_pa) = (Vec3::zeros(), 0.0, 0, 0.0);
             }
-            for (owner, f) in &self.solution.owner_forces {
+            for (owner, f) in &self.scratch.solution.owner_forces {
                 if let Some(s) = r.spatulas.get_mut(*owner as usize) {
                     s.force = *f;
                 }
@@ -544,12 +576,12 @@ impl Pipeline {
                 super::contact::contact_patches(
                     &self.surface,
                     &state.surface_positions,
-                    &self.constraints,
-                    &self.solution.reactions,
-                    &mut self.contact_scratch,
-                    &mut self.patches,
+                    &self.scratch.constraints,
+                    &self.scratch.solution.reactions,
+                    &mut self.scratch.contact_scratch,
+                    &mut self.scratch.patches,
                 );
-                for p in &self.patches {
+                for p in &self.scratch.patches {
                     if let Some(s) = r.spatulas.get_mut(p.owner as usize) {
                         s.contact_area_m2 = p.area;
                         s.contact_vertices = p.vertices;
@@ -557,7 +589,7 @@ impl Pipeline {
                     }
                 }
             }
-            if let Some(relaxation) = &mut self.relaxation {
+            if let Some(relaxation) = &mut self.time.relaxation {
                 relaxation.apply(&mut r.spatulas);
             }
             if r.spatulas.iter().any(|s| !(is_finite3(&s.force) && s.contact_area_m2.is_finite() && s.mean_pressure_pa.is_finite())) {
@@ -565,11 +597,11 @@ impl Pipeline {
             }
             r.times.set(StageId::Forces, t.elapsed().as_secs_f64());
         }
-        if let Some(ischemia) = &mut self.ischemia {
+        if let Some(ischemia) = &mut self.time.ischemia {
             let t = Instant::now();
-            self.pressed.clear();
-            self.pressed.extend(super::contact::tool_vertex_pressures(&self.surface, &self.constraints, &self.solution.reactions, &self.vertex_areas));
-            ischemia.step(&self.pressed, self.relaxation.as_ref().map(|r| r.ratios()), (frame + 1) as f64 * self.time_step);
+            self.scratch.pressed.clear();
+            self.scratch.pressed.extend(super::contact::tool_vertex_pressures(&self.surface, &self.scratch.constraints, &self.scratch.solution.reactions, &self.time.vertex_areas));
+            ischemia.step(&self.scratch.pressed, self.time.relaxation.as_ref().map(|r| r.ratios()), (frame + 1) as f64 * self.time_step);
             r.times.add(StageId::Forces, t.elapsed().as_secs_f64());
             match &mut r.ischemia {
                 Some(out) => out.copy_from(ischemia.frame()),
@@ -615,7 +647,7 @@ impl Pipeline {
     /// more than the reach of the collision's rays and of the barrier rows
     /// ([`super::barrier::sweep_clear`]).
     fn sweeps_clear(&self, positions: &[Vec3]) -> bool {
-        self.shapes.iter().zip(&self.frame_start_poses).zip(&self.target_poses).all(|((shape, before), after)| {
+        self.shapes.iter().zip(&self.sub.frame_start_poses).zip(&self.sub.target_poses).all(|((shape, before), after)| {
             let margin = super::barrier::BARRIER_BAND_M + 2.0 * shape.thickness;
             super::barrier::sweep_clear(shape, before, after, &self.surface.triangles, positions, margin)
         })
@@ -627,19 +659,19 @@ impl Pipeline {
         let r = &mut self.report;
         if let Some(collision) = &mut self.collision {
             let t = Instant::now();
-            collision.save_history(&mut self.saved_history);
-            if let Some(barrier) = &self.barrier {
-                self.saved_claims.clear();
-                self.saved_claims.extend_from_slice(barrier.previous_claims());
+            collision.save_history(&mut self.rollback.saved_history);
+            if let Some(barrier) = &self.contact.barrier {
+                self.rollback.saved_claims.clear();
+                self.rollback.saved_claims.extend_from_slice(barrier.previous_claims());
             }
             let out = collision.step(&state.surface_positions, &state.poses).map_err(|source| StepError::Collision { frame, source })?;
             // Sliding: the rays claim nothing; the barrier rows hold every vertex under a blade alike.
-            let claims = self.contact_law != SpatulaContact::Sliding;
+            let claims = self.contact.law != SpatulaContact::Sliding;
             for target in out.targets.iter().filter(|_| claims) {
-                self.constraints.push(Constraint {
+                self.scratch.constraints.push(Constraint {
                     node: self.surface.vertices[target.vertex as usize],
                     owner: target.spatula as u16,
-                    kind: if self.contact_law == SpatulaContact::Unilateral {
+                    kind: if self.contact.law == SpatulaContact::Unilateral {
                         ConstraintKind::Contact { displacement: target.displacement, normal: target.normal }
                     } else {
                         ConstraintKind::Enforced { displacement: target.displacement }
@@ -652,28 +684,28 @@ impl Pipeline {
                 s.feasible_pairs = c.feasible;
                 s.constrained_vertices = c.constrained_vertices;
             }
-            r.constrained_vertices = self.constraints.len() as u32;
-            if let Some(barrier) = &mut self.barrier {
+            r.constrained_vertices = self.scratch.constraints.len() as u32;
+            if let Some(barrier) = &mut self.contact.barrier {
                 use super::barrier::{Blades, SurfaceState};
-                let blades = Blades { shapes: &self.shapes, before: &self.previous_poses, after: &state.poses };
+                let blades = Blades { shapes: &self.shapes, before: &self.sub.previous_poses, after: &state.poses };
                 let surface = SurfaceState {
                     triangles: &self.surface.triangles,
                     start: &state.surface_positions,
                     rest: &self.rest,
                     nodes: &self.surface.vertices,
                 };
-                barrier.push_rows(blades, collision, claims, surface, &mut self.constraints);
+                barrier.push_rows(blades, collision, claims, surface, &mut self.scratch.constraints);
                 if !claims {
                     // Every row is a blade's: a spatula constrains the vertices it has rows for.
                     for s in r.spatulas.iter_mut() {
                         s.constrained_vertices = 0;
                     }
-                    for c in &self.constraints {
+                    for c in &self.scratch.constraints {
                         if let Some(s) = r.spatulas.get_mut(usize::from(c.owner)) {
                             s.constrained_vertices += 1;
                         }
                     }
-                    r.constrained_vertices = self.constraints.len() as u32;
+                    r.constrained_vertices = self.scratch.constraints.len() as u32;
                 }
             }
             r.times.add(StageId::Collision, t.elapsed().as_secs_f64());
@@ -685,14 +717,14 @@ impl Pipeline {
     /// solve and surface update, the tunnelling monitor. Saves what
     /// [`Self::undo_substep`] needs to put the last feasible state back.
     fn advance(&mut self, state: &mut SimState, frame: u64) -> Result<(), StepError> {
-        self.constraints.clear();
+        self.scratch.constraints.clear();
         self.collide(state, frame)?;
         let r = &mut self.report;
 
         // Skull: unilateral candidate rows.
         if let Some(skull) = &self.skull {
             let t = Instant::now();
-            skull.push_rows(&state.surface_positions, &mut self.constraints);
+            skull.push_rows(&state.surface_positions, &mut self.scratch.constraints);
             r.times.add(StageId::Skull, t.elapsed().as_secs_f64());
         }
 
@@ -705,25 +737,25 @@ impl Pipeline {
             tethers.apply_cuts(&tips, &state.surface_positions, time_s, frame, &mut self.solver);
         }
         self.track_far(state);
-        self.solver.step(&self.constraints, &mut self.solution).map_err(|source| StepError::Solve { frame, source })?;
-        self.feasible_constraints.clone_from(&self.constraints);
-        self.previous_positions.clone_from(&state.surface_positions);
-        state.surface_displacement.clone_from(&self.solution.displacement_surface);
+        self.solver.step(&self.scratch.constraints, &mut self.scratch.solution).map_err(|source| StepError::Solve { frame, source })?;
+        self.rollback.feasible_constraints.clone_from(&self.scratch.constraints);
+        self.sub.previous_positions.clone_from(&state.surface_positions);
+        state.surface_displacement.clone_from(&self.scratch.solution.displacement_surface);
         for ((p, rest), u) in state.surface_positions.iter_mut().zip(&self.rest).zip(&state.surface_displacement) {
             *p = rest + u;
         }
         if let Some(tethers) = &mut self.tethers {
-            tethers.after_solve(&state.surface_positions, &self.solution.tether_tension, time_s, frame, &mut self.solver);
+            tethers.after_solve(&state.surface_positions, &self.scratch.solution.tether_tension, time_s, frame, &mut self.solver);
         }
         let r = &mut self.report;
-        r.max_displacement_m = self.solution.max_displacement;
-        r.skull_contacts = self.solution.active_sphere_contacts as u32;
+        r.max_displacement_m = self.scratch.solution.max_displacement;
+        r.skull_contacts = self.scratch.solution.active_sphere_contacts as u32;
         r.times.add(StageId::Solve, t.elapsed().as_secs_f64());
 
         // Tunnelling / penetration monitor, over this sub-step's motion.
         if self.collision.is_some() {
             let t = Instant::now();
-            let m = monitor::measure(&self.shapes, &self.previous_poses, &state.poses, &self.previous_positions, &state.surface_positions);
+            let m = monitor::measure(&self.shapes, &self.sub.previous_poses, &state.poses, &self.sub.previous_positions, &state.surface_positions);
             r.crossed_vertices += m.crossed;
             r.penetrating_vertices = m.penetrating;
             r.max_penetration_m = m.max_depth_m;
@@ -737,25 +769,25 @@ impl Pipeline {
     /// solution of that sub-step's rows (solved again: it converged before).
     /// The surface in `state` was not touched by the failed sub-step.
     fn undo_substep(&mut self, state: &mut SimState, frame: u64) -> Result<(), StepError> {
-        state.poses.clone_from(&self.previous_poses);
+        state.poses.clone_from(&self.sub.previous_poses);
         if let Some(collision) = &mut self.collision {
-            collision.restore_history(&self.saved_history);
+            collision.restore_history(&self.rollback.saved_history);
         }
-        if let Some(barrier) = &mut self.barrier {
-            barrier.restore_previous_claims(&self.saved_claims);
+        if let Some(barrier) = &mut self.contact.barrier {
+            barrier.restore_previous_claims(&self.rollback.saved_claims);
         }
-        std::mem::swap(&mut self.constraints, &mut self.feasible_constraints);
+        std::mem::swap(&mut self.scratch.constraints, &mut self.rollback.feasible_constraints);
         // These rows converged under the default cap before: solve them under it again.
         let cap = self.solver.iteration_cap();
         self.solver.set_iteration_cap(None);
-        let solved = self.solver.step(&self.constraints, &mut self.solution);
+        let solved = self.solver.step(&self.scratch.constraints, &mut self.scratch.solution);
         self.solver.set_iteration_cap(cap);
         solved.map_err(|source| StepError::Solve { frame, source })?;
-        self.feasible_constraints.clone_from(&self.constraints);
+        self.rollback.feasible_constraints.clone_from(&self.scratch.constraints);
         let r = &mut self.report;
-        r.constrained_vertices = self.constraints.iter().filter(|c| c.kind.tool_displacement().is_some()).count() as u32;
-        r.max_displacement_m = self.solution.max_displacement;
-        r.skull_contacts = self.solution.active_sphere_contacts as u32;
+        r.constrained_vertices = self.scratch.constraints.iter().filter(|c| c.kind.tool_displacement().is_some()).count() as u32;
+        r.max_displacement_m = self.scratch.solution.max_displacement;
+        r.skull_contacts = self.scratch.solution.active_sphere_contacts as u32;
         Ok(())
     }
 
@@ -777,31 +809,31 @@ impl Pipeline {
         if self.solver.far_vertices().is_empty() {
             return;
         }
-        self.near_far.clear();
+        self.far.near_far.clear();
         // A far vertex not brought up to date may have moved since: by about
         // as much as the region's edge has (displacement decays away from
         // the blades), so the margin grows by the edge's largest displacement.
-        let edge = self.far_edge.iter().map(|&k| state.surface_displacement[k as usize].norm_squared()).fold(0.0, f64::max).sqrt();
+        let edge = self.far.far_edge.iter().map(|&k| state.surface_displacement[k as usize].norm_squared()).fold(0.0, f64::max).sqrt();
         let grow = FAR_TRACK_MARGIN_M + edge;
-        self.blade_boxes.clear();
-        for ((shape, before), after) in self.shapes.iter().zip(&self.previous_poses).zip(&state.poses) {
+        self.far.blade_boxes.clear();
+        for ((shape, before), after) in self.shapes.iter().zip(&self.sub.previous_poses).zip(&state.poses) {
             let (lo, hi) = (Vec3::new(0.0, -0.5 * shape.width, -0.5 * shape.thickness), Vec3::new(shape.length, 0.5 * shape.width, 0.5 * shape.thickness));
             for pose in [before, after] {
-                self.blade_boxes.push(super::barrier::world_bounds(pose, &lo, &hi, grow));
+                self.far.blade_boxes.push(super::barrier::world_bounds(pose, &lo, &hi, grow));
             }
         }
-        let poses = self.shapes.iter().zip(&self.previous_poses).zip(&state.poses).flat_map(|((shape, before), after)| [(shape, before), (shape, after)]);
+        let poses = self.shapes.iter().zip(&self.sub.previous_poses).zip(&state.poses).flat_map(|((shape, before), after)| [(shape, before), (shape, after)]);
         for &k in self.solver.far_vertices() {
             let p = &state.surface_positions[k as usize];
             // the world box first (cheap), then the distance to the blade itself
-            let near = self.blade_boxes.iter().zip(poses.clone()).any(|(b, (shape, pose))| {
+            let near = self.far.blade_boxes.iter().zip(poses.clone()).any(|(b, (shape, pose))| {
                 !super::barrier::outside_bounds(p, b) && super::barrier::distance_to_blade(shape, pose, p) <= grow
             });
             if near {
-                self.near_far.push(k);
+                self.far.near_far.push(k);
             }
         }
-        self.solver.track(&self.near_far);
+        self.solver.track(&self.far.near_far);
     }
 
     /// `state` with its whole surface up to date: the far vertices (no

@@ -155,7 +155,7 @@ pub fn preflight_with_mesh(scenario: &Scenario, mesh: TetMesh, trajectory: Optio
     let mesh = check_mesh(scenario, mesh)?;
     let poses = TrajectoryPoses::for_scenario(scenario, trajectory)?;
     let travel = blade_travel(scenario, &poses);
-    let mut warnings = scenario.warnings.clone();
+    let mut warnings = scenario.checks.warnings.clone();
     let played = trajectory.map(Path::to_path_buf).or_else(|| scenario.trajectory.clone());
     // With sub-steps (the default) a fast blade is split and needs no warning
     // (`fissure check` prints the largest travel a step); without them, a step

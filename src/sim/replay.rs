@@ -163,7 +163,7 @@ pub fn replay(
 /// The summary a replay of `scenario` on `pipeline` fills: its stages, spatulas, integrity limits, tethers,
 /// ischemia and compliance.
 fn summary_for(scenario: &Scenario, pipeline: &Pipeline, stages: &[StageId], names: &[String]) -> SummaryBuilder {
-    let mut summary = SummaryBuilder::new(&scenario.name, stages, names).with_limits(scenario.integrity);
+    let mut summary = SummaryBuilder::new(&scenario.name, stages, names).with_limits(scenario.run.integrity);
     if let Some(t) = pipeline.tethers() {
         summary = summary.with_tethers(t.tethers());
     }

@@ -226,7 +226,7 @@ pub fn configure(base: &Scenario, settings: &Settings, motion: &Motion, mesh: &S
     for sp in &mut s.spatulas {
         sp.layout = settings.layout.clone();
     }
-    s.collision_backend = settings.backend;
+    s.collision.backend = settings.backend;
     s.skull = settings.skull.then(|| mesh.skull.clone());
     let mut effects = EffectSet::default();
     for e in base.effects.iter() {

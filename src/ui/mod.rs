@@ -297,57 +297,8 @@ pub fn draw_panel(
                     }
                 });
             }
-            let (colour, hint) = if data.keys_to_scene {
-                (egui::Color32::from_rgb(110, 210, 120), "1, 2, … or Tab pick the blade")
-            } else {
-                (egui::Color32::from_rgb(255, 170, 40), "")
-            };
-            ui.colored_label(colour, egui::RichText::new(focus_text(data.keys_to_scene)).strong());
-            if !hint.is_empty() {
-                ui.small(hint);
-            }
-            ui.label(egui::RichText::new(format!("t = {} (simulated)", tissue_time::clock(data.time_s))).strong());
-            ui.label(format!(
-                "{:.0} fps, simulation {:.2} ms",
-                data.fps, data.sim_frame_ms
-            ));
-            timing_graph(ui, history);
-            ui.separator();
-            if let Some(t) = &data.tissue {
-                tissue_time::relaxation_line(ui, t);
-            }
-            for (k, (s, monitor)) in data.spatulas.iter().zip(state.monitors.iter()).enumerate() {
-                let f = s.force_n;
-                let magnitude = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
-                let name = names.get(k).map(String::as_str).unwrap_or("?");
-                let active = k == data.active_spatula;
-                let title = format!("{} {} {name}: |F| = {magnitude:.3} N", if active { ">" } else { " " }, k + 1);
-                if ui.selectable_label(active, egui::RichText::new(title).strong()).clicked() && !active {
-                    actions.push(PanelAction::SelectSpatula(k));
-                }
-                ui.label(format!("  moved by: {}{}", s.driver, if active { " (active)" } else { "" }));
-                ui.label(format!(
-                    "  pairs {} feasible, {} culled",
-                    s.feasible_pairs, s.culled_pairs
-                ));
-                let text = format!(
-                    "  pressure {:.1} mmHg (limit {:.0})",
-                    s.mean_pressure_mmhg, monitor.limit_mmhg
-                );
-                if monitor.over {
-                    ui.colored_label(
-                        egui::Color32::from_rgb(255, 80, 60),
-                        format!("{text}  ABOVE LIMIT"),
-                    );
-                } else {
-                    ui.label(text);
-                }
-                ui.label(format!(
-                    "  above {:.0} mmHg: {:.2} s (simulated), excess {:.1} mmHg*s, peak {:.1}",
-                    monitor.limit_mmhg, monitor.time_over_s, monitor.excess_mmhg_s, monitor.peak_mmhg
-                ));
-                pressure_bar(ui, s.mean_pressure_mmhg, monitor.limit_mmhg);
-            }
+            status_section(ui, data, history);
+            spatula_section(ui, data, names, state, actions);
             if let Some(ischemia) = data.tissue.as_ref().and_then(|t| t.ischemia.as_ref()) {
                 ui.separator();
                 tissue_time::ischemia_section(ui, ischemia, names);
@@ -358,65 +309,134 @@ pub fn draw_panel(
                     actions.push(PanelAction::Cut);
                 }
             }
+            view_section(ui, data, state);
             ui.separator();
-            ui.label("Surface colour");
-            ui.radio_value(&mut state.field, FieldChoice::None, "none");
-            for kind in [
-                FieldKind::DisplacementMm,
-                FieldKind::Strain,
-                FieldKind::ContactPressureMmHg,
-            ] {
-                ui.radio_value(&mut state.field, FieldChoice::Field(kind), kind.label());
-            }
-            if data.has_risk() {
-                let kind = FieldKind::InfarctRisk;
-                ui.radio_value(&mut state.field, FieldChoice::Field(kind), kind.label());
-            }
-            ui.add(egui::Slider::new(&mut state.pressure_max_mmhg, 1.0..=1000.0).logarithmic(true).text("pressure bar top (mmHg)"));
-            ui.checkbox(&mut state.show_source_nodes, "source nodes");
-            ui.checkbox(&mut state.show_pairs, "pairs (feasible / culled)");
-            ui.add_enabled(data.has_skull, egui::Checkbox::new(&mut state.show_skull, "skull spheres"))
-                .on_disabled_hover_text("this scene has no skull spheres");
-            ui.checkbox(&mut state.culling, "His-flag culling");
-            ui.separator();
-            ui.horizontal(|ui| {
-                if ui.button("Overview").clicked() {
-                    actions.push(PanelAction::CameraOverview);
-                }
-                if ui.button("Microscope").clicked() {
-                    actions.push(PanelAction::CameraMicroscope);
-                }
-            });
-            ui.horizontal(|ui| {
-                let label = if state.recording {
-                    "Stop recording"
-                } else {
-                    "Record"
-                };
-                if ui.button(label).clicked() {
-                    state.recording = !state.recording;
-                    actions.push(if state.recording {
-                        PanelAction::StartRecording
-                    } else {
-                        PanelAction::StopRecording
-                    });
-                }
-                if ui.button("Load scenario…").clicked() {
-                    actions.push(PanelAction::LoadScenario);
-                }
-            });
-            if state.debrief.is_none()
-                && ui.button("End session").on_hover_text("the session is written as a recording and debriefed against the scene's careful trajectory (Ctrl+Q)").clicked()
-            {
-                actions.push(PanelAction::EndSession);
-            }
-            if !state.record_dir.is_empty() {
-                ui.small(format!("recordings -> {}", state.record_dir));
-            }
-            if let Some(e) = &state.record_error {
-                ui.colored_label(egui::Color32::from_rgb(255, 80, 60), e);
-            }
+            session_section(ui, state, actions);
         });
+}
+
+/// Where the keys go, the simulated clock, the frame rate and its graph, the tissue's relaxation.
+fn status_section(ui: &mut egui::Ui, data: &PanelData, history: &TimingHistory) {
+    let (colour, hint) = if data.keys_to_scene {
+        (egui::Color32::from_rgb(110, 210, 120), "1, 2, … or Tab pick the blade")
+    } else {
+        (egui::Color32::from_rgb(255, 170, 40), "")
+    };
+    ui.colored_label(colour, egui::RichText::new(focus_text(data.keys_to_scene)).strong());
+    if !hint.is_empty() {
+        ui.small(hint);
+    }
+    ui.label(egui::RichText::new(format!("t = {} (simulated)", tissue_time::clock(data.time_s))).strong());
+    ui.label(format!(
+        "{:.0} fps, simulation {:.2} ms",
+        data.fps, data.sim_frame_ms
+    ));
+    timing_graph(ui, history);
+    ui.separator();
+    if let Some(t) = &data.tissue {
+        tissue_time::relaxation_line(ui, t);
+    }
+}
+
+/// A block a spatula: its force (a click makes it the active one), what moves it, its pairs and its pressure.
+fn spatula_section(ui: &mut egui::Ui, data: &PanelData, names: &[String], state: &PanelState, actions: &mut Vec<PanelAction>) {
+    for (k, (s, monitor)) in data.spatulas.iter().zip(state.monitors.iter()).enumerate() {
+        let f = s.force_n;
+        let magnitude = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
+        let name = names.get(k).map(String::as_str).unwrap_or("?");
+        let active = k == data.active_spatula;
+        let title = format!("{} {} {name}: |F| = {magnitude:.3} N", if active { ">" } else { " " }, k + 1);
+        if ui.selectable_label(active, egui::RichText::new(title).strong()).clicked() && !active {
+            actions.push(PanelAction::SelectSpatula(k));
+        }
+        ui.label(format!("  moved by: {}{}", s.driver, if active { " (active)" } else { "" }));
+        ui.label(format!(
+            "  pairs {} feasible, {} culled",
+            s.feasible_pairs, s.culled_pairs
+        ));
+        let text = format!(
+            "  pressure {:.1} mmHg (limit {:.0})",
+            s.mean_pressure_mmhg, monitor.limit_mmhg
+        );
+        if monitor.over {
+            ui.colored_label(
+                egui::Color32::from_rgb(255, 80, 60),
+                format!("{text}  ABOVE LIMIT"),
+            );
+        } else {
+            ui.label(text);
+        }
+        ui.label(format!(
+            "  above {:.0} mmHg: {:.2} s (simulated), excess {:.1} mmHg*s, peak {:.1}",
+            monitor.limit_mmhg, monitor.time_over_s, monitor.excess_mmhg_s, monitor.peak_mmhg
+        ));
+        pressure_bar(ui, s.mean_pressure_mmhg, monitor.limit_mmhg);
+    }
+}
+
+/// The surface colour and the overlays.
+fn view_section(ui: &mut egui::Ui, data: &PanelData, state: &mut PanelState) {
+    ui.separator();
+    ui.label("Surface colour");
+    ui.radio_value(&mut state.field, FieldChoice::None, "none");
+    for kind in [
+        FieldKind::DisplacementMm,
+        FieldKind::Strain,
+        FieldKind::ContactPressureMmHg,
+    ] {
+        ui.radio_value(&mut state.field, FieldChoice::Field(kind), kind.label());
+    }
+    if data.has_risk() {
+        let kind = FieldKind::InfarctRisk;
+        ui.radio_value(&mut state.field, FieldChoice::Field(kind), kind.label());
+    }
+    ui.add(egui::Slider::new(&mut state.pressure_max_mmhg, 1.0..=1000.0).logarithmic(true).text("pressure bar top (mmHg)"));
+    ui.checkbox(&mut state.show_source_nodes, "source nodes");
+    ui.checkbox(&mut state.show_pairs, "pairs (feasible / culled)");
+    ui.add_enabled(data.has_skull, egui::Checkbox::new(&mut state.show_skull, "skull spheres"))
+        .on_disabled_hover_text("this scene has no skull spheres");
+    ui.checkbox(&mut state.culling, "His-flag culling");
+}
+
+/// The camera, recording, scenario and end-of-session buttons.
+fn session_section(ui: &mut egui::Ui, state: &mut PanelState, actions: &mut Vec<PanelAction>) {
+    ui.horizontal(|ui| {
+        if ui.button("Overview").clicked() {
+            actions.push(PanelAction::CameraOverview);
+        }
+        if ui.button("Microscope").clicked() {
+            actions.push(PanelAction::CameraMicroscope);
+        }
+    });
+    ui.horizontal(|ui| {
+        let label = if state.recording {
+            "Stop recording"
+        } else {
+            "Record"
+        };
+        if ui.button(label).clicked() {
+            state.recording = !state.recording;
+            actions.push(if state.recording {
+                PanelAction::StartRecording
+            } else {
+                PanelAction::StopRecording
+            });
+        }
+        if ui.button("Load scenario…").clicked() {
+            actions.push(PanelAction::LoadScenario);
+        }
+    });
+    if state.debrief.is_none()
+        && ui.button("End session").on_hover_text("the session is written as a recording and debriefed against the scene's careful trajectory (Ctrl+Q)").clicked()
+    {
+        actions.push(PanelAction::EndSession);
+    }
+    if !state.record_dir.is_empty() {
+        ui.small(format!("recordings -> {}", state.record_dir));
+    }
+    if let Some(e) = &state.record_error {
+        ui.colored_label(egui::Color32::from_rgb(255, 80, 60), e);
+    }
 }
 
 /// Updates the pressure monitors from this frame's data (call once per simulation frame).

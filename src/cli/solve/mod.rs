@@ -29,6 +29,7 @@ use anyhow::{Context as _, bail};
 use fissure::fem::reference::solve_direct;
 use fissure::fem::{FemError, Material};
 use fissure::math::Vec3;
+use fissure::mesh::TetMesh;
 use fissure::mesh::io::{self, Field, FieldData, TetFormat};
 use fissure::scenario::validate::LOCKING_POISSON_RATIO;
 
@@ -89,21 +90,7 @@ pub fn run(args: &SolveArgs) -> anyhow::Result<()> {
     }
 
     let t_load = Instant::now();
-    let load_context = || format!("cannot load the mesh {}", args.mesh.display());
-    let (file_mesh, numbering) = match args.node_numbering {
-        NodeNumberingArg::Index => {
-            let mesh = io::load_tet_mesh(&args.mesh).with_context(load_context)?;
-            let count = mesh.node_count();
-            (mesh, NodeNumbering::Index { count })
-        }
-        NodeNumberingArg::GmshTag => {
-            if TetFormat::from_path(&args.mesh).ok() != Some(TetFormat::Gmsh) {
-                bail!("--node-numbering gmsh-tag needs a Gmsh .msh mesh, not {}", args.mesh.display());
-            }
-            let (mesh, tags) = io::load_gmsh_with_node_tags(&args.mesh).with_context(load_context)?;
-            (mesh, NodeNumbering::gmsh(&tags))
-        }
-    };
+    let (file_mesh, numbering) = load_mesh(args)?;
     let load_seconds = t_load.elapsed().as_secs_f64();
     let (unit_name, metres_per_unit) = match args.units {
         SurfaceUnits::M => ("m", 1.0),
@@ -131,31 +118,11 @@ pub fn run(args: &SolveArgs) -> anyhow::Result<()> {
     let solve_seconds = t_solve.elapsed().as_secs_f64();
 
     let n = mesh.node_count();
-    let mut reaction = vec![Vec3::zeros(); n];
-    let (mut sum_fixed, mut sum_enforced) = (Vec3::zeros(), Vec3::zeros());
-    for ((&(dof, _), &r), &source) in prescription.dofs.iter().zip(&solution.reactions).zip(&prescription.sources) {
-        reaction[dof / 3][dof % 3] = r;
-        let sum = if source == Source::Fixed { &mut sum_fixed } else { &mut sum_enforced };
-        sum[dof % 3] += r;
-    }
+    let (reaction, sum_fixed, sum_enforced) = reactions(&prescription, &solution.reactions, n);
     if let Some(bad) = solution.displacement.iter().position(|u| !fissure::math::is_finite3(u)) {
         bail!("the solve gave a non-finite displacement at node {}; nothing written", numbering.number_of(bad as u32));
     }
-    let mask = |m: &[u8]| Field::Scalar(m.iter().map(|&b| b as f64).collect());
-    let fields = FieldData {
-        point: vec![
-            ("displacement_m".into(), Field::Vector(solution.displacement.clone())),
-            ("reaction_n".into(), Field::Vector(reaction.clone())),
-            ("fixed_components".into(), mask(&prescription.fixed_mask)),
-            ("enforced_components".into(), mask(&prescription.enforced_mask)),
-        ],
-        cell: Vec::new(),
-    };
-    io::save_tet_mesh(&args.output, &file_mesh, &fields).with_context(|| format!("cannot write {}", args.output.display()))?;
-    if let Some(csv) = &args.csv {
-        let text = reaction_csv(&numbering, &prescription, &solution.displacement, &reaction);
-        fissure::fsio::write_atomic(csv, text.as_bytes()).with_context(|| format!("cannot write {}", csv.display()))?;
-    }
+    write_outputs(args, &file_mesh, &numbering, &prescription, &solution.displacement, &reaction)?;
 
     let (max_node, max_u) = solution
         .displacement
@@ -197,6 +164,64 @@ pub fn run(args: &SolveArgs) -> anyhow::Result<()> {
     println!("            on the enforced nodes {} N", v(sum_enforced));
     println!("            sum (no other load: ~0) {} N", v(sum_fixed + sum_enforced));
     println!("wrote {}{}", args.output.display(), args.csv.as_ref().map_or(String::new(), |c| format!(" and {}", c.display())));
+    Ok(())
+}
+
+/// The mesh as the file gives it and the numbering its node files use.
+fn load_mesh(args: &SolveArgs) -> anyhow::Result<(TetMesh, NodeNumbering)> {
+    let load_context = || format!("cannot load the mesh {}", args.mesh.display());
+    Ok(match args.node_numbering {
+        NodeNumberingArg::Index => {
+            let mesh = io::load_tet_mesh(&args.mesh).with_context(load_context)?;
+            let count = mesh.node_count();
+            (mesh, NodeNumbering::Index { count })
+        }
+        NodeNumberingArg::GmshTag => {
+            if TetFormat::from_path(&args.mesh).ok() != Some(TetFormat::Gmsh) {
+                bail!("--node-numbering gmsh-tag needs a Gmsh .msh mesh, not {}", args.mesh.display());
+            }
+            let (mesh, tags) = io::load_gmsh_with_node_tags(&args.mesh).with_context(load_context)?;
+            (mesh, NodeNumbering::gmsh(&tags))
+        }
+    })
+}
+
+/// Each node's reaction, and their sums over the fixed and over the enforced components, N.
+fn reactions(prescription: &boundary::Prescription, values: &[f64], n: usize) -> (Vec<Vec3>, Vec3, Vec3) {
+    let mut reaction = vec![Vec3::zeros(); n];
+    let (mut sum_fixed, mut sum_enforced) = (Vec3::zeros(), Vec3::zeros());
+    for ((&(dof, _), &r), &source) in prescription.dofs.iter().zip(values).zip(&prescription.sources) {
+        reaction[dof / 3][dof % 3] = r;
+        let sum = if source == Source::Fixed { &mut sum_fixed } else { &mut sum_enforced };
+        sum[dof % 3] += r;
+    }
+    (reaction, sum_fixed, sum_enforced)
+}
+
+/// The mesh with its displacement, reactions and masks, and the reaction table where asked.
+fn write_outputs(
+    args: &SolveArgs,
+    file_mesh: &TetMesh,
+    numbering: &NodeNumbering,
+    prescription: &boundary::Prescription,
+    displacement: &[Vec3],
+    reaction: &[Vec3],
+) -> anyhow::Result<()> {
+    let mask = |m: &[u8]| Field::Scalar(m.iter().map(|&b| b as f64).collect());
+    let fields = FieldData {
+        point: vec![
+            ("displacement_m".into(), Field::Vector(displacement.to_vec())),
+            ("reaction_n".into(), Field::Vector(reaction.to_vec())),
+            ("fixed_components".into(), mask(&prescription.fixed_mask)),
+            ("enforced_components".into(), mask(&prescription.enforced_mask)),
+        ],
+        cell: Vec::new(),
+    };
+    io::save_tet_mesh(&args.output, file_mesh, &fields).with_context(|| format!("cannot write {}", args.output.display()))?;
+    if let Some(csv) = &args.csv {
+        let text = reaction_csv(numbering, prescription, displacement, reaction);
+        fissure::fsio::write_atomic(csv, text.as_bytes()).with_context(|| format!("cannot write {}", csv.display()))?;
+    }
     Ok(())
 }
 

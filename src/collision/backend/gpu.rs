@@ -45,7 +45,7 @@
 //! error or a failed map make `cast` an error (the stage then switches to `bvh` for
 //! the rest of the run, see `collision/mod.rs`). Nothing panics.
 
-use super::bvh::BvhCaster;
+use super::bvh::{BvhCaster, TreeLayout};
 use super::{LineAccumulator, PairHits, PairLine, RayCaster, TriangleHit};
 use crate::collision::{BackendKind, CollisionError};
 use crate::geometry::LineQuery;
@@ -160,6 +160,25 @@ const STAMP_BYTES: u64 = 32;
 pub struct GpuCaster {
     device: wgpu::Device,
     queue: wgpu::Queue,
+    kernels: Kernels,
+    buffers: FrameBuffers,
+    timestamps: Option<Timestamps>,
+    /// Uncaptured device errors and device loss, reported by wgpu's callbacks.
+    fault: Arc<Mutex<Option<String>>>,
+    scale: Scales,
+    ray_capacity: usize,
+    scratch: Scratch,
+    surface: CpuSurface,
+    cpu: ExactLines,
+    adapter_name: String,
+    last_upload: UploadStats,
+    last_timings: GpuTimings,
+    /// Test hook: the next cast fails as if the device were lost.
+    fail_next: bool,
+}
+
+/// The refit and traversal kernels, their bind groups and the tree's levels.
+struct Kernels {
     refit_pipeline: wgpu::ComputePipeline,
     traverse_pipeline: wgpu::ComputePipeline,
     refit_groups: Vec<wgpu::BindGroup>,
@@ -168,14 +187,19 @@ pub struct GpuCaster {
     /// (start, count) of each level in `level_nodes`.
     levels: Vec<(u32, u32)>,
     level_stride: u64,
+}
+
+/// The buffers a frame writes and reads back.
+struct FrameBuffers {
     params: wgpu::Buffer,
     positions: wgpu::Buffer,
     rays: wgpu::Buffer,
     results: wgpu::Buffer,
     staging: wgpu::Buffer,
-    timestamps: Option<Timestamps>,
-    /// Uncaptured device errors and device loss, reported by wgpu's callbacks.
-    fault: Arc<Mutex<Option<String>>>,
+}
+
+/// Where the f32 coordinates are centred and how large they are.
+struct Scales {
     centre: Vec3,
     /// Largest |coordinate| (relative to `centre`) the box margins were set for.
     margin_scale: f64,
@@ -183,32 +207,37 @@ pub struct GpuCaster {
     frame_scale: f64,
     /// Largest |coordinate| of the rest surface (relative to `centre`).
     rest_scale: f64,
-    ray_capacity: usize,
-    uploaded: Vec<[f32; 4]>,
-    fresh: Vec<[f32; 4]>,
-    gpu_rays: Vec<GpuRay>,
-    /// The surface in f64 for the CPU decisions.
+}
+
+/// The surface in f64 for the CPU decisions.
+struct CpuSurface {
     triangles: Vec<[u32; 3]>,
     positions64: Vec<Vec3>,
     /// Triangles around each vertex (CSR): `fan[fan_start[v]..fan_start[v + 1]]`.
     fan_start: Vec<u32>,
     fan: Vec<u32>,
+}
+
+/// The lines decided on the CPU (flagged ones) and the tree they are cast on.
+struct ExactLines {
     /// CPU tree for flagged lines, refit only in frames that have one.
     exact: BvhCaster,
     exact_stale: bool,
     /// The last cast had flagged lines: refit `exact` while the GPU works.
     expect_flagged: bool,
-    /// Runs of changed vertices of this frame's upload.
-    runs: Vec<(usize, usize)>,
     flagged: Vec<usize>,
     flagged_lines: Vec<PairLine>,
     flagged_hits: Vec<PairHits>,
+}
+
+/// Uploads and readbacks reused from frame to frame.
+struct Scratch {
+    uploaded: Vec<[f32; 4]>,
+    fresh: Vec<[f32; 4]>,
+    gpu_rays: Vec<GpuRay>,
+    /// Runs of changed vertices of this frame's upload.
+    runs: Vec<(usize, usize)>,
     words: Vec<u32>,
-    adapter_name: String,
-    last_upload: UploadStats,
-    last_timings: GpuTimings,
-    /// Test hook: the next cast fails as if the device were lost.
-    fail_next: bool,
 }
 
 fn to_f32(p: &Vec3, centre: &Vec3) -> [f32; 4] {
@@ -232,6 +261,174 @@ fn storage(device: &wgpu::Device, label: &str, bytes: &[u8], extra: wgpu::Buffer
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: &data, usage: wgpu::BufferUsages::STORAGE | extra })
 }
 
+/// A device of the adapter `WGPU_BACKEND` and `VK_DRIVER_FILES` choose, its limits, and a slot its errors and its
+/// loss are reported into.
+struct Opened {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    limits: wgpu::Limits,
+    timestamp_query: bool,
+    adapter_name: String,
+    fault: Arc<Mutex<Option<String>>>,
+}
+
+fn open_device() -> Result<Opened, CollisionError> {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        ..Default::default()
+    }))
+    .map_err(|e| gpu_err("no adapter", e))?;
+    let limits = adapter.limits();
+    let timestamp_query = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("collision device"),
+        required_limits: limits.clone(),
+        required_features: if timestamp_query { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() },
+        ..Default::default()
+    }))
+    .map_err(|e| gpu_err("no device", e))?;
+    let adapter_name = adapter.get_info().name;
+    let fault = Arc::new(Mutex::new(None::<String>));
+    {
+        let sink = fault.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            if let Ok(mut f) = sink.lock() {
+                f.get_or_insert_with(|| format!("device error: {e}"));
+            }
+        }));
+        let sink = fault.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            if let Ok(mut f) = sink.lock() {
+                f.get_or_insert_with(|| format!("device lost ({reason:?}): {message}"));
+            }
+        });
+    }
+
+    Ok(Opened { device, queue, limits, timestamp_query, adapter_name, fault })
+}
+
+/// The traversal's parameters, its lines and results for up to `ray_capacity` lines, and the readback buffer.
+fn line_buffers(device: &wgpu::Device, ray_capacity: usize) -> (wgpu::Buffer, wgpu::Buffer, wgpu::Buffer, wgpu::Buffer) {
+    let copy_dst = wgpu::BufferUsages::COPY_DST;
+    let params = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("collision params"),
+        size: std::mem::size_of::<GpuParams>() as u64,
+        usage: wgpu::BufferUsages::UNIFORM | copy_dst,
+        mapped_at_creation: false,
+    });
+    let rays = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("collision rays"),
+        size: (ray_capacity * std::mem::size_of::<GpuRay>()) as u64,
+        usage: wgpu::BufferUsages::STORAGE | copy_dst,
+        mapped_at_creation: false,
+    });
+    let results_size = (ray_capacity * OUT_STRIDE * 4) as u64;
+    let results = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("collision results"),
+        size: results_size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    // One readback a frame: the timestamps (32 bytes) first, then the results.
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("collision staging"),
+        size: STAMP_BYTES + results_size,
+        usage: wgpu::BufferUsages::MAP_READ | copy_dst,
+        mapped_at_creation: false,
+    });
+    (params, rays, results, staging)
+}
+
+/// The refit and traversal kernels over the tree of `layout` at `uploaded` positions, and the buffers of up to
+/// `ray_capacity` lines a frame.
+fn kernels(device: &wgpu::Device, limits: &wgpu::Limits, layout: &TreeLayout, uploaded: &[[f32; 4]], ray_capacity: usize) -> (Kernels, FrameBuffers) {
+    let refit_shader = device.create_shader_module(wgpu::include_wgsl!("../../../shaders/collision_refit.wgsl"));
+    let traverse_shader = device.create_shader_module(wgpu::include_wgsl!("../../../shaders/collision.wgsl"));
+    let copy_dst = wgpu::BufferUsages::COPY_DST;
+    let positions_buf = storage(device, "collision positions", bytemuck::cast_slice(uploaded), copy_dst);
+    let topo = storage(device, "collision tree", bytemuck::cast_slice(&layout.topo), wgpu::BufferUsages::empty());
+    let leaf_vertices = storage(device, "collision leaf vertices", bytemuck::cast_slice(&layout.leaf_vertices), wgpu::BufferUsages::empty());
+    let leaf_tris = storage(device, "collision leaf triangles", bytemuck::cast_slice(&layout.leaf_triangles), wgpu::BufferUsages::empty());
+    let level_nodes: Vec<u32> = layout.levels.iter().flatten().copied().collect();
+    let level_nodes = storage(device, "collision level nodes", bytemuck::cast_slice(&level_nodes), wgpu::BufferUsages::empty());
+    let boxes = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("collision boxes"),
+        size: (layout.topo.len().max(1) * 32) as u64,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    let mut levels = Vec::with_capacity(layout.levels.len());
+    let mut start = 0u32;
+    for l in &layout.levels {
+        levels.push((start, l.len() as u32));
+        start += l.len() as u32;
+    }
+    let level_stride = (limits.min_uniform_buffer_offset_alignment as u64).max(std::mem::size_of::<GpuLevel>() as u64);
+    let levels_buf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("collision levels"),
+        size: level_stride * levels.len().max(1) as u64,
+        usage: wgpu::BufferUsages::UNIFORM | copy_dst,
+        mapped_at_creation: false,
+    });
+    let (params, rays, results, staging) = line_buffers(device, ray_capacity);
+    let refit_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("collision refit"),
+        layout: None,
+        module: &refit_shader,
+        entry_point: Some("refit"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let traverse_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("collision traversal"),
+        layout: None,
+        module: &traverse_shader,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let refit_layout = refit_pipeline.get_bind_group_layout(0);
+    let refit_groups = (0..levels.len())
+        .map(|k| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("collision refit level"),
+                layout: &refit_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &levels_buf,
+                            offset: k as u64 * level_stride,
+                            size: wgpu::BufferSize::new(std::mem::size_of::<GpuLevel>() as u64),
+                        }),
+                    },
+                    wgpu::BindGroupEntry { binding: 1, resource: positions_buf.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 2, resource: topo.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 3, resource: leaf_vertices.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 4, resource: level_nodes.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 5, resource: boxes.as_entire_binding() },
+                ],
+            })
+        })
+        .collect();
+    let traverse_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("collision traversal"),
+        layout: &traverse_pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: positions_buf.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 2, resource: topo.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 3, resource: boxes.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 4, resource: leaf_tris.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 5, resource: rays.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 6, resource: results.as_entire_binding() },
+        ],
+    });
+    let kernels = Kernels { refit_pipeline, traverse_pipeline, refit_groups, traverse_group, levels_buf, levels, level_stride };
+    (kernels, FrameBuffers { params, positions: positions_buf, rays, results, staging })
+}
+
 impl GpuCaster {
     /// Creates device, pipelines and buffers for `triangles` at `positions` and up to
     /// `ray_capacity` lines a frame. Errors when no adapter or device is available,
@@ -242,38 +439,7 @@ impl GpuCaster {
         if layout.depth + 2 > SHADER_STACK {
             return Err(CollisionError::Gpu(format!("the tree is {} levels deep; the shader's stack holds {}", layout.depth, SHADER_STACK - 2)));
         }
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            ..Default::default()
-        }))
-        .map_err(|e| gpu_err("no adapter", e))?;
-        let limits = adapter.limits();
-        let timestamp_query = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("collision device"),
-            required_limits: limits.clone(),
-            required_features: if timestamp_query { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() },
-            ..Default::default()
-        }))
-        .map_err(|e| gpu_err("no device", e))?;
-        let adapter_name = adapter.get_info().name;
-        let fault = Arc::new(Mutex::new(None::<String>));
-        {
-            let sink = fault.clone();
-            device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
-                if let Ok(mut f) = sink.lock() {
-                    f.get_or_insert_with(|| format!("device error: {e}"));
-                }
-            }));
-            let sink = fault.clone();
-            device.set_device_lost_callback(move |reason, message| {
-                if let Ok(mut f) = sink.lock() {
-                    f.get_or_insert_with(|| format!("device lost ({reason:?}): {message}"));
-                }
-            });
-        }
-
+        let Opened { device, queue, limits, timestamp_query, adapter_name, fault } = open_device()?;
         let (mut lo, mut hi) = (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY));
         for p in positions {
             lo = lo.inf(p);
@@ -291,114 +457,7 @@ impl GpuCaster {
         if biggest > max_binding {
             return Err(CollisionError::Gpu(format!("a buffer of {biggest} bytes exceeds the adapter's binding limit {max_binding}")));
         }
-
-        let refit_shader = device.create_shader_module(wgpu::include_wgsl!("../../../shaders/collision_refit.wgsl"));
-        let traverse_shader = device.create_shader_module(wgpu::include_wgsl!("../../../shaders/collision.wgsl"));
-        let copy_dst = wgpu::BufferUsages::COPY_DST;
-        let positions_buf = storage(&device, "collision positions", bytemuck::cast_slice(&uploaded), copy_dst);
-        let topo = storage(&device, "collision tree", bytemuck::cast_slice(&layout.topo), wgpu::BufferUsages::empty());
-        let leaf_vertices = storage(&device, "collision leaf vertices", bytemuck::cast_slice(&layout.leaf_vertices), wgpu::BufferUsages::empty());
-        let leaf_tris = storage(&device, "collision leaf triangles", bytemuck::cast_slice(&layout.leaf_triangles), wgpu::BufferUsages::empty());
-        let level_nodes: Vec<u32> = layout.levels.iter().flatten().copied().collect();
-        let level_nodes = storage(&device, "collision level nodes", bytemuck::cast_slice(&level_nodes), wgpu::BufferUsages::empty());
-        let boxes = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("collision boxes"),
-            size: (layout.topo.len().max(1) * 32) as u64,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
-        let mut levels = Vec::with_capacity(layout.levels.len());
-        let mut start = 0u32;
-        for l in &layout.levels {
-            levels.push((start, l.len() as u32));
-            start += l.len() as u32;
-        }
-        let level_stride = (limits.min_uniform_buffer_offset_alignment as u64).max(std::mem::size_of::<GpuLevel>() as u64);
-        let levels_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("collision levels"),
-            size: level_stride * levels.len().max(1) as u64,
-            usage: wgpu::BufferUsages::UNIFORM | copy_dst,
-            mapped_at_creation: false,
-        });
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("collision params"),
-            size: std::mem::size_of::<GpuParams>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | copy_dst,
-            mapped_at_creation: false,
-        });
-        let rays = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("collision rays"),
-            size: (ray_capacity * std::mem::size_of::<GpuRay>()) as u64,
-            usage: wgpu::BufferUsages::STORAGE | copy_dst,
-            mapped_at_creation: false,
-        });
-        let results_size = (ray_capacity * OUT_STRIDE * 4) as u64;
-        let results = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("collision results"),
-            size: results_size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        // One readback a frame: the timestamps (32 bytes) first, then the results.
-        let staging = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("collision staging"),
-            size: STAMP_BYTES + results_size,
-            usage: wgpu::BufferUsages::MAP_READ | copy_dst,
-            mapped_at_creation: false,
-        });
-        let refit_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("collision refit"),
-            layout: None,
-            module: &refit_shader,
-            entry_point: Some("refit"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        let traverse_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("collision traversal"),
-            layout: None,
-            module: &traverse_shader,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        let refit_layout = refit_pipeline.get_bind_group_layout(0);
-        let refit_groups = (0..levels.len())
-            .map(|k| {
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("collision refit level"),
-                    layout: &refit_layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                                buffer: &levels_buf,
-                                offset: k as u64 * level_stride,
-                                size: wgpu::BufferSize::new(std::mem::size_of::<GpuLevel>() as u64),
-                            }),
-                        },
-                        wgpu::BindGroupEntry { binding: 1, resource: positions_buf.as_entire_binding() },
-                        wgpu::BindGroupEntry { binding: 2, resource: topo.as_entire_binding() },
-                        wgpu::BindGroupEntry { binding: 3, resource: leaf_vertices.as_entire_binding() },
-                        wgpu::BindGroupEntry { binding: 4, resource: level_nodes.as_entire_binding() },
-                        wgpu::BindGroupEntry { binding: 5, resource: boxes.as_entire_binding() },
-                    ],
-                })
-            })
-            .collect();
-        let traverse_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("collision traversal"),
-            layout: &traverse_pipeline.get_bind_group_layout(0),
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: positions_buf.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: topo.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: boxes.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: leaf_tris.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 5, resource: rays.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 6, resource: results.as_entire_binding() },
-            ],
-        });
+        let (kernels, buffers) = kernels(&device, &limits, &layout, &uploaded, ray_capacity);
         let timestamps = timestamp_query.then(|| Timestamps {
             set: device.create_query_set(&wgpu::QuerySetDescriptor { label: Some("collision timestamps"), ty: wgpu::QueryType::Timestamp, count: 4 }),
             resolve: device.create_buffer(&wgpu::BufferDescriptor {
@@ -412,44 +471,24 @@ impl GpuCaster {
 
         // Triangles around each vertex, for the f64 decision's neighbourhood.
         let (fan_start, fan) = crate::mesh::triangles_around_vertices(positions.len(), triangles);
-
         let mut caster = Self {
             device,
             queue,
-            refit_pipeline,
-            traverse_pipeline,
-            refit_groups,
-            traverse_group,
-            levels_buf,
-            levels,
-            level_stride,
-            params,
-            positions: positions_buf,
-            rays,
-            results,
-            staging,
+            kernels,
+            buffers,
             timestamps,
             fault,
-            centre,
-            margin_scale: 0.0,
-            frame_scale: rest_scale,
-            rest_scale,
+            scale: Scales { centre, margin_scale: 0.0, frame_scale: rest_scale, rest_scale },
             ray_capacity,
-            fresh: uploaded.clone(),
-            uploaded,
-            gpu_rays: Vec::with_capacity(ray_capacity),
-            triangles: triangles.to_vec(),
-            positions64: positions.to_vec(),
-            fan_start,
-            fan,
-            exact,
-            exact_stale: false,
-            expect_flagged: false,
-            runs: Vec::new(),
-            flagged: Vec::new(),
-            flagged_lines: Vec::new(),
-            flagged_hits: Vec::new(),
-            words: Vec::with_capacity(ray_capacity * OUT_STRIDE),
+            scratch: Scratch {
+                fresh: uploaded.clone(),
+                uploaded,
+                gpu_rays: Vec::with_capacity(ray_capacity),
+                runs: Vec::new(),
+                words: Vec::with_capacity(ray_capacity * OUT_STRIDE),
+            },
+            surface: CpuSurface { triangles: triangles.to_vec(), positions64: positions.to_vec(), fan_start, fan },
+            cpu: ExactLines { exact, exact_stale: false, expect_flagged: false, flagged: Vec::new(), flagged_lines: Vec::new(), flagged_hits: Vec::new() },
             adapter_name,
             last_upload: UploadStats::default(),
             last_timings: GpuTimings::default(),
@@ -470,16 +509,16 @@ impl GpuCaster {
     fn write_margins(&mut self, scale: f64) {
         let scale = scale * 1.25;
         let margin = (0.5 * Self::window(scale)) as f32;
-        let mut bytes = vec![0u8; self.level_stride as usize * self.levels.len()];
-        for (k, &(start, count)) in self.levels.iter().enumerate() {
+        let mut bytes = vec![0u8; self.kernels.level_stride as usize * self.kernels.levels.len()];
+        for (k, &(start, count)) in self.kernels.levels.iter().enumerate() {
             let l = GpuLevel { start, count, margin, _pad: 0 };
-            let at = k * self.level_stride as usize;
+            let at = k * self.kernels.level_stride as usize;
             bytes[at..at + std::mem::size_of::<GpuLevel>()].copy_from_slice(bytemuck::bytes_of(&l));
         }
         if !bytes.is_empty() {
-            self.queue.write_buffer(&self.levels_buf, 0, &bytes);
+            self.queue.write_buffer(&self.kernels.levels_buf, 0, &bytes);
         }
-        self.margin_scale = scale;
+        self.scale.margin_scale = scale;
     }
 
     fn check_fault(&self) -> Result<(), CollisionError> {
@@ -508,7 +547,7 @@ impl GpuCaster {
     /// The last cast's flag word of every line (0: decided from its candidates; bits
     /// 1, 2, 4 as in `GpuTimings::flag_reasons`, 8: an origin too far for f32).
     pub fn last_flags(&self) -> impl Iterator<Item = u32> + '_ {
-        self.words.chunks_exact(OUT_STRIDE).map(|w| w[12])
+        self.scratch.words.chunks_exact(OUT_STRIDE).map(|w| w[12])
     }
 
     /// True when the adapter reports timestamp queries (the GPU breakdown).
@@ -524,7 +563,7 @@ impl GpuCaster {
         };
         seen.clear();
         for &t in &words[..12] {
-            if t != NO_HIT && (t as usize) < self.triangles.len() && !seen.contains(&t) {
+            if t != NO_HIT && (t as usize) < self.surface.triangles.len() && !seen.contains(&t) {
                 seen.push(t);
             }
         }
@@ -532,15 +571,15 @@ impl GpuCaster {
         let mut i = 0;
         while i < seen.len() {
             let t = seen[i];
-            let tri = self.triangles[t as usize];
-            let [a, b, c] = tri.map(|v| &self.positions64[v as usize]);
+            let tri = self.surface.triangles[t as usize];
+            let [a, b, c] = tri.map(|v| &self.surface.positions64[v as usize]);
             match q.intersect(a, b, c) {
                 Some(h) => acc.offer(TriangleHit { triangle: t, t: h.t, u: h.u, v: h.v }),
                 None if i < candidates => {
                     // f32 hit, f64 miss: the line passes at an edge or a vertex, and the
                     // f64 test hits one of the triangles around it.
                     for v in tri {
-                        for &u in &self.fan[self.fan_start[v as usize] as usize..self.fan_start[v as usize + 1] as usize] {
+                        for &u in &self.surface.fan[self.surface.fan_start[v as usize] as usize..self.surface.fan_start[v as usize + 1] as usize] {
                             if !seen.contains(&u) {
                                 seen.push(u);
                             }
@@ -554,12 +593,12 @@ impl GpuCaster {
         acc.finish()
     }
 
-    /// Records, submits and waits for one frame's GPU work; fills `self.words`.
+    /// Records, submits and waits for one frame's GPU work; fills `self.scratch.words`.
     fn run_device(&mut self, lines: &[PairLine]) -> Result<(Option<f64>, Option<f64>), CollisionError> {
-        let scale = lines.iter().map(|l| max_abs(&l.origin, &self.centre)).fold(self.frame_scale, f64::max);
+        let scale = lines.iter().map(|l| max_abs(&l.origin, &self.scale.centre)).fold(self.scale.frame_scale, f64::max);
         let params = GpuParams { line_count: lines.len() as u32, _pad: [0; 3], window: Self::window(scale) as f32, coord_scale: scale as f32, _pad2: [0.0; 2] };
-        self.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        self.queue.write_buffer(&self.rays, 0, bytemuck::cast_slice(&self.gpu_rays));
+        self.queue.write_buffer(&self.buffers.params, 0, bytemuck::bytes_of(&params));
+        self.queue.write_buffer(&self.buffers.rays, 0, bytemuck::cast_slice(&self.scratch.gpu_rays));
         let bytes = (lines.len() * OUT_STRIDE * 4) as u64;
         let mut encoder = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("collision encoder") });
         let writes = |begin: u32| {
@@ -571,44 +610,44 @@ impl GpuCaster {
         };
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("collision refit"), timestamp_writes: writes(0) });
-            pass.set_pipeline(&self.refit_pipeline);
-            for (group, &(_, count)) in self.refit_groups.iter().zip(&self.levels) {
+            pass.set_pipeline(&self.kernels.refit_pipeline);
+            for (group, &(_, count)) in self.kernels.refit_groups.iter().zip(&self.kernels.levels) {
                 pass.set_bind_group(0, group, &[]);
                 pass.dispatch_workgroups(count.div_ceil(WORKGROUP), 1, 1);
             }
         }
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("collision traversal"), timestamp_writes: writes(2) });
-            pass.set_pipeline(&self.traverse_pipeline);
-            pass.set_bind_group(0, &self.traverse_group, &[]);
+            pass.set_pipeline(&self.kernels.traverse_pipeline);
+            pass.set_bind_group(0, &self.kernels.traverse_group, &[]);
             pass.dispatch_workgroups((lines.len() as u32).div_ceil(WORKGROUP), 1, 1);
         }
-        encoder.copy_buffer_to_buffer(&self.results, 0, &self.staging, STAMP_BYTES, bytes);
+        encoder.copy_buffer_to_buffer(&self.buffers.results, 0, &self.buffers.staging, STAMP_BYTES, bytes);
         if let Some(ts) = &self.timestamps {
             encoder.resolve_query_set(&ts.set, 0..4, &ts.resolve, 0);
-            encoder.copy_buffer_to_buffer(&ts.resolve, 0, &self.staging, 0, STAMP_BYTES);
+            encoder.copy_buffer_to_buffer(&ts.resolve, 0, &self.buffers.staging, 0, STAMP_BYTES);
         }
         self.queue.submit(Some(encoder.finish()));
         let (tx, rx) = std::sync::mpsc::channel();
         let mapped = STAMP_BYTES + bytes;
-        self.staging.map_async(wgpu::MapMode::Read, 0..mapped, move |r| {
+        self.buffers.staging.map_async(wgpu::MapMode::Read, 0..mapped, move |r| {
             let _ = tx.send(r);
         });
         // The GPU works now: refit the CPU tree for the flagged lines meanwhile when
         // the last frame had some (the refit changes no answer, only when it is paid).
-        if self.expect_flagged && self.exact_stale {
-            self.exact.update_surface(&self.positions64)?;
-            self.exact_stale = false;
+        if self.cpu.expect_flagged && self.cpu.exact_stale {
+            self.cpu.exact.update_surface(&self.surface.positions64)?;
+            self.cpu.exact_stale = false;
         }
         self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| gpu_err("poll", e))?;
         rx.recv().map_err(|e| gpu_err("readback", e))?.map_err(|e| gpu_err("map", e))?;
         self.check_fault()?;
         let mut gpu_times = (None, None);
         {
-            let view = self.staging.get_mapped_range(0..mapped).map_err(|e| gpu_err("mapped range", e))?;
+            let view = self.buffers.staging.get_mapped_range(0..mapped).map_err(|e| gpu_err("mapped range", e))?;
             let (stamps, words) = view.split_at(STAMP_BYTES as usize);
-            self.words.clear();
-            self.words.extend_from_slice(bytemuck::cast_slice(words));
+            self.scratch.words.clear();
+            self.scratch.words.extend_from_slice(bytemuck::cast_slice(words));
             if let Some(ts) = &self.timestamps {
                 let mut q = [0u64; 4];
                 for (q, c) in q.iter_mut().zip(stamps.chunks_exact(8)) {
@@ -618,7 +657,7 @@ impl GpuCaster {
                 gpu_times = (span(q[0], q[1]), span(q[2], q[3]));
             }
         }
-        self.staging.unmap();
+        self.buffers.staging.unmap();
         Ok(gpu_times)
     }
 }
@@ -629,54 +668,54 @@ impl RayCaster for GpuCaster {
     }
 
     fn update_surface(&mut self, positions: &[Vec3]) -> Result<(), CollisionError> {
-        if positions.len() != self.uploaded.len() {
-            return Err(CollisionError::VertexCount { expected: self.uploaded.len(), got: positions.len() });
+        if positions.len() != self.scratch.uploaded.len() {
+            return Err(CollisionError::VertexCount { expected: self.scratch.uploaded.len(), got: positions.len() });
         }
         let t0 = Instant::now();
-        self.positions64.copy_from_slice(positions);
-        self.exact_stale = true;
+        self.surface.positions64.copy_from_slice(positions);
+        self.cpu.exact_stale = true;
         // One pass: the f32 value, the frame's scale and the runs of changed vertices
         // (gaps of up to RUN_GAP unchanged ones bridged).
         let mut changed = 0;
-        let mut scale = self.rest_scale;
-        self.runs.clear();
-        for (i, ((f, p), u)) in self.fresh.iter_mut().zip(positions).zip(&self.uploaded).enumerate() {
-            *f = to_f32(p, &self.centre);
-            scale = scale.max(max_abs(p, &self.centre));
+        let mut scale = self.scale.rest_scale;
+        self.scratch.runs.clear();
+        for (i, ((f, p), u)) in self.scratch.fresh.iter_mut().zip(positions).zip(&self.scratch.uploaded).enumerate() {
+            *f = to_f32(p, &self.scale.centre);
+            scale = scale.max(max_abs(p, &self.scale.centre));
             if *f != *u {
                 changed += 1;
-                match self.runs.last_mut() {
+                match self.scratch.runs.last_mut() {
                     Some(r) if i - r.1 <= RUN_GAP => r.1 = i + 1,
-                    _ => self.runs.push((i, i + 1)),
+                    _ => self.scratch.runs.push((i, i + 1)),
                 }
             }
         }
-        self.frame_scale = scale;
-        if scale > self.margin_scale {
+        self.scale.frame_scale = scale;
+        if scale > self.scale.margin_scale {
             self.write_margins(scale);
         }
         let mut stats = UploadStats { changed_vertices: changed, ..Default::default() };
-        let n = self.fresh.len();
+        let n = self.scratch.fresh.len();
         if changed * 2 > n {
-            self.queue.write_buffer(&self.positions, 0, bytemuck::cast_slice(&self.fresh));
+            self.queue.write_buffer(&self.buffers.positions, 0, bytemuck::cast_slice(&self.scratch.fresh));
             stats.whole_buffer = true;
             stats.writes = 1;
             stats.written_vertices = n;
-        } else if self.runs.len() > MAX_WRITES {
+        } else if self.scratch.runs.len() > MAX_WRITES {
             // Each write_buffer is a staging allocation and a copy command: past
             // MAX_WRITES runs, one span from the first changed vertex to the last.
-            let (start, end) = (self.runs[0].0, self.runs[self.runs.len() - 1].1);
-            self.queue.write_buffer(&self.positions, (start * 16) as u64, bytemuck::cast_slice(&self.fresh[start..end]));
+            let (start, end) = (self.scratch.runs[0].0, self.scratch.runs[self.scratch.runs.len() - 1].1);
+            self.queue.write_buffer(&self.buffers.positions, (start * 16) as u64, bytemuck::cast_slice(&self.scratch.fresh[start..end]));
             stats.writes = 1;
             stats.written_vertices = end - start;
         } else {
-            for &(start, end) in &self.runs {
-                self.queue.write_buffer(&self.positions, (start * 16) as u64, bytemuck::cast_slice(&self.fresh[start..end]));
+            for &(start, end) in &self.scratch.runs {
+                self.queue.write_buffer(&self.buffers.positions, (start * 16) as u64, bytemuck::cast_slice(&self.scratch.fresh[start..end]));
                 stats.writes += 1;
                 stats.written_vertices += end - start;
             }
         }
-        std::mem::swap(&mut self.uploaded, &mut self.fresh);
+        std::mem::swap(&mut self.scratch.uploaded, &mut self.scratch.fresh);
         self.last_upload = stats;
         self.last_timings.upload = t0.elapsed().as_secs_f64();
         Ok(())
@@ -713,11 +752,11 @@ impl RayCaster for GpuCaster {
             return Err(CollisionError::Gpu(format!("{} lines exceed the capacity {}", lines.len(), self.ray_capacity)));
         }
         let t0 = Instant::now();
-        let far = FAR_ORIGIN * self.rest_scale;
-        self.gpu_rays.clear();
-        self.gpu_rays.extend(lines.iter().map(|r| GpuRay {
+        let far = FAR_ORIGIN * self.scale.rest_scale;
+        self.scratch.gpu_rays.clear();
+        self.scratch.gpu_rays.extend(lines.iter().map(|r| GpuRay {
             origin: {
-                let mut o = to_f32(&r.origin, &self.centre);
+                let mut o = to_f32(&r.origin, &self.scale.centre);
                 o[3] = r.thickness as f32;
                 o
             },
@@ -728,19 +767,19 @@ impl RayCaster for GpuCaster {
 
         // One pass over the flag words: absurdly far origins join the flagged lines
         // (FAR_FLAG), which the CPU tree casts below; the reasons are counted.
-        self.flagged.clear();
-        self.flagged_lines.clear();
+        self.cpu.flagged.clear();
+        self.cpu.flagged_lines.clear();
         let mut reasons = [0; 3];
-        for (k, (l, w)) in lines.iter().zip(self.words.chunks_exact_mut(OUT_STRIDE)).enumerate() {
-            if max_abs(&l.origin, &self.centre) > far {
+        for (k, (l, w)) in lines.iter().zip(self.scratch.words.chunks_exact_mut(OUT_STRIDE)).enumerate() {
+            if max_abs(&l.origin, &self.scale.centre) > far {
                 w[12] |= FAR_FLAG;
             }
             for (bit, r) in reasons.iter_mut().enumerate() {
                 *r += (w[12] >> bit & 1) as usize;
             }
             if w[12] != 0 {
-                self.flagged.push(k);
-                self.flagged_lines.push(*l);
+                self.cpu.flagged.push(k);
+                self.cpu.flagged_lines.push(*l);
             }
         }
         // Decide every unflagged line in f64 from its candidates (lines are independent
@@ -760,18 +799,18 @@ impl RayCaster for GpuCaster {
             use rayon::prelude::*;
             out.par_chunks_mut(LINES_PER_TASK)
                 .zip(lines.par_chunks(LINES_PER_TASK))
-                .zip(self.words.par_chunks(LINES_PER_TASK * OUT_STRIDE))
+                .zip(self.scratch.words.par_chunks(LINES_PER_TASK * OUT_STRIDE))
                 .for_each(|((o, l), w)| decide_chunk(o, l, w));
         } else {
-            decide_chunk(out, lines, &self.words);
+            decide_chunk(out, lines, &self.scratch.words);
         }
-        if !self.flagged.is_empty() {
-            if self.exact_stale {
-                self.exact.update_surface(&self.positions64)?;
-                self.exact_stale = false;
+        if !self.cpu.flagged.is_empty() {
+            if self.cpu.exact_stale {
+                self.cpu.exact.update_surface(&self.surface.positions64)?;
+                self.cpu.exact_stale = false;
             }
-            self.exact.cast(&self.flagged_lines, &mut self.flagged_hits)?;
-            for (&k, h) in self.flagged.iter().zip(&self.flagged_hits) {
+            self.cpu.exact.cast(&self.cpu.flagged_lines, &mut self.cpu.flagged_hits)?;
+            for (&k, h) in self.cpu.flagged.iter().zip(&self.cpu.flagged_hits) {
                 out[k] = *h;
             }
         }
@@ -779,8 +818,8 @@ impl RayCaster for GpuCaster {
         self.last_timings.decide = t1.elapsed().as_secs_f64();
         self.last_timings.refit_gpu = refit_gpu;
         self.last_timings.traverse_gpu = traverse_gpu;
-        self.last_timings.flagged_lines = self.flagged.len();
-        self.expect_flagged = !self.flagged.is_empty();
+        self.last_timings.flagged_lines = self.cpu.flagged.len();
+        self.cpu.expect_flagged = !self.cpu.flagged.is_empty();
         self.last_timings.flag_reasons = reasons;
         Ok(())
     }

@@ -204,11 +204,24 @@ pub(crate) fn stuff(
     let nv = lattice.vertex_count();
     let sign: Vec<i8> = values.iter().map(|&v| if v < 0.0 { -1 } else if v > 0.0 { 1 } else { 0 }).collect();
     let bcc = lattice.tets();
+    let (cut_of, cuts) = cut_edges(lattice, values, &sign, &bcc, f);
+    let (position, virt, snapped) = warp_and_fill(lattice, &sign, &bcc, &cut_of, &cuts);
+    let (positions, tets) = compact(&virt, nv + cuts.len(), |id| virtual_position(id, lattice, &position, &cuts));
+    Stuffed { positions, tets, snapped: snapped.iter().filter(|&&s| s).count() }
+}
 
-    // Cut edges, in first-seen order over the tets.
+/// The lattice edges the surface cuts (signs of opposite kind at their ends), in first-seen order over the
+/// tets, keyed by their ends (lower first), and the cut point on each: the root of `f` along it.
+fn cut_edges(
+    lattice: &Lattice,
+    values: &[f64],
+    sign: &[i8],
+    bcc: &[[u32; 4]],
+    f: &(dyn Fn(&Vec3) -> f64 + Sync),
+) -> (HashMap<(u32, u32), u32>, Vec<Cut>) {
     let mut cut_of: HashMap<(u32, u32), u32> = HashMap::new();
     let mut edges: Vec<(u32, u32)> = Vec::new();
-    for t in &bcc {
+    for t in bcc {
         for (i, j) in EDGES {
             let (a, b) = (t[i].min(t[j]), t[i].max(t[j]));
             if sign[a as usize] * sign[b as usize] < 0 {
@@ -224,7 +237,7 @@ pub(crate) fn stuff(
         let g = |s: f64| f(&(pa + (pb - pa) * s));
         edge_root(&g, values[a as usize], values[b as usize])
     });
-    let cuts: Vec<Cut> = edges
+    let cuts = edges
         .iter()
         .zip(&roots)
         .map(|(&(a, b), &t)| {
@@ -233,7 +246,32 @@ pub(crate) fn stuff(
             Cut { a, b, t, position: pa + (pb - pa) * t, black: lattice.is_black(a, b) }
         })
         .collect();
+    (cut_of, cuts)
+}
 
+/// Where a virtual node is: lattice vertex `id` where it stands or where warping moved it, a cut `nv + c` at
+/// its cut point.
+fn virtual_position(id: u32, lattice: &Lattice, position: &[Option<Vec3>], cuts: &[Cut]) -> Vec3 {
+    let nv = position.len();
+    if (id as usize) < nv {
+        position[id as usize].unwrap_or_else(|| lattice.position(id))
+    } else {
+        cuts[id as usize - nv].position
+    }
+}
+
+/// Warping and stencils, repeated while a stencil tet breaks the bound: the warped vertices of such a lattice
+/// tet are then "snapped" instead (made zero where they stand) and everything is redone. Snapped vertices only
+/// accumulate, so this ends; with none snapped it is the paper's algorithm. Returns the warped positions, the
+/// stencils' tets over virtual ids, and which vertices were snapped.
+fn warp_and_fill(
+    lattice: &Lattice,
+    sign: &[i8],
+    bcc: &[[u32; 4]],
+    cut_of: &HashMap<(u32, u32), u32>,
+    cuts: &[Cut],
+) -> (Vec<Option<Vec3>>, Vec<[u32; 4]>, Vec<bool>) {
+    let nv = lattice.vertex_count();
     let mut incident: Vec<(u32, u32)> = Vec::with_capacity(cuts.len() * 2);
     for (c, cut) in cuts.iter().enumerate() {
         incident.push((cut.a, c as u32));
@@ -244,27 +282,16 @@ pub(crate) fn stuff(
         let key = (a.min(b), a.max(b));
         nv as u32 + cut_of[&key]
     };
-
-    // Warping and stencils, repeated while a stencil tet breaks the bound: the
-    // warped vertices of such a lattice tet are then "snapped" instead (made
-    // zero where they stand) and everything is redone. Snapped vertices only
-    // accumulate, so this ends; with none snapped it is the paper's algorithm.
     let mut snapped = vec![false; nv];
     let mut rounds = 0;
-    let (position, virt) = loop {
+    loop {
         rounds += 1;
-        let (position, zero) = warp(&cuts, &incident, &snapped, nv);
+        let (position, zero) = warp(cuts, &incident, &snapped, nv);
         let state: Vec<i8> = (0..nv).map(|v| if zero[v] { 0 } else { sign[v] }).collect();
-        let pos_of = |id: u32| -> Vec3 {
-            if (id as usize) < nv {
-                position[id as usize].unwrap_or_else(|| lattice.position(id))
-            } else {
-                cuts[id as usize - nv].position
-            }
-        };
+        let pos_of = |id: u32| virtual_position(id, lattice, &position, cuts);
         let mut virt: Vec<[u32; 4]> = Vec::new();
         let mut repaired = false;
-        for t in &bcc {
+        for t in bcc {
             let before = virt.len();
             fill(lattice, t, &state, &cut_node, &pos_of, &mut virt);
             let bad = virt[before..].iter().any(|tet| {
@@ -281,22 +308,15 @@ pub(crate) fn stuff(
             }
         }
         if !repaired || rounds >= 16 {
-            break (position, virt);
+            return (position, virt, snapped);
         }
-    };
-    let snapped_count = snapped.iter().filter(|&&s| s).count();
-    let pos_of = |id: u32| -> Vec3 {
-        if (id as usize) < nv {
-            position[id as usize].unwrap_or_else(|| lattice.position(id))
-        } else {
-            cuts[id as usize - nv].position
-        }
-    };
+    }
+}
 
-    // Compaction: used lattice vertices ascending, then used cuts ascending.
-    let total = nv + cuts.len();
+/// Compaction: the used lattice vertices ascending, then the used cuts ascending; each tet positively oriented.
+fn compact(virt: &[[u32; 4]], total: usize, pos_of: impl Fn(u32) -> Vec3) -> (Vec<Vec3>, Vec<[u32; 4]>) {
     let mut remap = vec![u32::MAX; total];
-    for tet in &virt {
+    for tet in virt {
         for &v in tet {
             remap[v as usize] = 0;
         }
@@ -319,7 +339,7 @@ pub(crate) fn stuff(
             m
         })
         .collect();
-    Stuffed { positions, tets, snapped: snapped_count }
+    (positions, tets)
 }
 
 /// Warping: a vertex violated by a cut point (closer than alpha times the edge)
