@@ -4,7 +4,7 @@
 # summary table (one row a measure: today's figure, its goal, its command)
 # between the performance-summary markers, then each measure's full section.
 # The same summary is then copied into README.md between the same markers
-# (tests/performance_doc.rs holds the two equal).
+# (tests/suite/performance_doc.rs holds the two equal).
 #
 #   scripts/perf_docs.sh            # every measure, about 20 minutes on 2 cores
 #   FAST=1 scripts/perf_docs.sh     # one run a replay; no fem audit, no coarse-brain

@@ -6,7 +6,7 @@
 # The reference runs are kept in target/study-cache between regenerations by the same build (their times are
 # then those of the run that made them; any code change, hence a new binary, runs them again).
 # Release build; takes several minutes on 2 cores. Run it when a change moves the study's numbers
-# (tests/study_quick.rs says so) and commit the result.
+# (tests/suite/study_quick.rs says so) and commit the result.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release --quiet

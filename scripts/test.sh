@@ -15,5 +15,7 @@ XDG_RUNTIME_DIR="$(mktemp -d)"
 export XDG_RUNTIME_DIR
 trap 'rm -rf "$XDG_RUNTIME_DIR"' EXIT
 cargo test --all-targets --no-run --quiet
-cargo test "$@"
+# `--tests`: the targets built above and no more (a plain `cargo test` would
+# build the examples once again outside the test harness, and run the doc tests twice).
+cargo test --tests "$@"
 cargo test --doc "$@"

@@ -8,7 +8,7 @@
 //! candidate, culled and feasible pairs, per-vertex targets (displacement FROM REST),
 //! per-spatula counts, source nodes for overlays.
 //!
-//! Rules (each tested in this folder or in `tests/collision_*.rs`):
+//! Rules (each tested in this folder or in `tests/suite/collision_*.rs`):
 //! 1. **Rays** (`pairs.rs`). Node i on a face with outward normal N casts the line
 //!    S_i + t N through the whole surface (watertight test, `geometry::ray`). B_i is
 //!    the nearest hit with t <= e (behind), F_i the nearest with t > e, where

@@ -3,7 +3,7 @@
 //!
 //! In: a winit physical key and whether Ctrl is held (or a key's name in a
 //! script). Out: the [`KeyAction`] it stands for. Stays true: every bound key
-//! appears in exactly one row of [`CONTROLS`], and `tests/readme_controls.rs`
+//! appears in exactly one row of [`CONTROLS`], and `tests/suite/readme_controls.rs`
 //! holds README's Controls table to [`CONTROLS`] row for row.
 
 use super::keyboard::Key;
@@ -155,7 +155,7 @@ pub struct ControlRow {
     pub keys: &'static [&'static str],
 }
 
-/// The README's Controls table, row for row (`tests/readme_controls.rs`).
+/// The README's Controls table, row for row (`tests/suite/readme_controls.rs`).
 pub const CONTROLS: &[ControlRow] = &[
     ControlRow {
         input: "W / S, D / A, E / Q",

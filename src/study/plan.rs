@@ -422,7 +422,7 @@ fn reference_notes(v: &PlanValues) -> Vec<String> {
     if v.reference_backend != CollisionBackend::Reference {
         notes.push(format!(
             "The reference collides with `{}` instead of the brute-force `reference` backend, which would take hours here; \
-             the two give the same triangles bit for bit (tests/collision_backends.rs, the real brains at 2000 nodes a face included).",
+             the two give the same triangles bit for bit (tests/suite/collision_backends.rs, the real brains at 2000 nodes a face included).",
             backend_name(v.reference_backend)
         ));
     }

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod scenes;
+pub mod source;
 
 use fissure::math::Vec3;
 use fissure::mesh::TetMesh;

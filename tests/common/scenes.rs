@@ -1,4 +1,4 @@
-//! Scenes and the per-frame invariants of the hard-case suite (`tests/hard_*.rs`).
+//! Scenes and the per-frame invariants of the hard-case suite (`tests/suite/hard_*.rs`, `tests/hard_endurance.rs`).
 //!
 //! In: a mesh in millimetres, a material, blades, effects, optional skull
 //! spheres. Out: a built [`Pipeline`] and its state; after each frame,

@@ -2,8 +2,8 @@
 //! and character literals blanked (newlines kept, so byte offsets and line
 //! numbers stay those of the file), test-only items removable, and the
 //! `crate::...` paths a file names, grouped `use` trees expanded. Enough of
-//! Rust's lexical rules for the structure tests (`tests/layers.rs`,
-//! `tests/code_size.rs`, which include this file by path); not a parser.
+//! Rust's lexical rules for the structure tests (`tests/suite/layers.rs`,
+//! `tests/suite/code_size.rs`); not a parser.
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};

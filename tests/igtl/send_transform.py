@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Third-party OpenIGTLink client for tests/input_igtl.rs.
+"""Third-party OpenIGTLink client for tests/suite/input_igtl.rs.
 
 Connects with pyigtl to the fissure server on 127.0.0.1:PORT, sends a few
 TRANSFORM messages for two devices (header versions 1 and 2), then waits for

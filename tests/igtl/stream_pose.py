@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Third-party OpenIGTLink client for tests/window_igtl.rs: streams one pose.
+"""Third-party OpenIGTLink client for tests/window/igtl.rs: streams one pose.
 
 Usage: stream_pose.py PORT DEVICE X_MM Y_MM Z_MM SECONDS
 Connects with pyigtl to 127.0.0.1:PORT (retrying while the window starts),

@@ -25,7 +25,7 @@
 //! too) bounds a slot and the needed interval: a near miss, e.g. a line passing
 //! within rounding outside a silhouette edge, is a candidate but proves no hit, and
 //! bounding with it pruned the true hit farther along the line. Pruning
-//! is conservative: leaf boxes are grown by `w/2` of the surface's own scale. `tests/collision_backends.rs`
+//! is conservative: leaf boxes are grown by `w/2` of the surface's own scale. `tests/suite/collision_backends.rs`
 //! checks bit-for-bit equality with `reference` on spheres, fissures, contact
 //! configurations and the real brain surfaces.
 //!

@@ -50,7 +50,7 @@ pub enum ComplianceStorage {
     F64,
     /// 4 bytes an entry for the surface product, plus 2 bytes of correction on each ROI x ROI entry (those `W` is
     /// gathered from, where f32 rounding times cond(W) would spoil the reactions), so `W` is exact to about 1e-12;
-    /// the surface displacement carries the f32 rounding (about 1e-6 relative). See `tests/fem_fast_path.rs`.
+    /// the surface displacement carries the f32 rounding (about 1e-6 relative). See `tests/suite/fem_fast_path.rs`.
     F32,
 }
 
