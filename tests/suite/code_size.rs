@@ -12,10 +12,12 @@ const MAX_FN_LINES: usize = 100;
 /// Most named fields of one struct.
 const MAX_FIELDS: usize = 20;
 
-/// The offenders when the rule came: (file, `fn name` or `struct Name`,
+/// The items allowed over the limit: (file, `fn name` or `struct Name`,
 /// size). An entry's size follows its item down, never up, and the entry goes
-/// once the item is within the limit. `src/fem/` has none (its longest
-/// function is under 80 lines).
+/// once the item is within the limit. The one left is the scenario file's
+/// schema: its fields are the file's top-level keys, and grouping them would
+/// change every scenario file written (serde's `flatten` cannot be combined
+/// with the `deny_unknown_fields` that names a misspelt key).
 const OFFENDERS: &[(&str, &str, usize)] = &[
     ("src/scenario/file.rs", "struct ScenarioFile", 23),
 ];
