@@ -138,7 +138,9 @@ fn ctrl_q_ends_the_session_and_writes_its_debrief_beside_the_recording() {
     let script = dir.path().join("script.txt");
     std::fs::write(&script, "0.05 press W\n1.65 release W\n1.7 press E\n2.2 release E\n2.3 keydown Ctrl+Q\n2.31 keyup Ctrl+Q\n")
         .expect("write script");
-    let args = ["run", "config/sylvian.ron", "--present-mode", "fifo", "--size", "640x400", "--exit-after", "4", "--record-dir"];
+    // Ctrl+Q comes at 2.3 s of simulated time; the window's clock counts the scene's preparation too, which
+    // takes seconds on a loaded machine: 8 s leave room for both (the window then waits on its debrief).
+    let args = ["run", "config/sylvian.ron", "--present-mode", "fifo", "--size", "640x400", "--exit-after", "8", "--record-dir"];
     let mut args: Vec<&std::ffi::OsStr> = args.iter().map(std::ffi::OsStr::new).collect();
     args.extend([records.as_os_str(), std::ffi::OsStr::new("--script"), script.as_os_str()]);
     let (stdout, _) = run_window(dir.path(), &x, &args);
