@@ -5,12 +5,75 @@
 //! scene's motion paced in real time as the window paces it (one frame every
 //! `time_step_s`; `--free-running`: as fast as they go) and says when its
 //! first frame was done, which frames took over 50 ms (waiting for columns),
-//! and when the last column was final.
+//! and when the last column was final. `--json PATH` also writes the figures
+//! as JSON ([`StartupReport`]), which `scripts/perf_docs.sh` reads by name.
 use fissure::scenario::Scenario;
 use fissure::sim::poses::TrajectoryPoses;
 use fissure::sim::{BuildOptions, Pipeline};
 use std::path::Path;
 use std::time::Instant;
+
+/// What the probe measured: the build's figures when it waited for every column, the early start's when it did
+/// not (`--background`). Times in seconds from the probe's start, memory in MB (2^20 bytes).
+#[derive(serde::Serialize)]
+struct StartupReport {
+    scenario: String,
+    build: Option<BuildFigures>,
+    early_start: Option<EarlyStartFigures>,
+}
+
+#[derive(serde::Serialize)]
+struct BuildFigures {
+    /// When the compliance began (the model and the factor were done).
+    before_compliance_s: f64,
+    build_s: f64,
+    peak_rss_mb: f64,
+    compliance: ComplianceFigures,
+}
+
+#[derive(serde::Serialize)]
+struct ComplianceFigures {
+    rows: usize,
+    cols: usize,
+    megabytes: f64,
+    compute_s: f64,
+    load_s: f64,
+    from_cache: bool,
+}
+
+#[derive(serde::Serialize)]
+struct EarlyStartFigures {
+    build_returned_s: f64,
+    first_frame_s: f64,
+    frames: usize,
+    motion_done_s: f64,
+    slowest_frame_ms: f64,
+    frames_over_50ms: usize,
+    /// When the last column was final.
+    columns_final_s: f64,
+    peak_rss_mb: f64,
+    compliance: ComplianceFigures,
+}
+
+fn compliance_figures(pipeline: &Pipeline) -> ComplianceFigures {
+    let cs = pipeline.solver().compliance().stats();
+    ComplianceFigures {
+        rows: cs.rows,
+        cols: cs.cols,
+        megabytes: cs.bytes as f64 / 1e6,
+        compute_s: cs.compute_seconds,
+        load_s: cs.load_seconds,
+        from_cache: cs.from_cache,
+    }
+}
+
+/// Writes the report where `--json PATH` says, if it does.
+fn write_json(args: &[String], report: &StartupReport) {
+    if let Some(path) = args.iter().position(|a| a == "--json").and_then(|i| args.get(i + 1)) {
+        let text = serde_json::to_string_pretty(report).expect("the report serializes");
+        std::fs::write(path, text).unwrap_or_else(|e| panic!("cannot write {path}: {e}"));
+    }
+}
 
 fn peak_rss_mb() -> f64 {
     fissure::meminfo::peak_resident_bytes().map_or(f64::NAN, |b| b as f64 / (1024.0 * 1024.0))
@@ -23,7 +86,9 @@ fn main() {
     let path = args.get(1).map(String::as_str).unwrap_or("config/sylvian.ron");
     let background = args.iter().any(|a| a == "--background");
     let free_running = args.iter().any(|a| a == "--free-running");
-    let overrides: Vec<String> = args.iter().skip(2).filter(|a| !a.starts_with("--")).cloned().collect();
+    let json_path = args.iter().position(|a| a == "--json").map(|i| i + 1);
+    let overrides: Vec<String> =
+        args.iter().enumerate().skip(2).filter(|(i, a)| !a.starts_with("--") && Some(*i) != json_path).map(|(_, a)| a.clone()).collect();
     let scenario = Scenario::load(Path::new(path), &overrides).expect("scenario");
     let source = TrajectoryPoses::for_scenario(&scenario, None).expect("trajectory");
     let mut first_progress: Option<f64> = None;
@@ -85,9 +150,10 @@ fn main() {
             slow.len(),
             slow.iter().take(12).map(|(f, ms)| format!("{f}: {ms:.0} ms")).collect::<Vec<_>>()
         );
+        let columns_final_s = complete_at.map_or_else(|| t.elapsed().as_secs_f64(), |(_, s)| s);
         match complete_at {
             Some((f, s)) => println!("every column final by frame {f} ({s:.2} s from start)"),
-            None => println!("every column final {:.2} s from start (after the motion)", t.elapsed().as_secs_f64()),
+            None => println!("every column final {columns_final_s:.2} s from start (after the motion)"),
         }
         let cs = pipeline.solver().compliance().stats();
         println!(
@@ -99,6 +165,18 @@ fn main() {
             cs.compute_seconds + cs.load_seconds,
             peak_rss_mb()
         );
+        let early_start = EarlyStartFigures {
+            build_returned_s: total,
+            first_frame_s: first_frame.unwrap_or(f64::NAN),
+            frames,
+            motion_done_s: motion_end,
+            slowest_frame_ms: worst,
+            frames_over_50ms: slow.len(),
+            columns_final_s,
+            peak_rss_mb: peak_rss_mb(),
+            compliance: compliance_figures(&pipeline),
+        };
+        write_json(&args, &StartupReport { scenario: path.to_string(), build: None, early_start: Some(early_start) });
         return;
     }
     let model = pipeline.solver().model();
@@ -108,4 +186,11 @@ fn main() {
     println!("symbolic {:.2} s, numeric {:.2} s", fs.symbolic_seconds, fs.numeric_seconds);
     println!("compliance: rows {}, cols {}, {:.0} MB, compute {:.2} s, load {:.2} s, from cache {}", cs.rows, cs.cols, cs.bytes as f64 / 1e6, cs.compute_seconds, cs.load_seconds, cs.from_cache);
     println!("before the compliance: {:.2} s; build done {:.2} s from start; peak RSS {:.0} MB", first_progress.unwrap_or(f64::NAN), total, peak_rss_mb());
+    let build = BuildFigures {
+        before_compliance_s: first_progress.unwrap_or(f64::NAN),
+        build_s: total,
+        peak_rss_mb: peak_rss_mb(),
+        compliance: compliance_figures(&pipeline),
+    };
+    write_json(&args, &StartupReport { scenario: path.to_string(), build: Some(build), early_start: None });
 }

@@ -328,9 +328,9 @@ hold_field() {
         die "replay $1: no such field in its summary.json: $2"
 }
 # The rows, surface vertices and columns a size/ run's compliance has.
-size_rows() { grab "$PERF/replay/size_${1}_1.log" '^  compliance: \([0-9]*\) rows .*$'; }
-size_surface() { grab "$PERF/replay/size_${1}_1.log" '^  compliance: [0-9]* rows (the working region, of \([0-9]*\) surface vertices).*$'; }
-size_cols() { grab "$PERF/replay/size_${1}_1.log" '^  compliance: .* x \([0-9]*\) columns.*$'; }
+size_rows() { hold_field "size/$1" 's["compliance"]["rows"]'; }
+size_surface() { hold_field "size/$1" 's["compliance"]["surface_vertices"]'; }
+size_cols() { hold_field "size/$1" 's["compliance"]["columns"]'; }
 # Per tag: the medians of p50 and p95 over the runs, the largest max, the p95 range.
 replay_stat() { # TAG COLUMN (1-based in replays.tsv) -> that column of every run, one a line
     awk -F'\t' -v t="$1" -v c="$2" '$1 == t { print $c }' "$PERF/replays.tsv"
@@ -351,70 +351,85 @@ sylvian_cache="$PERF/startup/cache_sylvian"
 rm -rf "$q15_cache" "$sylvian_cache"
 probe_q15=("$PROBE" config/real_brain/interhemispheric.ron "$Q15_MESH" solver.compliance_storage=F32)
 # A. Cold, the build that computes every column first; it writes the cache the next runs read.
-run_measure "startup: fine brain cold" "$PERF/startup/q15_cold.log" "${probe_q15[@]}" "solver.cache_dir=Some(\"$q15_cache\")"
+run_measure "startup: fine brain cold" "$PERF/startup/q15_cold.log" "${probe_q15[@]}" "solver.cache_dir=Some(\"$q15_cache\")" --json "$PERF/startup/q15_cold.json"
 # B. Cold with early start, as the window runs it (no cache).
 if [ "$FAST" != 1 ]; then
-    run_measure "startup: fine brain cold, early start" "$PERF/startup/q15_cold_background.log" "${probe_q15[@]}" solver.cache_dir=None --background
+    run_measure "startup: fine brain cold, early start" "$PERF/startup/q15_cold_background.log" "${probe_q15[@]}" solver.cache_dir=None --background --json "$PERF/startup/q15_cold_background.json"
 fi
 # C, D. From the cache, without and with early start.
-run_measure "startup: fine brain from the cache" "$PERF/startup/q15_cache.log" "${probe_q15[@]}" "solver.cache_dir=Some(\"$q15_cache\")"
-run_measure "startup: fine brain from the cache, early start" "$PERF/startup/q15_cache_background.log" "${probe_q15[@]}" "solver.cache_dir=Some(\"$q15_cache\")" --background
+run_measure "startup: fine brain from the cache" "$PERF/startup/q15_cache.log" "${probe_q15[@]}" "solver.cache_dir=Some(\"$q15_cache\")" --json "$PERF/startup/q15_cache.json"
+run_measure "startup: fine brain from the cache, early start" "$PERF/startup/q15_cache_background.log" "${probe_q15[@]}" "solver.cache_dir=Some(\"$q15_cache\")" --background --json "$PERF/startup/q15_cache_background.json"
 # E, F. The fine-brain Sylvian scene as shipped: cold (writes its cache), then from the cache with early start.
-run_measure "startup: fine-brain Sylvian scene cold" "$PERF/startup/sylvian_cold.log" "$PROBE" config/real_brain/sylvian.ron "solver.cache_dir=Some(\"$sylvian_cache\")"
-run_measure "startup: fine-brain Sylvian scene from the cache, early start" "$PERF/startup/sylvian_cache_background.log" "$PROBE" config/real_brain/sylvian.ron "solver.cache_dir=Some(\"$sylvian_cache\")" --background
+run_measure "startup: fine-brain Sylvian scene cold" "$PERF/startup/sylvian_cold.log" "$PROBE" config/real_brain/sylvian.ron "solver.cache_dir=Some(\"$sylvian_cache\")" --json "$PERF/startup/sylvian_cold.json"
+run_measure "startup: fine-brain Sylvian scene from the cache, early start" "$PERF/startup/sylvian_cache_background.log" "$PROBE" config/real_brain/sylvian.ron "solver.cache_dir=Some(\"$sylvian_cache\")" --background --json "$PERF/startup/sylvian_cache_background.json"
 # G. The same scene as a user writes it: no `refine` (so `Auto`), only the lowest 10 mm held, f64, no cache.
 user_sylvian=("fixed=[LowestPerComponent(height_mm: 10.0)]" solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false)
-run_measure "startup: a user's fine-brain Sylvian scene cold" "$PERF/startup/user_sylvian_cold.log" "$PROBE" config/real_brain/sylvian.ron "${user_sylvian[@]}"
+run_measure "startup: a user's fine-brain Sylvian scene cold" "$PERF/startup/user_sylvian_cold.log" "$PROBE" config/real_brain/sylvian.ron "${user_sylvian[@]}" --json "$PERF/startup/user_sylvian_cold.json"
 # H. The same opened as the window opens it (early start): the frames that wait for their columns.
-run_measure "startup: a user's fine-brain Sylvian scene cold, early start" "$PERF/startup/user_sylvian_background.log" "$PROBE" config/real_brain/sylvian.ron "${user_sylvian[@]}" solver.early_start=true --background
+run_measure "startup: a user's fine-brain Sylvian scene cold, early start" "$PERF/startup/user_sylvian_background.log" "$PROBE" config/real_brain/sylvian.ron "${user_sylvian[@]}" solver.early_start=true --background --json "$PERF/startup/user_sylvian_background.json"
 
+# Fields of a JSON report (examples/startup_probe.rs's StartupReport, `fissure run --report`'s), tab-separated in
+# the order asked, each `path.to.field` or `path.to.field:FORMAT` (a Python format spec); a field that is missing stops
+# the run naming it, one that is null (not a number) reads n/a.
+probe_fields() {
+    python3 - "$@" <<'PY'
+import json, sys
+path, fields = sys.argv[1], sys.argv[2:]
+try:
+    d = json.load(open(path))
+    out = []
+    for f in fields:
+        name, _, spec = f.partition(":")
+        v = d
+        for k in name.split("."):
+            v = v[k]
+        out.append("n/a" if v is None else str(v).lower() if isinstance(v, bool) else format(v, spec))
+    print("\t".join(out))
+except (OSError, ValueError, KeyError, TypeError) as e:
+    print(f"{path}: {type(e).__name__}: {e}", file=sys.stderr)
+    sys.exit(1)
+PY
+}
 # Figures of a build that waits for every column: model + factor (s before the
 # compliance), compliance compute / load s, whole build s, peak MB, from cache, rows, cols, MB.
 probe_build() {
     local f=$1
-    before=$(grab "$f" '^before the compliance: \([0-9.]*\) s;.*$')
-    build=$(grab "$f" '^before the compliance: .* build done \([0-9.]*\) s from start;.*$')
-    peak=$(grab "$f" '^before the compliance: .* peak RSS \([0-9.]*\) MB.*$')
-    compute=$(grab "$f" '^compliance: rows .* compute \([0-9.]*\) s,.*$')
-    load=$(grab "$f" '^compliance: rows .* load \([0-9.]*\) s,.*$')
-    from_cache=$(grab "$f" '^compliance: rows .* from cache \([a-z]*\)$')
-    rows=$(grab "$f" '^compliance: rows \([0-9]*\),.*$')
-    cols=$(grab "$f" '^compliance: rows [0-9]*, cols \([0-9]*\),.*$')
-    mb=$(grab "$f" '^compliance: rows [0-9]*, cols [0-9]*, \([0-9]*\) MB,.*$')
-    [ -n "$build" ] || die "startup: no 'build done' line in $f"
+    build=
+    IFS=$'\t' read -r before build peak compute load from_cache rows cols mb < <(probe_fields "$f" \
+        build.before_compliance_s:.2f build.build_s:.2f build.peak_rss_mb:.0f build.compliance.compute_s:.2f \
+        build.compliance.load_s:.2f build.compliance.from_cache build.compliance.rows build.compliance.cols \
+        build.compliance.megabytes:.0f) || true
+    [ -n "$build" ] || die "startup: no build figures in $f"
 }
 # Figures of an early start: first frame s, frames, motion done s, slowest ms,
 # frames over 50 ms, every column final s, peak MB.
 probe_background() {
     local f=$1
-    first=$(grab "$f" '^build returned .* first frame done \([0-9.]*\) s from start$')
-    frames_n=$(grab "$f" '^\([0-9]*\) frames done .*$')
-    motion=$(grab "$f" '^[0-9]* frames done \([0-9.]*\) s from start;.*$')
-    slowest=$(grab "$f" '^[0-9]* frames done .* slowest \([0-9]*\) ms;.*$')
-    over50=$(grab "$f" '^[0-9]* frames done .*; \([0-9]*\) frames over 50 ms.*$')
-    columns=$(sed -n 's/^every column final.*(\([0-9.]*\) s from start)$/\1/p; s/^every column final \([0-9.]*\) s from start.*$/\1/p' "$f" | head -1)
-    bpeak=$(grab "$f" '^compliance: rows .* peak RSS \([0-9.]*\) MB.*$')
-    [ -n "$first" ] || die "startup: no 'first frame done' line in $f"
+    first=
+    IFS=$'\t' read -r first frames_n motion slowest over50 columns bpeak < <(probe_fields "$f" \
+        early_start.first_frame_s:.2f early_start.frames early_start.motion_done_s:.2f early_start.slowest_frame_ms:.0f \
+        early_start.frames_over_50ms early_start.columns_final_s:.2f early_start.peak_rss_mb:.0f) || true
+    [ -n "$first" ] || die "startup: no early-start figures in $f"
 }
-probe_build "$PERF/startup/q15_cold.log"
-[ "$from_cache" = false ] || die "startup: the cold run read a cache ($PERF/startup/q15_cold.log)"
+probe_build "$PERF/startup/q15_cold.json"
+[ "$from_cache" = false ] || die "startup: the cold run read a cache ($PERF/startup/q15_cold.json)"
 cold_before=$before cold_build=$build cold_peak=$peak cold_compute=$compute cold_rows=$rows cold_cols=$cols cold_mb=$mb
-probe_build "$PERF/startup/q15_cache.log"
-[ "$from_cache" = true ] || die "startup: the second run did not read the cache the first wrote ($PERF/startup/q15_cache.log)"
+probe_build "$PERF/startup/q15_cache.json"
+[ "$from_cache" = true ] || die "startup: the second run did not read the cache the first wrote ($PERF/startup/q15_cache.json)"
 cache_build=$build cache_load=$load cache_peak=$peak
-probe_build "$PERF/startup/sylvian_cold.log"
+probe_build "$PERF/startup/sylvian_cold.json"
 syl_cold_build=$build syl_rows=$rows syl_cols=$cols syl_mb=$mb syl_cold_peak=$peak
-probe_build "$PERF/startup/user_sylvian_cold.log"
+probe_build "$PERF/startup/user_sylvian_cold.json"
 usr_before=$before usr_compute=$compute usr_build=$build usr_peak=$peak usr_rows=$rows usr_cols=$cols usr_mb=$mb
 if [ "$FAST" != 1 ]; then
-    probe_background "$PERF/startup/q15_cold_background.log"
+    probe_background "$PERF/startup/q15_cold_background.json"
     bgc_first=$first bgc_motion=$motion bgc_slowest=$slowest bgc_over50=$over50 bgc_columns=$columns bgc_peak=$bpeak bgc_frames=$frames_n
 fi
-probe_background "$PERF/startup/q15_cache_background.log"
+probe_background "$PERF/startup/q15_cache_background.json"
 bgk_first=$first bgk_motion=$motion bgk_slowest=$slowest bgk_over50=$over50 bgk_columns=$columns bgk_peak=$bpeak bgk_frames=$frames_n
-probe_background "$PERF/startup/sylvian_cache_background.log"
+probe_background "$PERF/startup/sylvian_cache_background.json"
 syl_first=$first syl_slowest=$slowest syl_over50=$over50 syl_columns=$columns syl_peak=$bpeak
-probe_background "$PERF/startup/user_sylvian_background.log"
+probe_background "$PERF/startup/user_sylvian_background.json"
 usb_first=$first usb_motion=$motion usb_slowest=$slowest usb_over50=$over50 usb_columns=$columns usb_peak=$bpeak usb_frames=$frames_n
 t_startup=$((SECONDS - t0))
 
@@ -444,8 +459,8 @@ if command -v Xvfb > /dev/null 2>&1; then
     # llvmpipe on cores - 1 threads (what `fissure run` sets) and on every core.
     run_measure "window: warm-up" "$PERF/window/warmup.log" env DISPLAY="$display" timeout 180 "$FISSURE" "${window_args[@]}" --exit-after 20
     window_args+=(--exit-after 10)
-    run_measure "window: llvmpipe on cores - 1 threads" "$PERF/window/threads_default.log" env -u LP_NUM_THREADS DISPLAY="$display" timeout 180 "$FISSURE" "${window_args[@]}"
-    run_measure "window: llvmpipe on every core" "$PERF/window/threads_all.log" env LP_NUM_THREADS="$cores" DISPLAY="$display" timeout 180 "$FISSURE" "${window_args[@]}"
+    run_measure "window: llvmpipe on cores - 1 threads" "$PERF/window/threads_default.log" env -u LP_NUM_THREADS DISPLAY="$display" timeout 180 "$FISSURE" "${window_args[@]}" --report "$PERF/window/threads_default.json"
+    run_measure "window: llvmpipe on every core" "$PERF/window/threads_all.log" env LP_NUM_THREADS="$cores" DISPLAY="$display" timeout 180 "$FISSURE" "${window_args[@]}" --report "$PERF/window/threads_all.json"
     kill "$xvfb_pid" 2> /dev/null || true
     xvfb_pid=""
     for f in "$PERF/window/threads_default.log" "$PERF/window/threads_all.log"; do
@@ -453,13 +468,12 @@ if command -v Xvfb > /dev/null 2>&1; then
     done
     window_status=ran
 fi
-# window_figures FILE -> "fps p50 p95 adapter"
+# window_figures FILE: fps, step p50 and p95 (ms) and the adapter, from the JSON `fissure run --report` wrote.
 window_figures() {
     local f=$1
-    wfps=$(grab "$f" '^window: .* (\([0-9.]*\) fps) on .*$')
-    wadapter=$(grab "$f" '^window: .* fps) on \(.*\)$')
-    wp50=$(grab "$f" '^simulation: .* step p50 \([0-9.]*\) ms,.*$')
-    wp95=$(grab "$f" '^simulation: .* p95 \([0-9.]*\) ms,.*$')
+    wfps=
+    IFS=$'\t' read -r wfps wp50 wp95 wadapter < <(probe_fields "$f" fps:.1f step_p50_ms:.3f step_p95_ms:.3f adapter) || true
+    [ -n "$wfps" ] || die "window: no figures in $f"
 }
 t_window=$((SECONDS - t0))
 
@@ -655,7 +669,7 @@ summary_rows() {
     echo "| the same scene as a user writes it (no \`refine\`, so \`Auto\`; lowest 10 mm held, f64, no cache), every column first: compliance ($usr_rows rows x $usr_cols columns, $usr_mb MB); whole build; peak memory | $usr_compute s; $usr_build s; $usr_peak MB | build < 30 s: $(verdict "$usr_build" 30); < 2 GB: $(verdict "$usr_peak" 2048) | $(code "startup_probe config/real_brain/sylvian.ron 'fixed=[LowestPerComponent(height_mm: 10.0)]' solver.compliance_storage=F64 solver.cache_dir=None solver.early_start=false") |"
     echo "| the same scene opened as the window opens it (early start): first frame; frames that waited for their columns | first frame $usb_first s; slowest $usb_slowest ms ($usb_over50 over 50 ms); every column final $usb_columns s; peak $usb_peak MB | no frame over 50 ms: $( [ "$usb_over50" = 0 ] && echo met || echo "not met" ) | the same with $(code solver.early_start=true --background) |"
     if [ "$window_status" = ran ]; then
-        window_figures "$PERF/window/threads_default.log"
+        window_figures "$PERF/window/threads_default.json"
         echo "| the window on the software renderer (Xvfb, llvmpipe on cores - 1 threads), default scene, blades held: fps; simulation step | $wfps fps; step p50 $wp50 / p95 $wp95 ms | step p95 < 2 ms: $(verdict "$wp95" 2) | $(code "fissure run config/sylvian.ron --exit-after 10 --size 1280x800") |"
     else
         echo "| the window on the software renderer (Xvfb): fps; simulation step | $window_status | step p95 < 2 ms | $(code "fissure run config/sylvian.ron --exit-after 10 --size 1280x800") |"
@@ -811,9 +825,9 @@ tmp="$PERF/performance.md.tmp"
         echo
         echo "| llvmpipe threads | window fps | simulation step p50 / p95 ms | adapter |"
         echo "|---|---:|---|---|"
-        window_figures "$PERF/window/threads_default.log"
+        window_figures "$PERF/window/threads_default.json"
         echo "| cores - 1 (what \`fissure run\` sets) | $wfps | $wp50 / $wp95 | ${wadapter:-not named} |"
-        window_figures "$PERF/window/threads_all.log"
+        window_figures "$PERF/window/threads_all.json"
         echo "| $cores (\`LP_NUM_THREADS=$cores\`: every core) | $wfps | $wp50 / $wp95 | ${wadapter:-not named} |"
     else
         echo "The window was $window_status."

@@ -58,6 +58,26 @@ pub struct WindowArgs {
     /// Start with the gamepad's force feedback off (key H turns it on).
     #[arg(long)]
     pub no_rumble: bool,
+    /// Also write the session's figures to this file as JSON: frames presented, frame rate, adapter, the
+    /// simulation's frames and step times, the final state.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+}
+
+/// The figures of a window session, as `--report` writes them.
+#[derive(Debug, serde::Serialize)]
+struct WindowReport<'a> {
+    presented: u64,
+    wall_s: f64,
+    fps: f64,
+    adapter: &'a str,
+    sim_frames: u64,
+    simulated_s: f64,
+    step_p50_ms: f64,
+    step_p95_ms: f64,
+    step_max_ms: f64,
+    failed_frames: u64,
+    final_state: &'a str,
 }
 
 /// The default scene's path: `config/sylvian.ron` under the working directory,
@@ -104,69 +124,89 @@ pub fn run(scenario: Option<&Path>, set: &[String], headless_only: bool, args: &
     let names: Vec<String> = loaded.spatulas.iter().map(|s| s.name.clone()).collect();
     let dt = loaded.time_step;
     match run_window(loaded, options) {
-        Ok(summary) => {
-            let sim = &summary.sim;
-            let mut steps = sim.step_ms.clone();
-            steps.sort_by(f64::total_cmp);
-            let pct = |q: f64| if steps.is_empty() { 0.0 } else { steps[((steps.len() - 1) as f64 * q).round() as usize] };
-            println!("window: {} frames presented in {:.2} s ({:.1} fps) on {}", summary.presented, summary.wall_s, summary.fps(), summary.adapter);
-            println!(
-                "simulation: {} frames ({:.3} s simulated, step {dt} s), step p50 {:.3} ms, p95 {:.3} ms, {} failed",
-                sim.frames,
-                sim.time_s,
-                pct(0.5),
-                pct(0.95),
-                sim.failed_frames
-            );
-            if summary.haptic_s > 0.0 {
-                println!("force output: {} ticks in {:.2} s ({:.0} Hz)", summary.haptic_ticks, summary.haptic_s, summary.haptic_ticks as f64 / summary.haptic_s);
-            }
-            if sim.state_hash.is_empty() {
-                // The loop never ran: the window closed while the scene was being built.
-                println!("  closed while the scene was being built: nothing was simulated");
-                return Ok(());
-            }
-            for (k, name) in names.iter().enumerate() {
-                let p = sim.final_poses.get(k).map(|p| p.position * 1e3).unwrap_or_default();
-                let peak = sim.peak_force_n.get(k).copied().unwrap_or(0.0);
-                println!("  {name}: final position_mm ({:?}, {:?}, {:?}), peak force {peak:.6} N", p.x, p.y, p.z);
-            }
-            if let Some(r) = &sim.recording {
-                println!("  recorded {}", r.display());
-            }
-            if let Some(page) = &summary.debrief {
-                println!("  debrief {}", page.display());
-            }
-            if let Some(rec) = &summary.debrief_unfinished {
-                println!(
-                    "  the session's debrief was not finished (the window closed first); make it with: fissure debrief {} --scenario {}",
-                    rec.display(),
-                    path.display()
-                );
-            }
-            if sim.background_strain_frames > 0 {
-                println!("  strain colour from the background stress worker: {} frames", sim.background_strain_frames);
-            }
-            let tracker_refused = sim.tracker_outside_workspace + sim.tracker_too_fast;
-            if sim.rejected_poses > 0 || tracker_refused > 0 {
-                println!(
-                    "  poses refused: {} non-finite or non-unit, {} OpenIGTLink outside the workspace, {} OpenIGTLink too fast (the last good pose held)",
-                    sim.rejected_poses, sim.tracker_outside_workspace, sim.tracker_too_fast
-                );
-            }
-            if let Some(b) = &sim.collision_backend {
-                println!("  collision backend: {b}");
-            }
-            for note in &sim.collision_notes {
-                println!("  collision: {note}");
-            }
-            println!("  final state {}", sim.state_hash);
-            Ok(())
-        }
+        Ok(summary) => report_window(&summary, &names, dt, &path, args.report.as_deref()),
         Err(e @ (WindowError::NoDisplay(_) | WindowError::NoAdapter(_))) => {
             eprintln!("fissure: {e}; running {} headless instead (the same scene without a window; its timings follow)", path.display());
             headless(&path, set)
         }
         Err(e) => Err(e).context("running the window"),
     }
+}
+
+/// Prints what a window session did (and writes it as JSON where `--report` asks).
+fn report_window(summary: &fissure::app::window::WindowSummary, names: &[String], dt: f64, path: &Path, report: Option<&Path>) -> anyhow::Result<()> {
+    let sim = &summary.sim;
+    let mut steps = sim.step_ms.clone();
+    steps.sort_by(f64::total_cmp);
+    let pct = |q: f64| if steps.is_empty() { 0.0 } else { steps[((steps.len() - 1) as f64 * q).round() as usize] };
+    if let Some(file) = report {
+        let figures = WindowReport {
+            presented: summary.presented,
+            wall_s: summary.wall_s,
+            fps: summary.fps(),
+            adapter: &summary.adapter,
+            sim_frames: sim.frames,
+            simulated_s: sim.time_s,
+            step_p50_ms: pct(0.5),
+            step_p95_ms: pct(0.95),
+            step_max_ms: pct(1.0),
+            failed_frames: sim.failed_frames,
+            final_state: &sim.state_hash,
+        };
+        let text = serde_json::to_string_pretty(&figures).context("the window's report")?;
+        fissure::fsio::write_atomic(file, text.as_bytes()).with_context(|| format!("writing the window's report {}", file.display()))?;
+    }
+    println!("window: {} frames presented in {:.2} s ({:.1} fps) on {}", summary.presented, summary.wall_s, summary.fps(), summary.adapter);
+    println!(
+        "simulation: {} frames ({:.3} s simulated, step {dt} s), step p50 {:.3} ms, p95 {:.3} ms, {} failed",
+        sim.frames,
+        sim.time_s,
+        pct(0.5),
+        pct(0.95),
+        sim.failed_frames
+    );
+    if summary.haptic_s > 0.0 {
+        println!("force output: {} ticks in {:.2} s ({:.0} Hz)", summary.haptic_ticks, summary.haptic_s, summary.haptic_ticks as f64 / summary.haptic_s);
+    }
+    if sim.state_hash.is_empty() {
+        // The loop never ran: the window closed while the scene was being built.
+        println!("  closed while the scene was being built: nothing was simulated");
+        return Ok(());
+    }
+    for (k, name) in names.iter().enumerate() {
+        let p = sim.final_poses.get(k).map(|p| p.position * 1e3).unwrap_or_default();
+        let peak = sim.peak_force_n.get(k).copied().unwrap_or(0.0);
+        println!("  {name}: final position_mm ({:?}, {:?}, {:?}), peak force {peak:.6} N", p.x, p.y, p.z);
+    }
+    if let Some(r) = &sim.recording {
+        println!("  recorded {}", r.display());
+    }
+    if let Some(page) = &summary.debrief {
+        println!("  debrief {}", page.display());
+    }
+    if let Some(rec) = &summary.debrief_unfinished {
+        println!(
+            "  the session's debrief was not finished (the window closed first); make it with: fissure debrief {} --scenario {}",
+            rec.display(),
+            path.display()
+        );
+    }
+    if sim.background_strain_frames > 0 {
+        println!("  strain colour from the background stress worker: {} frames", sim.background_strain_frames);
+    }
+    let tracker_refused = sim.tracker_outside_workspace + sim.tracker_too_fast;
+    if sim.rejected_poses > 0 || tracker_refused > 0 {
+        println!(
+            "  poses refused: {} non-finite or non-unit, {} OpenIGTLink outside the workspace, {} OpenIGTLink too fast (the last good pose held)",
+            sim.rejected_poses, sim.tracker_outside_workspace, sim.tracker_too_fast
+        );
+    }
+    if let Some(b) = &sim.collision_backend {
+        println!("  collision backend: {b}");
+    }
+    for note in &sim.collision_notes {
+        println!("  collision: {note}");
+    }
+    println!("  final state {}", sim.state_hash);
+    Ok(())
 }

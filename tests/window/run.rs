@@ -59,8 +59,9 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
     let frames = 240;
     let frame_count = frames.to_string();
     let args = ["run", "config/sylvian.ron", "--present-mode", "fifo", "--size", "640x400", "--frames", &frame_count, "--script"];
+    let report = dir.path().join("report.json");
     let mut args: Vec<&std::ffi::OsStr> = args.iter().map(std::ffi::OsStr::new).collect();
-    args.push(script.as_os_str());
+    args.extend([script.as_os_str(), std::ffi::OsStr::new("--report"), report.as_os_str()]);
     let (stdout, stderr) = run_window(dir.path(), &x, &args);
     assert!(!stderr.contains("running") || !stderr.contains("headless instead"), "the window must open under Xvfb, not fall back: {stderr}");
     assert!(stdout.contains(&format!("simulation: {frames} frames")), "the run stops after {frames} frames: {stdout}");
@@ -69,6 +70,14 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
         .and_then(|n| n.parse().ok())
         .expect("a window line with the presented frame count");
     assert!(presented >= 1, "the window must present frames: {stdout}");
+    // `--report`: the same figures as JSON, by name.
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).expect("the report")).expect("valid JSON");
+    assert_eq!(json["presented"].as_u64(), Some(presented), "{json}");
+    assert_eq!(json["sim_frames"].as_u64(), Some(frames as u64), "{json}");
+    let (p50, p95, max) = (json["step_p50_ms"].as_f64(), json["step_p95_ms"].as_f64(), json["step_max_ms"].as_f64());
+    assert!(p50.zip(p95).zip(max).is_some_and(|((a, b), c)| 0.0 < a && a <= b && b <= c), "{json}");
+    assert!(json["adapter"].as_str().is_some_and(|a| !a.is_empty()) && json["fps"].as_f64().is_some(), "{json}");
+    assert_eq!(json["final_state"].as_str(), line_after(&stdout, "final state "), "{json}");
     assert!(stdout.contains("0 failed"), "no simulation frame may fail: {stdout}");
     // From 1.2 s the strain colour is shown; sylvian.ron has no StressField
     // stage, so its stress comes from the background worker.
