@@ -61,9 +61,72 @@ fn rel_error(a: &[Vec3], b: &[Vec3]) -> f64 {
     diff / b.iter().fold(0.0_f64, |m, x| m.max(x.norm())).max(f64::MIN_POSITIVE)
 }
 
+/// A model's figures as `target/fem-bench-cache/figures/MODEL.json` gives them (what `scripts/perf_docs.sh`
+/// reads, by name): times in seconds or milliseconds as named, memory in MB.
+#[derive(Default, serde::Serialize)]
+struct FemFigures {
+    model: String,
+    nodes: usize,
+    tets: usize,
+    /// Assembly and factor.
+    factor_total_s: f64,
+    /// `K_FF`'s factor under each fill-reducing ordering, AMD first.
+    orderings: Vec<OrderingFigures>,
+    compliance: Option<CompliancePrecompute>,
+    /// The frames at 100 and at 300 constrained vertices.
+    frames: Vec<FrameFigures>,
+    peak_rss_mb: f64,
+    error_vs_f64: Option<ErrorFigures>,
+}
+
+#[derive(serde::Serialize)]
+struct OrderingFigures {
+    ordering: String,
+    nnz_l_millions: f64,
+    exact_nnz_l_millions: f64,
+    /// This ordering's 96-column solve over AMD's (AMD's own: none).
+    solve_over_amd: Option<f64>,
+}
+
+#[derive(serde::Serialize)]
+struct CompliancePrecompute {
+    rows: usize,
+    cols: usize,
+    megabytes: f64,
+    precompute_s: f64,
+    reload_s: f64,
+}
+
+#[derive(serde::Serialize)]
+struct FrameFigures {
+    constrained: usize,
+    p50_ms: f64,
+    p95_ms: f64,
+    max_ms: f64,
+    /// The frame's floor measured in the same run (W's new entries and the cheapest dense factor), and the p95 over it.
+    floor_ms: Option<f64>,
+    p95_over_floor: Option<f64>,
+    /// The surface product's floor (its columns read once at the machine's streaming rate), the product itself,
+    /// the streaming rate, and the p95 over both floors together.
+    product_floor_ms: Option<f64>,
+    product_ms: f64,
+    stream_gb_s: Option<f64>,
+    two_floors_ms: Option<f64>,
+    p95_over_two_floors: Option<f64>,
+}
+
+#[derive(serde::Serialize)]
+struct ErrorFigures {
+    constrained: usize,
+    /// Relative, max norm, over the working region.
+    displacement: f64,
+    reaction: f64,
+}
+
 fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Path, audit_only: bool) {
     let storage = storage_from_env();
     println!("== {name}: {} nodes, {} tets", mesh.node_count(), mesh.tets.len());
+    let mut figures = FemFigures { model: name.to_string(), nodes: mesh.node_count(), tets: mesh.tets.len(), ..FemFigures::default() };
     let fixed = fixtures::fix_bottom_of_each_component(mesh, 0.010);
     let materials = RegionMaterials::uniform(Material { young_modulus: 3.0e3, poisson_ratio: 0.45 });
     let t = Instant::now();
@@ -86,10 +149,11 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
         s.numeric_seconds,
         t.elapsed().as_secs_f64()
     );
+    figures.factor_total_s = t.elapsed().as_secs_f64();
     if audit_only {
         row_major_audit(&model);
     } else {
-        ordering_lines(&model);
+        figures.orderings = ordering_lines(&model);
     }
     let surface = model.surface().vertices.clone();
     let roi: Vec<u32> = surface.iter().copied().filter(|&n| roi_pred(&mesh.positions[n as usize]) && !model.is_fixed(n)).collect();
@@ -121,10 +185,12 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
         cs.compute_seconds,
         t.elapsed().as_secs_f64()
     );
+    let (precompute_s, megabytes) = (cs.compute_seconds, cs.bytes as f64 / 1e6);
     drop(compliance);
     let t = Instant::now();
     let compliance = Compliance::compute_with(&model, &roi, options(), &mut |_, _| {}).expect("reload");
     println!("compliance reload from disk cache: {:.3} s (from_cache = {})", t.elapsed().as_secs_f64(), compliance.stats().from_cache);
+    figures.compliance = Some(CompliancePrecompute { rows: cs.rows, cols: cs.cols, megabytes, precompute_s, reload_s: t.elapsed().as_secs_f64() });
     // Frame sequence: a window sliding over ROI vertices near the ROI's top, ordered by x.
     let top = roi.iter().copied().max_by(|a, b| mesh.positions[*a as usize].z.total_cmp(&mesh.positions[*b as usize].z)).unwrap();
     let p0 = mesh.positions[top as usize];
@@ -158,6 +224,19 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
             "  mean phase times: gather {:.2} ms, factor+solve W {:.2} ms, candidates {:.2} ms, surface product {:.2} ms (of which gathering rows of new columns {:.2} ms), lazy columns {:.2} ms",
             p[0], p[1], p[2], p[3], p[4], p[5]
         );
+        let mut frame = FrameFigures {
+            constrained: count,
+            p50_ms: m.p50,
+            p95_ms: m.p95,
+            max_ms: m.max,
+            floor_ms: None,
+            p95_over_floor: None,
+            product_floor_ms: None,
+            product_ms: m.phases[3],
+            stream_gb_s: None,
+            two_floors_ms: None,
+            p95_over_two_floors: None,
+        };
         let nodes: Vec<u32> = m.cons.iter().map(|c| c.node).collect();
         if let Some(f) = floor_ms(solver.compliance(), &nodes, fresh) {
             // the cheapest dense factor measured (on a busy machine the
@@ -200,7 +279,14 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
                 f.f32_par,
                 m.p95 / floor
             );
+            frame.floor_ms = Some(floor);
+            frame.p95_over_floor = Some(m.p95 / floor);
+            frame.product_floor_ms = Some(product_floor);
+            frame.stream_gb_s = Some(rate / 1e9);
+            frame.two_floors_ms = Some(floor + product_floor);
+            frame.p95_over_two_floors = Some(m.p95 / (floor + product_floor));
         }
+        figures.frames.push(frame);
         last_frame = (m.cons, m.out);
     }
     // Frame time against the number of constrained vertices (a tenth new each frame): a table and a plot.
@@ -224,6 +310,7 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
     element_stress(solver.model(), &all, &mut stress).expect("stress");
     println!("interior displacements (one sparse solve) {ti:.1} ms; element stress {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
     println!("peak resident memory so far: {:.0} MB", peak_rss_mb());
+    figures.peak_rss_mb = peak_rss_mb();
     drop(solver);
     if !last_frame.0.is_empty() {
         // Error of this storage: the same frame with an exact f64 compliance over its constrained nodes only.
@@ -243,25 +330,37 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
                 // The working region's displacement (the rest of the surface is brought up to date only where an output reads it).
                 let stored: std::collections::HashSet<u32> = rows.iter().copied().collect();
                 let in_region = |u: &[Vec3]| -> Vec<Vec3> { surface.iter().zip(u).filter(|(n, _)| stored.contains(n)).map(|(_, u)| *u).collect() };
+                let error = ErrorFigures {
+                    constrained: cons.len(),
+                    displacement: rel_error(&in_region(&out.displacement_surface), &in_region(&r.displacement_surface)),
+                    reaction: rel_error(&out.reactions, &r.reactions),
+                };
                 println!(
                     "error vs f64 ({} constrained): displacement {:.2e} (the working region), reaction {:.2e} (relative, max norm)",
-                    cons.len(),
-                    rel_error(&in_region(&out.displacement_surface), &in_region(&r.displacement_surface)),
-                    rel_error(&out.reactions, &r.reactions)
-                )
+                    error.constrained, error.displacement, error.reaction
+                );
+                figures.error_vs_f64 = Some(error);
             }
             Err(e) => println!("f64 reference failed: {e}"),
         }
+    }
+    let path = cache.parent().unwrap_or(cache).join("figures").join(format!("{name}.json"));
+    let written = std::fs::create_dir_all(path.parent().unwrap_or(cache))
+        .and_then(|()| std::fs::write(&path, serde_json::to_string_pretty(&figures).expect("the figures serialize")));
+    match written {
+        Ok(()) => println!("figures: {}", path.display()),
+        Err(e) => println!("figures not written to {}: {e}", path.display()),
     }
 }
 
 /// The same `K_FF` factored with each fill-reducing ordering: entries of L,
 /// analysis, numeric factor and one 96-column solve (the precompute's batch),
 /// best of three. One thread, as the model factors.
-fn ordering_lines(model: &FemModel) {
+fn ordering_lines(model: &FemModel) -> Vec<OrderingFigures> {
     let k = model.stiffness();
     let dofs = model.dofs();
     let mut base: Option<(f64, f64)> = None;
+    let mut figures = Vec::new();
     for ordering in [FillOrdering::Amd, FillOrdering::NestedDissection] {
         let t = Instant::now();
         let chol = match SparseCholesky::new(k, ordering, &|d| dofs.name(d)) {
@@ -287,6 +386,12 @@ fn ordering_lines(model: &FemModel) {
         let (nnz, numeric) = (chol.nnz_l() as f64, chol.numeric_seconds);
         let exact = chol.exact_nnz_l(k).map_or(f64::NAN, |e| e as f64 / 1e6);
         let ratio = base.map(|(n, s)| format!(" ({:.2}x AMD's entries, {:.2}x AMD's solve)", nnz / n, solve / s)).unwrap_or_default();
+        figures.push(OrderingFigures {
+            ordering: format!("{ordering:?}"),
+            nnz_l_millions: nnz / 1e6,
+            exact_nnz_l_millions: exact,
+            solve_over_amd: base.map(|(_, s)| solve / s),
+        });
         base.get_or_insert((nnz, solve));
         println!(
             "ordering {ordering:?}: nnz(L) {:.2} M stored ({exact:.2} M counted exactly), analysis {:.2} s, numeric {:.2} s, 96-column solve {:.1} ms, factor total {total:.2} s{ratio}",
@@ -296,6 +401,7 @@ fn ordering_lines(model: &FemModel) {
             solve * 1e3
         );
     }
+    figures
 }
 
 /// The floor of one exact frame over `nodes` whose last `fresh` are new this

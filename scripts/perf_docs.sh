@@ -368,9 +368,10 @@ run_measure "startup: a user's fine-brain Sylvian scene cold" "$PERF/startup/use
 # H. The same opened as the window opens it (early start): the frames that wait for their columns.
 run_measure "startup: a user's fine-brain Sylvian scene cold, early start" "$PERF/startup/user_sylvian_background.log" "$PROBE" config/real_brain/sylvian.ron "${user_sylvian[@]}" solver.early_start=true --background --json "$PERF/startup/user_sylvian_background.json"
 
-# Fields of a JSON report (examples/startup_probe.rs's StartupReport, `fissure run --report`'s), tab-separated in
-# the order asked, each `path.to.field` or `path.to.field:FORMAT` (a Python format spec); a field that is missing stops
-# the run naming it, one that is null (not a number) reads n/a.
+# Fields of a JSON report (examples/startup_probe.rs's StartupReport, `fissure run --report`'s, the fem bench's
+# FemFigures), tab-separated in the order asked, each `path.to.field` (a number indexes a list) or
+# `path.to.field:FORMAT` (a Python format spec); a field that is missing stops the run naming it, one that is
+# null (not a number) reads n/a.
 probe_fields() {
     python3 - "$@" <<'PY'
 import json, sys
@@ -382,8 +383,13 @@ try:
         name, _, spec = f.partition(":")
         v = d
         for k in name.split("."):
-            v = v[k]
-        out.append("n/a" if v is None else str(v).lower() if isinstance(v, bool) else format(v, spec))
+            v = v[int(k)] if isinstance(v, list) else v[k]
+        text = "n/a" if v is None else str(v).lower() if isinstance(v, bool) else format(v, spec)
+        if spec.endswith("e") and v is not None:
+            # As Rust writes it: 1.23e-5, not 1.23e-05.
+            mantissa, _, exponent = text.partition("e")
+            text = f"{mantissa}e{int(exponent)}"
+        out.append(text)
     print("\t".join(out))
 except (OSError, ValueError, KeyError, TypeError) as e:
     print(f"{path}: {type(e).__name__}: {e}", file=sys.stderr)
@@ -482,6 +488,7 @@ t_window=$((SECONDS - t0))
 t0=$SECONDS
 fem_models=(paper coarse)
 [ "$FAST" = 1 ] && fem_models=(paper)
+rm -rf target/fem-bench-cache/figures
 run_measure "fem bench" "$PERF/fem.log" cargo bench --quiet --bench fem -- "${fem_models[@]}"
 cp -f target/fem-bench-cache/sweep/paper-12k_constrained_sweep.png "$PERF/fem_constrained_sweep.png" 2> /dev/null || true
 if [ "$FAST" != 1 ]; then
@@ -489,41 +496,24 @@ if [ "$FAST" != 1 ]; then
     cp -f target/fem-bench-cache/audit/paper-12k_audit.png "$PERF/fem_audit_paper12k.png" 2> /dev/null || true
     cp -f target/fem-bench-cache/audit/brain_pial_coarse_audit.png "$PERF/fem_audit_coarse_brain.png" 2> /dev/null || true
 fi
-# The fem bench's lines of one model (from "== MODEL:" to the next "== ").
-fem_block() { awk -v m="== $2:" 'index($0, "== ") == 1 { on = (index($0, m) == 1) } on' "$1"; }
-# fem_figures MODEL: sets f_* from the bench's lines for that model.
+# fem_figures MODEL: sets f_* from the figures the fem bench wrote for that model (benches/fem.rs's FemFigures).
 fem_figures() {
-    local b="$PERF/fem_$1.block"
-    fem_block "$PERF/fem.log" "$1" > "$b"
-    [ -s "$b" ] || die "fem bench: no output for $1 in $PERF/fem.log"
-    f_nodes=$(grab "$b" '^== .*: \([0-9]*\) nodes.*$')
-    f_factor=$(grab "$b" '^model: .*(total \([0-9.]*\) s)$')
-    f_amd=$(grab "$b" '^ordering Amd: nnz(L) \([0-9.]*\) M stored.*$')
-    f_amd_exact=$(grab "$b" '^ordering Amd: .*M stored (\([0-9.]*\) M counted exactly).*$')
-    f_nd=$(grab "$b" '^ordering NestedDissection: nnz(L) \([0-9.]*\) M stored.*$')
-    f_nd_exact=$(grab "$b" '^ordering NestedDissection: .*M stored (\([0-9.]*\) M counted exactly).*$')
-    f_nd_solve=$(grab "$b" '^ordering NestedDissection: .*, \([0-9.]*\)x AMD.s solve).*$')
-    f_rows=$(grab "$b" '^compliance (.*): \([0-9]*\) rows x .*$')
-    f_cols=$(grab "$b" '^compliance (.*): [0-9]* rows x \([0-9]*\) cols.*$')
-    f_mb=$(grab "$b" '^compliance (.*): .* cols, \([0-9]*\) MB,.*$')
-    f_pre=$(grab "$b" '^compliance (.*): .* precompute \([0-9.]*\) s.*$')
-    f_reload=$(grab "$b" '^compliance reload from disk cache: \([0-9.]*\) s.*$')
-    f_peak=$(grab "$b" '^peak resident memory so far: \([0-9]*\) MB$')
-    f_p50_100=$(grab "$b" '^frame solve + surface update, 100 constrained.*: p50 \([0-9.]*\) ms,.*$')
-    f_p95_100=$(grab "$b" '^frame solve + surface update, 100 constrained.* p95 \([0-9.]*\) ms,.*$')
-    f_p50_300=$(grab "$b" '^frame solve + surface update, 300 constrained.*: p50 \([0-9.]*\) ms,.*$')
-    f_p95_300=$(grab "$b" '^frame solve + surface update, 300 constrained.* p95 \([0-9.]*\) ms,.*$')
-    # The floors at 300 (the second of each pair of lines).
-    f_floor_x=$(grep '^  floor, same run:' "$b" | tail -1 | sed -n 's/^.*frame p95 = \([0-9.]*\)x the floor (.* = \([0-9.]*\) ms)$/\1/p')
-    f_floor=$(grep '^  floor, same run:' "$b" | tail -1 | sed -n 's/^.*frame p95 = [0-9.]*x the floor (.* = \([0-9.]*\) ms)$/\1/p')
-    f_two_x=$(grep '^  product floor, same run:' "$b" | tail -1 | sed -n 's/^.*frame p95 = \([0-9.]*\)x (W floor + product floor = \([0-9.]*\) ms)$/\1/p')
-    f_two=$(grep '^  product floor, same run:' "$b" | tail -1 | sed -n 's/^.*(W floor + product floor = \([0-9.]*\) ms)$/\1/p')
-    f_product=$(grep '^  product floor, same run:' "$b" | tail -1 | sed -n 's/^.*; mean product \([0-9.]*\) ms = .*$/\1/p')
-    f_product_floor=$(grep '^  product floor, same run:' "$b" | tail -1 | sed -n 's/^.* = \([0-9.]*\) ms; mean product.*$/\1/p')
-    f_stream=$(grep '^  product floor, same run:' "$b" | tail -1 | sed -n 's/^.* at \([0-9.]*\) GB\/s .*$/\1/p')
-    f_err_u=$(grab "$b" '^error vs f64 ([0-9]* constrained): displacement \([0-9.e+-]*\)[ ,].*reaction.*$')
-    f_err_r=$(grab "$b" '^error vs f64 ([0-9]* constrained): .*, reaction \([0-9.e+-]*\) (.*$')
-    [ -n "$f_p95_300" ] && [ -n "$f_pre" ] || die "fem bench: could not read $1's frame or precompute lines ($b)"
+    local j="target/fem-bench-cache/figures/$1.json"
+    f_pre=
+    IFS=$'\t' read -r f_nodes f_factor f_amd f_amd_exact f_nd f_nd_exact f_nd_solve f_rows f_cols f_mb f_pre f_reload f_peak \
+        < <(probe_fields "$j" nodes factor_total_s:.3f orderings.0.nnz_l_millions:.2f orderings.0.exact_nnz_l_millions:.2f \
+            orderings.1.nnz_l_millions:.2f orderings.1.exact_nnz_l_millions:.2f orderings.1.solve_over_amd:.2f \
+            compliance.rows compliance.cols compliance.megabytes:.0f compliance.precompute_s:.2f compliance.reload_s:.3f \
+            peak_rss_mb:.0f) || true
+    [ -n "$f_pre" ] || die "fem bench: no figures for $1 in $j"
+    f_p95_300=
+    # The frames at 100 and at 300 constrained; the floors at 300.
+    IFS=$'\t' read -r f_p50_100 f_p95_100 f_p50_300 f_p95_300 f_floor_x f_floor f_two_x f_two f_product f_product_floor f_stream \
+        f_err_u f_err_r < <(probe_fields "$j" frames.0.p50_ms:.2f frames.0.p95_ms:.2f frames.1.p50_ms:.2f frames.1.p95_ms:.2f \
+            frames.1.p95_over_floor:.1f frames.1.floor_ms:.2f frames.1.p95_over_two_floors:.1f frames.1.two_floors_ms:.2f \
+            frames.1.product_ms:.2f frames.1.product_floor_ms:.2f frames.1.stream_gb_s:.1f error_vs_f64.displacement:.2e \
+            error_vs_f64.reaction:.2e) || true
+    [ -n "$f_p95_300" ] || die "fem bench: no frame figures for $1 in $j"
 }
 fem_figures paper-12k
 p_factor=$f_factor p_amd=$f_amd p_amd_exact=$f_amd_exact p_nd=$f_nd p_nd_exact=$f_nd_exact p_nd_solve=$f_nd_solve
