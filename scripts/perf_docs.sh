@@ -198,24 +198,33 @@ run_measure "build (fem bench)" "$PERF/build_bench.log" cargo bench --bench fem 
 # ---------------------------------------------------------------- 1. collision bench
 
 t0=$SECONDS
-run_measure "collision bench" "$PERF/collision.log" "$FISSURE" bench collision --frames 30 --out "$PERF/collision.md"
+run_measure "collision bench" "$PERF/collision.log" "$FISSURE" bench collision --frames 30 --out "$PERF/collision.md" --json "$PERF/collision.json"
 if grep -q 'cases are skipped' "$PERF/collision.log"; then
     die "collision bench: a real brain was not found ($(grep 'cases are skipped' "$PERF/collision.log" | head -1))"
 fi
-# A row's cell: bench_cell SURFACE NODES BACKEND COLUMN (5 = p50, 6 = p95).
+# A row's field, from the JSON the bench wrote (src/cli/bench.rs's CollisionReport): bench_cell SURFACE NODES
+# BACKEND FIELD; a missing row or field says so and prints nothing.
 bench_cell() {
-    awk -F'|' -v s="$1" -v n="$2" -v b="$3" -v c="$4" '
-        { for (i = 2; i <= NF; i++) { x = $i; gsub(/^ +| +$/, "", x); f[i] = x } }
-        f[2] == s && f[4] == n && f[5] == b { print f[c + 1]; exit }' "$PERF/collision.md"
+    python3 - "$PERF/collision.json" "$@" <<'PY'
+import json, sys
+path, surface, nodes, backend, field = sys.argv[1:]
+try:
+    rows = [r for r in json.load(open(path))["rows"] if (r["surface"], r["nodes_a_face"], r["backend"]) == (surface, int(nodes), backend)]
+    print(f"{rows[0][field]:.3f}")
+except (OSError, ValueError, KeyError, IndexError) as e:
+    print(f"{path}: no {field} of {surface} {nodes} {backend}: {type(e).__name__}: {e}", file=sys.stderr)
+    sys.exit(1)
+PY
 }
-coll_bvh_p50=$(bench_cell paper-12k 500 bvh 5)
-coll_bvh_p95=$(bench_cell paper-12k 500 bvh 6)
-coll_gpu_p50=$(bench_cell paper-12k 500 gpu 5)
-coll_gpu_p95=$(bench_cell paper-12k 500 gpu 6)
-coll_q15_p50=$(bench_cell brain-q15 500 bvh 5)
-coll_q15_p95=$(bench_cell brain-q15 500 bvh 6)
-[ -n "$coll_bvh_p50" ] || die "collision bench: no paper-12k 500 bvh row in $PERF/collision.md"
-gpu_adapter=$(grep -m1 '^GPU adapter:' "$PERF/collision.log" | sed 's/^GPU adapter: //')
+coll_bvh_p50=$(bench_cell paper-12k 500 bvh p50_ms)
+coll_bvh_p95=$(bench_cell paper-12k 500 bvh p95_ms)
+coll_gpu_p50=$(bench_cell paper-12k 500 gpu p50_ms)
+coll_gpu_p95=$(bench_cell paper-12k 500 gpu p95_ms)
+coll_q15_p50=$(bench_cell brain-q15 500 bvh p50_ms)
+coll_q15_p95=$(bench_cell brain-q15 500 bvh p95_ms)
+[ -n "$coll_bvh_p50" ] && [ -n "$coll_q15_p95" ] || die "collision bench: no paper-12k or brain-q15 500 bvh row in $PERF/collision.json"
+gpu_adapter=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["device"])' "$PERF/collision.json") ||
+    die "collision bench: no device in $PERF/collision.json"
 t_collision=$((SECONDS - t0))
 
 # ---------------------------------------------------------------- 2. replays

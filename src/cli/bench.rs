@@ -24,6 +24,31 @@ pub struct CollisionArgs {
     /// Also write the table (Markdown) to this file.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Also write the rows as JSON to this file (a row a case and backend: times in ms, the answer's hash).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// The benchmark's rows as `--json` writes them.
+#[derive(serde::Serialize)]
+struct CollisionReport<'a> {
+    /// The GPU adapter of the `gpu` rows ("none" without one).
+    device: String,
+    rows: Vec<CollisionRow<'a>>,
+}
+
+#[derive(serde::Serialize)]
+struct CollisionRow<'a> {
+    surface: &'a str,
+    triangles: usize,
+    nodes_a_face: u32,
+    backend: &'a str,
+    p50_ms: f64,
+    p95_ms: f64,
+    cast_p50_ms: f64,
+    rest_p50_ms: f64,
+    candidates: usize,
+    answer_hash: &'a str,
 }
 
 pub fn collision(args: &CollisionArgs) -> anyhow::Result<()> {
@@ -48,6 +73,28 @@ pub fn collision(args: &CollisionArgs) -> anyhow::Result<()> {
     table.extend([String::new(), footer]);
     if let Some(path) = &args.out {
         fissure::fsio::write_atomic(path, (table.join("\n") + "\n").as_bytes()).map_err(|e| anyhow::anyhow!("writing {e}"))?;
+    }
+    if let Some(path) = &args.json {
+        let report = CollisionReport {
+            device: bench::device(&rows),
+            rows: rows
+                .iter()
+                .map(|r| CollisionRow {
+                    surface: &r.surface,
+                    triangles: r.triangles,
+                    nodes_a_face: r.nodes_a_face,
+                    backend: &r.backend,
+                    p50_ms: r.p50_ms,
+                    p95_ms: r.p95_ms,
+                    cast_p50_ms: r.cast_p50_ms,
+                    rest_p50_ms: r.rest_p50_ms,
+                    candidates: r.candidates,
+                    answer_hash: &r.answer_hash,
+                })
+                .collect(),
+        };
+        let text = serde_json::to_string_pretty(&report)?;
+        fissure::fsio::write_atomic(path, text.as_bytes()).map_err(|e| anyhow::anyhow!("writing {e}"))?;
     }
     let mismatch = bench::mismatches(&rows);
     anyhow::ensure!(mismatch.is_empty(), "backends gave different answers on: {}", mismatch.join(", "));
