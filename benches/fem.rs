@@ -150,8 +150,9 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
         t.elapsed().as_secs_f64()
     );
     figures.factor_total_s = t.elapsed().as_secs_f64();
+    let mut audit = Vec::new();
     if audit_only {
-        row_major_audit(&model);
+        audit.extend(row_major_audit(&model));
     } else {
         figures.orderings = ordering_lines(&model);
     }
@@ -200,7 +201,8 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
     near.sort_by(|a, b| mesh.positions[*a as usize].x.total_cmp(&mesh.positions[*b as usize].x).then(a.cmp(b)));
     let mut solver = ConstrainedSolver::new(model, compliance).expect("solver");
     if audit_only {
-        frame_audit(name, &mut solver, &near, &cache.parent().unwrap_or(cache).join("audit"));
+        audit.extend(frame_audit(name, &mut solver, &near, &cache.parent().unwrap_or(cache).join("audit")));
+        write_figures(cache, &format!("{name}_audit"), &audit);
         return;
     }
     let mut last_frame: (Vec<Constraint>, FrameSolution) = (Vec::new(), FrameSolution::default());
@@ -344,9 +346,14 @@ fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Pat
             Err(e) => println!("f64 reference failed: {e}"),
         }
     }
-    let path = cache.parent().unwrap_or(cache).join("figures").join(format!("{name}.json"));
+    write_figures(cache, name, &figures);
+}
+
+/// Writes `figures` as `target/fem-bench-cache/figures/STEM.json` (beside the model's `cache`).
+fn write_figures(cache: &Path, stem: &str, figures: &impl serde::Serialize) {
+    let path = cache.parent().unwrap_or(cache).join("figures").join(format!("{stem}.json"));
     let written = std::fs::create_dir_all(path.parent().unwrap_or(cache))
-        .and_then(|()| std::fs::write(&path, serde_json::to_string_pretty(&figures).expect("the figures serialize")));
+        .and_then(|()| std::fs::write(&path, serde_json::to_string_pretty(figures).expect("the figures serialize")));
     match written {
         Ok(()) => println!("figures: {}", path.display()),
         Err(e) => println!("figures not written to {}: {e}", path.display()),
@@ -648,7 +655,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// `-- audit`: each per-frame optimisation that `fem::tuning` switches, on
 /// and off in this run (alternating which goes first, three rounds), on
 /// three sequences of 300 constrained vertices; the medians.
-fn frame_audit(name: &str, solver: &mut ConstrainedSolver, near: &[u32], dir: &Path) {
+fn frame_audit(name: &str, solver: &mut ConstrainedSolver, near: &[u32], dir: &Path) -> Vec<AuditBar> {
     use fissure::fem::tuning::{Optimisation, Tuning};
     let count = 300.min(near.len() / 2);
     let step = count / 10;
@@ -697,10 +704,13 @@ fn frame_audit(name: &str, solver: &mut ConstrainedSolver, near: &[u32], dir: &P
         Ok(png) => println!("audit plot: {}", png.display()),
         Err(e) => println!("audit plot not written: {e}"),
     }
+    bars
 }
 
 /// One line of the frame audit: the phase the switch touches (mean ms, the
-/// median of three rounds) and the frame p95 with it on and off.
+/// median of three rounds) and the frame p95 with it on and off. The row-major
+/// solve's line has the one solve as its phase and no frame.
+#[derive(serde::Serialize)]
 struct AuditBar {
     switch: &'static str,
     sequence: &'static str,
@@ -796,13 +806,13 @@ fn write_audit(name: &str, count: usize, bars: &[AuditBar], dir: &Path) -> Resul
 
 /// `-- audit`: one 96-column solve of the model's factor with the row-major
 /// solve and with faer's, alternating, best of three each.
-fn row_major_audit(model: &FemModel) {
+fn row_major_audit(model: &FemModel) -> Option<AuditBar> {
     let k = model.stiffness();
     let mut chol = match SparseCholesky::new(k, FillOrdering::Best, &|d| model.dofs().name(d)) {
         Ok(c) => c,
         Err(e) => {
             println!("audit row-major-solve: factor failed: {e}");
-            return;
+            return None;
         }
     };
     let mut rhs = faer::Mat::<f64>::zeros(k.dim, 96);
@@ -828,6 +838,7 @@ fn row_major_audit(model: &FemModel) {
         best[1] / best[0]
     );
     pruned_solve_audit(model, &chol);
+    Some(AuditBar { switch: "row-major-solve", sequence: "one 96-column solve", phase: "solve", on: best[0], off: best[1], p95_on: f64::NAN, p95_off: f64::NAN })
 }
 
 /// `-- audit`: one batch of the compliance's precompute (the unit columns of

@@ -496,7 +496,8 @@ t_window=$((SECONDS - t0))
 
 t0=$SECONDS
 fem_models=(paper coarse)
-[ "$FAST" = 1 ] && fem_models=(paper)
+fem_models_json=(paper-12k brain_pial_coarse)
+[ "$FAST" = 1 ] && fem_models=(paper) && fem_models_json=(paper-12k)
 rm -rf target/fem-bench-cache/figures
 run_measure "fem bench" "$PERF/fem.log" cargo bench --quiet --bench fem -- "${fem_models[@]}"
 cp -f target/fem-bench-cache/sweep/paper-12k_constrained_sweep.png "$PERF/fem_constrained_sweep.png" 2> /dev/null || true
@@ -524,6 +525,18 @@ fem_figures() {
             error_vs_f64.reaction:.2e) || true
     [ -n "$f_p95_300" ] || die "fem bench: no frame figures for $1 in $j"
 }
+# "SWITCH GAIN" a line, in the audit's order, from the JSON the fem bench's audit wrote for each model
+# (benches/fem.rs's AuditBar: the phase it touches, off / on, two decimals).
+audit_gains() {
+    local m
+    for m in "${fem_models_json[@]}"; do
+        python3 - "target/fem-bench-cache/figures/${m}_audit.json" <<'PY' || die "fem bench audit: no figures in target/fem-bench-cache/figures/${m}_audit.json"
+import json, sys
+for bar in json.load(open(sys.argv[1])):
+    print(bar["switch"], f"{bar['off'] / bar['on']:.2f}")
+PY
+    done
+}
 fem_figures paper-12k
 p_factor=$f_factor p_amd=$f_amd p_amd_exact=$f_amd_exact p_nd=$f_nd p_nd_exact=$f_nd_exact p_nd_solve=$f_nd_solve
 p_rows=$f_rows p_cols=$f_cols p_mb=$f_mb p_pre=$f_pre p_reload=$f_reload p_peak=$f_peak
@@ -537,7 +550,9 @@ if [ "$FAST" != 1 ]; then
     c_p50_100=$f_p50_100 c_p95_100=$f_p95_100 c_p50_300=$f_p50_300 c_p95_300=$f_p95_300
     c_floor_x=$f_floor_x c_floor=$f_floor c_two_x=$f_two_x c_two=$f_two c_product=$f_product c_product_floor=$f_product_floor c_stream=$f_stream
     c_err_u=$f_err_u c_err_r=$f_err_r c_nodes=$f_nodes
-    grep -q '^audit ' "$PERF/fem_audit.log" || die "fem bench audit: no 'audit' lines in $PERF/fem_audit.log"
+    for m in "${fem_models_json[@]}"; do
+        [ -s "target/fem-bench-cache/figures/${m}_audit.json" ] || die "fem bench audit: no target/fem-bench-cache/figures/${m}_audit.json"
+    done
 fi
 t_fem=$((SECONDS - t0))
 
@@ -692,7 +707,7 @@ summary_rows() {
     if [ "$FAST" != 1 ]; then
         local gains worst_gain
         gains=$(audit_gains_short)
-        worst_gain=$(sed -n 's/^audit .*(\([0-9.]*\)x faster with it.*$/\1/p' "$PERF/fem_audit.log" | sort -g | head -1)
+        worst_gain=$(audit_gains | awk '{ print $2 }' | sort -g | head -1)
         echo "| what each per-frame optimisation of the exact solve buys: the phase it touches, with it against without, paper-12k and coarse brain (medians of three alternating rounds) | $gains | each kept one faster where it acts (slowest case ${worst_gain}x) | $(code "cargo bench --bench fem -- audit paper coarse") |"
     else
         echo "| what each per-frame optimisation of the exact solve buys | $NOT_RUN_FAST | each kept one faster where it acts | $(code "cargo bench --bench fem -- audit paper coarse") |"
@@ -705,7 +720,7 @@ summary_rows() {
 }
 # One cell: each switch's range of gains over sequences and models.
 audit_gains_short() {
-    sed -n 's/^audit \([a-z0-9-]*\) .*(\([0-9.]*\)x faster with it.*$/\1 \2/p' "$PERF/fem_audit.log" |
+    audit_gains |
         awk '{ if (!($1 in lo)) { order[++n] = $1; lo[$1] = $2; hi[$1] = $2 } if ($2 < lo[$1]) lo[$1] = $2; if ($2 > hi[$1]) hi[$1] = $2 }
              END { for (i = 1; i <= n; i++) { k = order[i]; printf "%s%s %s", (i > 1 ? "; " : ""), k, (lo[k] == hi[k] ? lo[k] "x" : lo[k] "-" hi[k] "x") } }'
 }
