@@ -272,7 +272,7 @@ impl Renderer {
                 .sample_count_supported(4);
         let mut renderer =
             Self::with_device(device, queue, OFFSCREEN_FORMAT, if msaa { 4 } else { 1 })?;
-        renderer.adapter_name = format!("{} ({:?})", info.name, info.backend);
+        renderer.name_adapter(&info);
         renderer.resize_offscreen(size)?;
         tracing::info!(adapter = %renderer.adapter_name, msaa, "offscreen renderer ready");
         Ok(renderer)
@@ -379,7 +379,13 @@ impl Renderer {
         self.sample_count
     }
 
-    /// The adapter's name and backend (offscreen renderers only; else empty).
+    /// Records the adapter's name and backend (the offscreen and the window's renderer do; a renderer on a
+    /// device from elsewhere stays unnamed).
+    pub(crate) fn name_adapter(&mut self, info: &wgpu::AdapterInfo) {
+        self.adapter_name = format!("{} ({:?})", info.name, info.backend);
+    }
+
+    /// The adapter drawing, as "NAME (BACKEND)".
     pub fn adapter_name(&self) -> &str {
         &self.adapter_name
     }

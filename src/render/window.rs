@@ -76,8 +76,9 @@ impl WindowRenderer {
             .get_texture_format_features(format)
             .flags
             .sample_count_supported(4);
-        let renderer = Renderer::with_device(device, queue, format, if msaa { 4 } else { 1 })?;
+        let mut renderer = Renderer::with_device(device, queue, format, if msaa { 4 } else { 1 })?;
         let info = adapter.get_info();
+        renderer.name_adapter(&info);
         tracing::info!(adapter = %info.name, backend = ?info.backend, ?format, present_mode = ?config.present_mode, "window renderer ready");
         Ok(Self {
             surface,

@@ -76,7 +76,7 @@ fn window_runs_scripted_frames_records_and_the_recording_replays_the_same_poses_
     assert_eq!(json["sim_frames"].as_u64(), Some(frames as u64), "{json}");
     let (p50, p95, max) = (json["step_p50_ms"].as_f64(), json["step_p95_ms"].as_f64(), json["step_max_ms"].as_f64());
     assert!(p50.zip(p95).zip(max).is_some_and(|((a, b), c)| 0.0 < a && a <= b && b <= c), "{json}");
-    assert!(json["adapter"].as_str().is_some_and(|a| !a.is_empty()) && json["fps"].as_f64().is_some(), "{json}");
+    assert!(json["adapter"].as_str().is_some_and(|a| !a.is_empty()) && json["fps"].as_f64().is_some(), "the adapter is named: {json}");
     assert_eq!(json["final_state"].as_str(), line_after(&stdout, "final state "), "{json}");
     assert!(stdout.contains("0 failed"), "no simulation frame may fail: {stdout}");
     // From 1.2 s the strain colour is shown; sylvian.ron has no StressField
