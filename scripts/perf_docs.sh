@@ -381,7 +381,7 @@ run_measure "startup: a user's fine-brain Sylvian scene cold, early start" "$PER
 # FemFigures), tab-separated in the order asked, each `path.to.field` (a number indexes a list) or
 # `path.to.field:FORMAT` (a Python format spec); a field that is missing stops the run naming it, one that is
 # null (not a number) reads n/a.
-probe_fields() {
+json_fields() {
     python3 - "$@" <<'PY'
 import json, sys
 path, fields = sys.argv[1], sys.argv[2:]
@@ -410,7 +410,7 @@ PY
 probe_build() {
     local f=$1
     build=
-    IFS=$'\t' read -r before build peak compute load from_cache rows cols mb < <(probe_fields "$f" \
+    IFS=$'\t' read -r before build peak compute load from_cache rows cols mb < <(json_fields "$f" \
         build.before_compliance_s:.2f build.build_s:.2f build.peak_rss_mb:.0f build.compliance.compute_s:.2f \
         build.compliance.load_s:.2f build.compliance.from_cache build.compliance.rows build.compliance.cols \
         build.compliance.megabytes:.0f) || true
@@ -421,7 +421,7 @@ probe_build() {
 probe_background() {
     local f=$1
     first=
-    IFS=$'\t' read -r first frames_n motion slowest over50 columns bpeak < <(probe_fields "$f" \
+    IFS=$'\t' read -r first frames_n motion slowest over50 columns bpeak < <(json_fields "$f" \
         early_start.first_frame_s:.2f early_start.frames early_start.motion_done_s:.2f early_start.slowest_frame_ms:.0f \
         early_start.frames_over_50ms early_start.columns_final_s:.2f early_start.peak_rss_mb:.0f) || true
     [ -n "$first" ] || die "startup: no early-start figures in $f"
@@ -487,7 +487,7 @@ fi
 window_figures() {
     local f=$1
     wfps=
-    IFS=$'\t' read -r wfps wp50 wp95 wadapter < <(probe_fields "$f" fps:.1f step_p50_ms:.3f step_p95_ms:.3f adapter) || true
+    IFS=$'\t' read -r wfps wp50 wp95 wadapter < <(json_fields "$f" fps:.1f step_p50_ms:.3f step_p95_ms:.3f adapter) || true
     [ -n "$wfps" ] || die "window: no figures in $f"
 }
 t_window=$((SECONDS - t0))
@@ -511,7 +511,7 @@ fem_figures() {
     local j="target/fem-bench-cache/figures/$1.json"
     f_pre=
     IFS=$'\t' read -r f_nodes f_factor f_amd f_amd_exact f_nd f_nd_exact f_nd_solve f_rows f_cols f_mb f_pre f_reload f_peak \
-        < <(probe_fields "$j" nodes factor_total_s:.3f orderings.0.nnz_l_millions:.2f orderings.0.exact_nnz_l_millions:.2f \
+        < <(json_fields "$j" nodes factor_total_s:.3f orderings.0.nnz_l_millions:.2f orderings.0.exact_nnz_l_millions:.2f \
             orderings.1.nnz_l_millions:.2f orderings.1.exact_nnz_l_millions:.2f orderings.1.solve_over_amd:.2f \
             compliance.rows compliance.cols compliance.megabytes:.0f compliance.precompute_s:.2f compliance.reload_s:.3f \
             peak_rss_mb:.0f) || true
@@ -519,7 +519,7 @@ fem_figures() {
     f_p95_300=
     # The frames at 100 and at 300 constrained; the floors at 300.
     IFS=$'\t' read -r f_p50_100 f_p95_100 f_p50_300 f_p95_300 f_floor_x f_floor f_two_x f_two f_product f_product_floor f_stream \
-        f_err_u f_err_r < <(probe_fields "$j" frames.0.p50_ms:.2f frames.0.p95_ms:.2f frames.1.p50_ms:.2f frames.1.p95_ms:.2f \
+        f_err_u f_err_r < <(json_fields "$j" frames.0.p50_ms:.2f frames.0.p95_ms:.2f frames.1.p50_ms:.2f frames.1.p95_ms:.2f \
             frames.1.p95_over_floor:.1f frames.1.floor_ms:.2f frames.1.p95_over_two_floors:.1f frames.1.two_floors_ms:.2f \
             frames.1.product_ms:.2f frames.1.product_floor_ms:.2f frames.1.stream_gb_s:.1f error_vs_f64.displacement:.2e \
             error_vs_f64.reaction:.2e) || true
