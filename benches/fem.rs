@@ -582,67 +582,67 @@ fn write_sweep(name: &str, sweep: &[(usize, Measure)], dir: &Path) -> Result<Pat
     let csv_path = dir.join(format!("{name}_constrained_sweep.csv"));
     std::fs::write(&csv_path, csv).map_err(|e| format!("{}: {e}", csv_path.display()))?;
     let png = dir.join(format!("{name}_constrained_sweep.png"));
-    let root = BitMapBackend::new(&png, (1000, 640)).into_drawing_area();
-    let err = |e: &dyn std::fmt::Display| e.to_string();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
-    let x_max = sweep.iter().map(|s| s.0).max().unwrap_or(300) as f64 * 1.05;
-    let y_max = sweep.iter().map(|s| s.1.p95).fold(3.5_f64, f64::max) * 1.1;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(format!("{name}: exact frame solve + surface update (a tenth of the vertices new each frame)"), ("sans-serif", 22))
-        .margin(16)
-        .x_label_area_size(48)
-        .y_label_area_size(64)
-        .build_cartesian_2d(0.0..x_max, 0.0..y_max)
-        .map_err(|e| err(&e))?;
-    chart
-        .configure_mesh()
-        .x_desc("constrained vertices (3 rows each)")
-        .y_desc("time per frame, ms")
-        .x_label_formatter(&|x| format!("{x:.0}"))
-        .y_label_formatter(&|y| format!("{y:.0}"))
-        .label_style(("sans-serif", 16))
-        .draw()
-        .map_err(|e| err(&e))?;
-    type Series = (&'static str, RGBColor, fn(&Measure) -> f64);
-    let series: [Series; 4] = [
-        ("frame p95", RGBColor(23, 190, 207), |m| m.p95),
-        ("frame p50", RGBColor(31, 119, 180), |m| m.p50),
-        ("W gather + factor + solve (mean)", RGBColor(214, 39, 40), |m| m.phases[1]),
-        ("surface product (mean)", RGBColor(44, 160, 44), |m| m.phases[3]),
-    ];
-    for (label, color, f) in series {
-        let pts: Vec<(f64, f64)> = sweep.iter().map(|(c, m)| (*c as f64, f(m))).collect();
+    let bytes = fissure::study::plot::png_bytes((1000, 640), |root| {
+        let err = |e: &dyn std::fmt::Display| e.to_string();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let x_max = sweep.iter().map(|s| s.0).max().unwrap_or(300) as f64 * 1.05;
+        let y_max = sweep.iter().map(|s| s.1.p95).fold(3.5_f64, f64::max) * 1.1;
+        let mut chart = ChartBuilder::on(root)
+            .caption(format!("{name}: exact frame solve + surface update (a tenth of the vertices new each frame)"), ("sans-serif", 22))
+            .margin(16)
+            .x_label_area_size(48)
+            .y_label_area_size(64)
+            .build_cartesian_2d(0.0..x_max, 0.0..y_max)
+            .map_err(|e| err(&e))?;
         chart
-            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(3)))
+            .configure_mesh()
+            .x_desc("constrained vertices (3 rows each)")
+            .y_desc("time per frame, ms")
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .y_label_formatter(&|y| format!("{y:.0}"))
+            .label_style(("sans-serif", 16))
+            .draw()
+            .map_err(|e| err(&e))?;
+        type Series = (&'static str, RGBColor, fn(&Measure) -> f64);
+        let series: [Series; 4] = [
+            ("frame p95", RGBColor(23, 190, 207), |m| m.p95),
+            ("frame p50", RGBColor(31, 119, 180), |m| m.p50),
+            ("W gather + factor + solve (mean)", RGBColor(214, 39, 40), |m| m.phases[1]),
+            ("surface product (mean)", RGBColor(44, 160, 44), |m| m.phases[3]),
+        ];
+        for (label, color, f) in series {
+            let pts: Vec<(f64, f64)> = sweep.iter().map(|(c, m)| (*c as f64, f(m))).collect();
+            chart
+                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(3)))
+                .map_err(|e| err(&e))?
+                .label(label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(3)));
+            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 5, color.filled()))).map_err(|e| err(&e))?;
+        }
+        let bar = RGBColor(90, 90, 90);
+        chart
+            .draw_series(LineSeries::new(vec![(0.0, 3.0), (x_max, 3.0)], bar.stroke_width(2)))
             .map_err(|e| err(&e))?
-            .label(label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], color.stroke_width(3)));
-        chart.draw_series(pts.iter().map(|&p| Circle::new(p, 5, color.filled()))).map_err(|e| err(&e))?;
-    }
-    let bar = RGBColor(90, 90, 90);
-    chart
-        .draw_series(LineSeries::new(vec![(0.0, 3.0), (x_max, 3.0)], bar.stroke_width(2)))
-        .map_err(|e| err(&e))?
-        .label("bar: p95 3 ms at 300 vertices")
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], bar.stroke_width(2)));
-    // Context: the largest contact set of the default scene's replay (`fissure replay config/sylvian.ron`).
-    let scene = RGBColor(148, 103, 189);
-    chart
-        .draw_series(DashedLineSeries::new(vec![(37.0, 0.0), (37.0, y_max)], 8, 6, scene.stroke_width(2)))
-        .map_err(|e| err(&e))?
-        .label("largest contact set in the default scene's replay: 37 vertices")
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], scene.stroke_width(2)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 16))
-        .draw()
-        .map_err(|e| err(&e))?;
-    root.present().map_err(|e| err(&e))?;
-    drop(chart);
-    drop(root);
+            .label("bar: p95 3 ms at 300 vertices")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], bar.stroke_width(2)));
+        // Context: the largest contact set of the default scene's replay (`fissure replay config/sylvian.ron`).
+        let scene = RGBColor(148, 103, 189);
+        chart
+            .draw_series(DashedLineSeries::new(vec![(37.0, 0.0), (37.0, y_max)], 8, 6, scene.stroke_width(2)))
+            .map_err(|e| err(&e))?
+            .label("largest contact set in the default scene's replay: 37 vertices")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], scene.stroke_width(2)));
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
+            .draw()
+            .map_err(|e| err(&e))?;
+        Ok(())
+    })?;
+    std::fs::write(&png, bytes).map_err(|e| format!("{}: {e}", png.display()))?;
     Ok(png)
 }
 
@@ -734,73 +734,73 @@ fn write_audit(name: &str, count: usize, bars: &[AuditBar], dir: &Path) -> Resul
     let csv_path = dir.join(format!("{name}_audit.csv"));
     std::fs::write(&csv_path, csv).map_err(|e| format!("{}: {e}", csv_path.display()))?;
     let png = dir.join(format!("{name}_audit.png"));
-    let root = BitMapBackend::new(&png, (1000, 600)).into_drawing_area();
-    let err = |e: &dyn std::fmt::Display| e.to_string();
-    root.fill(&WHITE).map_err(|e| err(&e))?;
-    let mut switches: Vec<&str> = Vec::new();
-    for b in bars {
-        if !switches.contains(&b.switch) {
-            switches.push(b.switch);
+    let bytes = fissure::study::plot::png_bytes((1000, 600), |root| {
+        let err = |e: &dyn std::fmt::Display| e.to_string();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let mut switches: Vec<&str> = Vec::new();
+        for b in bars {
+            if !switches.contains(&b.switch) {
+                switches.push(b.switch);
+            }
         }
-    }
-    let sequences = ["held", "growing", "sliding"];
-    let colors = [RGBColor(31, 119, 180), RGBColor(44, 160, 44), RGBColor(214, 39, 40)];
-    let y_max = bars.iter().map(|b| b.off / b.on).fold(2.0_f64, f64::max) * 1.5;
-    let y_min = bars.iter().map(|b| b.off / b.on).fold(0.7_f64, f64::min) * 0.9;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(format!("{name}: what each per-frame optimisation buys ({count} constrained vertices)"), ("sans-serif", 22))
-        .margin(16)
-        .x_label_area_size(48)
-        .y_label_area_size(72)
-        .build_cartesian_2d(0.0..switches.len() as f64, (y_min..y_max).log_scale())
-        .map_err(|e| err(&e))?;
-    let labels = switches.clone();
-    chart
-        .configure_mesh()
-        .disable_x_mesh()
-        .x_labels(switches.len() * 2 + 1)
-        .x_label_formatter(&|x| {
-            let i = x.floor() as usize;
-            if (x - i as f64 - 0.5).abs() < 0.26 { labels.get(i).map(|s| s.to_string()).unwrap_or_default() } else { String::new() }
-        })
-        .y_desc("the phase it touches: time off / time on (x faster with it)")
-        .y_label_formatter(&|y| format!("{y:.1}x"))
-        .label_style(("sans-serif", 15))
-        .draw()
-        .map_err(|e| err(&e))?;
-    for (k, (seq, color)) in sequences.iter().zip(colors).enumerate() {
-        let rects: Vec<_> = bars
-            .iter()
-            .filter(|b| b.sequence == *seq)
-            .filter_map(|b| {
-                let i = switches.iter().position(|s| *s == b.switch)? as f64;
-                let x0 = i + 0.15 + 0.23 * k as f64;
-                Some(Rectangle::new([(x0, y_min), (x0 + 0.21, b.off / b.on)], color.filled()))
-            })
-            .collect();
+        let sequences = ["held", "growing", "sliding"];
+        let colors = [RGBColor(31, 119, 180), RGBColor(44, 160, 44), RGBColor(214, 39, 40)];
+        let y_max = bars.iter().map(|b| b.off / b.on).fold(2.0_f64, f64::max) * 1.5;
+        let y_min = bars.iter().map(|b| b.off / b.on).fold(0.7_f64, f64::min) * 0.9;
+        let mut chart = ChartBuilder::on(root)
+            .caption(format!("{name}: what each per-frame optimisation buys ({count} constrained vertices)"), ("sans-serif", 22))
+            .margin(16)
+            .x_label_area_size(48)
+            .y_label_area_size(72)
+            .build_cartesian_2d(0.0..switches.len() as f64, (y_min..y_max).log_scale())
+            .map_err(|e| err(&e))?;
+        let labels = switches.clone();
         chart
-            .draw_series(rects)
+            .configure_mesh()
+            .disable_x_mesh()
+            .x_labels(switches.len() * 2 + 1)
+            .x_label_formatter(&|x| {
+                let i = x.floor() as usize;
+                if (x - i as f64 - 0.5).abs() < 0.26 { labels.get(i).map(|s| s.to_string()).unwrap_or_default() } else { String::new() }
+            })
+            .y_desc("the phase it touches: time off / time on (x faster with it)")
+            .y_label_formatter(&|y| format!("{y:.1}x"))
+            .label_style(("sans-serif", 15))
+            .draw()
+            .map_err(|e| err(&e))?;
+        for (k, (seq, color)) in sequences.iter().zip(colors).enumerate() {
+            let rects: Vec<_> = bars
+                .iter()
+                .filter(|b| b.sequence == *seq)
+                .filter_map(|b| {
+                    let i = switches.iter().position(|s| *s == b.switch)? as f64;
+                    let x0 = i + 0.15 + 0.23 * k as f64;
+                    Some(Rectangle::new([(x0, y_min), (x0 + 0.21, b.off / b.on)], color.filled()))
+                })
+                .collect();
+            chart
+                .draw_series(rects)
+                .map_err(|e| err(&e))?
+                .label(format!("300 constrained vertices {seq}"))
+                .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 18, y + 6)], color.filled()));
+        }
+        let one = RGBColor(90, 90, 90);
+        chart
+            .draw_series(LineSeries::new(vec![(0.0, 1.0), (switches.len() as f64, 1.0)], one.stroke_width(2)))
             .map_err(|e| err(&e))?
-            .label(format!("300 constrained vertices {seq}"))
-            .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 18, y + 6)], color.filled()));
-    }
-    let one = RGBColor(90, 90, 90);
-    chart
-        .draw_series(LineSeries::new(vec![(0.0, 1.0), (switches.len() as f64, 1.0)], one.stroke_width(2)))
-        .map_err(|e| err(&e))?
-        .label("1x: no gain (below: slower with it)")
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], one.stroke_width(2)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 16))
-        .draw()
-        .map_err(|e| err(&e))?;
-    root.present().map_err(|e| err(&e))?;
-    drop(chart);
-    drop(root);
+            .label("1x: no gain (below: slower with it)")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], one.stroke_width(2)));
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 16))
+            .draw()
+            .map_err(|e| err(&e))?;
+        Ok(())
+    })?;
+    std::fs::write(&png, bytes).map_err(|e| format!("{}: {e}", png.display()))?;
     Ok(png)
 }
 

@@ -1,4 +1,4 @@
-//! The study's plots, each as PNG and SVG (plotters; fonts from fontconfig).
+//! The study's plots, each as PNG and SVG (plotters; the face bundled in `assets/fonts/`).
 //!
 //! In: [`StudyResults`]. Out: `pareto` (RMS error vs frame p95 time, every run,
 //! the Pareto front joined), `knobs` (one small panel a knob, each point
@@ -29,8 +29,25 @@ pub const SIZE: (u32, u32) = (1100, 720);
 /// Pixel size of the panel-per-knob figure.
 pub const KNOBS_SIZE: (u32, u32) = (1400, 1500);
 
-/// The font family of every plot (plotters' `ttf` feature finds it through fontconfig).
+/// The font family of every plot: DejaVu Sans, bundled (`assets/fonts/`) and
+/// registered with plotters on the first plot, so that a plot is drawn alike
+/// on every machine and needs no system font library.
 pub(crate) const FONT: &str = "sans-serif";
+
+/// Registers [`FONT`]'s regular and bold faces with plotters, once a process.
+fn register_fonts() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // The bytes are compiled in and parse; a failure here is a defect of the build.
+        let faces: [(FontStyle, &'static [u8]); 2] =
+            [(FontStyle::Normal, include_bytes!("../../assets/fonts/DejaVuSans.ttf")), (FontStyle::Bold, include_bytes!("../../assets/fonts/DejaVuSans-Bold.ttf"))];
+        for (style, bytes) in faces {
+            if plotters::style::register_font(FONT, style, bytes).is_err() {
+                tracing::error!("the bundled plot font ({}) does not parse: plots will have no text", style.as_str());
+            }
+        }
+    });
+}
 
 fn knob_color(k: Option<Knob>) -> RGBColor {
     match k {
@@ -103,7 +120,7 @@ fn log_range(values: impl Iterator<Item = f64>, default: (f64, f64)) -> (f64, f6
 }
 
 /// What a drawing step returns: plotters' error, in words.
-pub(crate) type Res = Result<(), String>;
+pub type Res = Result<(), String>;
 
 /// Tick text on a log axis: only mantissas 1, 2 and 5 are labelled, compactly.
 fn log_tick(v: &f64) -> String {
@@ -580,10 +597,11 @@ fn draw<DB: DrawingBackend>(plot: Plot, root: &DrawingArea<DB, Shift>, results: 
 
 /// `draw` on an RGB bitmap of `size` pixels in memory, encoded as PNG
 /// (nothing touches a file: the caller writes the bytes whole).
-pub(crate) fn png_bytes<F>(size: (u32, u32), draw: F) -> Result<Vec<u8>, String>
+pub fn png_bytes<F>(size: (u32, u32), draw: F) -> Result<Vec<u8>, String>
 where
     F: FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Res,
 {
+    register_fonts();
     let mut rgb = vec![0u8; size.0 as usize * size.1 as usize * 3];
     draw(&BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area())?;
     let image = image::RgbImage::from_raw(size.0, size.1, rgb).ok_or("the bitmap has the wrong size")?;
@@ -597,6 +615,7 @@ pub(crate) fn svg_text<F>(size: (u32, u32), draw: F) -> Result<String, String>
 where
     F: FnOnce(&DrawingArea<SVGBackend<'_>, Shift>) -> Res,
 {
+    register_fonts();
     let mut text = String::new();
     draw(&SVGBackend::with_string(&mut text, size).into_drawing_area())?;
     Ok(text)
