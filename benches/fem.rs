@@ -26,6 +26,7 @@
 //! A plain `main` (harness = false) with explicit percentiles: the one-shot
 //! phases take seconds and cannot be repeated criterion-style.
 
+use fissure::perf::reports::{AuditBar, CompliancePrecompute, ErrorFigures, FemFigures, FrameFigures, OrderingFigures};
 use fissure::fem::{
     Compliance, ComplianceStorage, ComputeOptions, ConstrainedSolver, Constraint, ConstraintKind, FemModel, FemOptions, FrameSolution, Material,
     RegionMaterials, element_stress,
@@ -59,68 +60,6 @@ fn storage_from_env() -> ComplianceStorage {
 fn rel_error(a: &[Vec3], b: &[Vec3]) -> f64 {
     let diff = a.iter().zip(b).fold(0.0_f64, |m, (x, y)| m.max((x - y).norm()));
     diff / b.iter().fold(0.0_f64, |m, x| m.max(x.norm())).max(f64::MIN_POSITIVE)
-}
-
-/// A model's figures as `target/fem-bench-cache/figures/MODEL.json` gives them (what `scripts/perf_docs.sh`
-/// reads, by name): times in seconds or milliseconds as named, memory in MB.
-#[derive(Default, serde::Serialize)]
-struct FemFigures {
-    model: String,
-    nodes: usize,
-    tets: usize,
-    /// Assembly and factor.
-    factor_total_s: f64,
-    /// `K_FF`'s factor under each fill-reducing ordering, AMD first.
-    orderings: Vec<OrderingFigures>,
-    compliance: Option<CompliancePrecompute>,
-    /// The frames at 100 and at 300 constrained vertices.
-    frames: Vec<FrameFigures>,
-    peak_rss_mb: f64,
-    error_vs_f64: Option<ErrorFigures>,
-}
-
-#[derive(serde::Serialize)]
-struct OrderingFigures {
-    ordering: String,
-    nnz_l_millions: f64,
-    exact_nnz_l_millions: f64,
-    /// This ordering's 96-column solve over AMD's (AMD's own: none).
-    solve_over_amd: Option<f64>,
-}
-
-#[derive(serde::Serialize)]
-struct CompliancePrecompute {
-    rows: usize,
-    cols: usize,
-    megabytes: f64,
-    precompute_s: f64,
-    reload_s: f64,
-}
-
-#[derive(serde::Serialize)]
-struct FrameFigures {
-    constrained: usize,
-    p50_ms: f64,
-    p95_ms: f64,
-    max_ms: f64,
-    /// The frame's floor measured in the same run (W's new entries and the cheapest dense factor), and the p95 over it.
-    floor_ms: Option<f64>,
-    p95_over_floor: Option<f64>,
-    /// The surface product's floor (its columns read once at the machine's streaming rate), the product itself,
-    /// the streaming rate, and the p95 over both floors together.
-    product_floor_ms: Option<f64>,
-    product_ms: f64,
-    stream_gb_s: Option<f64>,
-    two_floors_ms: Option<f64>,
-    p95_over_two_floors: Option<f64>,
-}
-
-#[derive(serde::Serialize)]
-struct ErrorFigures {
-    constrained: usize,
-    /// Relative, max norm, over the working region.
-    displacement: f64,
-    reaction: f64,
 }
 
 fn run(name: &str, mesh: &TetMesh, roi_pred: &dyn Fn(&Vec3) -> bool, cache: &Path, audit_only: bool) {
@@ -697,7 +636,7 @@ fn frame_audit(name: &str, solver: &mut ConstrainedSolver, near: &[u32], dir: &P
                 o.name(),
                 qh / ph
             );
-            bars.push(AuditBar { switch: o.name(), sequence: seq_name, phase: phase_name, on: ph, off: qh, p95_on: p95, p95_off: q95 });
+            bars.push(AuditBar { switch: o.name().into(), sequence: seq_name.to_string(), phase: phase_name.to_string(), on: ph, off: qh, p95_on: Some(p95), p95_off: Some(q95) });
         }
     }
     match write_audit(name, count, &bars, dir) {
@@ -705,20 +644,6 @@ fn frame_audit(name: &str, solver: &mut ConstrainedSolver, near: &[u32], dir: &P
         Err(e) => println!("audit plot not written: {e}"),
     }
     bars
-}
-
-/// One line of the frame audit: the phase the switch touches (mean ms, the
-/// median of three rounds) and the frame p95 with it on and off. The row-major
-/// solve's line has the one solve as its phase and no frame.
-#[derive(serde::Serialize)]
-struct AuditBar {
-    switch: &'static str,
-    sequence: &'static str,
-    phase: &'static str,
-    on: f64,
-    off: f64,
-    p95_on: f64,
-    p95_off: f64,
 }
 
 /// Writes `DIR/NAME_audit.csv` and `.png`: for each switch and frame
@@ -729,7 +654,7 @@ fn write_audit(name: &str, count: usize, bars: &[AuditBar], dir: &Path) -> Resul
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let mut csv = String::from("optimisation,sequence,phase,phase_on_ms,phase_off_ms,speedup,frame_p95_on_ms,frame_p95_off_ms\n");
     for b in bars {
-        csv += &format!("{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4}\n", b.switch, b.sequence, b.phase, b.on, b.off, b.off / b.on, b.p95_on, b.p95_off);
+        csv += &format!("{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4}\n", b.switch, b.sequence, b.phase, b.on, b.off, b.off / b.on, b.p95_on.unwrap_or(f64::NAN), b.p95_off.unwrap_or(f64::NAN));
     }
     let csv_path = dir.join(format!("{name}_audit.csv"));
     std::fs::write(&csv_path, csv).map_err(|e| format!("{}: {e}", csv_path.display()))?;
@@ -739,8 +664,8 @@ fn write_audit(name: &str, count: usize, bars: &[AuditBar], dir: &Path) -> Resul
         root.fill(&WHITE).map_err(|e| err(&e))?;
         let mut switches: Vec<&str> = Vec::new();
         for b in bars {
-            if !switches.contains(&b.switch) {
-                switches.push(b.switch);
+            if !switches.contains(&b.switch.as_str()) {
+                switches.push(&b.switch);
             }
         }
         let sequences = ["held", "growing", "sliding"];
@@ -806,13 +731,13 @@ fn write_audit(name: &str, count: usize, bars: &[AuditBar], dir: &Path) -> Resul
 
 /// `-- audit`: one 96-column solve of the model's factor with the row-major
 /// solve and with faer's, alternating, best of three each.
-fn row_major_audit(model: &FemModel) -> Option<AuditBar> {
+fn row_major_audit(model: &FemModel) -> Vec<AuditBar> {
     let k = model.stiffness();
     let mut chol = match SparseCholesky::new(k, FillOrdering::Best, &|d| model.dofs().name(d)) {
         Ok(c) => c,
         Err(e) => {
             println!("audit row-major-solve: factor failed: {e}");
-            return None;
+            return Vec::new();
         }
     };
     let mut rhs = faer::Mat::<f64>::zeros(k.dim, 96);
@@ -837,18 +762,18 @@ fn row_major_audit(model: &FemModel) -> Option<AuditBar> {
         best[1],
         best[1] / best[0]
     );
-    pruned_solve_audit(model, &chol);
-    Some(AuditBar { switch: "row-major-solve", sequence: "one 96-column solve", phase: "solve", on: best[0], off: best[1], p95_on: f64::NAN, p95_off: f64::NAN })
+    let solve = AuditBar { switch: "row-major-solve".into(), sequence: "one 96-column solve".into(), phase: "solve".into(), on: best[0], off: best[1], p95_on: None, p95_off: None };
+    std::iter::once(solve).chain(pruned_solve_audit(model, &chol)).collect()
 }
 
 /// `-- audit`: one batch of the compliance's precompute (the unit columns of
 /// the 32 free surface nodes nearest the highest one, 96 right-hand sides)
 /// solved pruned along the elimination tree and in full, alternating, best
 /// of three each; the answers are compared bit for bit.
-fn pruned_solve_audit(model: &FemModel, chol: &SparseCholesky) {
+fn pruned_solve_audit(model: &FemModel, chol: &SparseCholesky) -> Option<AuditBar> {
     let positions = &model.mesh().positions;
     let free: Vec<u32> = model.surface().vertices.iter().copied().filter(|&n| !model.is_fixed(n)).collect();
-    let Some(&top) = free.iter().max_by(|a, b| positions[**a as usize].z.total_cmp(&positions[**b as usize].z)) else { return };
+    let &top = free.iter().max_by(|a, b| positions[**a as usize].z.total_cmp(&positions[**b as usize].z))?;
     let mut near = free.clone();
     near.sort_by(|a, b| (positions[*a as usize] - positions[top as usize]).norm().total_cmp(&(positions[*b as usize] - positions[top as usize]).norm()));
     let first: Vec<usize> = near.iter().take(32).filter_map(|&n| model.dofs().dof(n)).collect();
@@ -881,6 +806,8 @@ fn pruned_solve_audit(model: &FemModel, chol: &SparseCholesky) {
         best[1] / best[0],
         if same { "the same bits" } else { "DIFFER" }
     );
+    let phase = if same { "unit columns (the same bits)" } else { "unit columns (answers DIFFER)" };
+    Some(AuditBar { switch: "pruned-unit-columns".into(), sequence: "one batch of 32 nodes' unit columns".into(), phase: phase.into(), on: best[0], off: best[1], p95_on: None, p95_off: None })
 }
 
 fn main() {

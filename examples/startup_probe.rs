@@ -7,53 +7,12 @@
 //! first frame was done, which frames took over 50 ms (waiting for columns),
 //! and when the last column was final. `--json PATH` also writes the figures
 //! as JSON ([`StartupReport`]), which `scripts/perf_docs.sh` reads by name.
+use fissure::perf::reports::{BuildFigures, ComplianceFigures, EarlyStartFigures, StartupReport};
 use fissure::scenario::Scenario;
 use fissure::sim::poses::TrajectoryPoses;
 use fissure::sim::{BuildOptions, Pipeline};
 use std::path::Path;
 use std::time::Instant;
-
-/// What the probe measured: the build's figures when it waited for every column, the early start's when it did
-/// not (`--background`). Times in seconds from the probe's start, memory in MB (2^20 bytes).
-#[derive(serde::Serialize)]
-struct StartupReport {
-    scenario: String,
-    build: Option<BuildFigures>,
-    early_start: Option<EarlyStartFigures>,
-}
-
-#[derive(serde::Serialize)]
-struct BuildFigures {
-    /// When the compliance began (the model and the factor were done).
-    before_compliance_s: f64,
-    build_s: f64,
-    peak_rss_mb: f64,
-    compliance: ComplianceFigures,
-}
-
-#[derive(serde::Serialize)]
-struct ComplianceFigures {
-    rows: usize,
-    cols: usize,
-    megabytes: f64,
-    compute_s: f64,
-    load_s: f64,
-    from_cache: bool,
-}
-
-#[derive(serde::Serialize)]
-struct EarlyStartFigures {
-    build_returned_s: f64,
-    first_frame_s: f64,
-    frames: usize,
-    motion_done_s: f64,
-    slowest_frame_ms: f64,
-    frames_over_50ms: usize,
-    /// When the last column was final.
-    columns_final_s: f64,
-    peak_rss_mb: f64,
-    compliance: ComplianceFigures,
-}
 
 fn compliance_figures(pipeline: &Pipeline) -> ComplianceFigures {
     let cs = pipeline.solver().compliance().stats();

@@ -18,6 +18,7 @@ pub mod linalg;
 pub mod math;
 pub mod meminfo;
 pub mod mesh;
+pub mod perf;
 pub mod render;
 pub mod scenario;
 pub mod sim;

@@ -19,7 +19,7 @@ use crate::render::tethers::{
     ARTERY_RED, BAND_ALPHA, BAND_RADIUS_M, BAND_WHITE, TORN_END, VEIN_BLUE, VesselLegend, VesselLegendRow, vessel_color,
 };
 use crate::scenario::{Tethers, VesselKind};
-use crate::sim::tethers::{LinkEnd, LinkOwner, LinkState, TetherEvent, TetherFrame, TetherStage};
+use crate::sim::tethers::{LinkEnd, LinkOwner, LinkState, TetherEvent, TetherFrame, TetherKind, TetherStage};
 use crate::ui::tethers::{EventLine, MAX_EVENT_LINES, TetherPanel, VesselReadout};
 
 /// One link as the frame left it.
@@ -163,11 +163,11 @@ pub fn panel(info: &Tethers, snapshot: &TetherSnapshot, frame: Option<&TetherFra
     p.event_count = snapshot.events.len();
     let first = snapshot.events.len().saturating_sub(MAX_EVENT_LINES);
     for e in snapshot.events.get(first..).unwrap_or(&[]) {
-        let band = e.what == "band";
+        let band = e.what == TetherKind::Band;
         let noun = if band {
             "band".to_string()
         } else {
-            info.vessels.iter().find(|v| v.name == e.tether).map_or(e.what, |v| v.kind.word()).to_string()
+            info.vessels.iter().find(|v| v.name == e.tether).map_or("vessel", |v| v.kind.word()).to_string()
         };
         p.events.push(EventLine {
             time_s: e.time_s,
@@ -237,14 +237,14 @@ mod tests {
     #[test]
     fn panel_counts_bands_and_names_events_by_kind() {
         let info = scene();
-        let event = |what: &'static str, tether: &str, kind| TetherEvent { time_s: 1.2, frame: 120, kind, tether: tether.into(), what, stretch: 1.5, tension_n: 0.051 };
+        let event = |what: TetherKind, tether: &str, kind| TetherEvent { time_s: 1.2, frame: 120, kind, tether: tether.into(), what, stretch: 1.5, tension_n: 0.051 };
         let snapshot = TetherSnapshot {
             links: vec![
                 link(LinkOwner::Vessel { vessel: 0, segment: 0 }, LinkState::Torn, 1.5),
                 link(LinkOwner::Band(0), LinkState::Intact, 1.0),
                 link(LinkOwner::Band(1), LinkState::Cut, 1.0),
             ],
-            events: vec![event("vessel", "superficial Sylvian vein", LinkState::Torn), event("band", "trabecula 3", LinkState::Cut)],
+            events: vec![event(TetherKind::Vessel, "superficial Sylvian vein", LinkState::Torn), event(TetherKind::Band, "trabecula 3", LinkState::Cut)],
         };
         let p = panel(&info, &snapshot, None);
         assert_eq!((p.bands_intact, p.bands_torn, p.bands_cut), (1, 0, 1));

@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use fissure::collision::bench::{self, BenchSurface};
+use fissure::perf::reports::{CollisionReport, CollisionRow};
 
 #[derive(Debug, clap::Args)]
 pub struct CollisionArgs {
@@ -29,32 +30,15 @@ pub struct CollisionArgs {
     pub json: Option<PathBuf>,
 }
 
-/// The benchmark's rows as `--json` writes them.
-#[derive(serde::Serialize)]
-struct CollisionReport<'a> {
-    /// The GPU adapter of the `gpu` rows ("none" without one).
-    device: String,
-    rows: Vec<CollisionRow<'a>>,
-}
-
-#[derive(serde::Serialize)]
-struct CollisionRow<'a> {
-    surface: &'a str,
-    triangles: usize,
-    nodes_a_face: u32,
-    backend: &'a str,
-    p50_ms: f64,
-    p95_ms: f64,
-    cast_p50_ms: f64,
-    rest_p50_ms: f64,
-    candidates: usize,
-    answer_hash: &'a str,
-}
-
 pub fn collision(args: &CollisionArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.frames > 0, "--frames must be at least 1");
     let mesh_dir = args.mesh_dir.clone().unwrap_or_else(fissure::mesh::brain::shipped_dir);
-    let surfaces = bench::standard_surfaces(&mesh_dir, args.only.as_deref(), &mut |n| println!("note: {n}")).map_err(anyhow::Error::msg)?;
+    let mut notes = Vec::new();
+    let surfaces = bench::standard_surfaces(&mesh_dir, args.only.as_deref(), &mut |n| {
+        println!("note: {n}");
+        notes.push(n);
+    })
+    .map_err(anyhow::Error::msg)?;
     anyhow::ensure!(!surfaces.is_empty(), "no case matches --only {:?}", args.only);
     let cases: Vec<(&BenchSurface, u32)> = surfaces.iter().flat_map(|(s, n)| n.iter().map(move |&k| (s, k))).collect();
     println!("collision stage, {} timed frames a case after {} warm-up; {} CPU threads in rayon's pool", args.frames, args.warmup, rayon::current_num_threads());
@@ -66,7 +50,10 @@ pub fn collision(args: &CollisionArgs) -> anyhow::Result<()> {
             println!("{line}");
             table.push(line);
         }
-        Err(note) => eprintln!("note: {note}"),
+        Err(note) => {
+            eprintln!("note: {note}");
+            notes.push(note);
+        }
     });
     let footer = format!("GPU adapter: {}", bench::device(&rows));
     println!("{footer}");
@@ -77,19 +64,20 @@ pub fn collision(args: &CollisionArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.json {
         let report = CollisionReport {
             device: bench::device(&rows),
+            notes,
             rows: rows
                 .iter()
                 .map(|r| CollisionRow {
-                    surface: &r.surface,
+                    surface: r.surface.clone(),
                     triangles: r.triangles,
                     nodes_a_face: r.nodes_a_face,
-                    backend: &r.backend,
+                    backend: r.backend.clone(),
                     p50_ms: r.p50_ms,
                     p95_ms: r.p95_ms,
                     cast_p50_ms: r.cast_p50_ms,
                     rest_p50_ms: r.rest_p50_ms,
                     candidates: r.candidates,
-                    answer_hash: &r.answer_hash,
+                    answer_hash: r.answer_hash.clone(),
                 })
                 .collect(),
         };

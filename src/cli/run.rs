@@ -64,22 +64,6 @@ pub struct WindowArgs {
     pub report: Option<PathBuf>,
 }
 
-/// The figures of a window session, as `--report` writes them.
-#[derive(Debug, serde::Serialize)]
-struct WindowReport<'a> {
-    presented: u64,
-    wall_s: f64,
-    fps: f64,
-    adapter: &'a str,
-    sim_frames: u64,
-    simulated_s: f64,
-    step_p50_ms: f64,
-    step_p95_ms: f64,
-    step_max_ms: f64,
-    failed_frames: u64,
-    final_state: &'a str,
-}
-
 /// The default scene's path: `config/sylvian.ron` under the working directory,
 /// else beside the crate (so `cargo run` works from anywhere in the checkout).
 pub fn default_scenario() -> PathBuf {
@@ -140,18 +124,18 @@ fn report_window(summary: &fissure::app::window::WindowSummary, names: &[String]
     steps.sort_by(f64::total_cmp);
     let pct = |q: f64| if steps.is_empty() { 0.0 } else { steps[((steps.len() - 1) as f64 * q).round() as usize] };
     if let Some(file) = report {
-        let figures = WindowReport {
+        let figures = fissure::perf::reports::WindowReport {
             presented: summary.presented,
             wall_s: summary.wall_s,
             fps: summary.fps(),
-            adapter: &summary.adapter,
+            adapter: summary.adapter.clone(),
             sim_frames: sim.frames,
             simulated_s: sim.time_s,
             step_p50_ms: pct(0.5),
             step_p95_ms: pct(0.95),
             step_max_ms: pct(1.0),
             failed_frames: sim.failed_frames,
-            final_state: &sim.state_hash,
+            final_state: sim.state_hash.clone(),
         };
         let text = serde_json::to_string_pretty(&figures).context("the window's report")?;
         fissure::fsio::write_atomic(file, text.as_bytes()).with_context(|| format!("writing the window's report {}", file.display()))?;

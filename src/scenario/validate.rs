@@ -359,7 +359,7 @@ pub struct NamedView {
 }
 
 /// Pass/fail limits on what a run may do to the tissue (scenario `integrity`).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct IntegrityLimits {
     /// Deepest a surface vertex may end a frame inside a blade, mm.
     pub max_penetration_mm: f64,

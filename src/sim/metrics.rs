@@ -9,7 +9,7 @@
 
 use crate::math::Vec3;
 use super::report::{FrameReport, PASCALS_PER_MMHG, RETRACTION_DANGER_MMHG, StageId};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::fs::File;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
@@ -207,7 +207,7 @@ pub fn column_word(name: &str) -> String {
 }
 
 /// p50 / p95 / max of a sample, milliseconds.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Percentiles {
     pub p50_ms: f64,
     pub p95_ms: f64,
@@ -232,7 +232,7 @@ fn nearest_rank(sorted: &[f64], p: f64) -> f64 {
 }
 
 /// Per-spatula summary numbers.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct SpatulaSummary {
     pub name: String,
     pub peak_force_n: f64,
@@ -249,7 +249,7 @@ pub struct SpatulaSummary {
 }
 
 /// `summary.json`.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     pub scenario: String,
     pub frames: u64,
@@ -292,7 +292,7 @@ pub struct Summary {
 }
 
 /// The worst the tissue came to over a run, each the largest over its frames.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Worst {
     pub max_displacement_mm: f64,
     /// Surface vertices pulled through a blade in one frame.
@@ -305,7 +305,7 @@ pub struct Worst {
 }
 
 /// Ischemia over a run: areas, dose, perfusion.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct IschemiaSummary {
     pub mean_arterial_pressure_mmhg: f64,
     /// The largest area over each risk level during the run.
@@ -323,7 +323,7 @@ pub struct IschemiaSummary {
 }
 
 /// One risk level over a run.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct RiskLevelSummary {
     /// `watch` (1/6), `at_risk` (1/2), `likely` (5/6).
     pub level: String,
@@ -336,7 +336,7 @@ pub struct RiskLevelSummary {
 }
 
 /// One blade's share of the area at risk.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct BladeRisk {
     pub name: String,
     pub max_area_at_risk_mm2: f64,
@@ -344,7 +344,7 @@ pub struct BladeRisk {
 }
 
 /// A vessel over the run.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct VesselSummary {
     pub name: String,
     /// `artery`, `vein` or `bridging vein`.
@@ -357,7 +357,7 @@ pub struct VesselSummary {
 }
 
 /// The arachnoid bands at the end of a run.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct BandSummary {
     pub total: u32,
     pub intact: u32,
@@ -368,7 +368,7 @@ pub struct BandSummary {
 }
 
 /// The size of a run's precomputed compliance.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct ComplianceSummary {
     /// Surface vertices with stored rows (the working region), of all surface vertices.
     pub rows: usize,
@@ -381,7 +381,7 @@ pub struct ComplianceSummary {
 pub use crate::scenario::IntegrityLimits;
 
 /// The verdict on a run's integrity.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Integrity {
     /// True when no limit was crossed.
     pub passed: bool,

@@ -13,7 +13,7 @@ pub const PASCALS_PER_MMHG: f64 = 133.322_387_415;
 pub const RETRACTION_DANGER_MMHG: f64 = 20.0;
 
 /// The pipeline's stages, in the order a frame runs them.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum StageId {
     /// Rays from the source nodes, pairs, His-flag culling, enforced displacements.

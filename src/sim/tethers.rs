@@ -83,7 +83,7 @@ impl LinkEnd {
 }
 
 /// A link's state.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum LinkState {
     Intact,
@@ -104,8 +104,16 @@ pub struct Link {
     pub tension: f64,
 }
 
+/// Which kind of tether a link belongs to (`vessel` or `band` in `summary.json`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TetherKind {
+    Vessel,
+    Band,
+}
+
 /// What happened to a tether.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TetherEvent {
     pub time_s: f64,
     pub frame: u64,
@@ -113,8 +121,7 @@ pub struct TetherEvent {
     pub kind: LinkState,
     /// The vessel's or band's name.
     pub tether: String,
-    /// `vessel` or `band`.
-    pub what: &'static str,
+    pub what: TetherKind,
     /// Its stretch and tension when it happened.
     pub stretch: f64,
     pub tension_n: f64,
@@ -264,7 +271,7 @@ impl TetherStage {
                     self.links[k].state = LinkState::Cut;
                     solver.set_tether_enabled(k, false);
                     let name = self.tethers.bands[b].name.clone();
-                    let event = TetherEvent { time_s, frame, kind: LinkState::Cut, tether: name, what: "band", stretch, tension_n: tension };
+                    let event = TetherEvent { time_s, frame, kind: LinkState::Cut, tether: name, what: TetherKind::Band, stretch, tension_n: tension };
                     self.frame.events.push(event.clone());
                     self.events.push(event);
                     cut += 1;
@@ -291,11 +298,11 @@ impl TetherStage {
             let (torn, name, what) = match l.owner {
                 LinkOwner::Vessel { vessel, .. } => {
                     let v = &self.tethers.vessels[vessel];
-                    (l.stretch >= v.rupture_stretch, &v.name, "vessel")
+                    (l.stretch >= v.rupture_stretch, &v.name, TetherKind::Vessel)
                 }
                 LinkOwner::Band(b) => {
                     let band = &self.tethers.bands[b];
-                    (l.tension >= band.strength, &band.name, "band")
+                    (l.tension >= band.strength, &band.name, TetherKind::Band)
                 }
             };
             if torn {
@@ -354,7 +361,7 @@ mod tests {
 
     #[test]
     fn a_frame_copy_is_equal_and_keeps_its_buffers() {
-        let event = TetherEvent { time_s: 0.5, frame: 49, kind: LinkState::Torn, tether: "band".into(), what: "band", stretch: 1.2, tension_n: 0.05 };
+        let event = TetherEvent { time_s: 0.5, frame: 49, kind: LinkState::Torn, tether: "band".into(), what: TetherKind::Band, stretch: 1.2, tension_n: 0.05 };
         let a = TetherFrame { vessel_stretch: vec![1.1, 1.02], vessel_torn: vec![false, true], bands_intact: 3, bands_torn: 1, bands_cut: 2, max_band_tension_n: 0.04, events: vec![event] };
         let mut b = TetherFrame { vessel_stretch: Vec::with_capacity(8), ..TetherFrame::default() };
         let buffer = b.vessel_stretch.as_ptr();

@@ -10,7 +10,7 @@ use crate::common::source::{code_only, line_of, paths_after, read, rust_files, w
 
 /// The code map's layers, bottom up: a module uses only modules of lower
 /// layers, or its own.
-const LAYERS: [(&str, u8); 17] = [
+const LAYERS: [(&str, u8); 18] = [
     ("math", 1),
     ("fsio", 1),
     ("meminfo", 1),
@@ -22,6 +22,7 @@ const LAYERS: [(&str, u8); 17] = [
     ("fem", 3),
     ("sim", 4),
     ("study", 5),
+    ("perf", 5),
     ("input", 5),
     ("render", 5),
     ("ui", 6),

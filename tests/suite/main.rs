@@ -48,6 +48,7 @@ mod interrupt;
 mod layers;
 mod mesh_io;
 mod mesh_parsers_fuzz;
+mod perf_page;
 mod performance_doc;
 mod phantom;
 mod pipeline_block;
