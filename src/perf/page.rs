@@ -3,7 +3,9 @@
 //! section cannot be measured by the script: it is carried through from the page as it was.
 
 use super::record::{FEM_MODELS, PerfError, PerfRecord};
-use super::summary::{NOT_RUN_FAST, Replays, WINDOW_COMMAND, build_of, cholmod_not_run, early_of, fem_command, frame_at, need, summary_rows, window_not_run};
+use super::summary::{
+    NOT_RUN_FAST, Replays, WINDOW_COMMAND, build_of, cholmod_not_run, early_of, errors, fem_command, frame_at, need, orderings, precompute, summary_rows, window_not_run,
+};
 use std::fmt::Write;
 
 pub const SUMMARY_BEGIN: &str = "<!-- performance summary: begin -->";
@@ -378,11 +380,7 @@ constrained vertices, the W factor with their cube.
 /// One model's column of the fem table (the first column's cells say more).
 fn fem_column(f: &super::reports::FemFigures, first: bool) -> Result<Vec<String>, PerfError> {
     let m = &f.model;
-    let c = f.compliance.as_ref().ok_or_else(|| PerfError::new(std::path::Path::new(&format!("{m}.json")), "no compliance figures"))?;
-    let [amd, nd, ..] = &f.orderings[..] else {
-        return Err(PerfError::new(std::path::Path::new(&format!("{m}.json")), "not two orderings (AMD, METIS)"));
-    };
-    let e = f.error_vs_f64.as_ref().ok_or_else(|| PerfError::new(std::path::Path::new(&format!("{m}.json")), "no f32 against f64 error"))?;
+    let (c, (amd, nd), e) = (precompute(f)?, orderings(f)?, errors(f)?);
     let (f100, f300) = (frame_at(f, 100)?, frame_at(f, 300)?);
     let solve = need(nd.solve_over_amd, m, "METIS's solve over AMD's")?;
     let orderings = format!("{:.2} ({:.2}) -> {:.2} ({:.2}) M; ", amd.nnz_l_millions, amd.exact_nnz_l_millions, nd.nnz_l_millions, nd.exact_nnz_l_millions);

@@ -492,19 +492,19 @@ fn fem_rows(r: &PerfRecord, out: &mut String) -> Result<(), PerfError> {
     Ok(())
 }
 
-fn precompute(f: &FemFigures) -> Result<&super::reports::CompliancePrecompute, PerfError> {
+pub fn precompute(f: &FemFigures) -> Result<&super::reports::CompliancePrecompute, PerfError> {
     f.compliance.as_ref().ok_or_else(|| PerfError::new(Path::new(&format!("{}.json", f.model)), "no compliance figures"))
 }
 
 /// AMD's and METIS's entries of L, M.
-fn orderings(f: &FemFigures) -> Result<(&super::reports::OrderingFigures, &super::reports::OrderingFigures), PerfError> {
+pub fn orderings(f: &FemFigures) -> Result<(&super::reports::OrderingFigures, &super::reports::OrderingFigures), PerfError> {
     match &f.orderings[..] {
         [amd, nd, ..] => Ok((amd, nd)),
         _ => Err(PerfError::new(Path::new(&format!("{}.json", f.model)), "not two orderings (AMD, METIS)")),
     }
 }
 
-fn errors(f: &FemFigures) -> Result<&super::reports::ErrorFigures, PerfError> {
+pub fn errors(f: &FemFigures) -> Result<&super::reports::ErrorFigures, PerfError> {
     f.error_vs_f64.as_ref().ok_or_else(|| PerfError::new(Path::new(&format!("{}.json", f.model)), "no f32 against f64 error"))
 }
 
