@@ -6,7 +6,7 @@
 //! `time_step_s`; `--free-running`: as fast as they go) and says when its
 //! first frame was done, which frames took over 50 ms (waiting for columns),
 //! and when the last column was final. `--json PATH` also writes the figures
-//! as JSON ([`StartupReport`]), which `scripts/perf_docs.sh` reads by name.
+//! as JSON ([`StartupReport`], the type the performance page reads it as).
 use fissure::perf::reports::{BuildFigures, ComplianceFigures, EarlyStartFigures, StartupReport};
 use fissure::scenario::Scenario;
 use fissure::sim::poses::TrajectoryPoses;

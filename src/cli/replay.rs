@@ -109,7 +109,7 @@ pub fn run(args: ReplayArgs<'_>) -> anyhow::Result<Summary> {
 }
 
 /// What a replay prints: frame times a stage, each spatula's force and pressure, the tissue's ischemia, then
-/// [`print_model`]. `scripts/perf_docs.sh` reads these lines; `summary.json` carries the same figures.
+/// [`print_model`], for a person; `summary.json` carries the same figures for programs (the performance page reads it).
 fn print_summary(scenario: &Scenario, summary: &Summary, out_dir: &Path, vtk: bool) {
     println!("{}: {} frames ({:.2} s simulated){}", scenario.name, summary.frames, summary.simulated_s, if summary.interrupted { ", INTERRUPTED" } else { "" });
     println!("  frame time p50 {:.3} ms, p95 {:.3} ms, max {:.3} ms", summary.frame.p50_ms, summary.frame.p95_ms, summary.frame.max_ms);
