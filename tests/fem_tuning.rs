@@ -19,7 +19,7 @@ use fissure::fem::{Compliance, ComplianceStorage, ConstrainedSolver, Constraint,
 use fissure::math::Vec3;
 
 /// The switches documented as leaving every bit unchanged.
-const BITWISE: [Optimisation; 9] = [
+const BITWISE: [Optimisation; 10] = [
     Optimisation::Avx2Product,
     Optimisation::FusedColumns,
     Optimisation::RowChunks,
@@ -29,6 +29,7 @@ const BITWISE: [Optimisation; 9] = [
     Optimisation::HugePages,
     Optimisation::CandidateScreen,
     Optimisation::KeptRowPairs,
+    Optimisation::ParallelProduct,
 ];
 
 /// The compliance's ROI x ROI entries and the surface displacements of a

@@ -40,11 +40,14 @@ pub enum Optimisation {
     /// A taut tether's compliance read from its own columns over the stored rows, made once from its nodes'
     /// (`src/fem/constrained/tethers.rs`; off: node by node from their 3x3 blocks, which differs in the last bits).
     TetherColumns,
+    /// The surface product split at one row over two threads (`src/fem/compliance/product.rs`; off: one thread, same
+    /// bits).
+    ParallelProduct,
 }
 
 impl Optimisation {
     /// Every switch with its name in `FISSURE_FEM_OFF`, in declaration order.
-    pub const ALL: [(Optimisation, &'static str); 11] = [
+    pub const ALL: [(Optimisation, &'static str); 12] = [
         (Optimisation::Avx2Product, "avx2-product"),
         (Optimisation::FusedColumns, "fused-columns"),
         (Optimisation::RowChunks, "row-chunks"),
@@ -56,6 +59,7 @@ impl Optimisation {
         (Optimisation::CandidateScreen, "candidate-screen"),
         (Optimisation::KeptRowPairs, "kept-row-pairs"),
         (Optimisation::TetherColumns, "tether-columns"),
+        (Optimisation::ParallelProduct, "parallel-product"),
     ];
 
     /// Its name in `FISSURE_FEM_OFF`.

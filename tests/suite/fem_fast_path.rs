@@ -184,6 +184,12 @@ fn surface_product_reuses_gathered_rows_and_matches_the_block_sum() {
                 c.accumulate(&forces, &mut chunked, &mut fissure::fem::ProductWorkspace::with_chunk_rows(chunk));
                 assert!(u == chunked, "{storage:?} frame {frame}: chunks of {chunk} rows change the bits");
             }
+            // Split over two threads anywhere (in a component's ROI rows, its other rows, at their seams).
+            for at in [1, 5, cols / 2, cols - 1, cols, cols + 3, rows - 1] {
+                let mut split = vec![Vec3::new(1e-3, 0.0, -2e-3); rows];
+                c.accumulate(&forces, &mut split, &mut fissure::fem::ProductWorkspace::with_split_row(at));
+                assert!(u == split, "{storage:?} frame {frame}: split at row {at} changes the bits");
+            }
             let scale = forces.iter().map(|f| f.1.norm()).sum::<f64>().max(1.0) * (0..rows).map(|r| c.product_block(r, 0).norm()).fold(0.0, f64::max);
             for (r, ur) in u.iter().enumerate() {
                 let mut expected = Vec3::new(1e-3, 0.0, -2e-3);

@@ -42,7 +42,7 @@ impl Compliance {
                 let t = Instant::now();
                 workspace.gathered = workspace.rows64.prepare(&region, layout, forces, workspace.tuning.enabled(Optimisation::KeptProductRows));
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows64.rows, tuning: workspace.tuning }, u, &mut workspace.acc, chunk)
+                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows64.rows, tuning: workspace.tuning }, u, &mut workspace.acc, chunk, workspace.split_at)
             }
             Values::F32(d) => {
                 let region = |k: usize| {
@@ -52,7 +52,7 @@ impl Compliance {
                 let t = Instant::now();
                 workspace.gathered = workspace.rows32.prepare(&region, layout, forces, workspace.tuning.enabled(Optimisation::KeptProductRows));
                 workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows32.rows, tuning: workspace.tuning }, u, &mut workspace.acc, chunk)
+                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows32.rows, tuning: workspace.tuning }, u, &mut workspace.acc, chunk, workspace.split_at)
             }
         }
     }
@@ -82,8 +82,8 @@ impl Entry for f32 {
 /// strided read once. Rows of columns no longer forced are reused. With another compliance (key) it starts over.
 #[derive(Debug, Default)]
 pub struct ProductWorkspace {
-    /// Partial sums (9 f64 a row of a chunk).
-    acc: Vec<f64>,
+    /// Partial sums (9 f64 a row of a chunk), one set a thread.
+    acc: [Vec<f64>; 2],
     rows32: RowStore<f32>,
     rows64: RowStore<f64>,
     key: [u8; 32],
@@ -91,6 +91,8 @@ pub struct ProductWorkspace {
     gather_seconds: f64,
     /// Rows a chunk of the product (0: [`ROW_CHUNK`]).
     chunk_rows: usize,
+    /// The row the product is split at whatever its size (tests; `None`: as [`split_row`] says).
+    split_at: Option<usize>,
     /// The optimisations the product uses (from when the workspace was made).
     pub(crate) tuning: Tuning,
 }
@@ -106,6 +108,13 @@ impl ProductWorkspace {
     #[doc(hidden)]
     pub fn with_chunk_rows(rows: usize) -> Self {
         Self { chunk_rows: rows.max(1), ..Self::default() }
+    }
+
+    /// A workspace whose product is split over two threads at row `row` whatever its size, for tests that the
+    /// split leaves every bit (a row out of range: not split).
+    #[doc(hidden)]
+    pub fn with_split_row(row: usize) -> Self {
+        Self { split_at: Some(row), ..Self::default() }
     }
 
     fn chunk(&self) -> usize {
@@ -125,7 +134,7 @@ impl ProductWorkspace {
 
     /// Bytes reserved (partial sums, kept and spare rows): flat once the frames' force sets have been seen.
     pub fn bytes(&self) -> usize {
-        8 * self.acc.capacity() + self.rows32.bytes() + self.rows64.bytes()
+        8 * (self.acc[0].capacity() + self.acc[1].capacity()) + self.rows32.bytes() + self.rows64.bytes()
     }
 }
 
@@ -312,11 +321,15 @@ fn upper_pattern(f: &Vec3) -> [f64; 9] {
 /// together ([`add_columns`]) and those whose diagonal falls inside go one by one, so every row sums its forces
 /// in ascending column order. No fused multiply-add: SIMD and scalar builds give the same bits.
 #[inline(always)]
-fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
+fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize, window: [usize; 2]) {
     let Product { region, layout, forces, rows, tuning } = p;
     let fused = tuning.enabled(Optimisation::FusedColumns);
     acc.clear();
     acc.resize(9 * chunk, 0.0);
+    // `u` holds rows `window[0]..window[1]`; each range below is clipped to them (a row's sums do not depend on
+    // where its chunk starts).
+    let clip = |a: usize, b: usize| (a.max(window[0]), b.min(window[1]));
+    let w0 = window[0];
     for (k, s) in layout.spans.iter().enumerate() {
         let f_lo = forces.partition_point(|f| f.0 < s[0]);
         let f_hi = forces.partition_point(|f| f.0 < s[1]);
@@ -329,9 +342,9 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
         let fk = &forces[f_lo..f_hi];
         let rows_k = &rows[f_lo..f_hi];
         // Lower part, ROI rows: columns c <= r0 cover the chunk, r0 < c < r1 its rows from c on.
-        let mut r0 = s[0];
-        while r0 < s[1] {
-            let r1 = (r0 + chunk).min(s[1]);
+        let (mut r0, end) = clip(s[0], s[1]);
+        while r0 < end {
+            let r1 = (r0 + chunk).min(end);
             let (len, out) = zeroed_partials(acc, r1 - r0);
             let n_full = fk.partition_point(|f| f.0 <= r0);
             let n_part = fk.partition_point(|f| f.0 < r1);
@@ -349,13 +362,13 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
                 let o = 9 * col_off(c);
                 add_scaled_runs::<T, 1>(&mut out[9 * (c - r0)..], [&v[o..o + 9 * (r1 - c)]], [lower_pattern(&f)]);
             }
-            flush_lower(&mut u[r0..r1], out);
+            flush_lower(&mut u[r0 - w0..r1 - w0], out);
             r0 = r1;
         }
         // Lower part, the component's other rows: every column covers every chunk.
-        let mut r0 = s[2];
-        while r0 < s[3] {
-            let r1 = (r0 + chunk).min(s[3]);
+        let (mut r0, end) = clip(s[2], s[3]);
+        while r0 < end {
+            let r1 = (r0 + chunk).min(end);
             let (len, out) = zeroed_partials(acc, r1 - r0);
             add_columns(
                 out,
@@ -368,19 +381,24 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
                 },
                 |i| lower_pattern(&fk[i].1),
             );
-            flush_lower(&mut u[r0..r1], out);
+            flush_lower(&mut u[r0 - w0..r1 - w0], out);
             r0 = r1;
         }
-        add_upper(fk, rows_k, s[0], u, acc, chunk, fused);
+        let (lo, top) = clip(s[0], fk[fk.len() - 1].0);
+        if lo < top {
+            add_upper(fk, rows_k, s[0], [lo, top], &mut u[lo - w0..], acc, chunk, fused);
+        }
     }
 }
 
-/// The upper part of one component's product (ROI rows `s0 <= i < c` of each forced column `c`) from `rows_k`.
+/// The upper part of one component's product (ROI rows `s0 <= i < c` of each forced column `c`) from `rows_k`,
+/// over rows `range` (within `s0..` the last forced column); `u` starts at row `range[0]`.
 #[inline(always)]
-fn add_upper<T: Entry>(fk: &[(usize, Vec3)], rows_k: &[Vec<T>], s0: usize, u: &mut [Vec3], acc: &mut [f64], chunk: usize, fused: bool) {
+#[allow(clippy::too_many_arguments)]
+fn add_upper<T: Entry>(fk: &[(usize, Vec3)], rows_k: &[Vec<T>], s0: usize, range: [usize; 2], u: &mut [Vec3], acc: &mut [f64], chunk: usize, fused: bool) {
     // Columns r0 < c < r1 cover [r0, c); columns c >= r1 the whole chunk.
-    let top = fk[fk.len() - 1].0;
-    let mut r0 = s0;
+    let [mut r0, top] = range;
+    let w0 = range[0];
     while r0 < top {
         let r1 = (r0 + chunk).min(top);
         let (len, out) = zeroed_partials(acc, r1 - r0);
@@ -392,7 +410,7 @@ fn add_upper<T: Entry>(fk: &[(usize, Vec3)], rows_k: &[Vec<T>], s0: usize, u: &m
         }
         let (fu, ru) = (&fk[n_part..], &rows_k[n_part..]);
         add_columns(out, fu.len(), fused, |i| &ru[i][o..o + len], |i| upper_pattern(&fu[i].1));
-        for (ui, a) in u[r0..r1].iter_mut().zip(out.chunks_exact(9)) {
+        for (ui, a) in u[r0 - w0..r1 - w0].iter_mut().zip(out.chunks_exact(9)) {
             // the transposed blocks: partial e belongs to component e / 3
             *ui += Vec3::new(a[0] + a[1] + a[2], a[3] + a[4] + a[5], a[6] + a[7] + a[8]);
         }
@@ -402,8 +420,8 @@ fn add_upper<T: Entry>(fk: &[(usize, Vec3)], rows_k: &[Vec<T>], s0: usize, u: &m
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn accumulate_avx2<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
-    accumulate_kernel(p, u, acc, chunk)
+unsafe fn accumulate_avx2<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize, window: [usize; 2]) {
+    accumulate_kernel(p, u, acc, chunk, window)
 }
 
 /// What the surface product reads: each component's storage (`region(k)`: its final columns and their first
@@ -423,14 +441,61 @@ impl<R, T> Clone for Product<'_, R, T> {
 }
 impl<R, T> Copy for Product<'_, R, T> {}
 
+/// Below this many (row, forced column) pairs the product runs on one thread (splitting costs more than it saves).
+const SPLIT_FROM_PAIRS: usize = 32 * 1024;
+
+/// The row at which the product's work is halved (each row costs its component's forced columns), or `None` when
+/// the product is too small to split.
+fn split_row(layout: &Layout, forces: &[(usize, Vec3)]) -> Option<usize> {
+    let mut total = 0;
+    let forced = |s: &[usize; 4]| forces.partition_point(|f| f.0 < s[1]) - forces.partition_point(|f| f.0 < s[0]);
+    for s in &layout.spans {
+        total += forced(s) * (s[1] - s[0] + s[3] - s[2]);
+    }
+    if total < SPLIT_FROM_PAIRS {
+        return None;
+    }
+    // Rows lie in that order: every component's ROI rows, then every component's other rows.
+    let stretches = layout.spans.iter().map(|s| (s[0], s[1], forced(s))).chain(layout.spans.iter().map(|s| (s[2], s[3], forced(s))));
+    let mut seen = 0;
+    for (a, b, f) in stretches {
+        if f > 0 && 2 * (seen + f * (b - a)) >= total {
+            return Some(a + (total / 2 - seen).div_ceil(f).min(b - a));
+        }
+        seen += f * (b - a);
+    }
+    None
+}
+
 /// Dispatches the kernel to an AVX2 build when the CPU has it (runtime detection, no `RUSTFLAGS`); both builds
-/// round identically. (AVX-512 is no faster: the kernel waits on memory.)
-fn accumulate_impl<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize) {
+/// round identically. (AVX-512 is no faster: the kernel waits on memory.) A large product is split at one row
+/// over two threads of rayon's pool (`parallel-product`): every row sums the same terms in the same order
+/// whichever thread adds it, so the bits do not change.
+fn accumulate_impl<'a, T: Entry + Sync + 'a, R: Fn(usize) -> (&'a [T], usize) + Sync>(
+    p: Product<'_, R, T>,
+    u: &mut [Vec3],
+    acc: &mut [Vec<f64>; 2],
+    chunk: usize,
+    split_at: Option<usize>,
+) {
+    let wanted = p.tuning.enabled(Optimisation::ParallelProduct) && rayon::current_num_threads() > 1;
+    let split = split_at.or_else(|| wanted.then(|| split_row(p.layout, p.forces)).flatten());
+    let Some(m) = split.filter(|&m| m > 0 && m < u.len()) else {
+        return accumulate_window(p, u, &mut acc[0], chunk, [0, u.len()]);
+    };
+    let n = u.len();
+    let (ua, ub) = u.split_at_mut(m);
+    let [acc_a, acc_b] = acc;
+    rayon::join(|| accumulate_window(p, ua, acc_a, chunk, [0, m]), || accumulate_window(p, ub, acc_b, chunk, [m, n]));
+}
+
+/// The kernel over rows `window` (`u` holds them), in its AVX2 build when the CPU has it.
+fn accumulate_window<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize, window: [usize; 2]) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") && p.tuning.enabled(Optimisation::Avx2Product) {
         // SAFETY: the CPU supports AVX2 (checked just above).
-        unsafe { accumulate_avx2(p, u, acc, chunk) };
+        unsafe { accumulate_avx2(p, u, acc, chunk, window) };
         return;
     }
-    accumulate_kernel(p, u, acc, chunk)
+    accumulate_kernel(p, u, acc, chunk, window)
 }

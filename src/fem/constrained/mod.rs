@@ -205,6 +205,18 @@ impl Limit {
     }
 }
 
+impl Candidate {
+    /// A blade's face-plane row across steps ([`pairs::RowKey`]): its W entries against another stay while both
+    /// rows do. A demoted hold's row is appended mid-step, out of the candidates' order, and a sphere row moves
+    /// with its linearization point: neither has one.
+    fn row_key(&self) -> Option<pairs::RowKey> {
+        match self.limit {
+            Limit::Plane { normal, hold: None, .. } => Some((self.node, [normal.x.to_bits(), normal.y.to_bits(), normal.z.to_bits()])),
+            _ => None,
+        }
+    }
+}
+
 struct LazyColumn {
     node: u32,
     /// 3 columns of length n_free, column major.
@@ -1086,8 +1098,9 @@ impl ConstrainedSolver {
         if let Some(pairs) = pairs.as_mut() {
             pairs.check_generation(self.columns.lazy_generation);
             let first_candidate = self.tethers.count();
-            slots.extend(self.sys.row_candidate.iter().map(|&ci| pairs.slot(first_candidate + ci)));
-            slots.extend(self.tethers.rows.iter().map(|&(i, _)| pairs.slot(i)));
+            let candidates = &self.cands.candidates;
+            slots.extend(self.sys.row_candidate.iter().map(|&ci| pairs.slot(first_candidate + ci, candidates[ci].row_key())));
+            slots.extend(self.tethers.rows.iter().map(|&(i, _)| pairs.slot(i, None)));
         }
         (pairs, slots)
     }
