@@ -610,6 +610,7 @@ fn frame_audit(name: &str, solver: &mut ConstrainedSolver, near: &[u32], dir: &P
         (Optimisation::FusedColumns, 3),
         (Optimisation::RowChunks, 3),
         (Optimisation::Avx2Product, 3),
+        (Optimisation::ParallelProduct, 3),
     ] {
         for (seq_name, sets) in &sequences {
             let mut on = (Vec::new(), Vec::new(), Vec::new());
