@@ -43,11 +43,15 @@ pub enum Optimisation {
     /// The surface product split at one row over two threads (`src/fem/compliance/product.rs`; off: one thread, same
     /// bits).
     ParallelProduct,
+    /// A column forced along one direction (a face-plane row's node) streamed as its projection `K^-1[rows, c] n`,
+    /// kept while the direction stays (`src/fem/compliance/projected.rs`; off: its 3x3 blocks, which differs in the
+    /// surface's last bits).
+    ProjectedColumns,
 }
 
 impl Optimisation {
     /// Every switch with its name in `FISSURE_FEM_OFF`, in declaration order.
-    pub const ALL: [(Optimisation, &'static str); 12] = [
+    pub const ALL: [(Optimisation, &'static str); 13] = [
         (Optimisation::Avx2Product, "avx2-product"),
         (Optimisation::FusedColumns, "fused-columns"),
         (Optimisation::RowChunks, "row-chunks"),
@@ -60,6 +64,7 @@ impl Optimisation {
         (Optimisation::KeptRowPairs, "kept-row-pairs"),
         (Optimisation::TetherColumns, "tether-columns"),
         (Optimisation::ParallelProduct, "parallel-product"),
+        (Optimisation::ProjectedColumns, "projected-columns"),
     ];
 
     /// Its name in `FISSURE_FEM_OFF`.

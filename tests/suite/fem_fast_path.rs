@@ -229,6 +229,62 @@ fn surface_product_reuses_gathered_rows_and_matches_the_block_sum() {
     }
 }
 
+/// Columns forced along one direction are streamed projected on it from the
+/// second call in a row that forces them along the same direction: the first
+/// call takes their 3x3 blocks, a changed direction takes them again, and every
+/// call matches the block-by-block sum; a split over two threads and small
+/// chunks leave the bits of a workspace with the same history.
+#[test]
+fn columns_forced_along_one_direction_are_projected_from_their_second_call() {
+    let one = block(5, 4, 3);
+    let model = FemModel::new(&one, &uniform(BRAIN), &bottom_fixed(&one), &FemOptions::default()).unwrap();
+    let roi = model.surface().vertices.clone();
+    for storage in [ComplianceStorage::F64, ComplianceStorage::F32] {
+        let c = Compliance::compute(&model, &roi, storage, None, &mut |_, _| {}).unwrap();
+        let (rows, cols) = (c.row_nodes().len(), c.column_count());
+        let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+        let turned = Vec3::new(0.0, 0.6, 0.8);
+        let lambda = |k: usize, call: usize| 0.2 + 0.01 * k as f64 - 0.03 * call as f64;
+        // (columns along n, columns along the turned normal, the full-force columns) per call
+        let along_cols: Vec<usize> = (0..cols).step_by(3).collect();
+        let full_cols: Vec<usize> = (1..cols).step_by(7).filter(|j| j % 3 != 0).collect();
+        let half = along_cols.len() / 2;
+        // (projections built, columns projected) each call should report
+        let expected = [(0, 0), (along_cols.len(), along_cols.len()), (0, along_cols.len()), (0, along_cols.len() - half), (half, along_cols.len())];
+        let mut workspaces = [
+            fissure::fem::ProductWorkspace::default(),
+            fissure::fem::ProductWorkspace::with_split_row(cols / 2 + 1),
+            fissure::fem::ProductWorkspace::with_chunk_rows(7),
+        ];
+        for (call, want) in expected.iter().enumerate() {
+            let along: Vec<(usize, Vec3, f64)> =
+                along_cols.iter().enumerate().map(|(k, &j)| (j, if call >= 3 && k < half { turned } else { n }, lambda(k, call))).collect();
+            let forces: Vec<(usize, Vec3)> = full_cols.iter().map(|&j| (j, Vec3::new(0.1, -0.2, 0.05 * call as f64))).collect();
+            let mut results = Vec::new();
+            for w in workspaces.iter_mut() {
+                let mut u = vec![Vec3::new(1e-3, 0.0, -2e-3); rows];
+                c.accumulate_along(&forces, &along, &mut u, w);
+                assert_eq!(w.columns_projected(), *want, "{storage:?} call {call}: projections built and streamed");
+                results.push(u);
+            }
+            assert!(results[1] == results[0], "{storage:?} call {call}: a split changes the bits");
+            assert!(results[2] == results[0], "{storage:?} call {call}: chunks of 7 rows change the bits");
+            let total = forces.iter().map(|f| f.1.norm()).sum::<f64>() + along.iter().map(|a| a.2.abs()).sum::<f64>();
+            let scale = total.max(1.0) * (0..rows).map(|r| c.product_block(r, 0).norm()).fold(0.0, f64::max);
+            for (r, ur) in results[0].iter().enumerate() {
+                let mut expected = Vec3::new(1e-3, 0.0, -2e-3);
+                for &(j, f) in &forces {
+                    expected += c.product_block(r, j) * f;
+                }
+                for &(j, d, l) in &along {
+                    expected += c.product_block(r, j) * (d * l);
+                }
+                assert!((ur - expected).norm() <= 1e-12 * scale, "{storage:?} call {call} row {r}: {ur:?} vs {expected:?}");
+            }
+        }
+    }
+}
+
 /// Two blocks side by side (a 10 mm gap) and one block cut in two by a fixed
 /// wall: `K^-1` between the parts is exactly zero. Dense storage keeps no block
 /// between them (about half the bytes of one body with the same rows), every

@@ -19,6 +19,7 @@
 mod cache;
 mod fill;
 mod product;
+mod projected;
 
 use super::FemError;
 use super::assembly::{find, join};

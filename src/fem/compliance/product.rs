@@ -7,6 +7,7 @@
 //! columns at a time into 9 partial sums a row, a chunk of rows at a time (AVX2 when the CPU has it).
 //! Stays true: nothing is allocated once the workspace has grown; the sums run in a fixed order (bitwise replays).
 
+use super::projected::ProjectedStore;
 use super::{Compliance, Layout, ROW_CHUNK, Values};
 use crate::fem::tuning::{Optimisation, Tuning};
 use std::time::Instant;
@@ -18,47 +19,76 @@ impl Compliance {
     /// background it waits for the forced ones; if their filling failed it adds nothing (a frame asks
     /// [`Self::wait_column`] first and stops there).
     pub fn accumulate(&self, forces: &[(usize, Vec3)], u: &mut [Vec3], workspace: &mut ProductWorkspace) {
+        self.accumulate_along(forces, &[], u, workspace);
+    }
+
+    /// [`Self::accumulate`] with more forces `(col, n, lambda)` along one unit direction each (`F = n lambda`;
+    /// ascending, no column in both lists): from the second call in a row that forces a column along the same `n`,
+    /// its projection `K^-1[rows, col] n` is kept and streamed instead of its 3x3 blocks (`projected-columns`, see
+    /// `compliance/projected.rs`; the surface's last bits differ from the blocks').
+    pub fn accumulate_along(&self, forces: &[(usize, Vec3)], along: &[(usize, Vec3, f64)], u: &mut [Vec3], workspace: &mut ProductWorkspace) {
         workspace.gathered = 0;
         workspace.gather_seconds = 0.0;
         if workspace.key != self.key {
             // Rows kept for another compliance are not ours.
             workspace.rows32.clear();
             workspace.rows64.clear();
+            workspace.projected.clear();
             workspace.key = self.key;
         }
-        if forces.iter().any(|&(c, _)| self.wait_column(c).is_err()) {
+        if forces.iter().map(|f| f.0).chain(along.iter().map(|f| f.0)).any(|c| self.wait_column(c).is_err()) {
             tracing::error!("the surface product skipped: its compliance columns are not available");
             return;
         }
         let layout = &self.layout;
         // (a chunk is never longer than the rows: off, one chunk holds them all)
         let chunk = workspace.chunk().min(u.len()).max(1);
-        match &self.values {
-            Values::F64(d) => {
+        let keep = workspace.tuning.enabled(Optimisation::KeptProductRows);
+        let project = workspace.tuning.enabled(Optimisation::ProjectedColumns);
+        let ProductWorkspace { acc, rows32, rows64, projected, full, proj, split_at, tuning, .. } = workspace;
+        let t = Instant::now();
+        macro_rules! run {
+            ($d:expr, $rows:expr) => {{
                 let region = |k: usize| {
-                    let g = self.region(d, k);
+                    let g = self.region($d, k);
                     (g.v, g.base)
                 };
-                let t = Instant::now();
-                workspace.gathered = workspace.rows64.prepare(&region, layout, forces, workspace.tuning.enabled(Optimisation::KeptProductRows));
-                workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows64.rows, tuning: workspace.tuning }, u, &mut workspace.acc, chunk, workspace.split_at)
-            }
-            Values::F32(d) => {
-                let region = |k: usize| {
-                    let g = self.region(d, k);
-                    (g.v, g.base)
+                let all: &[(usize, Vec3)] = if project {
+                    projected.prepare(&region, layout, along, forces, full, proj);
+                    full
+                } else {
+                    projected.clear();
+                    proj.clear();
+                    merged(forces, along, full)
                 };
-                let t = Instant::now();
-                workspace.gathered = workspace.rows32.prepare(&region, layout, forces, workspace.tuning.enabled(Optimisation::KeptProductRows));
-                workspace.gather_seconds = t.elapsed().as_secs_f64();
-                accumulate_impl(Product { region: &region, layout, forces, rows: &workspace.rows32.rows, tuning: workspace.tuning }, u, &mut workspace.acc, chunk, workspace.split_at)
-            }
+                let gathered = $rows.prepare(&region, layout, all, keep);
+                let seconds = t.elapsed().as_secs_f64();
+                let product = Product { region: &region, layout, forces: all, rows: &$rows.rows, proj, pvals: &projected.vals, tuning: *tuning };
+                accumulate_impl(product, u, acc, chunk, *split_at);
+                (gathered, seconds)
+            }};
         }
+        let (gathered, seconds) = match &self.values {
+            Values::F64(d) => run!(d, rows64),
+            Values::F32(d) => run!(d, rows32),
+        };
+        workspace.gathered = gathered;
+        workspace.gather_seconds = seconds;
     }
 }
 
-trait Entry: Copy {
+/// `forces` and `along` (as `n lambda`) in one list by ascending column, in `out`.
+fn merged<'o>(forces: &[(usize, Vec3)], along: &[(usize, Vec3, f64)], out: &'o mut Vec<(usize, Vec3)>) -> &'o [(usize, Vec3)] {
+    out.clear();
+    out.extend_from_slice(forces);
+    out.extend(along.iter().map(|&(c, n, l)| (c, n * l)));
+    if !along.is_empty() {
+        out.sort_unstable_by_key(|f| f.0);
+    }
+    out
+}
+
+pub(super) trait Entry: Copy {
     fn f(self) -> f64;
 }
 impl Entry for f64 {
@@ -86,6 +116,11 @@ pub struct ProductWorkspace {
     acc: [Vec<f64>; 2],
     rows32: RowStore<f32>,
     rows64: RowStore<f64>,
+    /// Columns forced along one direction, projected on it ([`super::projected`]).
+    projected: ProjectedStore,
+    /// The call's forces taken by the 3x3 blocks, and those projected `(col, lambda)`.
+    full: Vec<(usize, Vec3)>,
+    proj: Vec<(usize, f64)>,
     key: [u8; 32],
     gathered: usize,
     gather_seconds: f64,
@@ -127,6 +162,12 @@ impl ProductWorkspace {
         }
     }
 
+    /// Columns projected anew in the last [`Compliance::accumulate_along`] (the second call in a row to force them
+    /// along the same direction), and those it streamed projected.
+    pub fn columns_projected(&self) -> (usize, usize) {
+        (self.projected.built, self.proj.len())
+    }
+
     /// Seconds the last [`Compliance::accumulate`] spent gathering those rows.
     pub fn gather_seconds(&self) -> f64 {
         self.gather_seconds
@@ -134,7 +175,7 @@ impl ProductWorkspace {
 
     /// Bytes reserved (partial sums, kept and spare rows): flat once the frames' force sets have been seen.
     pub fn bytes(&self) -> usize {
-        8 * (self.acc[0].capacity() + self.acc[1].capacity()) + self.rows32.bytes() + self.rows64.bytes()
+        8 * (self.acc[0].capacity() + self.acc[1].capacity()) + self.rows32.bytes() + self.rows64.bytes() + self.projected.bytes()
     }
 }
 
@@ -322,7 +363,7 @@ fn upper_pattern(f: &Vec3) -> [f64; 9] {
 /// in ascending column order. No fused multiply-add: SIMD and scalar builds give the same bits.
 #[inline(always)]
 fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Product<'_, R, T>, u: &mut [Vec3], acc: &mut Vec<f64>, chunk: usize, window: [usize; 2]) {
-    let Product { region, layout, forces, rows, tuning } = p;
+    let Product { region, layout, forces, rows, proj, pvals, tuning } = p;
     let fused = tuning.enabled(Optimisation::FusedColumns);
     acc.clear();
     acc.resize(9 * chunk, 0.0);
@@ -331,9 +372,12 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
     let clip = |a: usize, b: usize| (a.max(window[0]), b.min(window[1]));
     let w0 = window[0];
     for (k, s) in layout.spans.iter().enumerate() {
+        let p_lo = proj.partition_point(|f| f.0 < s[0]);
+        let p_hi = proj.partition_point(|f| f.0 < s[1]);
         let f_lo = forces.partition_point(|f| f.0 < s[0]);
         let f_hi = forces.partition_point(|f| f.0 < s[1]);
         if f_lo == f_hi {
+            add_projected(&proj[p_lo..p_hi], &pvals[p_lo..p_hi], s, window, u, acc, chunk, fused);
             continue;
         }
         // This component's storage, from its first column's block `base` on.
@@ -388,6 +432,33 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
         if lo < top {
             add_upper(fk, rows_k, s[0], [lo, top], &mut u[lo - w0..], acc, chunk, fused);
         }
+        add_projected(&proj[p_lo..p_hi], &pvals[p_lo..p_hi], s, window, u, acc, chunk, fused);
+    }
+}
+
+/// The projected columns of one component (span `s`) over rows `window` (`u` holds them): `u[i] += sum_k
+/// P_k[i] lambda_k`, the columns in ascending order into 3 partials a row (after the blocks' sums).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn add_projected(pk: &[(usize, f64)], vals: &[Vec<f64>], s: &[usize; 4], window: [usize; 2], u: &mut [Vec3], acc: &mut [f64], chunk: usize, fused: bool) {
+    if pk.is_empty() {
+        return;
+    }
+    // Rows of the projections: the ROI rows from s[0], then the other rows from s[2] at s[1] - s[0].
+    for (first, end, at) in [(s[0], s[1], 0), (s[2], s[3], s[1] - s[0])] {
+        let (mut r0, end) = (first.max(window[0]), end.min(window[1]));
+        while r0 < end {
+            let r1 = (r0 + chunk).min(end);
+            let len = 3 * (r1 - r0);
+            let out = &mut acc[..len];
+            out.iter_mut().for_each(|a| *a = 0.0);
+            let o = 3 * (at + r0 - first);
+            add_columns(out, pk.len(), fused, |k| &vals[k][o..o + len], |k| [pk[k].1; 9]);
+            for (ui, a) in u[r0 - window[0]..r1 - window[0]].iter_mut().zip(out.chunks_exact(3)) {
+                *ui += Vec3::new(a[0], a[1], a[2]);
+            }
+            r0 = r1;
+        }
     }
 }
 
@@ -431,6 +502,9 @@ struct Product<'p, R, T> {
     layout: &'p Layout,
     forces: &'p [(usize, Vec3)],
     rows: &'p [Vec<T>],
+    /// Columns forced along their one direction `(col, lambda)`, ascending, and their projections (same order).
+    proj: &'p [(usize, f64)],
+    pvals: &'p [Vec<f64>],
     tuning: Tuning,
 }
 
