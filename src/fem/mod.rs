@@ -19,7 +19,7 @@ pub mod reference;
 pub mod stress;
 pub mod tuning;
 
-pub use compliance::{Compliance, ComplianceStats, ComplianceStorage, ComputeOptions, ProductWorkspace};
+pub use compliance::{Compliance, ComplianceStats, ComplianceStorage, ComputeOptions, PROJECTIONS_PER_CALL, ProductWorkspace};
 pub use constrained::{ConstrainedSolver, Constraint, ConstraintKind, ConstraintRow, FrameSolution, Tether, TetherEnd};
 pub use element::{Material, RegionMaterials};
 pub use error::FemError;

@@ -246,7 +246,7 @@ fn columns_forced_along_one_direction_are_projected_from_their_second_call() {
         let turned = Vec3::new(0.0, 0.6, 0.8);
         let lambda = |k: usize, call: usize| 0.2 + 0.01 * k as f64 - 0.03 * call as f64;
         // (columns along n, columns along the turned normal, the full-force columns) per call
-        let along_cols: Vec<usize> = (0..cols).step_by(3).collect();
+        let along_cols: Vec<usize> = (0..cols).step_by(3).take(fissure::fem::PROJECTIONS_PER_CALL).collect();
         let full_cols: Vec<usize> = (1..cols).step_by(7).filter(|j| j % 3 != 0).collect();
         let half = along_cols.len() / 2;
         // (projections built, columns projected) each call should report
@@ -283,6 +283,32 @@ fn columns_forced_along_one_direction_are_projected_from_their_second_call() {
             }
         }
     }
+}
+
+/// Many columns forced along one direction at once are projected a bounded
+/// number a call, the rest on their blocks until their turn: every one is
+/// projected in the end, and no call builds more than the bound.
+#[test]
+fn a_wide_contact_is_projected_a_bounded_number_of_columns_a_call() {
+    let one = block(5, 4, 3);
+    let model = FemModel::new(&one, &uniform(BRAIN), &bottom_fixed(&one), &FemOptions::default()).unwrap();
+    let c = Compliance::compute(&model, &model.surface().vertices.clone(), ComplianceStorage::F64, None, &mut |_, _| {}).unwrap();
+    let (rows, cols) = (c.row_nodes().len(), c.column_count());
+    let bound = fissure::fem::PROJECTIONS_PER_CALL;
+    assert!(cols > 2 * bound, "the test wants more than twice {bound} columns, has {cols}");
+    let along: Vec<(usize, Vec3, f64)> = (0..cols).map(|j| (j, Vec3::z(), 0.1)).collect();
+    let mut w = fissure::fem::ProductWorkspace::default();
+    let mut streamed = Vec::new();
+    for _ in 0..cols.div_ceil(bound) + 2 {
+        let mut u = vec![Vec3::zeros(); rows];
+        c.accumulate_along(&[], &along, &mut u, &mut w);
+        let (built, projected) = w.columns_projected();
+        assert!(built <= bound, "{built} columns projected in one call");
+        streamed.push(projected);
+    }
+    assert_eq!(streamed[0], 0, "the first call takes every column's blocks");
+    assert_eq!(streamed[1], bound);
+    assert_eq!(*streamed.last().unwrap(), cols, "every column is projected in the end: {streamed:?}");
 }
 
 /// Two blocks side by side (a 10 mm gap) and one block cut in two by a fixed

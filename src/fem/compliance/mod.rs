@@ -30,6 +30,7 @@ use fill::{Buf, Dense, Fill, FillOwner};
 pub use cache::{CACHE_DIR_BUDGET_BYTES, prune_cache_dir};
 use cache::{CacheSource, cache_key, finish_write, hex, mark_used, read_at, write_dense_cache};
 pub use product::ProductWorkspace;
+pub use projected::PROJECTIONS_PER_CALL;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
