@@ -176,6 +176,9 @@ fn scene_words(tag: &str) -> &str {
         "sylvian_tethers" => "the default scene with its vessels and arachnoid bands, the careful opening (bands cut, then spread)",
         "sylvian_noisy" => "default scene, its spread with +-0.5 mm tracker noise every 10 ms, unfiltered",
         "sylvian_noisy_filtered" => "the same noisy spread through the One Euro filter",
+        "refined/sylvian" => "default scene refined under the blades (refine: Auto, a user's scene's default)",
+        "refined/sylvian_noisy" => "the refined default scene's spread with the same tracker noise, unfiltered",
+        "refined/sylvian_noisy_filtered" => "the same refined noisy spread through the One Euro filter",
         other => other,
     }
 }
@@ -200,6 +203,11 @@ fn replay_rows(r: &PerfRecord, out: &mut String) -> Result<(), PerfError> {
                 let x = p95 / rep.p95("sylvian");
                 format!("p95 within 2.5x the clean spread's (default scene): {x:.2}x, {}", verdict((x * 100.0).round() / 100.0, 2.5))
             }
+            "refined/sylvian" => format!("p95 <= 1.5 ms: {}; max <= 5 ms: {}", verdict(p95, 1.5), verdict(rep.max(tag), 5.0)),
+            "refined/sylvian_noisy" | "refined/sylvian_noisy_filtered" => {
+                let (x, within) = (p95 / rep.p95("refined/sylvian"), if tag.ends_with("filtered") { 2.0 } else { 4.0 });
+                format!("p95 within {within}x the clean refined run's: {x:.2}x, {}; no frame over 50 ms: {}", verdict(round2(x), within), verdict(rep.max(tag), 50.0))
+            }
             "real_brain/sylvian_wide" => {
                 let met = verdict(p95, 8.0) == "met" && min_contact >= 50;
                 format!("p95 < 8 ms with >= 50 contact vertices a blade: {}", if met { "met" } else { "not met" })
@@ -212,7 +220,7 @@ fn replay_rows(r: &PerfRecord, out: &mut String) -> Result<(), PerfError> {
                 format!("; whole run {:.2} s, peak {peak:.0} MB", median(rep.runs(tag).iter().map(|r| r.wall_s).collect()))
             }
             "real_brain/sylvian_wide" => format!("; {} contact vertices at the end", last.contact_vertices.join("/")),
-            "sylvian" | "sylvian_noisy" | "sylvian_noisy_filtered" => {
+            "sylvian" | "sylvian_noisy" | "sylvian_noisy_filtered" | "refined/sylvian" | "refined/sylvian_noisy" | "refined/sylvian_noisy_filtered" => {
                 let substeps = rep.runs(tag).iter().map(|r| r.summary.max_substeps).max().unwrap_or(0);
                 format!("; up to {substeps} sub-steps a frame; force change a frame p95 {} N", force_jumps(last))
             }
