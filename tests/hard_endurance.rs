@@ -194,9 +194,11 @@ fn ten_thousand_random_walk_frames_stay_finite_bounded_flat_never_pull_and_retur
     assert!(frames_with_skull > 0, "{label}: the walk must reach the skull sphere at least once");
     assert_eq!(max_inverted, 0, "{label}: presses of at most 3.5 mm on 5 mm elements invert no surface tet");
     // Flat memory: Pipeline::step allocates only when its scratch grows to a larger frame than any
-    // before (a high-water mark: measured 7-8 allocations in 9,000 frames, W growing to the
-    // largest constraint set); a per-frame allocation or leak would show 9,000 or more.
-    assert!(step_allocations <= 64, "{label}: Pipeline::step allocated {step_allocations} times in {} frames", FRAMES - 1_000);
+    // before (a high-water mark: W growing to the largest constraint set, the kept rows' and the
+    // projected columns' pools to the most columns held at once; measured 83 allocations in 9,000
+    // frames, 51 with FISSURE_FEM_OFF=projected-columns); a per-frame allocation or leak would show
+    // 9,000 or more.
+    assert!(step_allocations <= 128, "{label}: Pipeline::step allocated {step_allocations} times in {} frames", FRAMES - 1_000);
     let growth = live_at_end as i64 - live_at_1000 as i64;
     assert!(growth.abs() <= 1024 * 1024, "{label}: live heap grew by {growth} B between frame 1000 and {FRAMES}");
     let rss_growth = rss_at_end as i64 - rss_at_1000 as i64;

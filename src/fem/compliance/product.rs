@@ -63,7 +63,8 @@ impl Compliance {
                 };
                 let gathered = $rows.prepare(&region, layout, all, keep);
                 let seconds = t.elapsed().as_secs_f64();
-                let product = Product { region: &region, layout, forces: all, rows: &$rows.rows, proj, pvals: &projected.vals, tuning: *tuning };
+                let pvals = Projections { slab: &projected.slab, slots: &projected.slots, len: projected.slot_len };
+                let product = Product { region: &region, layout, forces: all, rows: &$rows.rows, proj, pvals, tuning: *tuning };
                 accumulate_impl(product, u, acc, chunk, *split_at);
                 (gathered, seconds)
             }};
@@ -377,7 +378,7 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
         let f_lo = forces.partition_point(|f| f.0 < s[0]);
         let f_hi = forces.partition_point(|f| f.0 < s[1]);
         if f_lo == f_hi {
-            add_projected(&proj[p_lo..p_hi], &pvals[p_lo..p_hi], s, window, u, acc, chunk, fused);
+            add_projected(&proj[p_lo..p_hi], pvals.part(p_lo..p_hi), s, window, u, acc, chunk, fused);
             continue;
         }
         // This component's storage, from its first column's block `base` on.
@@ -432,7 +433,7 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
         if lo < top {
             add_upper(fk, rows_k, s[0], [lo, top], &mut u[lo - w0..], acc, chunk, fused);
         }
-        add_projected(&proj[p_lo..p_hi], &pvals[p_lo..p_hi], s, window, u, acc, chunk, fused);
+        add_projected(&proj[p_lo..p_hi], pvals.part(p_lo..p_hi), s, window, u, acc, chunk, fused);
     }
 }
 
@@ -440,7 +441,7 @@ fn accumulate_kernel<'a, T: Entry + 'a, R: Fn(usize) -> (&'a [T], usize)>(p: Pro
 /// P_k[i] lambda_k`, the columns in ascending order into 3 partials a row (after the blocks' sums).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn add_projected(pk: &[(usize, f64)], vals: &[Vec<f64>], s: &[usize; 4], window: [usize; 2], u: &mut [Vec3], acc: &mut [f64], chunk: usize, fused: bool) {
+fn add_projected(pk: &[(usize, f64)], vals: Projections<'_>, s: &[usize; 4], window: [usize; 2], u: &mut [Vec3], acc: &mut [f64], chunk: usize, fused: bool) {
     if pk.is_empty() {
         return;
     }
@@ -453,7 +454,7 @@ fn add_projected(pk: &[(usize, f64)], vals: &[Vec<f64>], s: &[usize; 4], window:
             let out = &mut acc[..len];
             out.iter_mut().for_each(|a| *a = 0.0);
             let o = 3 * (at + r0 - first);
-            add_columns(out, pk.len(), fused, |k| &vals[k][o..o + len], |k| [pk[k].1; 9]);
+            add_columns(out, pk.len(), fused, |k| vals.run(k, o, len), |k| [pk[k].1; 9]);
             for (ui, a) in u[r0 - window[0]..r1 - window[0]].iter_mut().zip(out.chunks_exact(3)) {
                 *ui += Vec3::new(a[0], a[1], a[2]);
             }
@@ -504,8 +505,29 @@ struct Product<'p, R, T> {
     rows: &'p [Vec<T>],
     /// Columns forced along their one direction `(col, lambda)`, ascending, and their projections (same order).
     proj: &'p [(usize, f64)],
-    pvals: &'p [Vec<f64>],
+    pvals: Projections<'p>,
     tuning: Tuning,
+}
+
+/// The projections of [`Product::proj`]'s columns: slot `slots[k]` of `slab`, `len` values a slot.
+#[derive(Clone, Copy)]
+struct Projections<'p> {
+    slab: &'p [f64],
+    slots: &'p [u32],
+    len: usize,
+}
+
+impl Projections<'_> {
+    /// The projections of columns `range` of the call's list.
+    fn part(&self, range: std::ops::Range<usize>) -> Self {
+        Self { slots: &self.slots[range], ..*self }
+    }
+
+    #[inline(always)]
+    fn run(&self, k: usize, from: usize, len: usize) -> &[f64] {
+        let at = self.slots[k] as usize * self.len + from;
+        &self.slab[at..at + len]
+    }
 }
 
 impl<R, T> Clone for Product<'_, R, T> {

@@ -29,36 +29,57 @@ fn bits(n: &Vec3) -> DirBits {
 }
 
 /// The projected columns of the last call, ascending, and those asked for along a direction but not yet projected.
+/// The projections lie in one slab of equal slots (the largest component's length), so the store allocates only
+/// when the slab doubles.
 #[derive(Debug, Default)]
 pub(super) struct ProjectedStore {
     cols: Vec<(usize, DirBits)>,
-    /// `vals[k]` = `K^-1[rows of the component, cols[k]] n`: 3 values a row, the component's ROI rows, then its
-    /// other rows.
-    pub(super) vals: Vec<Vec<f64>>,
+    /// `slots[k]`: the slab slot of `cols[k]`'s projection `K^-1[rows of the component, cols[k]] n` (3 values a row,
+    /// the component's ROI rows, then its other rows).
+    pub(super) slots: Vec<u32>,
     /// (column, direction) asked in the last call and taken by the blocks.
     pending: Vec<(usize, DirBits)>,
     next_cols: Vec<(usize, DirBits)>,
-    next_vals: Vec<Vec<f64>>,
+    next_slots: Vec<u32>,
     next_pending: Vec<(usize, DirBits)>,
-    spare: Vec<Vec<f64>>,
+    pub(super) slab: Vec<f64>,
+    /// Values a slot (0 until the first projection).
+    pub(super) slot_len: usize,
+    free: Vec<u32>,
     /// Columns projected anew in the last call.
     pub(super) built: usize,
 }
 
 impl ProjectedStore {
     pub(super) fn clear(&mut self) {
-        self.spare.append(&mut self.vals);
         self.cols.clear();
+        self.slots.clear();
         self.pending.clear();
+        self.free.clear();
+        self.slab.clear();
+        self.slot_len = 0;
     }
 
     pub(super) fn bytes(&self) -> usize {
-        8 * self.vals.iter().chain(&self.spare).map(Vec::capacity).sum::<usize>()
+        8 * self.slab.capacity()
+    }
+
+    /// A free slot of the slab (the slab grows by doubling when none is).
+    fn take_slot(&mut self, layout: &Layout) -> u32 {
+        if self.slot_len == 0 {
+            self.slot_len = (0..layout.spans.len()).map(|k| component_len(layout, k)).max().unwrap_or(0);
+        }
+        if let Some(s) = self.free.pop() {
+            return s;
+        }
+        let s = self.slab.len() / self.slot_len.max(1);
+        self.slab.resize(self.slab.len() + self.slot_len, 0.0);
+        s as u32
     }
 
     /// Splits `along` (`(column, unit n, lambda)`, ascending, none in `forces`) into the columns projected this call
-    /// (`proj`: `(column, lambda)`, in the order of [`Self::vals`]) and those taken by the blocks (merged into `full`
-    /// with `forces`, as `n lambda`), building the newly projected ones from the storage.
+    /// (`proj`: `(column, lambda)`, in the order of [`Self::slots`]) and those taken by the blocks (merged into
+    /// `full` with `forces`, as `n lambda`), building the newly projected ones from the storage.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn prepare<'a, T: Entry + 'a>(
         &mut self,
@@ -70,6 +91,7 @@ impl ProjectedStore {
         proj: &mut Vec<(usize, f64)>,
     ) {
         self.next_cols.clear();
+        self.next_slots.clear();
         self.next_pending.clear();
         full.clear();
         proj.clear();
@@ -78,25 +100,25 @@ impl ProjectedStore {
         for &(c, n, lambda) in along {
             let key = (c, bits(&n));
             while k < self.cols.len() && self.cols[k].0 < c {
-                self.spare.push(std::mem::take(&mut self.vals[k]));
+                self.free.push(self.slots[k]);
                 k += 1;
             }
-            let kept = k < self.cols.len() && self.cols[k] == key;
-            let vals = if kept {
+            let slot = if k < self.cols.len() && self.cols[k] == key {
                 k += 1;
-                Some(std::mem::take(&mut self.vals[k - 1]))
+                Some(self.slots[k - 1])
             } else if self.built < PROJECTIONS_PER_CALL && self.pending.binary_search(&key).is_ok() {
-                let mut v = self.spare.pop().unwrap_or_default();
-                project(region, layout, c, &n, &mut v);
+                let slot = self.take_slot(layout);
+                let at = slot as usize * self.slot_len;
+                project(region, layout, c, &n, &mut self.slab[at..at + self.slot_len]);
                 self.built += 1;
-                Some(v)
+                Some(slot)
             } else {
                 None
             };
-            match vals {
-                Some(v) => {
+            match slot {
+                Some(slot) => {
                     self.next_cols.push(key);
-                    self.next_vals.push(v);
+                    self.next_slots.push(slot);
                     proj.push((c, lambda));
                 }
                 None => {
@@ -105,12 +127,9 @@ impl ProjectedStore {
                 }
             }
         }
-        for v in &mut self.vals[k..] {
-            self.spare.push(std::mem::take(v));
-        }
-        self.vals.clear();
+        self.free.extend_from_slice(&self.slots[k..]);
         std::mem::swap(&mut self.cols, &mut self.next_cols);
-        std::mem::swap(&mut self.vals, &mut self.next_vals);
+        std::mem::swap(&mut self.slots, &mut self.next_slots);
         std::mem::swap(&mut self.pending, &mut self.next_pending);
         if !full.is_empty() {
             full.extend_from_slice(forces);
@@ -121,21 +140,30 @@ impl ProjectedStore {
     }
 }
 
-/// `out` = `K^-1[rows of c's component, c] n`, 3 values a row: the ROI rows (those before `c` from the stored row
+/// Values in a projection of component `k`'s columns: 3 for each of its rows.
+fn component_len(layout: &Layout, k: usize) -> usize {
+    let s = layout.spans[k];
+    3 * (s[1] - s[0] + s[3] - s[2])
+}
+
+/// `out` starts with `K^-1[rows of c's component, c] n`, 3 values a row: the ROI rows (those before `c` from the stored row
 /// of `c`, transposed blocks; from `c` on its own column), then the component's other rows.
-fn project<'a, T: Entry + 'a>(region: &impl Fn(usize) -> (&'a [T], usize), layout: &Layout, c: usize, n: &Vec3, out: &mut Vec<f64>) {
+fn project<'a, T: Entry + 'a>(region: &impl Fn(usize) -> (&'a [T], usize), layout: &Layout, c: usize, n: &Vec3, out: &mut [f64]) {
     let k = layout.row_comp[c] as usize;
     let s = layout.spans[k];
-    out.clear();
-    out.reserve(3 * (s[1] - s[0] + s[3] - s[2]));
     let (v, base) = region(k);
     let block = |o: usize| -> [f64; 9] { std::array::from_fn(|e| v[(o - base) * 9 + e].f()) };
     let (nx, ny, nz) = (n.x, n.y, n.z);
+    let mut at = 0;
+    let mut push = |x: f64| {
+        out[at] = x;
+        at += 1;
+    };
     for i in s[0]..c {
         // block (row c, column i) holds K^-1[3i + j, 3c + r] at 3r + j
         let b = block(layout.col_off[i] + c - i);
         for row in 0..3 {
-            out.push(b[3 * row] * nx + b[3 * row + 1] * ny + b[3 * row + 2] * nz);
+            push(b[3 * row] * nx + b[3 * row + 1] * ny + b[3 * row + 2] * nz);
         }
     }
     let lower = |i: usize| if i < s[1] { layout.col_off[c] + i - c } else { layout.col_off[c] + (s[1] - c) + (i - s[2]) };
@@ -143,7 +171,7 @@ fn project<'a, T: Entry + 'a>(region: &impl Fn(usize) -> (&'a [T], usize), layou
         // block (row i, column c) holds K^-1[3i + r, 3c + j] at 3j + r
         let b = block(lower(i));
         for row in 0..3 {
-            out.push(b[row] * nx + b[3 + row] * ny + b[6 + row] * nz);
+            push(b[row] * nx + b[3 + row] * ny + b[6 + row] * nz);
         }
     }
 }
