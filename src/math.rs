@@ -10,6 +10,12 @@ pub type Vec3 = Vector3<f64>;
 /// A rotation, unit quaternion, f64.
 pub type Quat = UnitQuaternion<f64>;
 
+/// The components' bits: two vectors are the same vector when these are (a key for "unchanged").
+#[inline]
+pub fn bits3(v: &Vec3) -> [u64; 3] {
+    [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()]
+}
+
 /// True when every component is finite (not NaN, not ±Inf).
 #[inline]
 pub fn is_finite3(v: &Vec3) -> bool {

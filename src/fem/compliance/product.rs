@@ -53,14 +53,15 @@ impl Compliance {
                     let g = self.region($d, k);
                     (g.v, g.base)
                 };
-                let all: &[(usize, Vec3)] = if project {
-                    projected.prepare(&region, layout, along, forces, full, proj);
-                    full
+                if project {
+                    projected.prepare(&region, layout, along, full, proj);
                 } else {
                     projected.clear();
                     proj.clear();
-                    merged(forces, along, full)
-                };
+                    full.clear();
+                    full.extend(along.iter().map(|&(c, n, l)| (c, n * l)));
+                }
+                let all = with_forces(full, forces);
                 let gathered = $rows.prepare(&region, layout, all, keep);
                 let seconds = t.elapsed().as_secs_f64();
                 let pvals = Projections { slab: &projected.slab, slots: &projected.slots, len: projected.slot_len };
@@ -78,15 +79,14 @@ impl Compliance {
     }
 }
 
-/// `forces` and `along` (as `n lambda`) in one list by ascending column, in `out`.
-fn merged<'o>(forces: &[(usize, Vec3)], along: &[(usize, Vec3, f64)], out: &'o mut Vec<(usize, Vec3)>) -> &'o [(usize, Vec3)] {
-    out.clear();
-    out.extend_from_slice(forces);
-    out.extend(along.iter().map(|&(c, n, l)| (c, n * l)));
-    if !along.is_empty() {
-        out.sort_unstable_by_key(|f| f.0);
+/// `full` (ascending) with `forces` (ascending, other columns) added, by ascending column.
+fn with_forces<'o>(full: &'o mut Vec<(usize, Vec3)>, forces: &[(usize, Vec3)]) -> &'o [(usize, Vec3)] {
+    let sort = !full.is_empty() && !forces.is_empty();
+    full.extend_from_slice(forces);
+    if sort {
+        full.sort_unstable_by_key(|f| f.0);
     }
-    out
+    full
 }
 
 pub(super) trait Entry: Copy {

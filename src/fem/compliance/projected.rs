@@ -9,12 +9,13 @@
 //! row that forces it along the same normal (the first takes the 3x3 blocks), and at most
 //! [`PROJECTIONS_PER_CALL`] anew a call. The rule depends on the calls
 //! before, never on timing: replays stay bit for bit the same. `P` rounds differently from the blocks times `F`,
-//! so the surface's last bits differ from the plain product's (the contact forces do not: they come before it).
-//! Stays true: in a steady state nothing is allocated (vectors are reused).
+//! so the surface's last bits differ from the plain product's (that frame's contact forces do not: they come before
+//! it; later frames see the surface through the collision).
+//! Stays true: in a steady state nothing is allocated (the slab and the lists are reused).
 
 use super::Layout;
 use super::product::Entry;
-use crate::math::Vec3;
+use crate::math::{Vec3, bits3};
 
 /// At most this many columns are projected anew in one call; the others wait for a later one on the 3x3 blocks. A
 /// projection reads the whole column (its upper part strided), about 50 us on the refined default scene: a blade
@@ -22,11 +23,7 @@ use crate::math::Vec3;
 pub const PROJECTIONS_PER_CALL: usize = 16;
 
 /// A direction by its bits (a normal is the same when its bits are).
-pub(super) type DirBits = [u64; 3];
-
-fn bits(n: &Vec3) -> DirBits {
-    [n.x.to_bits(), n.y.to_bits(), n.z.to_bits()]
-}
+type DirBits = [u64; 3];
 
 /// The projected columns of the last call, ascending, and those asked for along a direction but not yet projected.
 /// The projections lie in one slab of equal slots (the largest component's length), so the store allocates only
@@ -77,16 +74,14 @@ impl ProjectedStore {
         s as u32
     }
 
-    /// Splits `along` (`(column, unit n, lambda)`, ascending, none in `forces`) into the columns projected this call
-    /// (`proj`: `(column, lambda)`, in the order of [`Self::slots`]) and those taken by the blocks (merged into
-    /// `full` with `forces`, as `n lambda`), building the newly projected ones from the storage.
-    #[allow(clippy::too_many_arguments)]
+    /// Splits `along` (`(column, unit n, lambda)`, ascending) into the columns projected this call (`proj`:
+    /// `(column, lambda)`, in the order of [`Self::slots`]) and those taken by the blocks (`full`, as `n lambda`,
+    /// ascending), building the newly projected ones from the storage.
     pub(super) fn prepare<'a, T: Entry + 'a>(
         &mut self,
         region: &impl Fn(usize) -> (&'a [T], usize),
         layout: &Layout,
         along: &[(usize, Vec3, f64)],
-        forces: &[(usize, Vec3)],
         full: &mut Vec<(usize, Vec3)>,
         proj: &mut Vec<(usize, f64)>,
     ) {
@@ -98,7 +93,7 @@ impl ProjectedStore {
         self.built = 0;
         let mut k = 0;
         for &(c, n, lambda) in along {
-            let key = (c, bits(&n));
+            let key = (c, bits3(&n));
             while k < self.cols.len() && self.cols[k].0 < c {
                 self.free.push(self.slots[k]);
                 k += 1;
@@ -131,12 +126,6 @@ impl ProjectedStore {
         std::mem::swap(&mut self.cols, &mut self.next_cols);
         std::mem::swap(&mut self.slots, &mut self.next_slots);
         std::mem::swap(&mut self.pending, &mut self.next_pending);
-        if !full.is_empty() {
-            full.extend_from_slice(forces);
-            full.sort_unstable_by_key(|f| f.0);
-        } else {
-            full.extend_from_slice(forces);
-        }
     }
 }
 

@@ -211,7 +211,7 @@ impl Candidate {
     /// with its linearization point: neither has one.
     fn row_key(&self) -> Option<pairs::RowKey> {
         match self.limit {
-            Limit::Plane { normal, hold: None, .. } => Some((self.node, [normal.x.to_bits(), normal.y.to_bits(), normal.z.to_bits()])),
+            Limit::Plane { normal, hold: None, .. } => Some((self.node, crate::math::bits3(&normal))),
             _ => None,
         }
     }
@@ -345,10 +345,10 @@ struct SurfaceUpdate {
     u_rows: Vec<Vec3>,
     prev_u_rows: Vec<Vec3>,
     col_forces: Vec<(usize, Vec3)>,
-    /// Forced columns along one row's direction `(col, n, lambda)`, and per node slot its rows and last row.
+    /// Forced columns along one row's direction `(col, n, lambda)`, and per node slot its rows' count and its last
+    /// row's direction and lambda.
     col_along: Vec<(usize, Vec3, f64)>,
-    row_count: Vec<u8>,
-    single_row: Vec<Option<(Vec3, f64)>>,
+    slot_rows: Vec<(u8, Vec3, f64)>,
     /// Scratch of the surface product (partial sums, gathered rows of forced columns).
     product: ProductWorkspace,
     /// The compliance row of each surface vertex (`u32::MAX`: none), read when the frame's surface is written.
@@ -407,8 +407,7 @@ impl ConstrainedSolver {
                 prev_u_rows: vec![Vec3::zeros(); rows],
                 col_forces: Vec::new(),
                 col_along: Vec::new(),
-                row_count: Vec::new(),
-                single_row: Vec::new(),
+                slot_rows: Vec::new(),
                 product: ProductWorkspace::default(),
                 vertex_rows,
                 last_forces: Vec::new(),
@@ -1162,28 +1161,23 @@ impl ConstrainedSolver {
         }
         // A node held by one row (a face plane or sphere row) is forced along that row's direction; the product
         // may stream its column projected on it (`compliance/projected.rs`).
-        let (rows, lambda) = (&self.sys.rows, &self.sys.lambda);
-        let along = &mut self.surface.single_row;
-        along.clear();
-        along.resize(self.sys.nodes.len(), None);
-        let mut count = std::mem::take(&mut self.surface.row_count);
-        count.clear();
-        count.resize(self.sys.nodes.len(), 0);
-        for (k, row) in rows.iter().enumerate() {
-            count[row.slot] = count[row.slot].saturating_add(1);
-            along[row.slot] = Some((row.dir, lambda[k]));
+        let slot_rows = &mut self.surface.slot_rows;
+        slot_rows.clear();
+        slot_rows.resize(self.sys.nodes.len(), (0, Vec3::zeros(), 0.0));
+        for (row, &l) in self.sys.rows.iter().zip(&self.sys.lambda) {
+            let s = &mut slot_rows[row.slot];
+            *s = (s.0.saturating_add(1), row.dir, l);
         }
         self.surface.col_forces.clear();
         self.surface.col_along.clear();
         for (slot, f) in self.sys.direct_force.iter().enumerate() {
             // (a node without a direct force adds exactly nothing: a tether's node, whose pull is its link's)
             let Some(c) = self.compliance.col_of(self.sys.nodes[slot]).filter(|_| *f != Vec3::zeros()) else { continue };
-            match along[slot] {
-                Some((n, l)) if count[slot] == 1 && slot >= self.tools.enforced_nodes => self.surface.col_along.push((c, n, l)),
+            match slot_rows[slot] {
+                (1, n, l) if slot >= self.tools.enforced_nodes => self.surface.col_along.push((c, n, l)),
                 _ => self.surface.col_forces.push((c, *f)),
             }
         }
-        self.surface.row_count = count;
         self.surface.col_forces.sort_unstable_by_key(|x| x.0);
         self.surface.col_along.sort_unstable_by_key(|x| x.0);
         self.compliance.accumulate_along(&self.surface.col_forces, &self.surface.col_along, &mut self.surface.u_rows, &mut self.surface.product);
