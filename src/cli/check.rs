@@ -50,7 +50,11 @@ pub fn run(path: &Path, overrides: &[String], trajectory: Option<&Path>) -> anyh
         let split = match scenario.solver.substep_travel {
             Some(f) => {
                 let n = ((t.travel / (f * sp.shape.thickness)).ceil() as u32).clamp(1, fissure::sim::MAX_SUBSTEPS);
-                if n > 1 { format!("; such a frame runs as {n} sub-steps") } else { String::new() }
+                let jitter = match scenario.solver.substep_jitter {
+                    fissure::scenario::SubstepJitter::Discount => ", fewer where the samples jitter: the jitter does not count",
+                    fissure::scenario::SubstepJitter::Follow => "",
+                };
+                if n > 1 { format!("; such a frame runs as {n} sub-steps{jitter}") } else { String::new() }
             }
             None => String::new(),
         };

@@ -568,6 +568,10 @@ pub struct SolverFile {
     /// the default scene's motion gives the same forces within 1 % at any speed).
     #[serde(default = "default_substep_travel")]
     pub substep_travel: Option<f64>,
+    /// Whether a blade's own sample jitter counts as travel for the
+    /// sub-steps. Default `Discount`.
+    #[serde(default)]
+    pub substep_jitter: SubstepJitter,
     /// Order the compliance columns (dense storage) by how soon a blade
     /// reaches them, so that the window shows the scene and runs its frames
     /// while the rest are computed in the background, from when the rest is
@@ -609,10 +613,24 @@ impl Default for SolverFile {
             cache_dir: None,
             spatula_contact: SpatulaContact::default(),
             substep_travel: default_substep_travel(),
+            substep_jitter: SubstepJitter::default(),
             early_start: false,
             row_band_mm: default_row_band_mm(),
         }
     }
+}
+
+/// Whether a blade's sample jitter counts as travel for the sub-steps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum SubstepJitter {
+    /// A frame's travel counts only beyond the blade's jitter: the median, over
+    /// the last 16 frames, of its footprint corners' second differences
+    /// (`sim::substeps`). Smooth motion has none, so its sub-steps are those of
+    /// `Follow` exactly; a tracker's noise is taken in one step a frame. The default.
+    #[default]
+    Discount,
+    /// Every travel counts, noise too: each jitter is followed in sub-steps.
+    Follow,
 }
 
 /// How a spatula holds the tissue it claims.

@@ -25,7 +25,7 @@ use std::path::Path;
 
 pub use devices::{ForceTransformSettings, IgtlLink, SpaceMouseSettings, StylusMappingSettings};
 pub use error::{Location, Origin, ScenarioError};
-pub use file::{CollisionBackend, ComplianceStorage, DEFAULT_ROW_BAND_MM, Effect, LengthUnit, ScenarioFile, SpatulaContact};
+pub use file::{CollisionBackend, ComplianceStorage, DEFAULT_ROW_BAND_MM, Effect, LengthUnit, ScenarioFile, SpatulaContact, SubstepJitter};
 pub use overrides::Document;
 pub use tethers::{Band, TetherPoint, Tethers, Vessel, VesselKind};
 pub use tissue_time::{Ischemia, Relaxation};

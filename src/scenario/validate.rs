@@ -23,7 +23,7 @@ use super::error::{FieldLocations, Location, ScenarioError, ScenarioWarning};
 use super::file::{
     CollisionBackend, ComplianceStorage, DisplayFile, Effect, FilterFile, FixedFile, IntegrityFile, RefineChoiceFile, InputFile, LayoutFile,
     LengthUnit, MaterialFile, MeshSourceFile, OutputsFile, RegionOfInterestFile, RotationFile, ScenarioFile, SkullFile, SolverFile, SphereFile,
-    SpatulaContact, SpatulaFile, VolumeFile,
+    SpatulaContact, SpatulaFile, SubstepJitter, VolumeFile,
 };
 use super::overrides::Document;
 use super::trajectory::Trajectory;
@@ -314,6 +314,8 @@ pub struct SolverOptions {
     pub spatula_contact: SpatulaContact,
     /// Largest blade travel of one sub-step, in blade thicknesses; `None`: one step a frame.
     pub substep_travel: Option<f64>,
+    /// Whether a blade's sample jitter counts as travel for the sub-steps.
+    pub substep_jitter: SubstepJitter,
     /// Compliance columns ordered by the blades' reach; the window starts before they are all computed.
     pub early_start: bool,
     /// Surface vertices within this distance (m) of the region of interest
@@ -1136,6 +1138,7 @@ impl Checker<'_> {
                 }
                 t => t,
             },
+            substep_jitter: solver.substep_jitter,
             early_start: solver.early_start,
             row_band: match solver.row_band_mm {
                 Some(b) if !(b.is_finite() && b > 0.0 && b <= 1000.0) => {

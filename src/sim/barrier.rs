@@ -182,20 +182,6 @@ pub fn outside_bounds(p: &Vec3, (lo, hi): &(Vec3, Vec3)) -> bool {
 /// drops a vertex the exact test in the blade frame would keep.
 const BOUNDS_SLACK_M: f64 = 1e-9;
 
-/// Largest move (m) of a blade footprint corner from `before` to `after`.
-pub fn travel(shape: &SpatulaShape, before: &Pose, after: &Pose) -> f64 {
-    let mut m: f64 = 0.0;
-    for x in [0.0, shape.length] {
-        for y in [-0.5 * shape.width, 0.5 * shape.width] {
-            let c = Vec3::new(x, y, 0.0);
-            let a = after.position + after.rotation * c;
-            let b = before.position + before.rotation * c;
-            m = m.max((a - b).norm());
-        }
-    }
-    m
-}
-
 /// Whether a blade moving from `before` to `after`, through every pose the
 /// sub-steps interpolate between them, stays further than `margin` from each
 /// surface triangle (`triangles` over `positions`). Conservative: the motion
@@ -306,7 +292,7 @@ impl BarrierStage {
         self.end_candidates.clear();
         let before = out.len();
         for (s, ((shape, pb), pa)) in blades.shapes.iter().zip(blades.before).zip(blades.after).enumerate() {
-            let band = BARRIER_BAND_M + travel(shape, pb, pa);
+            let band = BARRIER_BAND_M + super::substeps::travel(shape, pb, pa);
             self.footprint_rows(s, shape, (pb, pa), band, surface, out);
             if let Some(rays) = rays {
                 self.ray_rows(s, rays, band, surface, out);
@@ -399,7 +385,7 @@ impl BarrierStage {
                 continue;
             }
             let half = 0.5 * shape.thickness;
-            let band = BARRIER_BAND_M + travel(shape, pb, pa);
+            let band = BARRIER_BAND_M + super::substeps::travel(shape, pb, pa);
             let q1 = local(pa, &surface.start[v]);
             if q1.z.abs() > half + band || !over_footprint(shape, &q1, BARRIER_BAND_M) {
                 continue;

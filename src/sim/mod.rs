@@ -17,11 +17,13 @@ pub mod preflight;
 pub mod replay;
 pub mod report;
 pub mod scene_mesh;
+pub mod substeps;
 pub mod tethers;
 pub mod tissue_time;
 
 pub use build::BuildOptions;
 pub use error::BuildError;
-pub use pipeline::{FrameInput, MAX_SUBSTEPS, Pipeline, SUBSTEP_TRAVEL_FRACTION, SimState, SkullStage, StepError, substep_count};
+pub use pipeline::{FrameInput, Pipeline, SimState, SkullStage, StepError};
+pub use substeps::{MAX_SUBSTEPS, SUBSTEP_TRAVEL_FRACTION, substep_count};
 pub use preflight::{Preflight, preflight};
 pub use report::{FrameReport, SpatulaReport, StageId, StageTimes};

@@ -32,28 +32,6 @@ pub enum StepError {
     NonFinite { frame: u64, stage: StageId, what: &'static str },
 }
 
-/// The default of `solver.substep_travel`: a frame whose blade footprint moves
-/// more than this fraction of the blade's thickness is split into sub-steps
-/// that move at most this much each.
-pub const SUBSTEP_TRAVEL_FRACTION: f64 = 0.125;
-/// At most this many sub-steps a frame: a longer jump (a tracker glitch of
-/// metres) takes longer sub-steps rather than stalling the frame.
-pub const MAX_SUBSTEPS: u32 = 256;
-
-/// Sub-steps for a frame from `before` to `after`: the largest footprint-corner
-/// travel over `fraction` of that blade's thickness, rounded up, in
-/// 1..=[`MAX_SUBSTEPS`]; 1 when `fraction` is `None`.
-pub fn substep_count(shapes: &[SpatulaShape], before: &[Pose], after: &[Pose], fraction: Option<f64>) -> u32 {
-    let Some(fraction) = fraction else { return 1 };
-    let mut ratio: f64 = 0.0;
-    for ((shape, b), a) in shapes.iter().zip(before).zip(after) {
-        let step = fraction * shape.thickness;
-        let travel = super::barrier::travel(shape, b, a);
-        ratio = ratio.max(travel / step);
-    }
-    if ratio.is_finite() { (ratio.ceil() as u32).clamp(1, MAX_SUBSTEPS) } else { MAX_SUBSTEPS }
-}
-
 /// Ends a frame whose solve left a NaN or an infinity in the surface.
 fn check_finite_state(frame: u64, state: &SimState, max_displacement: f64) -> Result<(), StepError> {
     if max_displacement.is_finite() && state.surface_displacement.iter().all(is_finite3) {
@@ -193,6 +171,9 @@ struct SubSteps {
     /// Each spatula's input smoothing (the scenario's `filter`), applied to
     /// the frame's input before sub-steps are counted.
     pose_filters: Vec<Option<super::pose_filter::PoseFilter>>,
+    /// Each blade's sample jitter (from its targets, frame by frame) and the travel it takes off this frame's, m.
+    jitter: Vec<super::substeps::SampleJitter>,
+    allowances: Vec<f64>,
 }
 
 /// What an iteration cap puts back.
@@ -242,6 +223,8 @@ struct ContactRules {
     law: SpatulaContact,
     /// Largest blade travel of a sub-step, in thicknesses (`None`: one step a frame).
     substep_travel: Option<f64>,
+    /// Whether a blade's sample jitter is taken off its travel before the sub-steps are counted.
+    discount_jitter: bool,
     /// Blade barrier rows for unclaimed vertices near a blade (unilateral contact only).
     barrier: Option<super::barrier::BarrierStage>,
 }
@@ -289,7 +272,12 @@ impl Pipeline {
         let barrier = (contact_law != SpatulaContact::Bilateral && collision.is_some()).then(|| super::barrier::BarrierStage::new(surface.vertices.len()));
         Ok(Self {
             name: scenario.name.clone(),
-            contact: ContactRules { law: contact_law, substep_travel: scenario.solver.substep_travel, barrier },
+            contact: ContactRules {
+                law: contact_law,
+                substep_travel: scenario.solver.substep_travel,
+                discount_jitter: scenario.solver.substep_jitter == crate::scenario::SubstepJitter::Discount,
+                barrier,
+            },
             effects: scenario.effects,
             time_step: scenario.time_step,
             shapes: scenario.spatulas.iter().map(|s| s.shape).collect(),
@@ -300,6 +288,8 @@ impl Pipeline {
                 frame_start_poses: Vec::new(),
                 target_poses: Vec::new(),
                 pose_filters: scenario.spatulas.iter().map(|s| s.filter.map(|f| super::pose_filter::PoseFilter::new(f, &s.shape))).collect(),
+                jitter: vec![Default::default(); n],
+                allowances: vec![0.0; n],
             },
             rollback: Rollback { feasible_constraints: Vec::new(), saved_history: Default::default(), saved_claims: Vec::new() },
             far: FarTrack { near_far: Vec::new(), blade_boxes: Vec::new(), far_edge },
@@ -454,6 +444,7 @@ impl Pipeline {
         if let Some(b) = &mut self.contact.barrier {
             b.reset();
         }
+        self.sub.jitter.iter_mut().for_each(super::substeps::SampleJitter::reset);
     }
 
     /// Runs one frame. A frame whose blades move more than
@@ -491,6 +482,7 @@ impl Pipeline {
                 None => *slot = accepted.unwrap_or(*slot),
             }
         }
+        self.observe_jitter();
         // Held blades: with tissue over time, a frame at the poses of two frames that gave the same rows and
         // surface is that answer again (the solve is a function of them), so it is not solved.
         let still = self.sub.target_poses == self.sub.frame_start_poses && !self.tethers.as_ref().is_some_and(|t| t.has_pending_cuts());
@@ -508,7 +500,13 @@ impl Pipeline {
         if let Some(t) = &mut self.tethers {
             t.begin_frame();
         }
-        let mut substeps = substep_count(&self.shapes, &self.sub.frame_start_poses, &self.sub.target_poses, self.contact.substep_travel);
+        let mut substeps = super::substeps::substep_count(
+            &self.shapes,
+            &self.sub.frame_start_poses,
+            &self.sub.target_poses,
+            &self.sub.allowances,
+            self.contact.substep_travel,
+        );
         if substeps > 1 && free && self.sweeps_clear(&state.surface_positions) {
             // Nothing near the blades' path and nothing held: every sub-step
             // would find no contact and solve to the same free state.
@@ -540,6 +538,19 @@ impl Pipeline {
             self.note_still(still, state);
         }
         self.finish_frame(state, frame)
+    }
+
+    /// Takes the frame's targets into each blade's jitter estimate and sets the travel it takes off this frame's
+    /// (none unless sub-steps are on and jitter is discounted).
+    fn observe_jitter(&mut self) {
+        let sub = &mut self.sub;
+        for (((j, a), shape), target) in sub.jitter.iter_mut().zip(&mut sub.allowances).zip(&self.shapes).zip(&sub.target_poses) {
+            j.observe(shape, target);
+            *a = match self.contact.substep_travel {
+                Some(f) if self.contact.discount_jitter => j.allowance(f * shape.thickness),
+                _ => 0.0,
+            };
+        }
     }
 
     /// After a frame solved at unchanged poses (`still`), whether it agreed with the one before bit for bit.

@@ -64,6 +64,7 @@ mod scenario_parsers_never_panic;
 mod screenshot;
 mod study_preset;
 mod study_quick;
+mod substep_jitter;
 mod tethers_scene;
 mod tetrahedralize;
 mod tissue_time;
