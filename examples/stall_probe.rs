@@ -25,6 +25,7 @@ fn main() {
     let mut times = Vec::new();
     let mut phases = [0.0f64; 4];
     let mut screened = 0;
+    let mut iterations = std::collections::BTreeMap::<usize, usize>::new();
     let pace = std::env::var_os("PACE").is_some_and(|v| v == "1");
     let start = Instant::now();
     for k in 0..scenario.step_count() {
@@ -42,6 +43,7 @@ fn main() {
         let s = pipeline.last_solution();
         let p = pipeline.solver().timings();
         screened += p.screened;
+        *iterations.entry(s.iterations).or_default() += 1;
         for (acc, t) in phases.iter_mut().zip([p.gather, p.factor, p.candidates, p.surface]) {
             *acc += t * 1e3;
         }
@@ -70,5 +72,6 @@ fn main() {
         "phases over all frames: gather {:.0} factor {:.0} candidates {:.0} ({screened} evaluations screened out) surface {:.0} ms",
         phases[0], phases[1], phases[2], phases[3]
     );
+    println!("active-set iterations (count: frames): {iterations:?}");
     println!("{n} frames: p50 {:.2}, p95 {:.2}, max {:.2} ms", times[n / 2], times[n * 95 / 100], times[n - 1]);
 }
