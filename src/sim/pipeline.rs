@@ -448,7 +448,8 @@ impl Pipeline {
     }
 
     /// Runs one frame. A frame whose blades move more than
-    /// [`SUBSTEP_TRAVEL_FRACTION`] of their thickness is split into sub-steps
+    /// `solver.substep_travel` of their thickness, less their samples' own
+    /// jitter ([`super::substeps`]), is split into sub-steps
     /// (poses interpolated, collision history carried through each), so the
     /// result does not depend on how the motion was sampled. When the contact
     /// solve hits its iteration cap, the frame keeps the last feasible state
