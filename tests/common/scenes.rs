@@ -168,6 +168,26 @@ impl Scene {
     }
 }
 
+/// A 20 mm cube (5 cells a side, bottom fixed, its top at z = 20 mm) and a
+/// flat 12 x 8 x 1 mm blade over the middle of its top, face 0 up and face 1
+/// down, its mid-plane at `z_mm`: the press of the fast-tool and jitter cases.
+pub fn block_press(z_mm: f64) -> Scene {
+    let mesh = super::block(5, 5, 5, Vec3::new(20.0, 20.0, 20.0), Vec3::new(-10.0, -10.0, 0.0));
+    let blade = Blade {
+        name: "blade",
+        length_mm: 12.0,
+        width_mm: 8.0,
+        thickness_mm: 1.0,
+        along: 12,
+        across: 8,
+        position_mm: [-6.0, 0.0, z_mm],
+        rotation: "Quaternion(1.0, 0.0, 0.0, 0.0)".into(),
+    };
+    let mut s = Scene::new(mesh, vec![blade]);
+    s.effects = "Collision, Culling, ForceOutput, ContactPressure".into();
+    s
+}
+
 /// Merges meshes (each in its own region id `1 + k`).
 pub fn merge(meshes: &[TetMesh]) -> TetMesh {
     let mut positions = Vec::new();

@@ -10,8 +10,7 @@
 
 use crate::common;
 
-use common::scenes::{Blade, Scene, pose_mm, step_checked};
-use fissure::math::Vec3;
+use common::scenes::{Scene, pose_mm, step_checked};
 use fissure::sim::{FrameInput, MAX_SUBSTEPS};
 
 const IDENTITY: [f64; 4] = [1.0, 0.0, 0.0, 0.0];
@@ -21,22 +20,9 @@ const TOP_MM: f64 = 20.0;
 const START_Z_MM: f64 = TOP_MM + 0.5 + 37.0;
 const END_Z_MM: f64 = TOP_MM + 0.5 - 3.0;
 
-/// A 20 mm cube, bottom fixed, and a flat 12 x 8 x 1 mm blade over the middle of its top.
+/// The block press with the blade 37 mm above the block.
 fn press_scene() -> Scene {
-    let mesh = common::block(5, 5, 5, Vec3::new(20.0, 20.0, 20.0), Vec3::new(-10.0, -10.0, 0.0));
-    let blade = Blade {
-        name: "blade",
-        length_mm: 12.0,
-        width_mm: 8.0,
-        thickness_mm: 1.0,
-        along: 12,
-        across: 8,
-        position_mm: [-6.0, 0.0, START_Z_MM],
-        rotation: "Quaternion(1.0, 0.0, 0.0, 0.0)".into(),
-    };
-    let mut s = Scene::new(mesh, vec![blade]);
-    s.effects = "Collision, Culling, ForceOutput, ContactPressure".into();
-    s
+    common::scenes::block_press(START_Z_MM)
 }
 
 /// The default scene's blades (paper Fig. 14) driven straight from their start

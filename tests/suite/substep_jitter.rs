@@ -10,7 +10,7 @@
 
 use crate::common;
 
-use common::scenes::{Blade, Scene, pose_mm, step_checked};
+use common::scenes::{Scene, pose_mm, step_checked};
 use fissure::math::Vec3;
 
 const IDENTITY: [f64; 4] = [1.0, 0.0, 0.0, 0.0];
@@ -24,21 +24,9 @@ const HOLD_FRAMES: usize = 80;
 /// The jitter estimate reads 16 frames; the frames after it are compared.
 const SETTLED: usize = 16;
 
-/// A 20 mm cube, bottom fixed, and a flat 12 x 8 x 1 mm blade over the middle of its top.
+/// The block press, 0.2 mm above the block, with `solver.substep_travel` (and what follows it) as given.
 fn press_scene(jitter: &'static str) -> Scene {
-    let mesh = common::block(5, 5, 5, Vec3::new(20.0, 20.0, 20.0), Vec3::new(-10.0, -10.0, 0.0));
-    let blade = Blade {
-        name: "blade",
-        length_mm: 12.0,
-        width_mm: 8.0,
-        thickness_mm: 1.0,
-        along: 12,
-        across: 8,
-        position_mm: [-6.0, 0.0, START_Z_MM],
-        rotation: "Quaternion(1.0, 0.0, 0.0, 0.0)".into(),
-    };
-    let mut s = Scene::new(mesh, vec![blade]);
-    s.effects = "Collision, Culling, ForceOutput, ContactPressure".into();
+    let mut s = common::scenes::block_press(START_Z_MM);
     s.substep_travel = jitter;
     s
 }
