@@ -256,14 +256,8 @@ impl SparseCholesky {
         stack: &mut MemStack,
     ) {
         let (n, k) = (rhs.nrows(), rhs.ncols());
-        let llt = SupernodalLltRef::new(symbolic, &self.values);
-        let (widest, deepest) = supernode_extent(symbolic);
         let (mut x, stack) = stack.make_with::<f64>(n * k, |_| 0.0);
         let x: &mut [f64] = &mut x;
-        let (mut top, stack) = stack.make_with::<f64>(widest * k, |_| 0.0);
-        let top: &mut [f64] = &mut top;
-        let (mut below, _) = stack.make_with::<f64>(deepest * k, |_| 0.0);
-        let below: &mut [f64] = &mut below;
         // x[inv[old], j] = rhs[old, j], a block of rows at a time so both sides are read and written in runs
         let inv = self.symbolic.perm().map(|p| p.arrays().1);
         let new_row = |old: usize| inv.map_or(old, |v| v[old]);
@@ -276,8 +270,7 @@ impl SparseCholesky {
                 }
             }
         }
-        forward_substitution(&llt, x, top, below, k, forward);
-        backward_substitution(&llt, x, top, below, k, backward);
+        self.substitute(symbolic, x, k, forward, backward, stack);
         // rhs[old, j] = x[inv[old], j]
         for first in (0..n).step_by(ROW_BLOCK) {
             let last = (first + ROW_BLOCK).min(n);
@@ -290,11 +283,73 @@ impl SparseCholesky {
         }
     }
 
+    /// The forward then the backward substitution of [`Self::solve_row_major`] over `x` (n x k, row major, in the
+    /// factor's order), in place; `top` and `below` come from `stack`.
+    fn substitute(&self, symbolic: &SymbolicSupernodalCholesky<usize>, x: &mut [f64], k: usize, forward: Option<&[bool]>, backward: Option<&[bool]>, stack: &mut MemStack) {
+        let llt = SupernodalLltRef::new(symbolic, &self.values);
+        let (widest, deepest) = supernode_extent(symbolic);
+        let (mut top, stack) = stack.make_with::<f64>(widest * k, |_| 0.0);
+        let top: &mut [f64] = &mut top;
+        let (mut below, _) = stack.make_with::<f64>(deepest * k, |_| 0.0);
+        let below: &mut [f64] = &mut below;
+        forward_substitution(&llt, x, top, below, k, forward);
+        backward_substitution(&llt, x, top, below, k, backward);
+    }
+
+    /// [`Self::solve_unit_columns`] without a dense right-hand side: the unit entries are set in the row-major
+    /// scratch itself and the answer is read there ([`UnitColumns::at`]), bit for bit the same values, with neither
+    /// the `dim x 3 nodes` column-major matrix nor the two copies between the layouts. A factor that does not solve
+    /// row major solves into `fallback` (allocated here).
+    pub fn solve_unit_columns_in<'a>(
+        &'a self,
+        first_dofs: &[usize],
+        wanted: Option<&[bool]>,
+        scratch: &'a mut MemBuffer,
+        fallback: &'a mut Option<faer::Mat<f64>>,
+    ) -> UnitColumns<'a> {
+        let k = 3 * first_dofs.len();
+        if self.row_major
+            && let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw()
+        {
+            let rows: Vec<usize> = first_dofs.iter().flat_map(|&d| d..d + 3).collect();
+            let reached = self.supernodes_above(&rows).unwrap_or_default();
+            let inv = self.symbolic.perm().map(|p| p.arrays().1);
+            let (mut x, stack) = MemStack::new(scratch).make_with::<f64>(self.dim() * k, |_| 0.0);
+            for (j, &old) in rows.iter().enumerate() {
+                x[inv.map_or(old, |v| v[old]) * k + j] = 1.0;
+            }
+            self.substitute(symbolic, &mut x, k, Some(&reached), wanted, stack);
+            return UnitColumns::RowMajor { x, k, inv };
+        }
+        let m = fallback.insert(faer::Mat::zeros(self.dim(), k));
+        self.solve_unit_columns(first_dofs, m.as_mut(), wanted, scratch);
+        UnitColumns::ColMajor(m.as_ref())
+    }
+
     /// Solves for one right-hand side stored in a slice.
     pub fn solve_vec_in_place(&self, rhs: &mut [f64], scratch: &mut MemBuffer) {
         let n = rhs.len();
         let m = faer::MatMut::from_column_major_slice_mut(rhs, n, 1);
         self.solve_in_place(m, scratch);
+    }
+}
+
+/// The columns [`SparseCholesky::solve_unit_columns_in`] solved, where they were solved.
+pub enum UnitColumns<'a> {
+    /// Row major in the factor's order: DOF `d` of column `j` at `x[inv[d] k + j]`.
+    RowMajor { x: faer::dyn_stack::DynArray<'a, f64>, k: usize, inv: Option<&'a [usize]> },
+    /// Column major, `dim x k`.
+    ColMajor(MatRef<'a, f64>),
+}
+
+impl UnitColumns<'_> {
+    /// The entry of column `j` at DOF `dof`.
+    #[inline]
+    pub fn at(&self, dof: usize, j: usize) -> f64 {
+        match self {
+            Self::RowMajor { x, k, inv } => x[inv.map_or(dof, |v| v[dof]) * k + j],
+            Self::ColMajor(m) => m[(dof, j)],
+        }
     }
 }
 

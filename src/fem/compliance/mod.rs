@@ -40,6 +40,8 @@ const CACHE_MAGIC: &[u8; 8] = b"FISSCOMP";
 const CACHE_VERSION: u32 = 8;
 /// ROI nodes solved together (3 right-hand sides each).
 const BATCH_NODES: usize = 32;
+/// Stored rows written at a time from a solved batch (96 of its row-major rows: 72 KiB, in a core's cache).
+const FILL_ROW_BLOCK: usize = 32;
 /// Bytes the precompute's right-hand sides may take over all its threads.
 const PRECOMPUTE_RHS_BUDGET: usize = 1 << 30;
 /// Rows of one chunk of the surface product (9 f64 partials a row: 36 KiB, a multiple of 8 rows).
@@ -418,7 +420,7 @@ impl Compliance {
             order.sort_by_key(|&b| reach[self.row_nodes[starts[b]] as usize]);
         }
         let threads = precompute_threads(n_free, starts.len());
-        // The stored entries plus every thread's right-hand sides.
+        // The stored entries plus every thread's right-hand sides (row major, in its solve's scratch).
         let entry_bytes = if storage == ComplianceStorage::F32 { 4 } else { 8 };
         let need = len * entry_bytes
             + self.layout.lo_blocks() * 9 * 2 * usize::from(storage == ComplianceStorage::F32)
@@ -440,7 +442,7 @@ impl Compliance {
         };
         let fill = Arc::new(Fill::new(&self.layout, self.n_cols, &starts).solved_in(order));
         let row_dofs: Vec<usize> = self.row_nodes.iter().map(|&n| model.dofs.dof(n).unwrap_or(0)).collect();
-        Ok(FillJob { chol: Arc::clone(&model.chol), n_free, row_dofs, wanted: std::sync::OnceLock::new(), layout: Arc::clone(&self.layout), values, fill, threads, background, source: None })
+        Ok(FillJob { chol: Arc::clone(&model.chol), row_dofs, wanted: std::sync::OnceLock::new(), layout: Arc::clone(&self.layout), values, fill, threads, background, source: None })
     }
     /// Statistics of the last build or load.
     pub fn stats(&self) -> ComplianceStats {
@@ -788,7 +790,6 @@ enum Piece<'a> {
 struct FillJob {
     /// Waited for at the first batch that is solved (none when the cache has every batch).
     chol: Arc<super::model::LazyFactor>,
-    n_free: usize,
     /// First free DOF of every stored row.
     row_dofs: Vec<usize>,
     /// The supernodes above the stored rows, made by the first batch solved.
@@ -818,8 +819,8 @@ impl FillJob {
                         lower_thread_priority();
                     }
                     let work = || -> Result<(), FemError> {
-                        // The right-hand sides are allocated only once a batch is solved.
-                        let mut solver: Option<(faer::Mat<f64>, faer::dyn_stack::MemBuffer)> = None;
+                        // The solve's scratch is allocated only once a batch is solved.
+                        let mut solver: Option<(faer::dyn_stack::MemBuffer, Option<faer::Mat<f64>>)> = None;
                         loop {
                             if self.fill.is_cancelled() {
                                 return Ok(());
@@ -836,10 +837,10 @@ impl FillJob {
                             } else {
                                 let chol = self.chol.get()?;
                                 if solver.is_none() {
-                                    solver = Some((faer::Mat::<f64>::zeros(self.n_free, 3 * BATCH_NODES), chol.scratch(3 * BATCH_NODES)?));
+                                    solver = Some((chol.scratch(3 * BATCH_NODES)?, None));
                                 }
-                                if let Some((rhs, scratch)) = solver.as_mut() {
-                                    self.solve_batch(chol, cols.clone(), rhs, scratch, piece);
+                                if let Some((scratch, fallback)) = solver.as_mut() {
+                                    self.solve_batch(chol, cols.clone(), scratch, fallback, piece);
                                 }
                                 self.fill.count_computed();
                             }
@@ -962,29 +963,37 @@ impl FillJob {
         &self,
         chol: &crate::linalg::SparseCholesky,
         cols: std::ops::Range<usize>,
-        rhs: &mut faer::Mat<f64>,
         scratch: &mut faer::dyn_stack::MemBuffer,
+        fallback: &mut Option<faer::Mat<f64>>,
         mut piece: Piece<'_>,
     ) {
         let (j0, nb) = (cols.start, cols.len());
         let row_dofs = &self.row_dofs;
         // Only the stored rows are read: the backward pass visits only their supernodes and those above.
         let wanted = self.wanted.get_or_init(|| chol.supernodes_above(&row_dofs.iter().flat_map(|&d| d..d + 3).collect::<Vec<_>>()));
-        chol.solve_unit_columns(&row_dofs[j0..j0 + nb], rhs.as_mut().subcols_mut(0, 3 * nb), wanted.as_deref(), scratch);
+        let solved = chol.solve_unit_columns_in(&row_dofs[j0..j0 + nb], wanted.as_deref(), scratch, fallback);
         let (base, base_lo) = (self.layout.col_off[j0] * 9, self.layout.lo_off[j0] * 9);
-        for b in 0..nb {
-            let j = j0 + b;
-            let cols = [rhs.col(3 * b), rhs.col(3 * b + 1), rhs.col(3 * b + 2)];
-            let cols = cols.map(|c| c.try_as_col_major().map(|c| c.as_slice()).unwrap_or(&[]));
-            for (run, (r0, r1, off)) in self.layout.runs(j).into_iter().enumerate() {
-                let (start, count) = (off * 9 - base, (r1 - r0) * 9);
-                match &mut piece {
-                    Piece::F64(v) => fill_column(&mut v[start..start + count], &row_dofs[r0..r1], &cols, |x| x),
-                    Piece::F32(v, lo) => {
-                        fill_column(&mut v[start..start + count], &row_dofs[r0..r1], &cols, |x| split_f32(x).0);
-                        if run == 0 {
-                            let b = self.layout.lo_off[j] * 9 - base_lo;
-                            fill_column(&mut lo[b..b + count], &row_dofs[r0..r1], &cols, |x| split_f32(x).1);
+        // A block of stored rows at a time for every column of the batch: the solve's rows of the block are read
+        // from memory once, whichever layout holds them.
+        for first in (0..row_dofs.len()).step_by(FILL_ROW_BLOCK) {
+            let last = (first + FILL_ROW_BLOCK).min(row_dofs.len());
+            for b in 0..nb {
+                let j = j0 + b;
+                let at = |d: usize, c: usize| solved.at(d, 3 * b + c);
+                for (run, (r0, r1, off)) in self.layout.runs(j).into_iter().enumerate() {
+                    let (s, e) = (r0.max(first), r1.min(last));
+                    if s >= e {
+                        continue;
+                    }
+                    let (start, count) = ((off + s - r0) * 9 - base, (e - s) * 9);
+                    match &mut piece {
+                        Piece::F64(v) => fill_column(&mut v[start..start + count], &row_dofs[s..e], at, |x| x),
+                        Piece::F32(v, lo) => {
+                            fill_column(&mut v[start..start + count], &row_dofs[s..e], at, |x| split_f32(x).0);
+                            if run == 0 {
+                                let b = (self.layout.lo_off[j] + s - r0) * 9 - base_lo;
+                                fill_column(&mut lo[b..b + count], &row_dofs[s..e], at, |x| split_f32(x).1);
+                            }
                         }
                     }
                 }
@@ -1018,12 +1027,13 @@ fn precompute_threads(n_free: usize, batches: usize) -> usize {
     cores.min(by_memory).min(batches).max(1)
 }
 
-fn fill_column<T: Copy>(out: &mut [T], row_dofs: &[usize], cols: &[&[f64]; 3], conv: impl Fn(f64) -> T) {
+/// Writes the 3x3 blocks of one column node at `row_dofs` (column `c`, DOF `d + r` read by `at(d + r, c)`).
+fn fill_column<T: Copy>(out: &mut [T], row_dofs: &[usize], at: impl Fn(usize, usize) -> f64, conv: impl Fn(f64) -> T) {
     for (k, &d) in row_dofs.iter().enumerate() {
         let o = 9 * k;
         for c in 0..3 {
             for r in 0..3 {
-                out[o + 3 * c + r] = conv(cols[c][d + r]);
+                out[o + 3 * c + r] = conv(at(d + r, c));
             }
         }
     }
