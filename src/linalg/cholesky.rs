@@ -234,9 +234,14 @@ impl SparseCholesky {
     /// Scratch of [`Self::solve_row_major`] for `k` columns: the permuted right-hand sides (row major), and one
     /// supernode's diagonal rows and rows below the diagonal block (column major).
     fn row_major_scratch(&self, k: usize) -> StackReq {
+        StackReq::new::<f64>(self.dim() * k).and(self.substitute_scratch(k))
+    }
+
+    /// Scratch of [`Self::substitute`] for `k` columns: one supernode's diagonal rows and rows below the diagonal block.
+    fn substitute_scratch(&self, k: usize) -> StackReq {
         let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw() else { return StackReq::EMPTY };
         let (widest, deepest) = supernode_extent(symbolic);
-        StackReq::new::<f64>(self.dim() * k).and(StackReq::new::<f64>(widest * k)).and(StackReq::new::<f64>(deepest * k))
+        StackReq::new::<f64>(widest * k).and(StackReq::new::<f64>(deepest * k))
     }
 
     /// faer's supernodal solve with the right-hand sides held row major, so an update from a supernode's rows below
@@ -296,34 +301,55 @@ impl SparseCholesky {
         backward_substitution(&llt, x, top, below, k, backward);
     }
 
+    /// Scratch of [`Self::solve_unit_columns_in`] for `nodes` nodes (3 right-hand sides each).
+    pub fn unit_scratch(&self, nodes: usize) -> Result<UnitScratch, FactorError> {
+        let k = 3 * nodes;
+        let len = if self.solves_row_major() { self.dim() * k } else { 0 };
+        // Zeroed by the allocator: pages of rows a solve never touches are never written, nor resident.
+        let x = bytemuck::allocation::try_zeroed_vec(len).map_err(|_| FactorError::OutOfMemory { what: "solve scratch", bytes: len * 8 })?;
+        let req = if self.solves_row_major() { self.substitute_scratch(k) } else { self.symbolic.solve_in_place_scratch::<f64>(k, Par::Seq) };
+        let stack = MemBuffer::try_new(req).map_err(|_| FactorError::OutOfMemory { what: "solve scratch", bytes: req.size_bytes() })?;
+        Ok(UnitScratch { x, stack, fallback: None, nodes })
+    }
+
+    fn solves_row_major(&self) -> bool {
+        self.row_major && matches!(self.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_))
+    }
+
     /// [`Self::solve_unit_columns`] without a dense right-hand side: the unit entries are set in the row-major
-    /// scratch itself and the answer is read there ([`UnitColumns::at`]), bit for bit the same values, with neither
-    /// the `dim x 3 nodes` column-major matrix nor the two copies between the layouts. A factor that does not solve
-    /// row major solves into `fallback` (allocated here).
-    pub fn solve_unit_columns_in<'a>(
-        &'a self,
-        first_dofs: &[usize],
-        wanted: Option<&[bool]>,
-        scratch: &'a mut MemBuffer,
-        fallback: &'a mut Option<faer::Mat<f64>>,
-    ) -> UnitColumns<'a> {
+    /// right-hand sides themselves and the answer is read there ([`UnitColumns::at`]), bit for bit the same values,
+    /// with neither the `dim x 3 nodes` column-major matrix nor the two copies between the layouts. Only the rows a
+    /// solve reads are cleared first: those of the supernodes the forward substitution visits (above the right-hand
+    /// sides' rows) and of those the backward one visits (`wanted`, all when `None`); no other row is read or written.
+    /// A factor that does not solve row major solves column major into the scratch's own matrix.
+    /// `first_dofs` holds at most as many nodes as the scratch was made for, or this fails.
+    pub fn solve_unit_columns_in<'a>(&'a self, first_dofs: &[usize], wanted: Option<&[bool]>, scratch: &'a mut UnitScratch) -> Result<UnitColumns<'a>, FactorError> {
+        if first_dofs.len() > scratch.nodes {
+            return Err(FactorError::Factorization { reason: format!("{} nodes solved in a scratch made for {}", first_dofs.len(), scratch.nodes) });
+        }
         let k = 3 * first_dofs.len();
-        if self.row_major
+        if self.solves_row_major()
             && let SymbolicCholeskyRaw::Supernodal(symbolic) = self.symbolic.raw()
         {
             let rows: Vec<usize> = first_dofs.iter().flat_map(|&d| d..d + 3).collect();
             let reached = self.supernodes_above(&rows).unwrap_or_default();
+            let x = &mut scratch.x[..self.dim() * k];
+            let (begin, end) = (symbolic.supernode_begin(), symbolic.supernode_end());
+            for sn in 0..symbolic.n_supernodes() {
+                if reached[sn] || wanted.is_none_or(|w| w[sn]) {
+                    x[begin[sn] * k..end[sn] * k].fill(0.0);
+                }
+            }
             let inv = self.symbolic.perm().map(|p| p.arrays().1);
-            let (mut x, stack) = MemStack::new(scratch).make_with::<f64>(self.dim() * k, |_| 0.0);
             for (j, &old) in rows.iter().enumerate() {
                 x[inv.map_or(old, |v| v[old]) * k + j] = 1.0;
             }
-            self.substitute(symbolic, &mut x, k, Some(&reached), wanted, stack);
-            return UnitColumns::RowMajor { x, k, inv };
+            self.substitute(symbolic, x, k, Some(&reached), wanted, MemStack::new(&mut scratch.stack));
+            return Ok(UnitColumns::RowMajor { x: &scratch.x[..self.dim() * k], k, inv });
         }
-        let m = fallback.insert(faer::Mat::zeros(self.dim(), k));
-        self.solve_unit_columns(first_dofs, m.as_mut(), wanted, scratch);
-        UnitColumns::ColMajor(m.as_ref())
+        let m = scratch.fallback.insert(faer::Mat::zeros(self.dim(), k));
+        self.solve_unit_columns(first_dofs, m.as_mut(), wanted, &mut scratch.stack);
+        Ok(UnitColumns::ColMajor(m.as_ref()))
     }
 
     /// Solves for one right-hand side stored in a slice.
@@ -334,10 +360,21 @@ impl SparseCholesky {
     }
 }
 
+/// What [`SparseCholesky::solve_unit_columns_in`] solves in, kept from one solve to the next
+/// ([`SparseCholesky::unit_scratch`]): the row-major right-hand sides, the substitutions' scratch, and the
+/// column-major matrix of a factor that does not solve row major.
+pub struct UnitScratch {
+    x: Vec<f64>,
+    stack: MemBuffer,
+    fallback: Option<faer::Mat<f64>>,
+    /// Nodes a solve may hold.
+    nodes: usize,
+}
+
 /// The columns [`SparseCholesky::solve_unit_columns_in`] solved, where they were solved.
 pub enum UnitColumns<'a> {
     /// Row major in the factor's order: DOF `d` of column `j` at `x[inv[d] k + j]`.
-    RowMajor { x: faer::dyn_stack::DynArray<'a, f64>, k: usize, inv: Option<&'a [usize]> },
+    RowMajor { x: &'a [f64], k: usize, inv: Option<&'a [usize]> },
     /// Column major, `dim x k`.
     ColMajor(MatRef<'a, f64>),
 }

@@ -11,7 +11,7 @@ pub mod dense;
 pub mod kept_factor;
 pub mod ordering;
 
-pub use cholesky::{SparseCholesky, UnitColumns};
+pub use cholesky::{SparseCholesky, UnitColumns, UnitScratch};
 pub use ordering::FillOrdering;
 
 /// Lower triangle of a sparse symmetric matrix in compressed sparse columns (the free-DOF stiffness `K_FF`).

@@ -820,7 +820,7 @@ impl FillJob {
                     }
                     let work = || -> Result<(), FemError> {
                         // The solve's scratch is allocated only once a batch is solved.
-                        let mut solver: Option<(faer::dyn_stack::MemBuffer, Option<faer::Mat<f64>>)> = None;
+                        let mut solver: Option<crate::linalg::UnitScratch> = None;
                         loop {
                             if self.fill.is_cancelled() {
                                 return Ok(());
@@ -837,10 +837,10 @@ impl FillJob {
                             } else {
                                 let chol = self.chol.get()?;
                                 if solver.is_none() {
-                                    solver = Some((chol.scratch(3 * BATCH_NODES)?, None));
+                                    solver = Some(chol.unit_scratch(BATCH_NODES)?);
                                 }
-                                if let Some((scratch, fallback)) = solver.as_mut() {
-                                    self.solve_batch(chol, cols.clone(), scratch, fallback, piece);
+                                if let Some(scratch) = solver.as_mut() {
+                                    self.solve_batch(chol, cols.clone(), scratch, piece)?;
                                 }
                                 self.fill.count_computed();
                             }
@@ -963,15 +963,14 @@ impl FillJob {
         &self,
         chol: &crate::linalg::SparseCholesky,
         cols: std::ops::Range<usize>,
-        scratch: &mut faer::dyn_stack::MemBuffer,
-        fallback: &mut Option<faer::Mat<f64>>,
+        scratch: &mut crate::linalg::UnitScratch,
         mut piece: Piece<'_>,
-    ) {
+    ) -> Result<(), FemError> {
         let (j0, nb) = (cols.start, cols.len());
         let row_dofs = &self.row_dofs;
         // Only the stored rows are read: the backward pass visits only their supernodes and those above.
         let wanted = self.wanted.get_or_init(|| chol.supernodes_above(&row_dofs.iter().flat_map(|&d| d..d + 3).collect::<Vec<_>>()));
-        let solved = chol.solve_unit_columns_in(&row_dofs[j0..j0 + nb], wanted.as_deref(), scratch, fallback);
+        let solved = chol.solve_unit_columns_in(&row_dofs[j0..j0 + nb], wanted.as_deref(), scratch)?;
         let (base, base_lo) = (self.layout.col_off[j0] * 9, self.layout.lo_off[j0] * 9);
         // A block of stored rows at a time for every column of the batch: the solve's rows of the block are read
         // from memory once, whichever layout holds them.
@@ -999,6 +998,7 @@ impl FillJob {
                 }
             }
         }
+        Ok(())
     }
 }
 
