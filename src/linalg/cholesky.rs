@@ -74,8 +74,19 @@ impl SparseCholesky {
             },
             FillOrdering::Best => {
                 // Both analyses are cheap next to the numeric factor; keep the one with less fill (solves stream L).
-                let by_amd = analyse(SymmetricOrdering::Amd)?;
-                match nd()? {
+                // They run side by side (each alone is deterministic, and the choice depends only on their counts).
+                let (by_amd, by_nd) = std::thread::scope(|scope| {
+                    let amd = std::thread::Builder::new().name("fissure-amd".into()).spawn_scoped(scope, || analyse(SymmetricOrdering::Amd));
+                    let by_nd = nd();
+                    let by_amd = match amd {
+                        Ok(handle) => handle.join().unwrap_or_else(|_| Err(FactorError::Factorization { reason: "the AMD analysis panicked".into() })),
+                        // No thread to spare: one after the other.
+                        Err(_) => analyse(SymmetricOrdering::Amd),
+                    };
+                    (by_amd, by_nd)
+                });
+                let by_amd = by_amd?;
+                match by_nd? {
                     Some(by_nd) if by_nd.len_val() < by_amd.len_val() => (by_nd, FillOrdering::NestedDissection),
                     _ => (by_amd, FillOrdering::Amd),
                 }
