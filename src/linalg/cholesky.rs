@@ -19,7 +19,7 @@ use std::time::Instant;
 
 /// Supernode amalgamation (faer's rule: merge two adjacent supernodes of `n` columns in all when the merged one has
 /// a fraction of zeros below `z`, for the first `(n, z)` with `n` at most its bound). Coarser than faer's default
-/// `[(4, 1.0), (16, 0.8), (48, 0.1), (MAX, 0.05)]`: the precompute's 96-column solves run dense kernels per
+/// `[(4, 1.0), (16, 0.8), (48, 0.1), (MAX, 0.05)]`: the precompute's 192-column solves run dense kernels per
 /// supernode, which pays for the extra stored entries (`cargo bench --bench fem -- coarse`, "ordering" lines).
 const SUPERNODE_RELAX: &[(usize, f64)] = &[(32, 1.0), (96, 0.8), (256, 0.2), (usize::MAX, 0.05)];
 
@@ -404,7 +404,7 @@ impl UnitColumns<'_> {
 /// Right-hand sides from which [`SparseCholesky::solve_in_place`] runs row major (one column gains nothing).
 pub const ROW_MAJOR_MIN_RHS: usize = 8;
 
-/// Rows moved between layouts a block at a time (a 96-column row-major block stays in the core's cache).
+/// Rows moved between layouts a block at a time (a block of 32 rows of up to 192 columns stays in the core's cache).
 const ROW_BLOCK: usize = 32;
 
 /// `L y = x` over the row-major right-hand sides `x` (n x k), in place: the supernodes in order, those `forward`

@@ -38,9 +38,11 @@ use std::time::Instant;
 const NO_ROW: u32 = u32::MAX;
 const CACHE_MAGIC: &[u8; 8] = b"FISSCOMP";
 const CACHE_VERSION: u32 = 8;
-/// ROI nodes solved together (3 right-hand sides each).
-const BATCH_NODES: usize = 32;
-/// Stored rows written at a time from a solved batch (96 of its row-major rows: 72 KiB, in a core's cache).
+/// ROI nodes solved together (3 right-hand sides each). 64 rather than 32: the substitutions' dense kernels run on
+/// rows twice as long, a user's fine-brain Sylvian scene's precompute 0.4 s shorter (of about 6) for 50 MB more
+/// scratch, and the same values (each right-hand side's entries are summed in the same order in either batch).
+const BATCH_NODES: usize = 64;
+/// Stored rows written at a time from a solved batch (96 of its row-major rows: 144 KiB, in a core's cache).
 const FILL_ROW_BLOCK: usize = 32;
 /// Bytes the precompute's right-hand sides may take over all its threads.
 const PRECOMPUTE_RHS_BUDGET: usize = 1 << 30;
