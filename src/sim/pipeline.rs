@@ -751,8 +751,14 @@ impl Pipeline {
         self.track_far(state);
         self.solver.step(&self.scratch.constraints, &mut self.scratch.solution).map_err(|source| StepError::Solve { frame, source })?;
         self.rollback.feasible_constraints.clone_from(&self.scratch.constraints);
-        self.sub.previous_positions.clone_from(&state.surface_positions);
         state.surface_displacement.clone_from(&self.scratch.solution.displacement_surface);
+        let n = state.surface_positions.len();
+        if self.sub.previous_positions.len() == n && self.rest.len() == n && state.surface_displacement.len() == n {
+            // The start's positions become the previous ones, and every entry of the buffer they leave is written below.
+            std::mem::swap(&mut self.sub.previous_positions, &mut state.surface_positions);
+        } else {
+            self.sub.previous_positions.clone_from(&state.surface_positions);
+        }
         for ((p, rest), u) in state.surface_positions.iter_mut().zip(&self.rest).zip(&state.surface_displacement) {
             *p = rest + u;
         }
@@ -835,8 +841,14 @@ impl Pipeline {
             }
         }
         let poses = self.shapes.iter().zip(&self.sub.previous_poses).zip(&state.poses).flat_map(|((shape, before), after)| [(shape, before), (shape, after)]);
+        // Every box lies inside their union: most far vertices are outside it, one test each.
+        let first = self.far.blade_boxes.first().copied().unwrap_or((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)));
+        let union = self.far.blade_boxes.iter().fold(first, |(lo, hi), (l, h)| (lo.inf(l), hi.sup(h)));
         for &k in self.solver.far_vertices() {
             let p = &state.surface_positions[k as usize];
+            if super::barrier::outside_bounds(p, &union) {
+                continue;
+            }
             // the world box first (cheap), then the distance to the blade itself
             let near = self.far.blade_boxes.iter().zip(poses.clone()).any(|(b, (shape, pose))| {
                 !super::barrier::outside_bounds(p, b) && super::barrier::distance_to_blade(shape, pose, p) <= grow
