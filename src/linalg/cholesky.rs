@@ -554,11 +554,8 @@ mod tests {
         }
     }
 
-    /// Unit columns solved pruned along the elimination tree are the full solve's bit for bit, for one node and a
-    /// batch spread over the mesh, on two bodies `K` does not couple (the second's entries are exact zeros either
-    /// way), with each ordering.
-    #[test]
-    fn pruned_unit_columns_are_the_full_solve_bit_for_bit_where_read() {
+    /// Two boxes `K` does not couple, held at the bottom: a factor with skipped supernodes either way.
+    fn two_bodies() -> (LowerCsc, DofMap) {
         let axis = fixtures::linspace(0.0, 0.04, 9);
         let a = fixtures::box_mesh(&fixtures::linspace(0.0, 0.06, 13), &axis, &axis).unwrap();
         let b = fixtures::box_mesh(&fixtures::linspace(0.1, 0.13, 7), &axis, &axis).unwrap();
@@ -567,7 +564,57 @@ mod tests {
         mesh.positions.extend_from_slice(&b.positions);
         mesh.tets.extend(b.tets.iter().map(|t| t.map(|v| v + shift)));
         mesh.regions.extend_from_slice(&b.regions);
-        let (k, dofs) = held_at_the_bottom(&mesh);
+        held_at_the_bottom(&mesh)
+    }
+
+    /// The precompute's solve in its kept scratch reads the same bits as the column-major unit solve wherever it
+    /// is read: batch after batch in one scratch (rows a batch left behind are cleared where the next one reads),
+    /// with the backward pass pruned to every fifth node's rows and not pruned, with each ordering, and column
+    /// major where the factor does not solve row major. More nodes than the scratch holds is an error.
+    #[test]
+    fn unit_columns_in_the_kept_scratch_are_the_column_major_solve_bit_for_bit() {
+        let (k, dofs) = two_bodies();
+        let nodes = dofs.dof_count() / 3;
+        let read: Vec<usize> = (0..nodes).step_by(5).flat_map(|n| 3 * n..3 * n + 3).collect();
+        let all: Vec<usize> = (0..k.dim).collect();
+        for ordering in [FillOrdering::Amd, FillOrdering::NestedDissection] {
+            for row_major in [true, false] {
+                let mut chol = SparseCholesky::new(&k, ordering, &|d| dofs.name(d)).unwrap();
+                chol.set_row_major(row_major);
+                let wanted = chol.supernodes_above(&read).unwrap();
+                let mut kept = chol.unit_scratch(64).unwrap();
+                let batches: [Vec<usize>; 4] = [
+                    (0..64).map(|b| 3 * ((b * 41) % nodes)).collect(),
+                    vec![3 * (nodes / 2)],
+                    (0..32).map(|b| 3 * ((b * 37 + 5) % nodes)).collect(),
+                    (0..64).map(|b| 3 * ((b * 13 + 2) % nodes)).collect(),
+                ];
+                for (n, first) in batches.iter().enumerate() {
+                    let (rows, pruned) = if n % 2 == 0 { (&read, Some(wanted.as_slice())) } else { (&all, None) };
+                    let m = 3 * first.len();
+                    let mut expected = faer::Mat::<f64>::zeros(k.dim, m);
+                    let mut scratch = chol.scratch(m).unwrap();
+                    chol.solve_unit_columns(first, expected.as_mut(), pruned, &mut scratch);
+                    let solved = chol.solve_unit_columns_in(first, pruned, &mut kept).unwrap();
+                    assert_eq!(matches!(solved, UnitColumns::RowMajor { .. }), row_major, "{ordering:?}: the layout");
+                    for j in 0..m {
+                        for &i in rows {
+                            assert_eq!(solved.at(i, j).to_bits(), expected[(i, j)].to_bits(), "{ordering:?}, row major {row_major}, batch {n}: entry ({i}, {j})");
+                        }
+                    }
+                }
+                let too_many: Vec<usize> = (0..65).map(|b| 3 * (b % nodes)).collect();
+                assert!(chol.solve_unit_columns_in(&too_many, None, &mut kept).is_err(), "65 nodes in a scratch for 64");
+            }
+        }
+    }
+
+    /// Unit columns solved pruned along the elimination tree are the full solve's bit for bit, for one node and a
+    /// batch spread over the mesh, on two bodies `K` does not couple (the second's entries are exact zeros either
+    /// way), with each ordering.
+    #[test]
+    fn pruned_unit_columns_are_the_full_solve_bit_for_bit_where_read() {
+        let (k, dofs) = two_bodies();
         for ordering in [FillOrdering::Amd, FillOrdering::NestedDissection] {
             let chol = SparseCholesky::new(&k, ordering, &|d| dofs.name(d)).unwrap();
             assert!(!chol.parent.is_empty(), "{ordering:?}: the test needs a supernodal factor");
