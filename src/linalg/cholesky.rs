@@ -228,8 +228,8 @@ impl SparseCholesky {
     }
 
     /// Columns of `K_FF^-1`: column `3 b + c` of `rhs` (dim x 3 nodes) solves the unit right-hand side at DOF
-    /// `first_dofs[b] + c`, pruned as [`Self::solve_sparse_in_place`] (`wanted` likewise). The one way the
-    /// compliance and the lazy columns turn nodes into columns.
+    /// `first_dofs[b] + c`, pruned as [`Self::solve_sparse_in_place`] (`wanted` likewise). How the lazy columns
+    /// turn nodes into columns; the precompute reads the same solve where it is made ([`Self::solve_unit_columns_in`]).
     pub fn solve_unit_columns(&self, first_dofs: &[usize], mut rhs: MatMut<'_, f64>, wanted: Option<&[bool]>, scratch: &mut MemBuffer) {
         rhs.fill(0.0);
         let mut rows = Vec::with_capacity(3 * first_dofs.len());

@@ -842,8 +842,8 @@ impl Pipeline {
         }
         let poses = self.shapes.iter().zip(&self.sub.previous_poses).zip(&state.poses).flat_map(|((shape, before), after)| [(shape, before), (shape, after)]);
         // Every box lies inside their union: most far vertices are outside it, one test each.
-        let first = self.far.blade_boxes.first().copied().unwrap_or((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)));
-        let union = self.far.blade_boxes.iter().fold(first, |(lo, hi), (l, h)| (lo.inf(l), hi.sup(h)));
+        let empty = (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY));
+        let union = self.far.blade_boxes.iter().fold(empty, |(lo, hi), (l, h)| (lo.inf(l), hi.sup(h)));
         for &k in self.solver.far_vertices() {
             let p = &state.surface_positions[k as usize];
             if super::barrier::outside_bounds(p, &union) {
