@@ -40,6 +40,11 @@
 //!    row on the end face. A vertex a turning blade carried on its face to
 //!    just past the tip would otherwise spring back towards its rest position,
 //!    which the blade now covers (u_shape scene, frame 222: 0.38 mm inside).
+//!    A vertex between the broad faces and on the tip's or a side edge's plane
+//!    (to rounding, where such a row holds it) is beside the blade too: rule 1
+//!    gave it a broad face's row, which lifted it 0.4 mm onto that face; free
+//!    there, it sprang back beside the edge, and a held blade's contact cycled
+//!    through these states every frame (the refined default scene's hold).
 //!    Last: a vertex rule 3 keeps on its face stays there (a tip row instead
 //!    made the apex of a V valley alternate between the two every frame).
 //!    Nothing behind the base (the shaft continues there).
@@ -120,6 +125,14 @@ fn over_footprint(shape: &SpatulaShape, q: &Vec3, margin: f64) -> bool {
     q.x >= -margin && q.x <= shape.length + margin && q.y.abs() <= 0.5 * shape.width + margin
 }
 
+/// Between the broad faces' planes and on the tip's or a side edge's plane to [`SIDE_TOLERANCE_M`]: a vertex
+/// an end-face row holds there lies beside the blade to rounding, not over its footprint.
+#[inline]
+fn on_end_plane(shape: &SpatulaShape, q: &Vec3) -> bool {
+    q.z.abs() < 0.5 * shape.thickness - SIDE_TOLERANCE_M
+        && (q.x > shape.length - SIDE_TOLERANCE_M || q.y.abs() > 0.5 * shape.width - SIDE_TOLERANCE_M)
+}
+
 /// The plane that separates a point off the footprint (`q`, blade frame of
 /// `pose`) from the blade, when the point lies within `band` beyond the tip
 /// (`x = length`) or a side edge (`y = ±width/2`): outward normal and a point
@@ -140,7 +153,7 @@ fn end_face(shape: &SpatulaShape, pose: &Pose, q: &Vec3, band: f64) -> Option<(V
     let beyond_tip = q.x - shape.length;
     let beyond_side = q.y.abs() - 0.5 * shape.width;
     let beyond = beyond_tip.max(beyond_side);
-    if beyond <= 0.0 || beyond > band {
+    if !(beyond > 0.0 || on_end_plane(shape, q)) || beyond > band {
         return None;
     }
     let (half_l, half_w, half_t) = (shape.length, 0.5 * shape.width, 0.5 * shape.thickness);
@@ -332,8 +345,8 @@ impl BarrierStage {
             if q1.z.abs() > half + band {
                 continue;
             }
-            if !over_footprint(shape, &q1, 0.0) {
-                // Rule 4 (after rules 2 and 3): beyond the tip or a side edge.
+            if !over_footprint(shape, &q1, 0.0) || on_end_plane(shape, &q1) {
+                // Rule 4 (after rules 2 and 3): beyond the tip or a side edge, or on its plane.
                 if let Some((n, face_point)) = end_face(shape, pa, &q1, band) {
                     self.end_candidates.push((v as u32, s as u8, n, face_point));
                 }
@@ -539,6 +552,31 @@ mod tests {
         assert!((normal - expected).norm() < 1e-12, "from the tip's upper edge towards the vertex, got {normal:?}");
         // The plane touches the edge (x = 40 mm, z = 0.5 mm): the vertex is |(0.3, 1.0)| mm in front of it.
         assert!((normal.dot(&displacement) + 0.3f64.hypot(1.0) * 1e-3).abs() < 1e-12, "n . g = {}", normal.dot(&displacement));
+    }
+
+    #[test]
+    fn a_vertex_on_an_end_plane_between_the_faces_keeps_that_end_face() {
+        // Held on the +y edge's plane (to rounding either side of it) 0.36 mm below the +z face, and on the tip's
+        // plane: beside the blade, so the end face's row, not a broad face's (which lifted such a vertex onto the
+        // face, from where it sprang back: a held blade's contact cycled every frame).
+        let start = [
+            Vec3::new(0.02, 0.005 - 1e-12, 0.00014), // a rounding inside the +y edge's plane
+            Vec3::new(0.02, 0.005, 0.00014),         // on it
+            Vec3::new(0.04 - 1e-12, 0.0, -0.0002),   // a rounding inside the tip's plane
+            Vec3::new(0.02, 0.005 - 1e-6, 0.00014),  // 1 um inside the edge: over the footprint, inside the blade
+            Vec3::new(0.02, 0.005 - 1e-12, 0.0005),  // on the +z face's plane at the edge: that face
+        ];
+        let out = rows(at(0.0), at(0.0), &start, &[]);
+        assert_eq!(out.len(), 5, "{out:?}");
+        let normal = |i: usize| match out.iter().find(|c| c.node == 10 + i as u32).map(|c| c.kind) {
+            Some(ConstraintKind::Barrier { normal, .. }) => normal,
+            other => panic!("vertex {i}: {other:?}"),
+        };
+        assert!((normal(0) - Vec3::y()).norm() < 1e-15, "the +y edge's plane, got {:?}", normal(0));
+        assert!((normal(1) - Vec3::y()).norm() < 1e-15, "the +y edge's plane, got {:?}", normal(1));
+        assert!((normal(2) - Vec3::x()).norm() < 1e-15, "the tip's plane, got {:?}", normal(2));
+        assert!((normal(3) - Vec3::z()).norm() < 1e-15, "inside the blade: out through the nearer broad face, got {:?}", normal(3));
+        assert!((normal(4) - Vec3::z()).norm() < 1e-15, "on the +z face: that face, got {:?}", normal(4));
     }
 
     #[test]
