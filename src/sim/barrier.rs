@@ -61,6 +61,7 @@ use crate::collision::{CollisionStage, Pair, SourceNode, VertexTarget};
 use crate::fem::{Constraint, ConstraintKind};
 use crate::geometry::{Pose, SpatulaShape};
 use crate::math::Vec3;
+use super::rest_grid::{Near, RestGrid};
 
 /// How far beyond a face (m) a vertex still gets a barrier row, besides the blade's travel.
 pub const BARRIER_BAND_M: f64 = 2.0e-3;
@@ -79,6 +80,10 @@ pub struct BarrierStage {
     /// This frame's rule-4 candidates (surface vertex, spatula, end-face normal
     /// and a point of its plane), in rule-1 order.
     end_candidates: Vec<(u32, u8, Vec3, Vec3)>,
+    /// The vertices with a bit set in `claimed` or `barred`: the entries to clear next frame.
+    marked: Vec<u32>,
+    /// Rule 1's vertices near a blade ([`RestGrid::near`]).
+    near: Near,
 }
 
 /// The blades of one frame: shapes and poses before and after the move.
@@ -90,13 +95,16 @@ pub struct Blades<'a> {
 }
 
 /// The surface: triangles (surface-vertex indices), positions at the start of
-/// the frame and at rest, surface vertex -> mesh node.
+/// the frame and at rest, surface vertex -> mesh node; optionally the rest
+/// positions' grid and a bound on `start - rest` ([`super::rest_grid::displacement_bound`]),
+/// with which rule 1 reads only the vertices near a blade (the same rows).
 #[derive(Debug, Clone, Copy)]
 pub struct SurfaceState<'a> {
     pub triangles: &'a [[u32; 3]],
     pub start: &'a [Vec3],
     pub rest: &'a [Vec3],
     pub nodes: &'a [u32],
+    pub grid: Option<(&'a RestGrid, f64)>,
 }
 
 /// What the collision stage's rays saw this frame (rule 2): source nodes and
@@ -253,7 +261,14 @@ fn piece_clear(shape: &SpatulaShape, pose: &Pose, reach: f64, triangles: &[[u32;
 impl BarrierStage {
     /// A stage for a surface of `surface_vertices` vertices.
     pub fn new(surface_vertices: usize) -> Self {
-        Self { claimed: vec![0; surface_vertices], barred: vec![0; surface_vertices], previous_claims: Vec::new(), end_candidates: Vec::new() }
+        Self {
+            claimed: vec![0; surface_vertices],
+            barred: vec![0; surface_vertices],
+            previous_claims: Vec::new(),
+            end_candidates: Vec::new(),
+            marked: Vec::new(),
+            near: Near::default(),
+        }
     }
 
     /// Last frame's claims, to save around a frame that may be undone.
@@ -293,13 +308,23 @@ impl BarrierStage {
         out: &mut Vec<Constraint>,
     ) -> usize {
         let n_vertices = surface.start.len();
-        self.claimed.clear();
-        self.claimed.resize(n_vertices, 0);
-        self.barred.clear();
-        self.barred.resize(n_vertices, 0);
+        if self.claimed.len() == n_vertices && self.barred.len() == n_vertices {
+            // Only last frame's marks are set.
+            for &v in &self.marked {
+                self.claimed[v as usize] = 0;
+                self.barred[v as usize] = 0;
+            }
+        } else {
+            self.claimed.clear();
+            self.claimed.resize(n_vertices, 0);
+            self.barred.clear();
+            self.barred.resize(n_vertices, 0);
+        }
+        self.marked.clear();
         for t in targets {
             if let Some(m) = self.claimed.get_mut(t.vertex as usize) {
                 *m |= 1u32 << (t.spatula as u32).min(31);
+                self.marked.push(t.vertex);
             }
         }
         self.end_candidates.clear();
@@ -336,21 +361,27 @@ impl BarrierStage {
         // band beyond the tip and the side edges, and by the band off the faces.
         let reach = Vec3::new(shape.length + band, 0.5 * shape.width + band, half + band);
         let bounds = world_bounds(pa, &Vec3::new(0.0, -reach.y, -reach.z), &reach, BOUNDS_SLACK_M);
-        // Rule 1: over the footprint.
-        for (v, p) in surface.start.iter().enumerate() {
+        // Rule 1: over the footprint; with the grid, only the vertices that may lie in the bounds, in the same order.
+        let mut near = std::mem::take(&mut self.near);
+        match surface.grid {
+            Some((grid, bound)) if grid.len() == surface.start.len() => grid.near(&bounds.0, &bounds.1, bound, &mut near),
+            _ => near.all = true,
+        }
+        near.for_each(surface.start.len(), |v| {
+            let p = &surface.start[v];
             if self.claimed[v] & bit != 0 || outside_bounds(p, &bounds) {
-                continue;
+                return;
             }
             let q1 = local(pa, p);
             if q1.z.abs() > half + band {
-                continue;
+                return;
             }
             if !over_footprint(shape, &q1, 0.0) || on_end_plane(shape, &q1) {
                 // Rule 4 (after rules 2 and 3): beyond the tip or a side edge, or on its plane.
                 if let Some((n, face_point)) = end_face(shape, pa, &q1, band) {
                     self.end_candidates.push((v as u32, s as u8, n, face_point));
                 }
-                continue;
+                return;
             }
             let q0 = local(pb, p);
             let side = if over_footprint(shape, &q0, 0.0) && q0.z.abs() >= half - SIDE_TOLERANCE_M {
@@ -361,7 +392,8 @@ impl BarrierStage {
                 1.0
             };
             self.push(v, s, axis * side, pa.position + axis * (side * half), surface, out);
-        }
+        });
+        self.near = near;
     }
 
     /// Rule 2 for spatula `s`: the front hits of its rays within `band`, and the unclaimed vertices of its feasible
@@ -434,6 +466,7 @@ impl BarrierStage {
     /// One row: vertex `v` stays in front of the plane through `face_point` with normal `n`.
     fn push(&mut self, v: usize, s: usize, n: Vec3, face_point: Vec3, surface: SurfaceState<'_>, out: &mut Vec<Constraint>) {
         self.barred[v] |= 1u32 << (s as u32).min(31);
+        self.marked.push(v as u32);
         let p = surface.start[v];
         // The start position projected onto the face plane: a point of the plane near the vertex.
         let on_plane = p - n * n.dot(&(p - face_point));
@@ -460,9 +493,45 @@ mod tests {
         let nodes: Vec<u32> = (0..start.len() as u32).map(|v| 10 + v).collect();
         let shapes = [blade()];
         let blades = Blades { shapes: &shapes, before: &[before], after: &[after] };
-        let surface = SurfaceState { triangles: &[], start, rest: start, nodes: &nodes };
+        let surface = SurfaceState { triangles: &[], start, rest: start, nodes: &nodes, grid: None };
         stage.push_rows_from(blades, targets, None, surface, &mut out);
         out
+    }
+
+    /// Rule 1 through the rest grid pushes the rows of the whole pass, in the same order, over displaced surfaces
+    /// around a moving blade, and with the same stage (its marks cleared between frames) frame after frame.
+    #[test]
+    fn rows_through_the_rest_grid_are_the_rows_of_the_whole_pass() {
+        let mut s = 0x853c49e6748fea9bu64;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let rest: Vec<Vec3> = (0..4000).map(|_| Vec3::new(next() * 0.1 - 0.03, next() * 0.04 - 0.02, next() * 0.02 - 0.01)).collect();
+        let nodes: Vec<u32> = (0..rest.len() as u32).map(|v| 10 + v).collect();
+        let grid = RestGrid::new(&rest);
+        let shapes = [blade()];
+        let (mut whole_stage, mut near_stage) = (BarrierStage::new(rest.len()), BarrierStage::new(rest.len()));
+        let mut total = 0;
+        for round in 0..100 {
+            let amp = [0.0, 0.0005, 0.004][round % 3];
+            let start: Vec<Vec3> = rest.iter().map(|r| r + Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * (2.0 * amp)).collect();
+            let bound = super::super::rest_grid::displacement_bound(&start, &rest);
+            let before = Pose { position: Vec3::new(next() * 0.01, 0.0, (next() - 0.5) * 0.004), rotation: Quat::from_axis_angle(&Vec3::y_axis(), (next() - 0.5) * 0.3) };
+            let after = Pose { position: before.position + Vec3::new(0.001, 0.0, (next() - 0.5) * 0.002), ..before };
+            let targets: Vec<VertexTarget> = (0..5).map(|k| VertexTarget { vertex: (round * 37 + k * 11) as u32 % 4000, displacement: Vec3::zeros(), spatula: 0, face: 0, normal: Vec3::z(), depth: 0.0, node: 0 }).collect();
+            let blades = Blades { shapes: &shapes, before: &[before], after: &[after] };
+            let (mut whole, mut near) = (Vec::new(), Vec::new());
+            let surface = SurfaceState { triangles: &[], start: &start, rest: &rest, nodes: &nodes, grid: None };
+            whole_stage.push_rows_from(blades, &targets, None, surface, &mut whole);
+            near_stage.push_rows_from(blades, &targets, None, SurfaceState { grid: Some((&grid, bound)), ..surface }, &mut near);
+            assert_eq!(near, whole, "round {round}");
+            assert!(!near_stage.near.all, "round {round}: the blade's bounds are a small part of the surface");
+            total += whole.len();
+        }
+        assert!(total > 1000, "the blade must meet the surface: {total} rows");
     }
 
     /// One small triangle (1 mm a side) around `centre` (m), in the z = centre.z plane.
@@ -601,7 +670,7 @@ mod tests {
         // Claimed by the +z face last frame; now 0.1 mm past the tip, on the face plane.
         let start = [Vec3::new(0.0401, 0.0, 0.0005)];
         let claim = VertexTarget { vertex: 0, displacement: Vec3::zeros(), spatula: 0, face: 0, normal: Vec3::z(), depth: 0.0, node: 0 };
-        let surface = SurfaceState { triangles: &[], start: &start, rest: &start, nodes: &[7] };
+        let surface = SurfaceState { triangles: &[], start: &start, rest: &start, nodes: &[7], grid: None };
         let mut out = Vec::new();
         stage.push_rows_from(blades, &[claim], None, surface, &mut out);
         out.clear();

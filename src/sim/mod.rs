@@ -16,6 +16,7 @@ pub mod poses;
 pub mod preflight;
 pub mod replay;
 pub mod report;
+pub mod rest_grid;
 pub mod scene_mesh;
 pub mod substeps;
 pub mod tethers;

@@ -5,8 +5,10 @@
 //! side of its mid-plane (tissue pulled *through* the spatula: the paper's
 //! Fig. 11b failure) and those left strictly inside the blade (penetration,
 //! with the deepest depth). Stays true: read-only on the simulation; O(vertices x
-//! spatulas) per frame, no allocation.
+//! spatulas) per frame, no allocation; [`measure_near`] reads only the vertices
+//! near each blade and counts the same.
 
+use super::rest_grid::{Near, RestGrid};
 use crate::geometry::{Pose, SpatulaShape};
 use crate::math::Vec3;
 
@@ -48,6 +50,78 @@ fn within_footprint(shape: &SpatulaShape, q: &Vec3) -> bool {
     q.x >= 0.0 && q.x < shape.length - PENETRATION_TOLERANCE_M && q.y.abs() < 0.5 * shape.width - PENETRATION_TOLERANCE_M
 }
 
+/// One blade's first test: its frame's x and y axes as rows, for a cheap test
+/// of the footprint with some slack (far above a transform's rounding); the
+/// exact test in [`Blade::count`] decides.
+struct Blade<'a> {
+    shape: &'a SpatulaShape,
+    before: &'a Pose,
+    after: &'a Pose,
+    ex: Vec3,
+    ey: Vec3,
+}
+
+impl<'a> Blade<'a> {
+    fn new(shape: &'a SpatulaShape, before: &'a Pose, after: &'a Pose) -> Self {
+        let axes = after.rotation.to_rotation_matrix();
+        Self { shape, before, after, ex: axes.matrix().column(0).into_owned(), ey: axes.matrix().column(1).into_owned() }
+    }
+
+    /// Adds one vertex, at `p0` before and `p1` after the move, to `counts`.
+    #[inline]
+    fn count(&self, p0: &Vec3, p1: &Vec3, counts: &mut MonitorCounts) {
+        let (shape, pa) = (self.shape, self.after);
+        let half = 0.5 * shape.thickness;
+        let d = p1 - pa.position;
+        let (x, y) = (self.ex.dot(&d), self.ey.dot(&d));
+        if x < -FOOTPRINT_SLACK_M || x > shape.length + FOOTPRINT_SLACK_M || y.abs() > 0.5 * shape.width + FOOTPRINT_SLACK_M {
+            return;
+        }
+        let q1 = local(pa, p1);
+        if !in_footprint(shape, &q1) {
+            return;
+        }
+        // How far it would have to move to leave the blade: through a broad
+        // face, the tip or a side edge (not the base: the shaft continues).
+        let depth = (half - q1.z.abs()).min(shape.length - q1.x).min(0.5 * shape.width - q1.y.abs());
+        if depth > PENETRATION_TOLERANCE_M {
+            counts.penetrating += 1;
+            counts.max_depth_m = counts.max_depth_m.max(depth);
+        }
+        let q0 = local(self.before, p0);
+        // A side is only meaningful outside the blade on both frames; a
+        // vertex that starts or ends on the tip or a side-edge plane went
+        // round that edge, not through the blade (tissue slipping off a
+        // turning blade's tip onto its other side).
+        if within_footprint(shape, &q0) && within_footprint(shape, &q1) && q0.z.abs() >= half - PENETRATION_TOLERANCE_M && q1.z.abs() >= half - PENETRATION_TOLERANCE_M && q0.z.signum() != q1.z.signum() {
+            counts.crossed += 1;
+        }
+    }
+
+    /// How far from the blade's mid-plane (after the move) a vertex may be
+    /// counted, when no vertex moved more than `motion` (m): `None` when the
+    /// blade turned too far to say.
+    ///
+    /// A penetrating vertex lies within half the thickness. A crossing one is
+    /// within the footprint before and after, on opposite sides: with `ez`
+    /// the blades' normals and `o` their origins, |z1| + |z0| = |z1 - z0| <=
+    /// motion + |ez_a - ez_b| |p0 - o_b| + |o_a - o_b|, and |p0 - o_b| <= r + |z0|
+    /// (r the footprint's farthest corner), so while |ez_a - ez_b| < 1,
+    /// |z1| <= motion + |ez_a - ez_b| r + |o_a - o_b|.
+    fn reach(&self, motion: f64) -> Option<f64> {
+        let shape = self.shape;
+        let turn = (self.after.rotation * Vec3::z() - self.before.rotation * Vec3::z()).norm();
+        if !(turn < 0.5) {
+            return None;
+        }
+        let corner = shape.length.hypot(0.5 * shape.width);
+        let shift = (self.after.position - self.before.position).norm();
+        let reach = (0.5 * shape.thickness).max(motion + turn * corner + shift);
+        // Rounding of the terms: far below the slack.
+        Some(reach * (1.0 + 1e-12) + FOOTPRINT_SLACK_M)
+    }
+}
+
 /// Measures one frame. `before`/`after` are surface-vertex positions, `poses_*`
 /// one per spatula.
 pub fn measure(
@@ -59,39 +133,45 @@ pub fn measure(
 ) -> MonitorCounts {
     let mut counts = MonitorCounts::default();
     for ((shape, pb), pa) in shapes.iter().zip(poses_before).zip(poses_after) {
-        let half = 0.5 * shape.thickness;
-        // The blade frame's x and y axes as rows, for a cheap first test of
-        // the footprint with some slack (far above a transform's rounding):
-        // the exact test below decides.
-        let axes = pa.rotation.to_rotation_matrix();
-        let (ex, ey) = (axes.matrix().column(0).into_owned(), axes.matrix().column(1).into_owned());
-        let (x_max, y_max) = (shape.length + FOOTPRINT_SLACK_M, 0.5 * shape.width + FOOTPRINT_SLACK_M);
+        let blade = Blade::new(shape, pb, pa);
         for (p0, p1) in before.iter().zip(after) {
-            let d = p1 - pa.position;
-            let (x, y) = (ex.dot(&d), ey.dot(&d));
-            if x < -FOOTPRINT_SLACK_M || x > x_max || y.abs() > y_max {
-                continue;
-            }
-            let q1 = local(pa, p1);
-            if !in_footprint(shape, &q1) {
-                continue;
-            }
-            // How far it would have to move to leave the blade: through a broad
-            // face, the tip or a side edge (not the base: the shaft continues).
-            let depth = (half - q1.z.abs()).min(shape.length - q1.x).min(0.5 * shape.width - q1.y.abs());
-            if depth > PENETRATION_TOLERANCE_M {
-                counts.penetrating += 1;
-                counts.max_depth_m = counts.max_depth_m.max(depth);
-            }
-            let q0 = local(pb, p0);
-            // A side is only meaningful outside the blade on both frames; a
-            // vertex that starts or ends on the tip or a side-edge plane went
-            // round that edge, not through the blade (tissue slipping off a
-            // turning blade's tip onto its other side).
-            if within_footprint(shape, &q0) && within_footprint(shape, &q1) && q0.z.abs() >= half - PENETRATION_TOLERANCE_M && q1.z.abs() >= half - PENETRATION_TOLERANCE_M && q0.z.signum() != q1.z.signum() {
-                counts.crossed += 1;
-            }
+            blade.count(p0, p1, &mut counts);
         }
+    }
+    counts
+}
+
+/// [`measure`], reading only the vertices that may be counted: `grid` bins the
+/// rest positions, and `bounds` bound every component of `before - rest` and of
+/// `after - rest` ([`super::rest_grid::displacement_bound`]). The same counts.
+#[allow(clippy::too_many_arguments)]
+pub fn measure_near(
+    shapes: &[SpatulaShape],
+    poses_before: &[Pose],
+    poses_after: &[Pose],
+    before: &[Vec3],
+    after: &[Vec3],
+    grid: &RestGrid,
+    bounds: (f64, f64),
+    near: &mut Near,
+) -> MonitorCounts {
+    if grid.len() != after.len() || before.len() != after.len() {
+        return measure(shapes, poses_before, poses_after, before, after);
+    }
+    let mut counts = MonitorCounts::default();
+    // No component of a vertex's move exceeds the sum of the bounds.
+    let motion = 3f64.sqrt() * (bounds.0 + bounds.1);
+    for ((shape, pb), pa) in shapes.iter().zip(poses_before).zip(poses_after) {
+        let blade = Blade::new(shape, pb, pa);
+        match blade.reach(motion) {
+            Some(z) => {
+                let (x, y) = (shape.length + FOOTPRINT_SLACK_M, 0.5 * shape.width + FOOTPRINT_SLACK_M);
+                let (lo, hi) = super::barrier::world_bounds(pa, &Vec3::new(-FOOTPRINT_SLACK_M, -y, -z), &Vec3::new(x, y, z), FOOTPRINT_SLACK_M);
+                grid.near(&lo, &hi, bounds.1, near);
+            }
+            None => near.all = true,
+        }
+        near.for_each(after.len(), |v| blade.count(&before[v], &after[v], &mut counts));
     }
     counts
 }
@@ -152,6 +232,60 @@ mod tests {
         let near_side = [Vec3::new(0.02, -0.00498, 0.0)];
         let c = measure(&[blade()], &[pose], &[pose], &near_side, &near_side);
         assert!((c.max_depth_m - 0.00002).abs() < 1e-12, "{}", c.max_depth_m);
+    }
+
+    /// The near-vertex count equals the whole pass, on surfaces crowding a moving and turning blade (vertices
+    /// pushed through it, left inside it, slipping off its tip) and when the blade turns too far to bound.
+    #[test]
+    fn measure_near_counts_what_the_whole_pass_counts() {
+        use crate::math::Quat;
+        let mut s = 0x9e3779b97f4a7c15u64;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let b = blade();
+        let rest: Vec<Vec3> = (0..3000).map(|_| Vec3::new(next() * 0.08 - 0.01, next() * 0.03 - 0.015, next() * 0.02 - 0.01)).collect();
+        let grid = RestGrid::new(&rest);
+        let mut near = Near::default();
+        let (mut crossed, mut penetrating, mut scanned_less) = (0, 0, 0);
+        for round in 0..300 {
+            let amp = [0.0, 0.0005, 0.003][round % 3];
+            let mut moved = |_: usize| rest.iter().map(|r| r + Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * (2.0 * amp)).collect::<Vec<Vec3>>();
+            let (before, after) = (moved(0), moved(1));
+            let bounds = (super::super::rest_grid::displacement_bound(&before, &rest), super::super::rest_grid::displacement_bound(&after, &rest));
+            let turn = if round % 10 == 9 { 2.5 } else { 0.05 };
+            let pb = Pose { position: Vec3::new(next() * 0.01, next() * 0.004, next() * 0.004), rotation: Quat::from_axis_angle(&Vec3::y_axis(), (next() - 0.5) * 0.2) };
+            let pa = Pose { position: pb.position + Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 0.002, rotation: pb.rotation * Quat::from_axis_angle(&Vec3::x_axis(), (next() - 0.5) * turn) };
+            // Every fourth round the blade stands still: only the tissue's own motion carries a vertex through.
+            let pa = if round % 4 == 3 { pb } else { pa };
+            let whole = measure(&[b], &[pb], &[pa], &before, &after);
+            let got = measure_near(&[b], &[pb], &[pa], &before, &after, &grid, bounds, &mut near);
+            assert_eq!(got, whole, "round {round}");
+            crossed += whole.crossed;
+            penetrating += whole.penetrating;
+            scanned_less += usize::from(!near.all);
+        }
+        assert!(crossed > 0 && penetrating > 0, "the draws must cross and penetrate: {crossed} / {penetrating}");
+        assert!(scanned_less > 200, "most rounds must read only the vertices near the blade: {scanned_less}");
+    }
+
+    /// A vertex carried through a still blade from far off (its rest position 4.6 mm above the blade, its
+    /// position before 0.6 mm under it, after 4 mm above it): the near count reaches it through the sub-step's
+    /// motion, not through the bound of the positions after alone (0.6 mm).
+    #[test]
+    fn measure_near_reaches_a_vertex_carried_through_from_far() {
+        let (b, pose) = (blade(), Pose::default());
+        let rest = [Vec3::new(0.02, 0.0, 0.0046), Vec3::new(0.06, 0.0, 0.0)];
+        let before = [rest[0] + Vec3::new(0.0, 0.0, -0.0052), rest[1]];
+        let after = [rest[0] + Vec3::new(0.0, 0.0, -0.0006), rest[1]];
+        let bounds = (super::super::rest_grid::displacement_bound(&before, &rest), super::super::rest_grid::displacement_bound(&after, &rest));
+        let whole = measure(&[b], &[pose], &[pose], &before, &after);
+        assert_eq!(whole.crossed, 1);
+        let mut near = Near::default();
+        assert_eq!(measure_near(&[b], &[pose], &[pose], &before, &after, &RestGrid::new(&rest), bounds, &mut near), whole);
     }
 
     #[test]

@@ -58,6 +58,11 @@ pub struct SimState {
     pub poses: Vec<Pose>,
     /// Current (deformed) surface-vertex positions, m.
     pub surface_positions: Vec<Vec3>,
+    /// No component of any `surface_positions[v]` minus its rest position
+    /// exceeds this, m ([`super::rest_grid::displacement_bound`]): with it the
+    /// barrier rows and the monitor read only the vertices near a blade.
+    /// Whoever writes `surface_positions` keeps it (infinity: unknown).
+    pub surface_bound_m: f64,
     /// Displacement of each surface vertex from rest, m.
     pub surface_displacement: Vec<Vec3>,
     /// Displacement of every node (only with the stress stage), m.
@@ -174,6 +179,11 @@ struct SubSteps {
     /// Each blade's sample jitter (from its targets, frame by frame) and the travel it takes off this frame's, m.
     jitter: Vec<super::substeps::SampleJitter>,
     allowances: Vec<f64>,
+    /// The rest positions binned (with collision only) and the monitor's
+    /// scratch: the barrier rows and the monitor read only the vertices near a
+    /// blade ([`SimState::surface_bound_m`]).
+    grid: Option<super::rest_grid::RestGrid>,
+    monitor_near: super::rest_grid::Near,
 }
 
 /// What an iteration cap puts back.
@@ -290,6 +300,8 @@ impl Pipeline {
                 pose_filters: scenario.spatulas.iter().map(|s| s.filter.map(|f| super::pose_filter::PoseFilter::new(f, &s.shape))).collect(),
                 jitter: vec![Default::default(); n],
                 allowances: vec![0.0; n],
+                grid: collision.is_some().then(|| super::rest_grid::RestGrid::new(&rest)),
+                monitor_near: Default::default(),
             },
             rollback: Rollback { feasible_constraints: Vec::new(), saved_history: Default::default(), saved_claims: Vec::new() },
             far: FarTrack { near_far: Vec::new(), blade_boxes: Vec::new(), far_edge },
@@ -320,6 +332,7 @@ impl Pipeline {
             time_s: 0.0,
             poses: poses.to_vec(),
             surface_positions: self.rest.clone(),
+            surface_bound_m: 0.0,
             surface_displacement: vec![Vec3::zeros(); self.rest.len()],
             node_displacement: Vec::new(),
             stress: Vec::new(),
@@ -705,6 +718,7 @@ impl Pipeline {
                     start: &state.surface_positions,
                     rest: &self.rest,
                     nodes: &self.surface.vertices,
+                    grid: self.sub.grid.as_ref().map(|g| (g, state.surface_bound_m)),
                 };
                 barrier.push_rows(blades, collision, claims, surface, &mut self.scratch.constraints);
                 if !claims {
@@ -759,9 +773,14 @@ impl Pipeline {
         } else {
             self.sub.previous_positions.clone_from(&state.surface_positions);
         }
+        let bound_before = state.surface_bound_m;
+        // The new positions and their bound, in one pass (the surface is read once a sub-step where it can be).
+        let mut bound = [0u64; 3];
         for ((p, rest), u) in state.surface_positions.iter_mut().zip(&self.rest).zip(&state.surface_displacement) {
             *p = rest + u;
+            super::rest_grid::add_to_bound(&mut bound, p, rest);
         }
+        state.surface_bound_m = super::rest_grid::finish_bound(bound);
         if let Some(tethers) = &mut self.tethers {
             tethers.after_solve(&state.surface_positions, &self.scratch.solution.tether_tension, time_s, frame, &mut self.solver);
         }
@@ -773,7 +792,20 @@ impl Pipeline {
         // Tunnelling / penetration monitor, over this sub-step's motion.
         if self.collision.is_some() {
             let t = Instant::now();
-            let m = monitor::measure(&self.shapes, &self.sub.previous_poses, &state.poses, &self.sub.previous_positions, &state.surface_positions);
+            let (before, after) = (&self.sub.previous_positions, &state.surface_positions);
+            let m = match &self.sub.grid {
+                Some(grid) => monitor::measure_near(
+                    &self.shapes,
+                    &self.sub.previous_poses,
+                    &state.poses,
+                    before,
+                    after,
+                    grid,
+                    (bound_before, state.surface_bound_m),
+                    &mut self.sub.monitor_near,
+                ),
+                None => monitor::measure(&self.shapes, &self.sub.previous_poses, &state.poses, before, after),
+            };
             r.crossed_vertices += m.crossed;
             r.penetrating_vertices = m.penetrating;
             r.max_penetration_m = m.max_depth_m;
@@ -872,9 +904,12 @@ impl Pipeline {
         }
         let mut whole = state.clone();
         self.solver.whole_surface(&mut whole.surface_displacement).map_err(|source| StepError::Solve { frame: state.frame, source })?;
+        let mut bound = [0u64; 3];
         for ((p, rest), u) in whole.surface_positions.iter_mut().zip(&self.rest).zip(&whole.surface_displacement) {
             *p = rest + u;
+            super::rest_grid::add_to_bound(&mut bound, p, rest);
         }
+        whole.surface_bound_m = super::rest_grid::finish_bound(bound);
         Ok(std::borrow::Cow::Owned(whole))
     }
 
