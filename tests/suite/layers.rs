@@ -115,12 +115,13 @@ fn violations(file: &str, text: &str) -> Vec<String> {
 }
 
 /// The files of `src/sim/`, bottom up: each uses only those before it (its
-/// root, `mod.rs`, re-exports from any). The shared error, the sub-step count
-/// and the stages the frame runs, the frame's report, the pipeline, the poses a run plays, the
+/// root, `mod.rs`, re-exports from any). The shared error, the sub-step count,
+/// the rest positions' grid and the stages the frame runs, the frame's report, the pipeline, the poses a run plays, the
 /// scene's mesh, the preflight that checks it, the build, the replay.
-const SIM_ORDER: [&str; 16] = [
+const SIM_ORDER: [&str; 17] = [
     "error",
     "substeps",
+    "rest_grid",
     "barrier",
     "monitor",
     "pose_filter",
