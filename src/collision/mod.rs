@@ -75,7 +75,7 @@ pub use pairs::Pair;
 pub enum BackendKind {
     /// Every node against every triangle on the CPU, f64 (the oracle).
     Reference,
-    /// Our binned-SAH BVH, refit per frame, lines split over two threads; f64, bit for bit the answers of `reference`.
+    /// Our binned-SAH BVH, refit per frame, a large cast's lines split over two threads; f64, bit for bit the answers of `reference`.
     Bvh,
     /// Our BVH refit and traversed on the GPU (wgpu compute, f32), every answer then
     /// decided in f64 on the CPU: bit for bit the answers of `reference`.

@@ -95,7 +95,8 @@ fn collision_section(r: &PerfRecord, out: &mut String) {
 the surface and the surface deforms to each frame's targets, so the later frames
 cast through contact. All backends of a case give the same answers (the last
 column hashes every frame's output; the command fails otherwise). `bvh` runs on
-its default 2 threads, `bvh xN` on every core; `gpu` sends the lines its
+its default 2 threads (a cast is split over them only when the last one took
+20,000 traversal steps or more), `bvh xN` on every core; `gpu` sends the lines its
 candidates cannot decide to the CPU (column \"lines to CPU\"); `reference` is the
 brute force. \"cast / rest of stage\" splits a frame into the backend's own part
 (surface update and cast) and the part every backend shares (rays, candidate
