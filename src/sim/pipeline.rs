@@ -202,6 +202,10 @@ struct FarTrack {
     blade_boxes: Vec<(Vec3, Vec3)>,
     /// The working region's edge: vertices with rows that share a triangle with a far one.
     far_edge: Vec<u32>,
+    /// Whether each surface vertex is far (the solver's far set, fixed at its build), and the vertices the rest
+    /// grid finds near the blades: the far ones among them are the only ones read.
+    is_far: Vec<bool>,
+    near: super::rest_grid::Near,
 }
 
 /// A frame's rows, solution and contact patches, reused from frame to frame.
@@ -271,6 +275,12 @@ impl Pipeline {
     ) -> Result<Self, super::error::BuildError> {
         let surface_tets = surface_tets(&mesh, &surface, solver.far_vertices());
         let far_edge = region_edge(&surface.triangles, solver.far_vertices());
+        let mut is_far = vec![false; surface.vertices.len()];
+        for &k in solver.far_vertices() {
+            if let Some(f) = is_far.get_mut(k as usize) {
+                *f = true;
+            }
+        }
         let blades = scenario.spatulas.len();
         let relaxation = scenario.tissue_time.relaxation.as_ref().map(|r| super::tissue_time::RelaxationStage::new(r, scenario.time_step, blades));
         let vertex_areas = if scenario.tissue_time.ischemia.is_some() { crate::mesh::surface::vertex_areas(&rest, &surface.triangles) } else { Vec::new() };
@@ -304,7 +314,7 @@ impl Pipeline {
                 monitor_near: Default::default(),
             },
             rollback: Rollback { feasible_constraints: Vec::new(), saved_history: Default::default(), saved_claims: Vec::new() },
-            far: FarTrack { near_far: Vec::new(), blade_boxes: Vec::new(), far_edge },
+            far: FarTrack { near_far: Vec::new(), blade_boxes: Vec::new(), far_edge, is_far, near: Default::default() },
             mesh,
             surface,
             rest,
@@ -876,18 +886,34 @@ impl Pipeline {
         // Every box lies inside their union: most far vertices are outside it, one test each.
         let empty = (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY));
         let union = self.far.blade_boxes.iter().fold(empty, |(lo, hi), (l, h)| (lo.inf(l), hi.sup(h)));
-        for &k in self.solver.far_vertices() {
-            let p = &state.surface_positions[k as usize];
+        let far = &mut self.far;
+        let mut visit = |k: usize| {
+            let p = &state.surface_positions[k];
             if super::barrier::outside_bounds(p, &union) {
-                continue;
+                return;
             }
             // the world box first (cheap), then the distance to the blade itself
-            let near = self.far.blade_boxes.iter().zip(poses.clone()).any(|(b, (shape, pose))| {
+            let near = far.blade_boxes.iter().zip(poses.clone()).any(|(b, (shape, pose))| {
                 !super::barrier::outside_bounds(p, b) && super::barrier::distance_to_blade(shape, pose, p) <= grow
             });
             if near {
-                self.far.near_far.push(k);
+                far.near_far.push(k as u32);
             }
+        };
+        // Through the rest grid, the far vertices that may lie in the union, ascending as the far set is.
+        let n = state.surface_positions.len();
+        match &self.sub.grid {
+            Some(grid) if grid.len() == n && far.is_far.len() == n => {
+                grid.near(&union.0, &union.1, state.surface_bound_m, &mut far.near);
+                let (near, is_far) = (std::mem::take(&mut far.near), std::mem::take(&mut far.is_far));
+                near.for_each(n, |k| {
+                    if is_far[k] {
+                        visit(k);
+                    }
+                });
+                (far.near, far.is_far) = (near, is_far);
+            }
+            _ => self.solver.far_vertices().iter().for_each(|&k| visit(k as usize)),
         }
         self.solver.track(&self.far.near_far);
     }
