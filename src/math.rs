@@ -21,3 +21,18 @@ pub fn bits3(v: &Vec3) -> [u64; 3] {
 pub fn is_finite3(v: &Vec3) -> bool {
     v.x.is_finite() && v.y.is_finite() && v.z.is_finite()
 }
+
+/// Deterministic test data.
+#[cfg(test)]
+pub(crate) mod test_rng {
+    /// Draws in [0, 1) from xorshift64 started at `seed`: the same sequence on every machine.
+    pub(crate) fn uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut s = seed;
+        move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+}

@@ -502,13 +502,7 @@ mod tests {
     /// around a moving blade, and with the same stage (its marks cleared between frames) frame after frame.
     #[test]
     fn rows_through_the_rest_grid_are_the_rows_of_the_whole_pass() {
-        let mut s = 0x853c49e6748fea9bu64;
-        let mut next = move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::math::test_rng::uniform(0x853c49e6748fea9bu64);
         let rest: Vec<Vec3> = (0..4000).map(|_| Vec3::new(next() * 0.1 - 0.03, next() * 0.04 - 0.02, next() * 0.02 - 0.01)).collect();
         let nodes: Vec<u32> = (0..rest.len() as u32).map(|v| 10 + v).collect();
         let grid = RestGrid::new(&rest);

@@ -239,13 +239,7 @@ mod tests {
     #[test]
     fn measure_near_counts_what_the_whole_pass_counts() {
         use crate::math::Quat;
-        let mut s = 0x9e3779b97f4a7c15u64;
-        let mut next = move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::math::test_rng::uniform(0x9e3779b97f4a7c15u64);
         let b = blade();
         let rest: Vec<Vec3> = (0..3000).map(|_| Vec3::new(next() * 0.08 - 0.01, next() * 0.03 - 0.015, next() * 0.02 - 0.01)).collect();
         let grid = RestGrid::new(&rest);

@@ -1029,13 +1029,7 @@ mod tests {
         let tets = surface_tets(&mesh, &surface, &[]);
         assert_eq!(tets.len(), mesh.tets.len(), "every node of the cube is on its surface");
         let rest = surface.gather_positions(&mesh.positions);
-        let mut s = 0x9e3779b97f4a7c15u64;
-        let mut next = move || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::math::test_rng::uniform(0x9e3779b97f4a7c15u64);
         let mut mixed = false;
         for _ in 0..50 {
             let u: Vec<Vec3> = (0..rest.len()).map(|_| Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 1.5).collect();

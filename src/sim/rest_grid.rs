@@ -200,29 +200,22 @@ impl RestGrid {
 mod tests {
     use super::*;
 
-    fn rng(state: &mut u64) -> f64 {
-        *state ^= *state << 13;
-        *state ^= *state >> 7;
-        *state ^= *state << 17;
-        (*state >> 11) as f64 / (1u64 << 53) as f64
-    }
-
     /// Every vertex inside a box (at its displaced position) is returned, the answer is ascending, and a small box
     /// returns few vertices.
     #[test]
     fn near_holds_every_vertex_in_the_box_and_few_others() {
-        let mut s = 0x2545f4914f6cdd1du64;
-        let rest: Vec<Vec3> = (0..5000).map(|_| Vec3::new(rng(&mut s), rng(&mut s), 0.5 * rng(&mut s)) * 0.15).collect();
+        let mut next = crate::math::test_rng::uniform(0x2545f4914f6cdd1d);
+        let rest: Vec<Vec3> = (0..5000).map(|_| Vec3::new(next(), next(), 0.5 * next()) * 0.15).collect();
         let grid = RestGrid::new(&rest);
         let mut near = Near::default();
         let mut small = 0;
         for round in 0..200 {
-            let amp = if round % 3 == 0 { 0.0 } else { 0.004 * rng(&mut s) };
-            let positions: Vec<Vec3> = rest.iter().map(|r| r + Vec3::new(rng(&mut s) - 0.5, rng(&mut s) - 0.5, rng(&mut s) - 0.5) * (2.0 * amp)).collect();
+            let amp = if round % 3 == 0 { 0.0 } else { 0.004 * next() };
+            let positions: Vec<Vec3> = rest.iter().map(|r| r + Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * (2.0 * amp)).collect();
             let bound = displacement_bound(&positions, &rest);
             assert!(bound <= amp);
-            let c = Vec3::new(rng(&mut s), rng(&mut s), rng(&mut s)) * 0.15;
-            let half = Vec3::new(rng(&mut s), rng(&mut s), rng(&mut s)) * 0.02;
+            let c = Vec3::new(next(), next(), next()) * 0.15;
+            let half = Vec3::new(next(), next(), next()) * 0.02;
             let (lo, hi) = (c - half, c + half);
             grid.near(&lo, &hi, bound, &mut near);
             let inside: Vec<u32> = (0..rest.len() as u32).filter(|&v| (0..3).all(|i| positions[v as usize][i] >= lo[i] && positions[v as usize][i] <= hi[i])).collect();
