@@ -107,7 +107,9 @@ impl<'a> Blade<'a> {
     /// the blades' normals and `o` their origins, |z1| + |z0| = |z1 - z0| <=
     /// motion + |ez_a - ez_b| |p0 - o_b| + |o_a - o_b|, and |p0 - o_b| <= r + |z0|
     /// (r the footprint's farthest corner), so while |ez_a - ez_b| < 1,
-    /// |z1| <= motion + |ez_a - ez_b| r + |o_a - o_b|.
+    /// |z1| <= motion + |ez_a - ez_b| r + |o_a - o_b|. Past half that turn (about
+    /// 29 degrees in one sub-step, which sub-steps never reach while the blade
+    /// is near tissue) the reach is a blade length or more: every vertex is read.
     fn reach(&self, motion: f64) -> Option<f64> {
         let shape = self.shape;
         let turn = (self.after.rotation * Vec3::z() - self.before.rotation * Vec3::z()).norm();
