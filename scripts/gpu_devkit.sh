@@ -21,7 +21,9 @@ strip -o "$kit/fissure" target/release/fissure
 # vkCreateInstance, and wgpu reports no adapter.
 libs=$(ldd target/release/fissure | awk '/=> \//{print $3}' | grep -v -E '/(libc|libm|libgcc_s|ld-linux)[.-]')
 for name in libvulkan.so.1 libGLdispatch.so.0 libGLX.so.0 libGL.so.1 libEGL.so.1 libOpenGL.so.0 libX11.so.6 libXext.so.6 libxcb.so.1 libXau.so.6 libXdmcp.so.6 libbsd.so.0 libmd.so.0; do
-    path=$(ldconfig -p | awk -v n="$name" '$1 == n && /x86-64/ {print $NF; exit}')
+    # awk reads to the end: leaving early would end ldconfig by SIGPIPE, which
+    # pipefail turns into this script's exit.
+    path=$(ldconfig -p | awk -v n="$name" '$1 == n && /x86-64/ && !p {print $NF; p = 1}')
     if [ -z "$path" ]; then
         echo "error: $name is not installed here (apt-get install the package that has it, e.g. libvulkan1, libglvnd0, libx11-6)" >&2
         exit 1
