@@ -185,12 +185,8 @@ one_euro='OneEuro(min_cutoff_hz: 1.0, beta_hz_per_mm_s: 0.05, d_cutoff_hz: 1.0)'
 replay sylvian_noisy config/sylvian.ron --trajectory assets/trajectories/paper_fig14_sylvian_noisy.csv
 replay sylvian_noisy_filtered config/sylvian.ron --trajectory assets/trajectories/paper_fig14_sylvian_noisy.csv \
     --set "spatulas[0].filter=$one_euro" --set "spatulas[1].filter=$one_euro"
-# The default scene refined as a user's scene is by default (`refine: Auto`), clean and with the same
-# tracker noise, unfiltered and filtered.
-replay refined/sylvian config/sylvian.ron --set refine=Auto
-replay refined/sylvian_noisy config/sylvian.ron --set refine=Auto --trajectory assets/trajectories/paper_fig14_sylvian_noisy.csv
-replay refined/sylvian_noisy_filtered config/sylvian.ron --set refine=Auto --trajectory assets/trajectories/paper_fig14_sylvian_noisy.csv \
-    --set "spatulas[0].filter=$one_euro" --set "spatulas[1].filter=$one_euro"
+# The default scene on the phantom's own mesh (`refine: None`): what refining under the blades costs.
+replay unrefined/sylvian config/sylvian.ron --set refine=None
 # The same blade motion on the coarse and the fine brain: the fine-brain Sylvian
 # scene as a user writes it (no `refine`, so `Auto`; the lowest 10 mm held), on each brain, with the working
 # region's rows (the default) and with a row for every surface vertex.

@@ -139,13 +139,22 @@ impl AutoRegion {
 }
 
 /// The region `refine: Auto` refines: the blades' reach along the scenario's
-/// own trajectory (its initial poses, then the trajectory sampled over the
-/// run), else its region-of-interest sphere, else (a scene driven only by a
-/// keyboard, a gamepad or a tracker) the reach from the blades' first poses.
+/// own trajectory (its initial poses, then the whole trajectory sampled from
+/// its first row to its last), else its region-of-interest sphere, else (a
+/// scene driven only by a keyboard, a gamepad or a tracker) the reach from the
+/// blades' first poses.
+///
+/// The mesh is the scene's whatever is played on it: the run's length
+/// (`duration_s`, which a session's debrief sets to its recording's) and a
+/// trajectory played in place of the scene's own (`replay --trajectory`, a
+/// window's recording) leave it as it is. A window's session, its recording's
+/// replay and its debrief therefore run on one mesh, and a motion sampled
+/// faster or slower meets the same tissue.
 fn auto_region(scenario: &Scenario) -> Result<AutoRegion, BuildError> {
     if scenario.trajectory.is_some() {
         let poses = TrajectoryPoses::for_scenario(scenario, None)?;
-        return Ok(AutoRegion::Trajectory(poses.samples(scenario.duration, AUTO_REFINE_SAMPLES)));
+        let span = poses.trajectory_end().unwrap_or(0.0).max(0.0);
+        return Ok(AutoRegion::Trajectory(poses.samples(span, AUTO_REFINE_SAMPLES)));
     }
     Ok(match scenario.solver.region_of_interest {
         RegionOfInterest::Sphere(s) => AutoRegion::Sphere(s),

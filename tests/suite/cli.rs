@@ -25,9 +25,10 @@ fn check_accepts_every_shipped_scene() {
     }
 }
 
-/// `check` says what `refine: Auto` added and where: along the trajectory's
-/// reach, or, for a scene driven by hand, from the blades' first poses; a
-/// scene that says `refine: None` adds nothing and says nothing of it.
+/// `check` says what `refine: Auto` (the default scene's, which names no
+/// `refine`) added and where: along the trajectory's reach, or, for a scene
+/// driven by hand, from the blades' first poses; `refine: None` adds nothing
+/// and says nothing of it.
 #[test]
 fn check_says_what_refinement_added_and_where() {
     let added = |args: &[&str]| {
@@ -41,9 +42,10 @@ fn check_says_what_refinement_added_and_where() {
         };
         (line, nodes("built:"))
     };
-    let (none, file) = added(&["check", "config/sylvian.ron"]);
+    let (none, file) = added(&["check", "config/sylvian.ron", "--set", "refine=None"]);
     assert_eq!(none, None, "refine: None adds nothing");
-    let (traj, along) = added(&["check", "config/sylvian.ron", "--set", "refine=Auto"]);
+    let (traj, along) = added(&["check", "config/sylvian.ron"]);
+    assert_eq!(added(&["check", "config/sylvian.ron", "--set", "refine=Auto"]), (Some(traj.clone().expect("a refined line")), along), "the default is Auto");
     let traj = traj.expect("a refined line");
     assert!(traj.contains(&format!("{} nodes added to the file's {file}", along - file)) && traj.contains("over the trajectory"), "{traj}");
     let by_hand = ["--set", "trajectory=None", "--set", "spatulas[0].input=Keyboard", "--set", "spatulas[1].input=Keyboard"];

@@ -83,7 +83,7 @@ fn the_page_carries_every_recorded_figure_and_the_readme_its_summary() {
     // Figures as the programs recorded them (the default scene's summary.json, the collision bench's
     // paper-12k 500 bvh row, the cold fine-brain build, the window's report, the fem bench's paper-12k).
     for figure in [
-        "| replay: default scene: paper-12k, two spatulas, skull spheres, a frame | p50 0.877 / p95 1.650 ms (max 4.442 ms); up to 2 sub-steps a frame; force change a frame p95 0.0007/0.0007 N; one run |",
+        "| replay: default scene: paper-12k refined under the blades (refine: Auto), two spatulas, skull spheres, a frame | p50 0.877 / p95 1.650 ms (max 4.442 ms); up to 2 sub-steps a frame; force change a frame p95 0.0007/0.0007 N; one run |",
         "| p50 1.777 / p95 2.300 ms | under 1 ms, refit included: not met (p50) |",
         "| 3.21 s / 28.84 s / 1143 MB | precompute < 60 s: met; < 2 GB: met |",
         "| 3.7 fps; step p50 0.774 / p95 2.354 ms | step p95 < 2 ms: not met |",

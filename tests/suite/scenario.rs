@@ -432,10 +432,11 @@ fn display_views_validate() {
 /// refinement past four times the nodes is refused naming `refine`.
 #[test]
 fn refine_validates_and_refines_the_loaded_mesh() {
-    // The shipped scene says `refine: None` (its phantom resolves the blades).
-    let anchor = "    refine: None,\n";
+    // The shipped scene names no `refine` (Auto): the field goes before its material.
+    let anchor = "    material: (young_modulus_pa: 3000.0, poisson_ratio: 0.45),\n";
     let volume = "Box(min_mm: (-75.0, 0.0, -25.0), max_mm: (-55.0, 20.0, 0.0))";
-    let text = sylvian_text().replacen(anchor, &format!("    refine: Some((edge_mm: 3.0, within: [{volume}])),\n"), 1);
+    assert!(sylvian_text().contains(anchor) && !sylvian_text().contains("    refine:"), "sylvian.ron names its material and no refine");
+    let text = sylvian_text().replacen(anchor, &format!("    refine: Some((edge_mm: 3.0, within: [{volume}])),\n{anchor}"), 1);
     let (_dir, _path, set) = load_text(&text);
     let s = set.expect("a valid refine");
     let fissure::scenario::RefineChoice::Given(r) = s.refine.clone() else { panic!("refine read: {:?}", s.refine) };
@@ -462,7 +463,7 @@ fn refine_validates_and_refines_the_loaded_mesh() {
     }
     assert!(inside > 100 && longest_outside > 0.004, "{inside} edges inside; longest outside {longest_outside} m");
 
-    let with = |refine: &str| format!("    refine: {refine},\n");
+    let with = |refine: &str| format!("    refine: {refine},\n{anchor}");
     assert_bad(anchor, &with(&format!("Some((edge_mm: 0.0, within: [{volume}]))")), "refine.edge_mm", "must be > 0, got 0");
     assert_bad(anchor, &with("Some((edge_mm: 1.0, within: []))"), "refine.within", "give at least one volume");
     assert_bad(
@@ -505,6 +506,36 @@ fn the_pose_filter_defaults_to_the_tracker_and_refuses_non_physical_parameters()
     assert!(e.contains("filter"), "{e}");
 }
 
+/// `refine: Auto` refines the scene's mesh, not the run's: the run's length
+/// (`duration_s`, which a session's debrief sets to its recording's) and a
+/// trajectory played in place of the scene's own (`replay --trajectory`, a
+/// window's recording) leave the mesh node for node as it is. Otherwise a
+/// recording's replay ran on other tissue than the window's session, and the
+/// same motion sampled faster met a coarser mesh (a 5 mm a frame insertion gave
+/// 20-50 % less force than a slow one because its shorter run refined less).
+#[test]
+fn refine_auto_refines_the_scene_whatever_is_played_on_it() {
+    use fissure::sim::preflight::preflight;
+    let path = config_dir().join("sylvian.ron");
+    let whole = Scenario::load(&path, &[]).expect("default scene");
+    let short = Scenario::load(&path, &["duration_s=0.15".into()]).expect("a short run");
+    let dir = tempfile::tempdir().unwrap();
+    let other = dir.path().join("elsewhere.csv");
+    // Both blades straight down 20 mm, far from the scene's own path.
+    std::fs::write(
+        &other,
+        "time_s,spatula,x_mm,y_mm,z_mm,qw,qx,qy,qz\n0.0,0,-133.09,10.4115,-10.5227,1,0,0,0\n0.1,0,-133.09,10.4115,-30.5,1,0,0,0\n\
+         0.0,1,-133.09,9.5885,-12.7773,1,0,0,0\n0.1,1,-133.09,9.5885,-32.7,1,0,0,0\n",
+    )
+    .unwrap();
+    let reference = preflight(&whole, None).expect("valid").mesh.mesh;
+    assert!(reference.node_count() > 12_383 + 1000, "the default scene is refined: {} nodes", reference.node_count());
+    for (what, scenario, trajectory) in [("a 0.15 s run", &short, None), ("another trajectory", &whole, Some(other.as_path())), ("both", &short, Some(other.as_path()))] {
+        let mesh = preflight(scenario, trajectory).expect("valid").mesh.mesh;
+        assert_eq!((&mesh.positions, &mesh.tets), (&reference.positions, &reference.tets), "{what}: the scene's mesh");
+    }
+}
+
 /// `refine: Auto`: where the blades reach along the scenario's
 /// trajectory, every boundary edge is at most a quarter of the narrowest
 /// blade's width; away from them the mesh is as it was; the refined mesh is
@@ -515,7 +546,7 @@ fn the_pose_filter_defaults_to_the_tracker_and_refuses_non_physical_parameters()
 fn refine_auto_refines_where_the_trajectory_takes_the_blades() {
     use fissure::sim::scene_mesh::{AUTO_REFINE_EDGES_ACROSS, auto_edge, load_mesh};
     let path = config_dir().join("sylvian.ron");
-    assert_eq!(Scenario::load(&path, &[]).expect("default scene").refine, fissure::scenario::RefineChoice::Off, "no refinement unless asked");
+    assert_eq!(Scenario::load(&path, &[]).expect("default scene").refine, fissure::scenario::RefineChoice::Auto, "Auto unless the scene says otherwise");
     let auto = Scenario::load(&path, &["refine=Auto".into()]).expect("Auto");
     assert_eq!(auto.refine, fissure::scenario::RefineChoice::Auto);
     let edge = auto_edge(&auto);
