@@ -4,6 +4,9 @@
 //! one before, as in the window (a headless replay otherwise runs several
 //! times faster than real time, and work on other threads piles up).
 //! `TRAJ=path.csv` replays that trajectory instead of the scene's own.
+//! `HAND=1` builds as the window does for blades driven by hand: no expected
+//! poses (the region of interest from the blades' first poses), the columns in
+//! the background (with `PACE=1`, a window session's recording replayed as it ran).
 use fissure::scenario::Scenario;
 use fissure::sim::poses::TrajectoryPoses;
 use fissure::sim::{BuildOptions, FrameInput, Pipeline};
@@ -18,8 +21,13 @@ fn main() {
     let scenario = Scenario::load(Path::new(path), &overrides).expect("scenario");
     let traj = std::env::var_os("TRAJ").map(std::path::PathBuf::from);
     let source = TrajectoryPoses::for_scenario(&scenario, traj.as_deref()).expect("trajectory");
-    let (mut pipeline, mut state) =
-        Pipeline::build(&scenario, BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None, ..BuildOptions::default() }).expect("build");
+    let hand = std::env::var_os("HAND").is_some_and(|v| v == "1");
+    let options = if hand {
+        BuildOptions { expected_poses: Vec::new(), expected_step_s: scenario.duration / 200.0, progress: None, background_columns: true }
+    } else {
+        BuildOptions { expected_poses: source.samples(scenario.duration, 200), progress: None, ..BuildOptions::default() }
+    };
+    let (mut pipeline, mut state) = Pipeline::build(&scenario, options).expect("build");
     let mut input = FrameInput::default();
     let dt = scenario.time_step;
     let mut times = Vec::new();

@@ -63,6 +63,32 @@ fn reach_ranks(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], pose_sets: &[Ve
     rank
 }
 
+/// Dates at the first frame the ROI nodes that have rows before any blade
+/// comes near: a vertex within the skull stage's candidate band of a sphere at
+/// rest (a candidate row every step, which reads its column from the first
+/// frame on) and the tethers' nodes. Dated by the blades alone, the default
+/// scene's skull-base vertices (0.12 mm from their sphere at rest) waited in
+/// the window's first frame for the background fill to reach their columns:
+/// 0.5-0.9 s on its refined mesh.
+fn due_at_start(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], tether_links: Option<&[fem::Tether]>, reach: &mut [u32]) {
+    if let (true, Some(skull)) = (scenario.effects.contains(Effect::SkullSpheres), scenario.skull.as_ref()) {
+        for &n in roi {
+            if super::pipeline::skull_gap(skull, &mesh.positions[n as usize]) < SKULL_CANDIDATE_BAND_M {
+                if let Some(r) = reach.get_mut(n as usize) {
+                    *r = 0;
+                }
+            }
+        }
+    }
+    if let Some(links) = tether_links {
+        for n in ConstrainedSolver::tether_nodes(links) {
+            if let Some(r) = reach.get_mut(n as usize).filter(|r| **r != u32::MAX) {
+                *r = 0;
+            }
+        }
+    }
+}
+
 /// The speed a blade is assumed to move at toward tissue its expected path
 /// does not reach (m/s): the keyboard's default speed. It dates the distance
 /// shells of [`reach_ranks`] for [`reach_seconds`].
@@ -281,7 +307,10 @@ fn surface_side(scenario: &Scenario, mesh: &TetMesh, surface: &crate::mesh::Boun
         roi.sort_unstable();
         roi.dedup();
     }
-    let reach = if early { reach_ranks(scenario, mesh, &roi, pose_sets) } else { Vec::new() };
+    let mut reach = if early { reach_ranks(scenario, mesh, &roi, pose_sets) } else { Vec::new() };
+    if early {
+        due_at_start(scenario, mesh, &roi, tethers.as_ref().map(|t| t.solver_links(surface)).as_deref(), &mut reach);
+    }
     let collision = if scenario.effects.contains(Effect::Collision) {
         let config = CollisionConfig {
             backend: match scenario.collision.backend {

@@ -511,6 +511,17 @@ impl Compliance {
         f.wait_until(ahead).map(|_| ()).map_err(|reason| FemError::ComplianceIncomplete { reason })
     }
 
+    /// Whether column `col` is readable now (its component's columns up to it are final), without waiting.
+    pub fn column_ready(&self, col: usize) -> bool {
+        match &self.fill {
+            Some(f) if !f.0.is_complete() && col < self.n_cols => {
+                let k = self.layout.row_comp[col] as usize;
+                f.0.ready(k) > col - self.layout.spans[k][0]
+            }
+            _ => true,
+        }
+    }
+
     /// Waits until column `col` is readable (its component's columns up to it are final); at once unless filling.
     #[inline]
     pub fn wait_column(&self, col: usize) -> Result<(), FemError> {
