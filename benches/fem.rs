@@ -564,13 +564,6 @@ fn write_sweep(name: &str, sweep: &[(usize, Measure)], dir: &Path) -> Result<Pat
             .map_err(|e| err(&e))?
             .label("bar: p95 3 ms at 300 vertices")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], bar.stroke_width(2)));
-        // Context: the largest contact set of the default scene's replay (`fissure replay config/sylvian.ron`).
-        let scene = RGBColor(148, 103, 189);
-        chart
-            .draw_series(DashedLineSeries::new(vec![(37.0, 0.0), (37.0, y_max)], 8, 6, scene.stroke_width(2)))
-            .map_err(|e| err(&e))?
-            .label("largest contact set in the default scene's replay: 37 vertices")
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], scene.stroke_width(2)));
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::UpperLeft)
