@@ -66,11 +66,11 @@ fn reach_ranks(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], pose_sets: &[Ve
 /// Dates at the first frame the ROI nodes that have rows before any blade
 /// comes near: a vertex within the skull stage's candidate band of a sphere at
 /// rest (a candidate row every step, which reads its column from the first
-/// frame on) and the tethers' nodes. Dated by the blades alone, the default
+/// frame on) and the tethers' free nodes (`tether_nodes`, in the ROI). Dated by the blades alone, the default
 /// scene's skull-base vertices (0.12 mm from their sphere at rest) waited in
 /// the window's first frame for the background fill to reach their columns:
 /// 0.5-0.9 s on its refined mesh.
-fn due_at_start(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], tether_links: Option<&[fem::Tether]>, reach: &mut [u32]) {
+fn due_at_start(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], tether_nodes: &[u32], reach: &mut [u32]) {
     if let (true, Some(skull)) = (scenario.effects.contains(Effect::SkullSpheres), scenario.skull.as_ref()) {
         for &n in roi {
             if super::pipeline::skull_gap(skull, &mesh.positions[n as usize]) < SKULL_CANDIDATE_BAND_M {
@@ -80,11 +80,9 @@ fn due_at_start(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], tether_links: 
             }
         }
     }
-    if let Some(links) = tether_links {
-        for n in ConstrainedSolver::tether_nodes(links) {
-            if let Some(r) = reach.get_mut(n as usize).filter(|r| **r != u32::MAX) {
-                *r = 0;
-            }
+    for &n in tether_nodes {
+        if let Some(r) = reach.get_mut(n as usize) {
+            *r = 0;
         }
     }
 }
@@ -301,15 +299,17 @@ fn surface_side(scenario: &Scenario, mesh: &TetMesh, surface: &crate::mesh::Boun
         let rest: Vec<Vec3> = surface.gather_positions(&mesh.positions);
         super::tethers::TetherStage::new(&scenario.tethers, surface, &rest)
     });
-    if let Some(t) = &tethers {
+    let mut tether_nodes = tethers.as_ref().map(|t| fem::ConstrainedSolver::tether_nodes(&t.solver_links(surface))).unwrap_or_default();
+    if tethers.is_some() {
         let fixed = fixed_nodes(mesh, &scenario.fixed);
-        roi.extend(fem::ConstrainedSolver::tether_nodes(&t.solver_links(surface)).into_iter().filter(|&n| !fixed[n as usize]));
+        tether_nodes.retain(|&n| !fixed[n as usize]);
+        roi.extend_from_slice(&tether_nodes);
         roi.sort_unstable();
         roi.dedup();
     }
     let mut reach = if early { reach_ranks(scenario, mesh, &roi, pose_sets) } else { Vec::new() };
     if early {
-        due_at_start(scenario, mesh, &roi, tethers.as_ref().map(|t| t.solver_links(surface)).as_deref(), &mut reach);
+        due_at_start(scenario, mesh, &roi, &tether_nodes, &mut reach);
     }
     let collision = if scenario.effects.contains(Effect::Collision) {
         let config = CollisionConfig {
