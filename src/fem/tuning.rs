@@ -47,11 +47,17 @@ pub enum Optimisation {
     /// kept while the direction stays (`src/fem/compliance/projected.rs`; off: its 3x3 blocks, which differs in the
     /// surface's last bits).
     ProjectedColumns,
+    /// An active-set iteration that activates violated candidates also releases the rows its solve found pulling
+    /// (a primal-dual step, in the first `BULK_RELEASE_ITERATIONS`; `src/fem/constrained/mod.rs`; off: they wait
+    /// until no candidate is violated). Both end on an active set within the same tolerances; where more than one
+    /// is (a vertex within tolerance of its blade), they can end on different ones, and the kept factor's last bits
+    /// follow the path, so answers can differ in their last bits.
+    PrimalDualSteps,
 }
 
 impl Optimisation {
     /// Every switch with its name in `FISSURE_FEM_OFF`, in declaration order.
-    pub const ALL: [(Optimisation, &'static str); 13] = [
+    pub const ALL: [(Optimisation, &'static str); 14] = [
         (Optimisation::Avx2Product, "avx2-product"),
         (Optimisation::FusedColumns, "fused-columns"),
         (Optimisation::RowChunks, "row-chunks"),
@@ -65,6 +71,7 @@ impl Optimisation {
         (Optimisation::TetherColumns, "tether-columns"),
         (Optimisation::ParallelProduct, "parallel-product"),
         (Optimisation::ProjectedColumns, "projected-columns"),
+        (Optimisation::PrimalDualSteps, "primal-dual-steps"),
     ];
 
     /// Its name in `FISSURE_FEM_OFF`.

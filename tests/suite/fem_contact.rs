@@ -168,3 +168,45 @@ fn barrier_rows_act_only_where_the_tissue_would_pass_the_face() {
     assert!(up > 0.0, "the barriers hold the ring up");
     assert_eq!(near.owner_forces.len(), 2, "the barriers' owner (spatula 1) gets its own force sum");
 }
+
+#[test]
+fn a_frame_that_meets_new_tissue_and_leaves_the_old_does_both_in_one_iteration() {
+    use fissure::fem::tuning::{Optimisation, Tuning};
+    let mesh = block(6, 4, 3);
+    let top: Vec<u32> = (0..mesh.node_count() as u32).filter(|&n| (mesh.positions[n as usize].z - 0.03).abs() < 1e-12).collect();
+    let side = |n: u32| mesh.positions[n as usize].x;
+    let (a, b): (Vec<u32>, Vec<u32>) = top.iter().copied().filter(|&n| side(n) <= 0.02 + 1e-12 || side(n) >= 0.04 - 1e-12).partition(|&n| side(n) < 0.03);
+    assert!(a.len() >= 10 && b.len() >= 10, "two groups of top nodes: {} and {}", a.len(), b.len());
+    // A face under each node (normal +z): 1 mm up pushes the node, 1 mm down lets it be.
+    let floors = |up: &[u32], down: &[u32]| -> Vec<Constraint> {
+        let floor = |n: u32, z: f64| Constraint { node: n, owner: 0, kind: ConstraintKind::Barrier { displacement: Vec3::new(0.0, 0.0, z), normal: -DOWN } };
+        up.iter().map(|&n| floor(n, 0.001)).chain(down.iter().map(|&n| floor(n, -0.001))).collect()
+    };
+    // Frame 1 lifts A; frame 2 drops A's faces and lifts B's: A's carried rows now pull, B's nodes are violated.
+    let frames = [floors(&a, &b), floors(&b, &a)];
+    let run = |primal_dual: bool| {
+        let mut solver = solver_for(&mesh);
+        solver.set_tuning(Tuning::ALL_ON.with(Optimisation::PrimalDualSteps, primal_dual));
+        let mut out = FrameSolution::default();
+        let mut iterations = Vec::new();
+        for cons in &frames {
+            solver.step(cons, &mut out).unwrap();
+            iterations.push(out.iterations);
+        }
+        (iterations, out)
+    };
+    let (steps, both) = run(true);
+    let (plain_steps, plain) = run(false);
+    assert_eq!(steps[0], plain_steps[0], "the first frame only adds rows");
+    assert!(steps[1] < plain_steps[1], "releasing A's rows as B's come saves an iteration: {steps:?} against {plain_steps:?}");
+    // The same contact: B held on its faces, A free; the answers agree but for the factor's path.
+    let count = b.len();
+    assert_eq!(both.barrier_contacts, count, "B's rows, and only B's, are active");
+    assert_eq!(plain.barrier_contacts, count, "B's rows, and only B's, are active");
+    let scale = max_norm(&plain.displacement_surface);
+    let diff = both.displacement_surface.iter().zip(&plain.displacement_surface).map(|(x, y)| (x - y).norm()).fold(0.0, f64::max);
+    assert!(diff <= 1e-12 * scale, "the same surface: {diff:e} m of {scale:e} m");
+    for (k, (x, y)) in both.reactions.iter().zip(&plain.reactions).enumerate() {
+        assert!((x - y).norm() <= 1e-12 * y.norm().max(1e-9), "reaction {k}: {x:?} against {y:?}");
+    }
+}

@@ -646,6 +646,12 @@ impl ConstrainedSolver {
             let cap = |this: &Self, worst: f64| if iterations >= max_iterations { Err(this.not_converged(iterations, worst)) } else { Ok(()) };
             if any_add {
                 cap(self, worst_inactive)?;
+                if iterations <= BULK_RELEASE_ITERATIONS && self.tuning.enabled(Optimisation::PrimalDualSteps) {
+                    // A primal-dual step: the rows this solve found pulling go in the same iteration as the
+                    // violated candidates come (a jittering blade both meets and leaves a few dozen vertices a
+                    // frame; one after the other took an iteration each).
+                    self.release_adhesive_candidates();
+                }
             } else if self.demote_pulling_holds(iterations) {
                 cap(self, worst_active)?;
                 self.arrange_engaged();
@@ -723,6 +729,21 @@ impl ConstrainedSolver {
         (any_add, worst_inactive, worst_active)
     }
 
+    /// Releases every active candidate row that pulls (lambda < 0) at the last solve; returns whether any.
+    fn release_adhesive_candidates(&mut self) -> bool {
+        let enforced_rows = 3 * self.tools.enforced_nodes;
+        let scale = self.sys.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()));
+        let mut any = false;
+        for (k, &ci) in self.sys.row_candidate.iter().enumerate() {
+            if self.sys.lambda[enforced_rows + k] < -1e-12 * scale {
+                self.cands.candidates[ci].active = false;
+                self.cands.screen.forget(ci);
+                any = true;
+            }
+        }
+        any
+    }
+
     /// Releases the most adhesive active candidate row (lambda < 0 pulls the tissue) or the most compressive
     /// tether (T < 0 would push), whichever is further below zero (a candidate on a tie); in the first
     /// [`BULK_RELEASE_ITERATIONS`] every such row at once (a blade pulled back from a wide contact leaves dozens
@@ -731,14 +752,7 @@ impl ConstrainedSolver {
         let enforced_rows = 3 * self.tools.enforced_nodes;
         let scale = self.sys.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()));
         if iterations <= BULK_RELEASE_ITERATIONS {
-            let mut any = false;
-            for (k, &ci) in self.sys.row_candidate.iter().enumerate() {
-                if self.sys.lambda[enforced_rows + k] < -1e-12 * scale {
-                    self.cands.candidates[ci].active = false;
-                    self.cands.screen.forget(ci);
-                    any = true;
-                }
-            }
+            let any = self.release_adhesive_candidates();
             return self.release_compressive_tethers(self.sys.rows.len(), scale) || any;
         }
         let mut most: Option<(usize, f64)> = None;
