@@ -66,10 +66,10 @@ fn reach_ranks(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], pose_sets: &[Ve
 /// Dates at the first frame the ROI nodes that have rows before any blade
 /// comes near: a vertex within the skull stage's candidate band of a sphere at
 /// rest (a candidate row every step, which reads its column from the first
-/// frame on) and the tethers' free nodes (`tether_nodes`, in the ROI). Dated by the blades alone, the default
-/// scene's skull-base vertices (0.12 mm from their sphere at rest) waited in
-/// the window's first frame for the background fill to reach their columns:
-/// 0.5-0.9 s on its refined mesh.
+/// frame on) and the tethers' free nodes (`tether_nodes`, in the ROI). Dated
+/// by the blades alone, the default scene's skull-base vertices (0.12 mm from
+/// their sphere at rest) waited in the window's first frame for the background
+/// fill to reach their columns: 0.5-0.9 s on its refined mesh.
 fn due_at_start(scenario: &Scenario, mesh: &TetMesh, roi: &[u32], tether_nodes: &[u32], reach: &mut [u32]) {
     if let (true, Some(skull)) = (scenario.effects.contains(Effect::SkullSpheres), scenario.skull.as_ref()) {
         for &n in roi {

@@ -650,7 +650,7 @@ impl ConstrainedSolver {
                     // A primal-dual step: the rows this solve found pulling go in the same iteration as the
                     // violated candidates come (a jittering blade both meets and leaves a few dozen vertices a
                     // frame; one after the other took an iteration each).
-                    self.release_adhesive_candidates();
+                    self.release_adhesive_candidates(self.lambda_scale());
                 }
             } else if self.demote_pulling_holds(iterations) {
                 cap(self, worst_active)?;
@@ -729,10 +729,15 @@ impl ConstrainedSolver {
         (any_add, worst_inactive, worst_active)
     }
 
-    /// Releases every active candidate row that pulls (lambda < 0) at the last solve; returns whether any.
-    fn release_adhesive_candidates(&mut self) -> bool {
+    /// The largest |lambda| of the last solve: what a row's pull is measured against.
+    fn lambda_scale(&self) -> f64 {
+        self.sys.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()))
+    }
+
+    /// Releases every active candidate row that pulls (lambda below `-1e-12 scale`, `scale` the largest |lambda|)
+    /// at the last solve; returns whether any.
+    fn release_adhesive_candidates(&mut self, scale: f64) -> bool {
         let enforced_rows = 3 * self.tools.enforced_nodes;
-        let scale = self.sys.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()));
         let mut any = false;
         for (k, &ci) in self.sys.row_candidate.iter().enumerate() {
             if self.sys.lambda[enforced_rows + k] < -1e-12 * scale {
@@ -750,9 +755,9 @@ impl ConstrainedSolver {
     /// pulling; the solution is the same, W being positive definite). Returns whether it released any.
     fn release_most_adhesive(&mut self, iterations: usize) -> bool {
         let enforced_rows = 3 * self.tools.enforced_nodes;
-        let scale = self.sys.lambda.iter().fold(0.0_f64, |m, l| m.max(l.abs()));
+        let scale = self.lambda_scale();
         if iterations <= BULK_RELEASE_ITERATIONS {
-            let any = self.release_adhesive_candidates();
+            let any = self.release_adhesive_candidates(scale);
             return self.release_compressive_tethers(self.sys.rows.len(), scale) || any;
         }
         let mut most: Option<(usize, f64)> = None;
