@@ -44,6 +44,7 @@ fn main() {
                 std::thread::sleep(wait);
             }
         }
+        let faults0 = minor_faults();
         let t = Instant::now();
         let rep = pipeline.step(&mut state, &input).expect("step").clone();
         let ms = t.elapsed().as_secs_f64() * 1e3;
@@ -55,9 +56,10 @@ fn main() {
         for (acc, t) in phases.iter_mut().zip([p.gather, p.factor, p.candidates, p.surface]) {
             *acc += t * 1e3;
         }
+        let faults = minor_faults() - faults0;
         if ms > slow {
             println!(
-                "frame {k}: {ms:.2} ms, rows {}, iterations {}, lazy solves {}, skull {}, gather {:.2} factor {:.2} cand {:.2} surface {:.2} lazy {:.2} ms, solve stage {:.2} collision {:.2}",
+                "frame {k}: {ms:.2} ms, {faults} page faults, rows {}, iterations {}, lazy solves {}, skull {}, gather {:.2} factor {:.2} cand {:.2} surface {:.2} lazy {:.2} ms, solve stage {:.2} collision {:.2}",
                 s.rows,
                 s.iterations,
                 s.lazy_solves,
@@ -82,4 +84,17 @@ fn main() {
     );
     println!("active-set iterations (count: frames): {iterations:?}");
     println!("{n} frames: p50 {:.2}, p95 {:.2}, max {:.2} ms", times[n / 2], times[n * 95 / 100], times[n - 1]);
+}
+
+/// Minor page faults of the process so far (0 where the platform does not say).
+fn minor_faults() -> i64 {
+    #[cfg(target_os = "linux")]
+    {
+        let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+        // SAFETY: getrusage writes the struct it is given.
+        if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } == 0 {
+            return usage.ru_minflt as i64;
+        }
+    }
+    0
 }

@@ -53,11 +53,15 @@ pub enum Optimisation {
     /// is (a vertex within tolerance of its blade), they can end on different ones, and the kept factor's last bits
     /// follow the path, so answers can differ in their last bits.
     PrimalDualSteps,
+    /// The candidate screen's records kept from frame to frame: a candidate whose node, when last evaluated in an
+    /// earlier frame, lay further inside its new plane or sphere than the forces' change since can have moved it is
+    /// not evaluated (`src/fem/constrained/screen.rs`; off: every frame evaluates its candidates anew, same bits).
+    ScreenAcrossFrames,
 }
 
 impl Optimisation {
     /// Every switch with its name in `FISSURE_FEM_OFF`, in declaration order.
-    pub const ALL: [(Optimisation, &'static str); 14] = [
+    pub const ALL: [(Optimisation, &'static str); 15] = [
         (Optimisation::Avx2Product, "avx2-product"),
         (Optimisation::FusedColumns, "fused-columns"),
         (Optimisation::RowChunks, "row-chunks"),
@@ -72,6 +76,7 @@ impl Optimisation {
         (Optimisation::ParallelProduct, "parallel-product"),
         (Optimisation::ProjectedColumns, "projected-columns"),
         (Optimisation::PrimalDualSteps, "primal-dual-steps"),
+        (Optimisation::ScreenAcrossFrames, "screen-across-frames"),
     ];
 
     /// Its name in `FISSURE_FEM_OFF`.

@@ -110,6 +110,14 @@ impl CandidateBlocks {
         self.blocks.clear();
     }
 
+    /// Marks `node`'s row, if it has one, used in `frame`: a candidate the screen skipped keeps its blocks for when
+    /// it is evaluated again.
+    pub(super) fn touch(&mut self, node: u32, frame: u64) {
+        if let Some(&r) = self.index.get(&node) {
+            self.last_used[r as usize] = frame;
+        }
+    }
+
     /// The first index of `node`'s row (after [`Self::prepare`] for this frame).
     pub(super) fn row(&mut self, node: u32) -> usize {
         let stride = self.stride;

@@ -629,7 +629,7 @@ impl ConstrainedSolver {
         let mut iterations = 0;
         let mut relinearized = 0;
         let screening = self.tuning.enabled(Optimisation::CandidateScreen);
-        self.cands.screen.begin_frame();
+        self.cands.screen.begin_frame(screening, self.tuning.enabled(Optimisation::ScreenAcrossFrames));
         self.sys.pairs.begin_step(self.cands.candidates.len() + self.tethers.count(), self.columns.lazy_generation);
         loop {
             iterations += 1;
@@ -687,26 +687,24 @@ impl ConstrainedSolver {
             if self.tools.engaged_sorted.binary_search(&c.node).is_ok() {
                 // Held by a tool this iteration: the enforced displacement wins.
                 self.cands.candidates[ci].active = false;
-                self.cands.screen.forget(ci);
                 continue;
             }
             if c.active && !c.limit.is_sphere() {
                 // Held on its face plane by its row: nothing to check.
                 continue;
             }
-            if screening && !c.active && self.screen_root(c.node).is_some_and(|r| self.cands.screen.can_skip(ci, r)) {
+            if screening && !c.active && self.can_skip(c) {
                 self.timings.screened += 1;
+                if self.keep_candidate_blocks() {
+                    self.cands.candidate_blocks.borrow_mut().touch(c.node, self.frame);
+                }
                 continue;
             }
             let u = self.displacement_of(c.node);
-            let (violation, tol) = match c.limit {
-                // Face plane: exact row, nothing to re-linearize.
-                Limit::Plane { normal, b, .. } => (b - normal.dot(&u), CONTACT_TOLERANCE_M + CONTACT_TOLERANCE * b.abs()),
-                Limit::Sphere { center, radius, inside } => {
-                    let dist = (self.model.mesh.positions[c.node as usize] + u - center).norm();
-                    (if inside { dist - radius } else { radius - dist }, SPHERE_TOLERANCE * radius)
-                }
-            };
+            if screening {
+                self.cands.screen.record(c.node, u);
+            }
+            let (violation, tol) = self.violation(c, u);
             if !c.active && violation > tol {
                 any_add = true;
                 worst_inactive = worst_inactive.max(violation);
@@ -715,10 +713,7 @@ impl ConstrainedSolver {
                     self.cands.candidates[ci].at = self.model.mesh.positions[c.node as usize] + u;
                     self.sys.pairs.redefine(self.tethers.count() + ci);
                 }
-                self.cands.screen.forget(ci);
-            } else if !c.active {
-                self.cands.screen.record(ci, tol - violation);
-            } else if c.limit.is_sphere() && violation.abs() > tol {
+            } else if c.active && c.limit.is_sphere() && violation.abs() > tol {
                 worst_active = worst_active.max(violation.abs());
             }
         }
@@ -727,6 +722,26 @@ impl ConstrainedSolver {
         worst_inactive = worst_inactive.max(tether_worst);
         self.timings.candidates += evaluated.elapsed().as_secs_f64();
         (any_add, worst_inactive, worst_active)
+    }
+
+    /// Whether the screen shows candidate `c` (inactive) cannot be violated: its violation at its node's recorded
+    /// displacement is inside the tolerance by more than the forces' change since can have moved the node.
+    fn can_skip(&mut self, c: Candidate) -> bool {
+        let (Some(root), Some(seen)) = (self.screen_root(c.node), self.cands.screen.seen(c.node)) else { return false };
+        let (violation, tol) = self.violation(c, seen);
+        self.cands.screen.can_skip(c.node, root, tol - violation)
+    }
+
+    /// Candidate `c`'s violation at its node's displacement `u` (positive: past its plane or sphere), and its tolerance.
+    fn violation(&self, c: Candidate, u: Vec3) -> (f64, f64) {
+        match c.limit {
+            // Face plane: exact row, nothing to re-linearize.
+            Limit::Plane { normal, b, .. } => (b - normal.dot(&u), CONTACT_TOLERANCE_M + CONTACT_TOLERANCE * b.abs()),
+            Limit::Sphere { center, radius, inside } => {
+                let dist = (self.model.mesh.positions[c.node as usize] + u - center).norm();
+                (if inside { dist - radius } else { radius - dist }, SPHERE_TOLERANCE * radius)
+            }
+        }
     }
 
     /// The largest |lambda| of the last solve: what a row's pull is measured against.
@@ -742,7 +757,6 @@ impl ConstrainedSolver {
         for (k, &ci) in self.sys.row_candidate.iter().enumerate() {
             if self.sys.lambda[enforced_rows + k] < -1e-12 * scale {
                 self.cands.candidates[ci].active = false;
-                self.cands.screen.forget(ci);
                 any = true;
             }
         }
@@ -771,7 +785,6 @@ impl ConstrainedSolver {
         match (most, tether) {
             (Some((ci, l)), t) if t.is_none_or(|(_, lt)| l <= lt) => {
                 self.cands.candidates[ci].active = false;
-                self.cands.screen.forget(ci);
                 true
             }
             (_, Some((i, _))) => {

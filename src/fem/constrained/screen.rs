@@ -1,17 +1,22 @@
-//! Screening the active-set loop's inactive candidates ([`Screen`]): a candidate whose last evaluation left it far
-//! from its constraint is not evaluated again until the forces have changed enough to reach it.
+//! Screening the active-set loop's inactive candidates ([`Screen`]): a candidate whose node's displacement, when
+//! last evaluated, left it far from its constraint is not evaluated again until the forces have changed enough to
+//! reach it, in this frame or a later one (`screen-across-frames`).
 //!
-//! In: the nodal forces after each solve of W, the diagonal K^-1 blocks of the nodes. Out: per candidate, whether
-//! its evaluation can be skipped. Stays true: a skipped candidate would have been found not violated, so the loop
-//! makes the same decisions and the frame the same bits (`tests/fem_tuning.rs` checks it with the switch off).
+//! In: the nodal forces after each solve of W, the diagonal K^-1 blocks of the nodes, each evaluated node's
+//! displacement. Out: per candidate, whether its evaluation can be skipped. Stays true: a skipped candidate would
+//! have been found not violated, so the loop makes the same decisions and the frame the same bits
+//! (`tests/fem_tuning.rs` checks it with either switch off).
 //!
 //! The bound: K^-1 is symmetric positive definite, so each 3x3 block satisfies
 //! `|K^-1[p, q]| <= sqrt(|K^-1[p, p]| |K^-1[q, q]|)` (spectral norms, bounded above by the diagonal blocks'
-//! Frobenius norms). Between two evaluations the displacement of `p` moves by at most `r_p * sum_q r_q |dF_q|`,
-//! `r = sqrt(|K^-1 diagonal|)`, summed over every force change in between. A violation (a plane's `b - n . u`, a
-//! sphere's distance to its surface) is 1-Lipschitz in `u`, so while that bound stays below the margin (tolerance
-//! minus violation) found at the last evaluation, the candidate stays inside. A wide contact evaluates 200-300
-//! candidates against every W node at up to a dozen iterations; most lie well inside.
+//! Frobenius norms). Between two solves the displacement of `p` moves by at most `r_p * sum_q r_q |dF_q|`,
+//! `r = sqrt(|K^-1 diagonal|)`, summed over every force change in between (the drift). A violation (a plane's
+//! `b - n . u`, a sphere's distance to its surface) is 1-Lipschitz in `u`, so a constraint whose violation at the
+//! node's last evaluated displacement `u_e` is below its tolerance by more than the drift since then times `r_p`
+//! is not violated now. The bound is on the node's displacement, whatever its constraint: the blade that moved
+//! since, a new plane or sphere, is evaluated at `u_e` (no K^-1 read). A wide contact evaluates 200-300 candidates
+//! against every W node at up to a dozen iterations; most lie well inside, and a steadily moving blade leaves most
+//! of them inside from one frame to the next.
 
 use crate::math::Vec3;
 
@@ -20,7 +25,7 @@ const SAFETY: f64 = 1.01;
 /// Absolute slack (m): far above a head-scale displacement's rounding (1e-16 m), far below any decision's tolerance.
 const ABS_SLACK_M: f64 = 1e-12;
 
-/// Per frame: the summed force change so far, and per candidate the sum and margin at its last evaluation.
+/// The summed force change since the records began, and per node its displacement and that sum when last evaluated.
 #[derive(Debug, Default)]
 pub(super) struct Screen {
     /// `sqrt(|K^-1[n, n]|_F)` per mesh node, NaN until read; sized once, so a frame allocates nothing for it.
@@ -28,25 +33,35 @@ pub(super) struct Screen {
     /// Forces (node, F) at the last solve, ascending by node.
     prev: Vec<(u32, Vec3)>,
     cur: Vec<(u32, Vec3)>,
-    /// `SAFETY * sum_iterations sum_q r_q |dF_q|` since the frame began (infinite once a root was unknown).
+    /// `SAFETY * sum_solves sum_q r_q |dF_q|` since the records began (infinite once a root was unknown).
     drift: f64,
-    /// Per candidate: `drift` and its margin (tolerance minus violation; -inf: none) at its last inactive evaluation.
-    at: Vec<f64>,
-    margin: Vec<f64>,
+    /// Per mesh node: its displacement at its last evaluation, and `drift` then (NaN: no record).
+    seen_u: Vec<Vec3>,
+    seen_at: Vec<f64>,
+    /// The nodes with a record (cleared without a pass over every node).
+    seen_nodes: Vec<u32>,
+    /// Whether the last frame screened (a frame that did not has not counted its force changes).
+    screened_last: bool,
 }
 
 impl Screen {
     /// A screen for a mesh of `nodes` nodes.
     pub(super) fn new(nodes: usize) -> Self {
-        Self { roots: vec![f64::NAN; nodes], ..Self::default() }
+        Self { roots: vec![f64::NAN; nodes], seen_u: vec![Vec3::zeros(); nodes], seen_at: vec![f64::NAN; nodes], ..Self::default() }
     }
 
-    /// Starts a frame (no candidate has a margin yet).
-    pub(super) fn begin_frame(&mut self) {
-        self.prev.clear();
-        self.drift = 0.0;
-        self.at.clear();
-        self.margin.clear();
+    /// Starts a frame that `screening` or not: the records carry over when `across` and the last frame screened
+    /// with a finite drift; else they start again.
+    pub(super) fn begin_frame(&mut self, screening: bool, across: bool) {
+        if !(across && self.screened_last && self.drift.is_finite()) {
+            for &n in &self.seen_nodes {
+                self.seen_at[n as usize] = f64::NAN;
+            }
+            self.seen_nodes.clear();
+            self.prev.clear();
+            self.drift = 0.0;
+        }
+        self.screened_last = screening;
     }
 
     /// The cached root of `node`, if known.
@@ -103,29 +118,29 @@ impl Screen {
         std::mem::swap(&mut self.cur, &mut self.prev);
     }
 
-    /// Whether candidate `ci` (root `root`) cannot have reached its constraint since its last evaluation.
-    pub(super) fn can_skip(&self, ci: usize, root: f64) -> bool {
-        match (self.margin.get(ci), self.at.get(ci)) {
-            (Some(&m), Some(&at)) => root * (self.drift - at) + ABS_SLACK_M < m,
+    /// `node`'s displacement when last evaluated, if it has a record.
+    pub(super) fn seen(&self, node: u32) -> Option<Vec3> {
+        let at = *self.seen_at.get(node as usize)?;
+        (!at.is_nan()).then(|| self.seen_u[node as usize])
+    }
+
+    /// Whether a constraint of `node` (root `root`) whose margin (tolerance minus violation) at the node's recorded
+    /// displacement is `margin` cannot have been reached since that record.
+    pub(super) fn can_skip(&self, node: u32, root: f64, margin: f64) -> bool {
+        match self.seen_at.get(node as usize) {
+            Some(&at) if !at.is_nan() => root * (self.drift - at) + ABS_SLACK_M < margin,
             _ => false,
         }
     }
 
-    /// Candidate `ci` was evaluated inactive and stays so, `margin` inside its tolerance.
-    pub(super) fn record(&mut self, ci: usize, margin: f64) {
-        if self.margin.len() <= ci {
-            self.margin.resize(ci + 1, f64::NEG_INFINITY);
-            self.at.resize(ci + 1, 0.0);
+    /// `node` was evaluated at displacement `u` after the last solve.
+    pub(super) fn record(&mut self, node: u32, u: Vec3) {
+        let Some(at) = self.seen_at.get_mut(node as usize) else { return };
+        if at.is_nan() {
+            self.seen_nodes.push(node);
         }
-        self.margin[ci] = margin;
-        self.at[ci] = self.drift;
-    }
-
-    /// Candidate `ci` changed state (activated or released): evaluate it next time.
-    pub(super) fn forget(&mut self, ci: usize) {
-        if let Some(m) = self.margin.get_mut(ci) {
-            *m = f64::NEG_INFINITY;
-        }
+        *at = self.drift;
+        self.seen_u[node as usize] = u;
     }
 }
 
@@ -136,7 +151,7 @@ mod tests {
     #[test]
     fn the_drift_sums_each_nodes_change_weighted_by_its_root() {
         let mut s = Screen::new(10);
-        s.begin_frame();
+        s.begin_frame(true, true);
         for n in 1..4 {
             s.set_root(n, n as f64);
         }
@@ -149,21 +164,41 @@ mod tests {
     }
 
     #[test]
-    fn a_candidate_is_skipped_only_while_the_bound_stays_inside_its_margin() {
+    fn a_node_is_skipped_only_while_the_bound_stays_inside_its_margin() {
         let mut s = Screen::new(10);
-        s.begin_frame();
-        assert!(!s.can_skip(0, 1.0), "never evaluated: evaluate it");
-        s.record(0, 1.0);
-        assert!(s.can_skip(0, 1.0));
+        s.begin_frame(true, true);
+        assert!(!s.can_skip(0, 1.0, 1.0), "never evaluated: evaluate it");
+        s.record(0, Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(s.seen(0), Some(Vec3::new(1.0, 2.0, 3.0)));
+        assert!(s.can_skip(0, 1.0, 1.0));
         s.set_root(7, 1.0);
         s.advance(&[7], &[Vec3::new(0.5, 0.0, 0.0)]);
-        assert!(s.can_skip(0, 1.0), "moved by at most 0.505 of 1.0");
+        assert!(s.can_skip(0, 1.0, 1.0), "moved by at most 0.505 of 1.0");
+        assert!(!s.can_skip(0, 1.0, 0.5), "moved by at most 0.505 of 0.5");
         s.advance(&[7], &[Vec3::new(1.0, 0.0, 0.0)]);
-        assert!(!s.can_skip(0, 1.0), "moved by at most 1.01 of 1.0");
-        s.forget(0);
-        assert!(!s.can_skip(0, 0.0));
-        s.record(0, 1.0);
+        assert!(!s.can_skip(0, 1.0, 1.0), "moved by at most 1.01 of 1.0");
+        s.record(0, Vec3::zeros());
         s.advance(&[8], &[Vec3::new(1e-3, 0.0, 0.0)]);
-        assert!(!s.can_skip(0, 1.0), "an unknown root bounds nothing");
+        assert!(!s.can_skip(0, 1.0, 1.0), "an unknown root bounds nothing");
+    }
+
+    #[test]
+    fn records_carry_over_to_the_next_frame_only_across_frames_and_after_a_screened_one() {
+        let mut s = Screen::new(10);
+        s.begin_frame(true, true);
+        s.set_root(7, 1.0);
+        s.advance(&[7], &[Vec3::new(0.5, 0.0, 0.0)]);
+        s.record(0, Vec3::zeros());
+        s.begin_frame(true, true);
+        assert!(s.can_skip(0, 1.0, 1.0), "carried over");
+        s.advance(&[7], &[Vec3::new(0.0, 0.0, 0.0)]);
+        assert!(!s.can_skip(0, 1.0, 0.5), "the force released since the record counts");
+        s.begin_frame(true, false);
+        assert_eq!(s.seen(0), None, "not across frames: started again");
+        s.record(0, Vec3::zeros());
+        s.begin_frame(false, true);
+        assert!(s.seen(0).is_some(), "a frame that does not screen keeps the records it cannot use");
+        s.begin_frame(true, true);
+        assert_eq!(s.seen(0), None, "after a frame that did not count its forces: started again");
     }
 }
