@@ -32,7 +32,7 @@ fn main() {
     let dt = scenario.time_step;
     let mut times = Vec::new();
     let mut phases = [0.0f64; 4];
-    let mut screened = 0;
+    let (mut screened, mut evaluated) = (0, 0);
     let mut iterations = std::collections::BTreeMap::<usize, usize>::new();
     let pace = std::env::var_os("PACE").is_some_and(|v| v == "1");
     let start = Instant::now();
@@ -52,6 +52,7 @@ fn main() {
         let s = pipeline.last_solution();
         let p = pipeline.solver().timings();
         screened += p.screened;
+        evaluated += p.evaluated;
         *iterations.entry(s.iterations).or_default() += 1;
         for (acc, t) in phases.iter_mut().zip([p.gather, p.factor, p.candidates, p.surface]) {
             *acc += t * 1e3;
@@ -79,7 +80,7 @@ fn main() {
     times.sort_by(|a, b| a.total_cmp(b));
     let n = times.len();
     println!(
-        "phases over all frames: gather {:.0} factor {:.0} candidates {:.0} ({screened} evaluations screened out) surface {:.0} ms",
+        "phases over all frames: gather {:.0} factor {:.0} candidates {:.0} ({evaluated} evaluations made, {screened} screened out) surface {:.0} ms",
         phases[0], phases[1], phases[2], phases[3]
     );
     println!("active-set iterations (count: frames): {iterations:?}");

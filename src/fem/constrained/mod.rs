@@ -164,6 +164,8 @@ pub struct PhaseTimings {
     pub candidates: f64,
     /// Candidate evaluations the screen skipped (`constrained/screen.rs`), a count.
     pub screened: usize,
+    /// Candidate evaluations made (each reads the candidate's blocks against every W node), a count.
+    pub evaluated: usize,
     /// The surface product `u = u0 + K^-1 C^T lambda` over every surface row (`surface_gather` included).
     pub surface: f64,
     /// Part of `surface`: gathering the rows `K^-1[c, ..c]` of newly forced columns.
@@ -701,6 +703,7 @@ impl ConstrainedSolver {
                 continue;
             }
             let u = self.displacement_of(c.node);
+            self.timings.evaluated += 1;
             if screening {
                 self.cands.screen.record(c.node, u);
             }
