@@ -96,10 +96,30 @@ impl CandidateBlocks {
             self.slot_columns.push(c);
         }
         if self.column_used.len() > self.stride {
-            // More columns than a row holds: wider rows (only the high-water mark grows).
-            self.stride = self.column_used.len().next_power_of_two().max(16);
-            self.clear_rows();
+            // More columns than a row holds: wider rows (only the high-water mark grows), each keeping its blocks;
+            // rows that hold none yet start again, each allocated when first used.
+            let stride = self.column_used.len().next_power_of_two().max(16);
+            if self.stride == 0 {
+                self.clear_rows();
+                self.stride = stride;
+            } else {
+                self.widen(stride);
+            }
         }
+    }
+
+    /// Lays every row out at `stride` columns (more than now), in place: the last row moves first, so no row is
+    /// overwritten before it has moved; the new columns are empty.
+    fn widen(&mut self, stride: usize) {
+        let (old, rows) = (self.stride, self.last_used.len());
+        self.nodes.resize(rows * stride, u32::MAX);
+        self.blocks.resize(rows * stride, Matrix3::zeros());
+        for r in (0..rows).rev() {
+            self.nodes.copy_within(r * old..(r + 1) * old, r * stride);
+            self.blocks.copy_within(r * old..(r + 1) * old, r * stride);
+            self.nodes[r * stride + old..(r + 1) * stride].fill(u32::MAX);
+        }
+        self.stride = stride;
     }
 
     pub(super) fn clear_rows(&mut self) {
@@ -176,5 +196,48 @@ impl ConstrainedSolver {
             kept.nodes[i] = q;
         }
         kept.blocks[i]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Writes block `K[p, q] = (p * 1000 + q) I` where `p`'s row meets `q`'s column.
+    fn fill(store: &mut CandidateBlocks, candidates: &[u32], slots: &[u32]) {
+        for &p in candidates {
+            let base = store.row(p);
+            for (slot, &q) in slots.iter().enumerate() {
+                let i = base + store.slot_columns[slot] as usize;
+                store.nodes[i] = q;
+                store.blocks[i] = Matrix3::identity() * (p * 1000 + q) as f64;
+            }
+        }
+    }
+
+    #[test]
+    fn rows_widened_for_more_w_nodes_keep_their_blocks() {
+        let mut store = CandidateBlocks::default();
+        let candidates = [5u32, 9, 12];
+        let first: Vec<u32> = (100..110).collect();
+        store.prepare(1, 0, &first, 1);
+        fill(&mut store, &candidates, &first);
+        assert_eq!(store.stride, 16);
+        // 40 W nodes: the rows widen to 64 columns
+        let more: Vec<u32> = (100..140).collect();
+        store.prepare(2, 0, &more, 2);
+        assert_eq!(store.stride, 64);
+        for &p in &candidates {
+            let base = store.row(p);
+            for (slot, &q) in more.iter().enumerate() {
+                let i = base + store.slot_columns[slot] as usize;
+                if q < 110 {
+                    assert_eq!(store.nodes[i], q, "candidate {p}: the block of {q} is kept");
+                    assert_eq!(store.blocks[i], Matrix3::identity() * (p * 1000 + q) as f64);
+                } else {
+                    assert_eq!(store.nodes[i], u32::MAX, "candidate {p}: {q}'s column starts empty");
+                }
+            }
+        }
     }
 }
