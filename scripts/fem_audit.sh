@@ -8,7 +8,7 @@
 #  2. huge pages under the compliance: the same bench's held and sliding
 #     product lines with FISSURE_FEM_OFF=huge-pages (paper-12k);
 #  3. the scene-level switches (candidate blocks, W factor reuse, the
-#     candidate screen, W's entries kept across the active-set iterations,
+#     candidate screen and its records kept across frames, W's entries kept across the active-set iterations,
 #     tethers read through their own columns; SWITCHES="a b" picks some; the screen's wide-press figures come from
 #     `TRAJ=assets/trajectories/real_brain_sylvian_wide.csv cargo run --release
 #     --example stall_probe -- config/real_brain/sylvian.ron 100 duration_s=4.5`)
@@ -73,7 +73,7 @@ replay() { # OFF SCENE -> "p50 p95 solve-p95 hash"
 echo "== 3. scene-level switches: whole replays, $rounds rounds alternating; frame p50 / p95, solve p95 (ms), final state"
 for scene in "${scenes[@]}"; do
     replay "" "$scene" >/dev/null # writes the compliance cache; not counted
-    for off in ${SWITCHES:-candidate-blocks w-factor-reuse candidate-screen kept-row-pairs tether-columns parallel-product}; do
+    for off in ${SWITCHES:-candidate-blocks w-factor-reuse candidate-screen screen-across-frames kept-row-pairs tether-columns parallel-product}; do
         on_runs=(); off_runs=()
         for ((r = 0; r < rounds; r++)); do
             if ((r % 2 == 0)); then
