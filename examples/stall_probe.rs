@@ -60,7 +60,7 @@ fn main() {
         let faults = minor_faults() - faults0;
         if ms > slow {
             println!(
-                "frame {k}: {ms:.2} ms, {faults} page faults, rows {}, iterations {}, lazy solves {}, skull {}, gather {:.2} factor {:.2} cand {:.2} surface {:.2} lazy {:.2} ms, solve stage {:.2} collision {:.2}",
+                "frame {k}: {ms:.2} ms, {faults} page faults (the process's), rows {}, iterations {}, lazy solves {}, skull {}, gather {:.2} factor {:.2} cand {:.2} surface {:.2} lazy {:.2} ms, solve stage {:.2} collision {:.2}",
                 s.rows,
                 s.iterations,
                 s.lazy_solves,
@@ -91,8 +91,8 @@ fn main() {
 fn minor_faults() -> i64 {
     #[cfg(target_os = "linux")]
     {
+        // SAFETY: rusage is plain integers (all-zero is a valid value), and getrusage writes the struct it is given.
         let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-        // SAFETY: getrusage writes the struct it is given.
         if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } == 0 {
             return usage.ru_minflt as i64;
         }
