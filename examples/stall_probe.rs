@@ -3,6 +3,9 @@
 //! With `PACE=1` each frame starts no earlier than its time step after the
 //! one before, as in the window (a headless replay otherwise runs several
 //! times faster than real time, and work on other threads piles up).
+//! `PERF_CTL=fifo PERF_FRAMES=a..b` profiles frames a..b alone: `perf record --control=fifo:fifo -D -1 ..`
+//! starts disabled and the probe enables it around those frames.
+//! `STOP=k` ends the replay after frame k (a profile's last milliseconds are then that frame's).
 //! `TRAJ=path.csv` replays that trajectory instead of the scene's own.
 //! `HAND=1` builds as the window does for blades driven by hand: no expected
 //! poses (the region of interest from the blades' first poses), the columns in
@@ -35,8 +38,10 @@ fn main() {
     let (mut screened, mut evaluated) = (0, 0);
     let mut iterations = std::collections::BTreeMap::<usize, usize>::new();
     let pace = std::env::var_os("PACE").is_some_and(|v| v == "1");
+    let stop: u64 = std::env::var("STOP").ok().and_then(|s| s.parse().ok()).unwrap_or(u64::MAX);
+    let mut perf = PerfControl::from_env();
     let start = Instant::now();
-    for k in 0..scenario.step_count() {
+    for k in 0..scenario.step_count().min(stop.saturating_add(1)) {
         source.poses_at((k + 1) as f64 * dt, &mut input);
         if pace {
             let due = std::time::Duration::from_secs_f64(k as f64 * dt);
@@ -44,6 +49,7 @@ fn main() {
                 std::thread::sleep(wait);
             }
         }
+        perf.around(k);
         let faults0 = minor_faults();
         let t = Instant::now();
         let rep = pipeline.step(&mut state, &input).expect("step").clone();
@@ -60,7 +66,7 @@ fn main() {
         let faults = minor_faults() - faults0;
         if ms > slow {
             println!(
-                "frame {k}: {ms:.2} ms, {faults} page faults (the process's), rows {}, iterations {}, lazy solves {}, skull {}, gather {:.2} factor {:.2} cand {:.2} surface {:.2} lazy {:.2} ms, solve stage {:.2} collision {:.2}",
+                "frame {k}: {ms:.2} ms, {faults} page faults (the process's), rows {}, iterations {}, lazy solves {}, skull {}, gather {:.2} factor {:.2} cand {:.2} surface {:.2} (rows gathered {:.2}) lazy {:.2} ms, solve stage {:.2} collision {:.2}",
                 s.rows,
                 s.iterations,
                 s.lazy_solves,
@@ -69,6 +75,7 @@ fn main() {
                 p.factor * 1e3,
                 p.candidates * 1e3,
                 p.surface * 1e3,
+                p.surface_gather * 1e3,
                 p.lazy * 1e3,
                 rep.times.get(fissure::sim::StageId::Solve).unwrap_or(0.0) * 1e3,
                 rep.times.get(fissure::sim::StageId::Collision).unwrap_or(0.0) * 1e3,
@@ -85,6 +92,35 @@ fn main() {
     );
     println!("active-set iterations (count: frames): {iterations:?}");
     println!("{n} frames: p50 {:.2}, p95 {:.2}, max {:.2} ms", times[n / 2], times[n * 95 / 100], times[n - 1]);
+}
+
+/// `perf record --control` driven around a range of frames (`PERF_CTL`, `PERF_FRAMES=a..b`).
+struct PerfControl {
+    fifo: Option<std::fs::File>,
+    frames: std::ops::Range<u64>,
+    on: bool,
+}
+
+impl PerfControl {
+    fn from_env() -> Self {
+        let fifo = std::env::var_os("PERF_CTL").map(|p| std::fs::OpenOptions::new().write(true).open(p).expect("PERF_CTL fifo"));
+        let frames = std::env::var("PERF_FRAMES")
+            .ok()
+            .and_then(|s| s.split_once("..").and_then(|(a, b)| Some(a.parse().ok()?..b.parse().ok()?)))
+            .unwrap_or(0..u64::MAX);
+        Self { fifo, frames, on: false }
+    }
+
+    /// Before frame `k`: profiling on inside the range, off outside.
+    fn around(&mut self, k: u64) {
+        use std::io::Write;
+        let want = self.frames.contains(&k);
+        if let Some(f) = self.fifo.as_mut().filter(|_| want != self.on) {
+            let _ = f.write_all(if want { b"enable\n" } else { b"disable\n" });
+            let _ = f.flush();
+            self.on = want;
+        }
+    }
 }
 
 /// Minor page faults of the process so far (0 where the platform does not say).

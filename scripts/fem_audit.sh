@@ -73,7 +73,7 @@ replay() { # OFF SCENE -> "p50 p95 solve-p95 hash"
 echo "== 3. scene-level switches: whole replays, $rounds rounds alternating; frame p50 / p95, solve p95 (ms), final state"
 for scene in "${scenes[@]}"; do
     replay "" "$scene" >/dev/null # writes the compliance cache; not counted
-    for off in ${SWITCHES:-candidate-blocks w-factor-reuse candidate-screen screen-across-frames kept-row-pairs tether-columns parallel-product}; do
+    for off in ${SWITCHES:-candidate-blocks w-factor-reuse candidate-screen screen-across-frames prefetch-blocks kept-row-pairs tether-columns parallel-product}; do
         on_runs=(); off_runs=()
         for ((r = 0; r < rounds; r++)); do
             if ((r % 2 == 0)); then

@@ -57,11 +57,15 @@ pub enum Optimisation {
     /// earlier frame, lay further inside its new plane or sphere than the forces' change since can have moved it is
     /// not evaluated (`src/fem/constrained/screen.rs`; off: every frame evaluates its candidates anew, same bits).
     ScreenAcrossFrames,
+    /// The compliance blocks a row is about to read asked into cache all at once first, where the row is new to the
+    /// step (W's entries) or read blocks last time (a candidate's kept row): they lie apart in the storage
+    /// (`src/fem/constrained/mod.rs`; off: each read waits on memory in turn, same bits).
+    PrefetchBlocks,
 }
 
 impl Optimisation {
     /// Every switch with its name in `FISSURE_FEM_OFF`, in declaration order.
-    pub const ALL: [(Optimisation, &'static str); 15] = [
+    pub const ALL: [(Optimisation, &'static str); 16] = [
         (Optimisation::Avx2Product, "avx2-product"),
         (Optimisation::FusedColumns, "fused-columns"),
         (Optimisation::RowChunks, "row-chunks"),
@@ -77,6 +81,7 @@ impl Optimisation {
         (Optimisation::ProjectedColumns, "projected-columns"),
         (Optimisation::PrimalDualSteps, "primal-dual-steps"),
         (Optimisation::ScreenAcrossFrames, "screen-across-frames"),
+        (Optimisation::PrefetchBlocks, "prefetch-blocks"),
     ];
 
     /// Its name in `FISSURE_FEM_OFF`.

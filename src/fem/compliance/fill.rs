@@ -37,6 +37,11 @@ impl<T> Buf<T> {
         self.len
     }
 
+    /// The address of element `i`, for a prefetch hint: never read through here (a filling thread may be writing it).
+    pub(super) fn addr(&self, i: usize) -> *const T {
+        self.ptr.wrapping_add(i)
+    }
+
     /// # Safety
     /// No thread writes into `range` while the slice lives.
     pub(super) unsafe fn slice(&self, range: Range<usize>) -> &[T] {

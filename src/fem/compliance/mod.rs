@@ -613,6 +613,24 @@ impl Compliance {
         }
     }
 
+    /// Asks the CPU to bring the stored block [`Self::block`]`(row, col)` reads into cache: a hint for a loop about to
+    /// read blocks that lie apart in the storage. It reads nothing (a column still filling included) and changes no
+    /// value.
+    #[inline]
+    pub fn prefetch_block(&self, row: usize, col: usize) {
+        let (r, c) = if row >= col { (row, col) } else { (col, row) };
+        let Some(b) = self.layout.offset(r, c) else { return };
+        match &self.values {
+            Values::F64(d) => crate::math::prefetch::<72, _>(d.v.addr(9 * b)),
+            Values::F32(d) => {
+                crate::math::prefetch::<36, _>(d.v.addr(9 * b));
+                if let Some(l) = self.layout.lo_offset(r, c) {
+                    crate::math::prefetch::<18, _>(d.lo.addr(9 * l));
+                }
+            }
+        }
+    }
+
     /// The block as the surface product reads it: f32 storage without the ROI x ROI correction, else [`Self::block`].
     pub fn product_block(&self, row: usize, col: usize) -> Matrix3<f64> {
         let (r, c, transpose) = if row >= col { (row, col, false) } else { (col, row, true) };

@@ -38,6 +38,13 @@ pub(super) struct CandidateBlocks {
     /// `nodes[row * stride + column]`: the W node whose block is kept there (`u32::MAX`: none).
     nodes: Vec<u32>,
     blocks: Vec<Matrix3<f64>>,
+    /// Rows the step may take (its candidates): room is made for them at once ([`Self::expect_rows`]).
+    rows_expected: usize,
+    /// Blocks read from the compliance so far.
+    pub(super) reads: u64,
+    /// Per row: its last evaluation read nothing from the compliance (a row that did asks for its missing blocks
+    /// ahead next time).
+    complete: Vec<bool>,
 }
 
 /// Frees the entries of `index` (node -> slot) whose slot was last used before the frame before `frame`.
@@ -128,6 +135,23 @@ impl CandidateBlocks {
         self.last_used.clear();
         self.nodes.clear();
         self.blocks.clear();
+        self.complete.clear();
+    }
+
+    /// The step has `rows` candidates: a row store that must grow makes room for that many rows at once.
+    pub(super) fn expect_rows(&mut self, rows: usize) {
+        self.rows_expected = rows;
+    }
+
+    /// Whether the row at `base` read nothing from the compliance when last evaluated.
+    pub(super) fn complete(&self, base: usize) -> bool {
+        self.complete.get(base / self.stride.max(1)).copied().unwrap_or(false)
+    }
+
+    pub(super) fn set_complete(&mut self, base: usize, complete: bool) {
+        if let Some(c) = self.complete.get_mut(base / self.stride.max(1)) {
+            *c = complete;
+        }
     }
 
     /// Marks `node`'s row, if it has one, used in `frame`: a candidate the screen skipped keeps its blocks for when
@@ -148,12 +172,25 @@ impl CandidateBlocks {
                     Some(r) => r as usize,
                     None => {
                         self.last_used.push(0);
-                        self.nodes.resize(self.last_used.len() * stride, u32::MAX);
-                        self.blocks.resize(self.last_used.len() * stride, Matrix3::zeros());
-                        self.last_used.len() - 1
+                        let rows = self.last_used.len();
+                        if rows * stride > self.blocks.capacity() {
+                            // room for twice the rows the step's candidates can take at once: a first contact's rows,
+                            // arriving one by one, are not copied again and again, nor the store later in the
+                            // press as other candidates come and go (room not yet used is not touched)
+                            let room = (2 * rows.max(self.rows_expected)).next_power_of_two() * stride;
+                            self.nodes.reserve_exact(room - self.nodes.len());
+                            self.blocks.reserve_exact(room - self.blocks.len());
+                        }
+                        self.nodes.resize(rows * stride, u32::MAX);
+                        self.blocks.resize(rows * stride, Matrix3::zeros());
+                        rows - 1
                     }
                 };
                 self.nodes[r * stride..(r + 1) * stride].fill(u32::MAX);
+                if self.complete.len() <= r {
+                    self.complete.resize(r + 1, false);
+                }
+                self.complete[r] = false;
                 self.index.insert(node, r as u32);
                 r
             }
@@ -172,28 +209,44 @@ impl CandidateBlocks {
     /// prefetch cannot follow; a hint changes no value.
     #[inline(always)]
     pub(super) fn prefetch(&self, base: usize, slot: usize) {
-        #[cfg(target_arch = "x86_64")]
         if let Some(&c) = self.slot_columns.get(slot) {
-            let p = self.blocks.as_ptr().wrapping_add(base + c as usize).cast::<i8>();
-            // SAFETY: a prefetch is a hint: it never faults or reads into the program, whatever the address.
-            unsafe {
-                use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-                _mm_prefetch::<_MM_HINT_T0>(p);
-                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
-            }
+            crate::math::prefetch::<{ std::mem::size_of::<Matrix3<f64>>() }, _>(self.blocks.as_ptr().wrapping_add(base + c as usize));
         }
+    }
+
+    /// Whether the row at `base` keeps the block of `slot`, node `q` (a read of it would not go to the compliance).
+    #[inline]
+    pub(super) fn holds(&self, base: usize, slot: usize, q: u32) -> bool {
+        self.slot_columns.get(slot).is_some_and(|&c| self.nodes.get(base + c as usize) == Some(&q))
     }
 }
 
 impl ConstrainedSolver {
-    /// `K^-1[p, nodes[slot]]` through the kept blocks; `base` is `p`'s row (after [`CandidateBlocks::prepare`]).
+    /// Hints the cache with the compliance block [`Self::kinv`]`(p, q)` reads when both nodes have ROI rows (a lazy
+    /// column is left to the hardware: it lies in one run). Off (`prefetch-blocks`): nothing. Changes no value.
     #[inline]
+    pub(super) fn prefetch_kinv(&self, p: u32, q: u32) {
+        if !self.tuning.enabled(Optimisation::PrefetchBlocks) {
+            return;
+        }
+        let c = &self.compliance;
+        match (c.row_of(p), c.row_of(q)) {
+            (Some(rp), Some(rq)) if rp < c.column_count() || rq < c.column_count() => c.prefetch_block(rp, rq),
+            _ => {}
+        }
+    }
+
+    /// `K^-1[p, nodes[slot]]` through the kept blocks; `base` is `p`'s row (after [`CandidateBlocks::prepare`]).
+    /// A block read from the compliance counts in [`CandidateBlocks::reads`]. (Returned by value from the kept row,
+    /// inlined: how the block reaches the caller's product decides the candidates' evaluation time.)
+    #[inline(always)]
     pub(super) fn kept_block(&self, kept: &mut CandidateBlocks, base: usize, p: u32, slot: usize) -> Matrix3<f64> {
         let q = self.sys.nodes[slot];
         let i = base + kept.slot_columns[slot] as usize;
         if kept.nodes[i] != q {
             kept.blocks[i] = self.kinv(p, q);
             kept.nodes[i] = q;
+            kept.reads += 1;
         }
         kept.blocks[i]
     }
@@ -213,6 +266,37 @@ mod tests {
                 store.blocks[i] = Matrix3::identity() * (p * 1000 + q) as f64;
             }
         }
+    }
+
+    #[test]
+    fn rows_arriving_one_by_one_do_not_move_the_store() {
+        let mut store = CandidateBlocks::default();
+        let w: Vec<u32> = (1000..1150).collect();
+        store.prepare(1, 0, &w, 1);
+        store.expect_rows(300);
+        store.row(0);
+        let at = store.blocks.as_ptr();
+        for node in 1..300 {
+            store.row(node);
+        }
+        assert_eq!(store.blocks.as_ptr(), at, "a first contact's 300 candidates copied the store as it grew");
+        assert_eq!(store.blocks.len(), 300 * store.stride);
+    }
+
+    #[test]
+    fn a_row_is_complete_only_once_evaluated_without_reads() {
+        let mut store = CandidateBlocks::default();
+        let w: Vec<u32> = (100..110).collect();
+        store.prepare(1, 0, &w, 1);
+        let base = store.row(7);
+        assert!(!store.complete(base), "a new row lacks its blocks");
+        store.set_complete(base, true);
+        assert!(store.complete(base));
+        // unused for two frames, the row is handed to another candidate: it starts empty again
+        store.prepare(4, 0, &w, 2);
+        let other = store.row(8);
+        assert_eq!(other, base);
+        assert!(!store.complete(other));
     }
 
     #[test]

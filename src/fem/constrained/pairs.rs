@@ -151,6 +151,12 @@ impl RowPairs {
         v
     }
 
+    /// Whether the entry between slots `a` and `b` (in that orientation) is kept.
+    #[inline]
+    pub(super) fn has(&self, a: usize, b: usize) -> bool {
+        self.valid.get(a * self.stride + b).copied().unwrap_or(false)
+    }
+
     fn forget_slot(&mut self, s: usize) {
         let n = self.stride;
         self.valid[s * n..(s + 1) * n].iter_mut().for_each(|v| *v = false);
