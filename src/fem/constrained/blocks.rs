@@ -42,8 +42,8 @@ pub(super) struct CandidateBlocks {
     rows_expected: usize,
     /// Blocks read from the compliance so far.
     pub(super) reads: u64,
-    /// Per row: its last evaluation read nothing from the compliance (a row that did asks for its missing blocks
-    /// ahead next time).
+    /// Per row (as `last_used`): its last evaluation read nothing from the compliance (a row that did asks for its
+    /// missing blocks ahead next time).
     complete: Vec<bool>,
 }
 
@@ -148,6 +148,7 @@ impl CandidateBlocks {
         self.complete.get(base / self.stride.max(1)).copied().unwrap_or(false)
     }
 
+    /// Records whether the row at `base` read anything from the compliance in the evaluation just made.
     pub(super) fn set_complete(&mut self, base: usize, complete: bool) {
         if let Some(c) = self.complete.get_mut(base / self.stride.max(1)) {
             *c = complete;
@@ -172,6 +173,7 @@ impl CandidateBlocks {
                     Some(r) => r as usize,
                     None => {
                         self.last_used.push(0);
+                        self.complete.push(false);
                         let rows = self.last_used.len();
                         if rows * stride > self.blocks.capacity() {
                             // room for twice the rows the step's candidates can take at once: a first contact's rows,
@@ -187,9 +189,6 @@ impl CandidateBlocks {
                     }
                 };
                 self.nodes[r * stride..(r + 1) * stride].fill(u32::MAX);
-                if self.complete.len() <= r {
-                    self.complete.resize(r + 1, false);
-                }
                 self.complete[r] = false;
                 self.index.insert(node, r as u32);
                 r
@@ -223,12 +222,10 @@ impl CandidateBlocks {
 
 impl ConstrainedSolver {
     /// Hints the cache with the compliance block [`Self::kinv`]`(p, q)` reads when both nodes have ROI rows (a lazy
-    /// column is left to the hardware: it lies in one run). Off (`prefetch-blocks`): nothing. Changes no value.
+    /// column is left to the hardware: it lies in one run). Changes no value. Its callers' loops run only with
+    /// `prefetch-blocks` on.
     #[inline]
     pub(super) fn prefetch_kinv(&self, p: u32, q: u32) {
-        if !self.tuning.enabled(Optimisation::PrefetchBlocks) {
-            return;
-        }
         let c = &self.compliance;
         match (c.row_of(p), c.row_of(q)) {
             (Some(rp), Some(rq)) if rp < c.column_count() || rq < c.column_count() => c.prefetch_block(rp, rq),

@@ -562,13 +562,13 @@ impl ConstrainedSolver {
         self.surface.product.tuning = tuning;
     }
 
-    /// Whether the candidates' blocks are kept between frames (a large compliance, the optimisation on).
     /// Keeps the candidates' blocks whatever the compliance's size (tests: the kept path on a small model).
     #[doc(hidden)]
     pub fn keep_candidate_blocks_always(&mut self) {
         self.cands.large_compliance = true;
     }
 
+    /// Whether the candidates' blocks are kept between frames (a large compliance, the optimisation on).
     fn keep_candidate_blocks(&self) -> bool {
         blocks::wanted(self.cands.large_compliance, self.tuning)
     }
