@@ -17,6 +17,7 @@ pub mod input;
 pub mod linalg;
 pub mod math;
 pub mod meminfo;
+pub mod par;
 pub mod mesh;
 pub mod perf;
 pub mod render;

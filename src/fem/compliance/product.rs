@@ -565,7 +565,7 @@ fn split_row(layout: &Layout, forces: &[(usize, Vec3)]) -> Option<usize> {
 
 /// Dispatches the kernel to an AVX2 build when the CPU has it (runtime detection, no `RUSTFLAGS`); both builds
 /// round identically. (AVX-512 is no faster: the kernel waits on memory.) A large product is split at one row
-/// over two threads of rayon's pool (`parallel-product`): every row sums the same terms in the same order
+/// over the calling thread and one beside it (`parallel-product`, [`crate::par::join`]): every row sums the same terms in the same order
 /// whichever thread adds it, so the bits do not change.
 fn accumulate_impl<'a, T: Entry + Sync + 'a, R: Fn(usize) -> (&'a [T], usize) + Sync>(
     p: Product<'_, R, T>,
@@ -574,7 +574,7 @@ fn accumulate_impl<'a, T: Entry + Sync + 'a, R: Fn(usize) -> (&'a [T], usize) + 
     chunk: usize,
     split_at: Option<usize>,
 ) {
-    let wanted = p.tuning.enabled(Optimisation::ParallelProduct) && rayon::current_num_threads() > 1;
+    let wanted = p.tuning.enabled(Optimisation::ParallelProduct) && crate::par::available();
     let split = split_at.or_else(|| wanted.then(|| split_row(p.layout, p.forces)).flatten());
     let Some(m) = split.filter(|&m| m > 0 && m < u.len()) else {
         return accumulate_window(p, u, &mut acc[0], chunk, [0, u.len()]);
@@ -582,7 +582,7 @@ fn accumulate_impl<'a, T: Entry + Sync + 'a, R: Fn(usize) -> (&'a [T], usize) + 
     let n = u.len();
     let (ua, ub) = u.split_at_mut(m);
     let [acc_a, acc_b] = acc;
-    rayon::join(|| accumulate_window(p, ua, acc_a, chunk, [0, m]), || accumulate_window(p, ub, acc_b, chunk, [m, n]));
+    crate::par::join(|| accumulate_window(p, ua, acc_a, chunk, [0, m]), || accumulate_window(p, ub, acc_b, chunk, [m, n]));
 }
 
 /// The kernel over rows `window` (`u` holds them), in its AVX2 build when the CPU has it.

@@ -2,6 +2,7 @@
 //! the active-set loop reads most on a wide contact of a large model, read once for as long as both nodes stay.
 
 use super::*;
+use std::mem::MaybeUninit;
 
 /// A compliance above this many bytes keeps its candidates' blocks (a last-level cache is a few tens of MB at most).
 pub(super) const CANDIDATE_BLOCKS_FROM_BYTES: usize = 64 << 20;
@@ -37,7 +38,9 @@ pub(super) struct CandidateBlocks {
     stride: usize,
     /// `nodes[row * stride + column]`: the W node whose block is kept there (`u32::MAX`: none).
     nodes: Vec<u32>,
-    blocks: Vec<Matrix3<f64>>,
+    /// The kept blocks: `blocks[i]` is written exactly when `nodes[i]` names a node, and read only then, so room
+    /// for a new row is not zeroed (a first contact's rows are hundreds of blocks wide, most of them never used).
+    blocks: Vec<MaybeUninit<Matrix3<f64>>>,
     /// Rows the step may take (its candidates): room is made for them at once ([`Self::expect_rows`]).
     rows_expected: usize,
     /// Blocks read from the compliance so far.
@@ -45,6 +48,15 @@ pub(super) struct CandidateBlocks {
     /// Per row (as `last_used`): its last evaluation read nothing from the compliance (a row that did asks for its
     /// missing blocks ahead next time).
     complete: Vec<bool>,
+}
+
+/// `v` lengthened to `len` (when shorter) with entries left unwritten.
+fn grow_uninit<T>(v: &mut Vec<MaybeUninit<T>>, len: usize) {
+    if len > v.len() {
+        v.reserve(len - v.len());
+        // SAFETY: the capacity holds `len` entries (just reserved), and a `MaybeUninit` needs no initialisation.
+        unsafe { v.set_len(len) };
+    }
 }
 
 /// Frees the entries of `index` (node -> slot) whose slot was last used before the frame before `frame`.
@@ -120,7 +132,7 @@ impl CandidateBlocks {
     fn widen(&mut self, stride: usize) {
         let (old, rows) = (self.stride, self.last_used.len());
         self.nodes.resize(rows * stride, u32::MAX);
-        self.blocks.resize(rows * stride, Matrix3::zeros());
+        grow_uninit(&mut self.blocks, rows * stride);
         for r in (0..rows).rev() {
             self.nodes.copy_within(r * old..(r + 1) * old, r * stride);
             self.blocks.copy_within(r * old..(r + 1) * old, r * stride);
@@ -184,7 +196,7 @@ impl CandidateBlocks {
                             self.blocks.reserve_exact(room - self.blocks.len());
                         }
                         self.nodes.resize(rows * stride, u32::MAX);
-                        self.blocks.resize(rows * stride, Matrix3::zeros());
+                        grow_uninit(&mut self.blocks, rows * stride);
                         rows - 1
                     }
                 };
@@ -241,11 +253,12 @@ impl ConstrainedSolver {
         let q = self.sys.nodes[slot];
         let i = base + kept.slot_columns[slot] as usize;
         if kept.nodes[i] != q {
-            kept.blocks[i] = self.kinv(p, q);
+            kept.blocks[i] = MaybeUninit::new(self.kinv(p, q));
             kept.nodes[i] = q;
             kept.reads += 1;
         }
-        kept.blocks[i]
+        // SAFETY: `nodes[i]` names `q`, so `blocks[i]` has been written (with `q`'s block).
+        unsafe { kept.blocks[i].assume_init() }
     }
 }
 
@@ -260,7 +273,7 @@ mod tests {
             for (slot, &q) in slots.iter().enumerate() {
                 let i = base + store.slot_columns[slot] as usize;
                 store.nodes[i] = q;
-                store.blocks[i] = Matrix3::identity() * (p * 1000 + q) as f64;
+                store.blocks[i] = MaybeUninit::new(Matrix3::identity() * (p * 1000 + q) as f64);
             }
         }
     }
@@ -314,7 +327,8 @@ mod tests {
                 let i = base + store.slot_columns[slot] as usize;
                 if q < 110 {
                     assert_eq!(store.nodes[i], q, "candidate {p}: the block of {q} is kept");
-                    assert_eq!(store.blocks[i], Matrix3::identity() * (p * 1000 + q) as f64);
+                    // SAFETY: the slot names `q`, so `fill` wrote it
+                    assert_eq!(unsafe { store.blocks[i].assume_init() }, Matrix3::identity() * (p * 1000 + q) as f64);
                 } else {
                     assert_eq!(store.nodes[i], u32::MAX, "candidate {p}: {q}'s column starts empty");
                 }
