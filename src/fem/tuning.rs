@@ -40,8 +40,8 @@ pub enum Optimisation {
     /// A taut tether's compliance read from its own columns over the stored rows, made once from its nodes'
     /// (`src/fem/constrained/tethers.rs`; off: node by node from their 3x3 blocks, which differs in the last bits).
     TetherColumns,
-    /// The surface product split at one row over two threads (`src/fem/compliance/product.rs`; off: one thread, same
-    /// bits).
+    /// The surface product split at one row over two threads, and its gathers of many new rows and its new
+    /// projections split likewise (`src/fem/compliance/product.rs`, `src/par.rs`; off: one thread, same bits).
     ParallelProduct,
     /// A column forced along one direction (a face-plane row's node) streamed as its projection `K^-1[rows, c] n`,
     /// kept while the direction stays (`src/fem/compliance/projected.rs`; off: its 3x3 blocks, which differs in the

@@ -45,6 +45,8 @@ pub(super) struct ProjectedStore {
     free: Vec<u32>,
     /// Columns projected anew in the last call.
     pub(super) built: usize,
+    /// Their slots, columns and directions, projected once the call's slots are handed out.
+    builds: Vec<(u32, usize, Vec3)>,
 }
 
 impl ProjectedStore {
@@ -77,13 +79,15 @@ impl ProjectedStore {
     /// Splits `along` (`(column, unit n, lambda)`, ascending) into the columns projected this call (`proj`:
     /// `(column, lambda)`, in the order of [`Self::slots`]) and those taken by the blocks (`full`, as `n lambda`,
     /// ascending), building the newly projected ones from the storage.
-    pub(super) fn prepare<'a, T: Entry + 'a>(
+    /// Two or more new projections go on two threads when `split` ([`crate::par::join`]).
+    pub(super) fn prepare<'a, T: Entry + Send + Sync + 'a>(
         &mut self,
-        region: &impl Fn(usize) -> (&'a [T], usize),
+        region: &(impl Fn(usize) -> (&'a [T], usize) + Sync),
         layout: &Layout,
         along: &[(usize, Vec3, f64)],
         full: &mut Vec<(usize, Vec3)>,
         proj: &mut Vec<(usize, f64)>,
+        split: bool,
     ) {
         self.next_cols.clear();
         self.next_slots.clear();
@@ -91,6 +95,7 @@ impl ProjectedStore {
         full.clear();
         proj.clear();
         self.built = 0;
+        self.builds.clear();
         let mut k = 0;
         for &(c, n, lambda) in along {
             let key = (c, bits3(&n));
@@ -103,8 +108,7 @@ impl ProjectedStore {
                 Some(self.slots[k - 1])
             } else if self.built < PROJECTIONS_PER_CALL && self.pending.binary_search(&key).is_ok() {
                 let slot = self.take_slot(layout);
-                let at = slot as usize * self.slot_len;
-                project(region, layout, c, &n, &mut self.slab[at..at + self.slot_len]);
+                self.builds.push((slot, c, n));
                 self.built += 1;
                 Some(slot)
             } else {
@@ -123,9 +127,33 @@ impl ProjectedStore {
             }
         }
         self.free.extend_from_slice(&self.slots[k..]);
+        self.build(region, layout, split);
         std::mem::swap(&mut self.cols, &mut self.next_cols);
         std::mem::swap(&mut self.slots, &mut self.next_slots);
         std::mem::swap(&mut self.pending, &mut self.next_pending);
+    }
+}
+
+impl ProjectedStore {
+    /// Projects the call's new columns into their slots, half of them on a second thread when `split`.
+    fn build<'a, T: Entry + Send + Sync + 'a>(&mut self, region: &(impl Fn(usize) -> (&'a [T], usize) + Sync), layout: &Layout, split: bool) {
+        let len = self.slot_len;
+        let run = |slab: &mut [f64], first: usize, builds: &[(u32, usize, Vec3)]| {
+            for &(slot, c, n) in builds {
+                let at = slot as usize * len - first;
+                project(region, layout, c, &n, &mut slab[at..at + len]);
+            }
+        };
+        if !split || self.builds.len() < 2 {
+            run(&mut self.slab, 0, &self.builds);
+            return;
+        }
+        // by slot, so that the two halves write apart in the slab
+        self.builds.sort_unstable_by_key(|b| b.0);
+        let (a, b) = self.builds.split_at(self.builds.len() / 2);
+        let first = b[0].0 as usize * len;
+        let (lo, hi) = self.slab.split_at_mut(first);
+        crate::par::join(|| run(lo, 0, a), || run(hi, first, b));
     }
 }
 
