@@ -161,6 +161,38 @@ where
     }
 }
 
+/// Runs `f` on every item of `items`, on the calling thread and the helper ([`join`]) at once: each takes the next
+/// `chunk` items not yet taken, so a helper that starts late takes what is left and one that never starts takes
+/// nothing. Each item is given to one thread only.
+pub fn for_each_mut<T: Send>(items: &mut [T], chunk: usize, f: impl Fn(&mut T) + Sync) {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let chunk = chunk.max(1);
+    let (n, next) = (items.len(), AtomicUsize::new(0));
+    let base = SendPtr(items.as_mut_ptr());
+    let claim = || {
+        let base = &base;
+        loop {
+            let start = next.fetch_add(chunk, Ordering::Relaxed);
+            if start >= n {
+                break;
+            }
+            let end = (start + chunk).min(n);
+            // SAFETY: `fetch_add` hands each range `start..end` (inside `items`) to one thread once, and `items` is
+            // borrowed mutably for the whole call, so the ranges are the only access to those items.
+            let part = unsafe { std::slice::from_raw_parts_mut(base.0.add(start), end - start) };
+            part.iter_mut().for_each(&f);
+        }
+    };
+    join(claim, claim);
+}
+
+/// A pointer to items handed out by range ([`for_each_mut`]).
+struct SendPtr<T>(*mut T);
+// SAFETY: the items are `Send`, and each range behind the pointer is reached by one thread only.
+unsafe impl<T: Send> Send for SendPtr<T> {}
+// SAFETY: as above: threads share the pointer, never an item.
+unsafe impl<T: Send> Sync for SendPtr<T> {}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -182,6 +214,18 @@ mod tests {
             );
             assert_eq!((a, b), (400, 600), "round {round}");
             assert!(v.iter().enumerate().all(|(i, &x)| x == i as u64), "round {round}");
+        }
+    }
+
+    #[test]
+    fn every_item_is_run_once() {
+        for chunk in [1, 3, 64] {
+            let mut v: Vec<(usize, u32)> = (0..1000).map(|i| (i, 0)).collect();
+            for_each_mut(&mut v, chunk, |(i, runs)| {
+                *runs += 1;
+                *i *= 2;
+            });
+            assert!(v.iter().enumerate().all(|(i, &(x, runs))| x == 2 * i && runs == 1), "chunks of {chunk}");
         }
     }
 

@@ -20,7 +20,7 @@ use fissure::fem::{Compliance, ComplianceStorage, ConstrainedSolver, Constraint,
 use fissure::math::Vec3;
 
 /// The switches documented as leaving every bit unchanged.
-const BITWISE: [Optimisation; 12] = [
+const BITWISE: [Optimisation; 13] = [
     Optimisation::Avx2Product,
     Optimisation::FusedColumns,
     Optimisation::RowChunks,
@@ -33,6 +33,7 @@ const BITWISE: [Optimisation; 12] = [
     Optimisation::ParallelProduct,
     Optimisation::ScreenAcrossFrames,
     Optimisation::PrefetchBlocks,
+    Optimisation::ParallelCandidates,
 ];
 
 /// The compliance's ROI x ROI entries and the surface displacements of a

@@ -61,11 +61,14 @@ pub enum Optimisation {
     /// step (W's entries) or read blocks last time (a candidate's kept row): they lie apart in the storage
     /// (`src/fem/constrained/mod.rs`; off: each read waits on memory in turn, same bits).
     PrefetchBlocks,
+    /// An evaluation pass's displacements made ahead on two threads when it evaluates many nodes, each through its
+    /// kept row (`src/fem/constrained/blocks.rs`, `src/par.rs`; off: one after the other, same bits).
+    ParallelCandidates,
 }
 
 impl Optimisation {
     /// Every switch with its name in `FISSURE_FEM_OFF`, in declaration order.
-    pub const ALL: [(Optimisation, &'static str); 16] = [
+    pub const ALL: [(Optimisation, &'static str); 17] = [
         (Optimisation::Avx2Product, "avx2-product"),
         (Optimisation::FusedColumns, "fused-columns"),
         (Optimisation::RowChunks, "row-chunks"),
@@ -82,6 +85,7 @@ impl Optimisation {
         (Optimisation::PrimalDualSteps, "primal-dual-steps"),
         (Optimisation::ScreenAcrossFrames, "screen-across-frames"),
         (Optimisation::PrefetchBlocks, "prefetch-blocks"),
+        (Optimisation::ParallelCandidates, "parallel-candidates"),
     ];
 
     /// Its name in `FISSURE_FEM_OFF`.

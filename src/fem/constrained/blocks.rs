@@ -48,7 +48,58 @@ pub(super) struct CandidateBlocks {
     /// Per row (as `last_used`): its last evaluation read nothing from the compliance (a row that did asks for its
     /// missing blocks ahead next time).
     complete: Vec<bool>,
+    /// An evaluation's displacements made ahead on two threads ([`Self::displace_ahead`]).
+    pub(super) ahead: Ahead,
 }
+
+/// An evaluation pass's displacements, made ahead on two threads: every node the pass evaluates reads its kept row
+/// (a few hundred blocks), row after row, and a wide contact evaluates hundreds of nodes a pass.
+#[derive(Debug)]
+pub(super) struct Ahead {
+    /// The pass's nodes (ascending, distinct) and, once made, their displacements (before: the parts not from the
+    /// kept rows).
+    pub(super) nodes: Vec<u32>,
+    pub(super) u: Vec<Vec3>,
+    /// The forces' slots and values (the nonzero ones, by slot).
+    pub(super) forced: Vec<(usize, Vec3)>,
+    /// Whether `u` holds this pass's displacements.
+    ready: bool,
+    /// From this many nodes a pass on (tests: 1).
+    pub(super) from: usize,
+}
+
+impl Default for Ahead {
+    fn default() -> Self {
+        Self { nodes: Vec::new(), u: Vec::new(), forced: Vec::new(), ready: false, from: AHEAD_FROM_NODES }
+    }
+}
+
+/// Fewer nodes than this in a pass are evaluated one by one: waking the second thread costs about as much as
+/// evaluating a few dozen.
+pub(super) const AHEAD_FROM_NODES: usize = 48;
+
+/// Rows a thread takes at a time ([`crate::par::for_each_mut`]).
+const AHEAD_ROWS_A_CLAIM: usize = 8;
+
+impl Ahead {
+    /// The displacement made ahead for `node` in this pass.
+    #[inline]
+    pub(super) fn get(&self, node: u32) -> Option<Vec3> {
+        if !self.ready {
+            return None;
+        }
+        self.nodes.binary_search(&node).ok().map(|k| self.u[k])
+    }
+
+    /// The displacements no longer hold (the forces change).
+    pub(super) fn expire(&mut self) {
+        self.ready = false;
+    }
+}
+
+/// A kept row, its blocks and the W nodes they belong to, with its node's index in [`Ahead::nodes`], its
+/// displacement and the blocks it read.
+type RowPart<'a> = (&'a mut [MaybeUninit<Matrix3<f64>>], &'a mut [u32], usize, Vec3, u64);
 
 /// `v` lengthened to `len` (when shorter) with entries left unwritten.
 fn grow_uninit<T>(v: &mut Vec<MaybeUninit<T>>, len: usize) {
@@ -211,6 +262,71 @@ impl CandidateBlocks {
     }
 }
 
+impl CandidateBlocks {
+    /// Makes `ahead.u` for `ahead.nodes` from the parts given there: `u += K^-1[node, slot] f` over `ahead.forced`
+    /// in slot order, through the kept rows, as [`ConstrainedSolver::displacement_of`] makes it (the same bits),
+    /// half the rows on a second thread ([`crate::par::join`]). A row reads from `src` the blocks it lacks (asked for
+    /// first, where `prefetch` and its last evaluation read any) and records whether it read any.
+    pub(super) fn displace_ahead(&mut self, src: KinvSource<'_>, slot_nodes: &[u32], prefetch: bool) {
+        let stride = self.stride;
+        self.ahead.ready = false;
+        if stride == 0 || self.ahead.u.len() != self.ahead.nodes.len() {
+            return;
+        }
+        let mut rows: Vec<(usize, usize)> = Vec::with_capacity(self.ahead.nodes.len());
+        for k in 0..self.ahead.nodes.len() {
+            let base = self.row(self.ahead.nodes[k]);
+            rows.push((base / stride, k));
+        }
+        rows.sort_unstable();
+        let complete = &self.complete;
+        let Ahead { nodes: ahead_nodes, u, forced, .. } = &self.ahead;
+        let mut parts: Vec<(RowPart<'_>, bool)> = Vec::with_capacity(rows.len());
+        let mut chunks = self.blocks.chunks_exact_mut(stride).zip(self.nodes.chunks_exact_mut(stride)).enumerate();
+        for &(r, k) in &rows {
+            let Some((_, (blocks, nodes))) = chunks.by_ref().find(|(i, _)| *i == r) else { break };
+            parts.push(((blocks, nodes, k, u[k], 0), complete.get(r).copied().unwrap_or(false)));
+        }
+        let slot_columns = &self.slot_columns;
+        let run = |part: &mut (RowPart<'_>, bool)| {
+            {
+                let ((blocks, nodes, k, u, reads), complete) = part;
+                let p = ahead_nodes[*k];
+                if !*complete && prefetch {
+                    for &(slot, _) in forced.iter() {
+                        if nodes[slot_columns[slot] as usize] != slot_nodes[slot] {
+                            src.prefetch(p, slot_nodes[slot]);
+                        }
+                    }
+                }
+                for (i, &(slot, f)) in forced.iter().enumerate() {
+                    if let Some(&(ahead, _)) = forced.get(i + PREFETCH_AHEAD) {
+                        crate::math::prefetch::<{ std::mem::size_of::<Matrix3<f64>>() }, _>(blocks.as_ptr().wrapping_add(slot_columns[ahead] as usize));
+                    }
+                    let (q, c) = (slot_nodes[slot], slot_columns[slot] as usize);
+                    if nodes[c] != q {
+                        blocks[c] = MaybeUninit::new(src.block(p, q));
+                        nodes[c] = q;
+                        *reads += 1;
+                    }
+                    // SAFETY: `nodes[c]` names `q`, so `blocks[c]` has been written (with `q`'s block).
+                    *u += unsafe { blocks[c].assume_init() } * f;
+                }
+            }
+        };
+        crate::par::for_each_mut(&mut parts, AHEAD_ROWS_A_CLAIM, run);
+        let done: Vec<(usize, Vec3, u64)> = parts.iter().map(|((_, _, k, u, reads), _)| (*k, *u, *reads)).collect();
+        for (&(r, _), &(k, u, reads)) in rows.iter().zip(&done) {
+            self.ahead.u[k] = u;
+            self.reads += reads;
+            if let Some(c) = self.complete.get_mut(r) {
+                *c = reads == 0;
+            }
+        }
+        self.ahead.ready = done.len() == rows.len();
+    }
+}
+
 /// Slots ahead whose kept block [`CandidateBlocks::prefetch`] asks for: about a memory latency's worth of blocks.
 pub(super) const PREFETCH_AHEAD: usize = 16;
 
@@ -233,16 +349,11 @@ impl CandidateBlocks {
 }
 
 impl ConstrainedSolver {
-    /// Hints the cache with the compliance block [`Self::kinv`]`(p, q)` reads when both nodes have ROI rows (a lazy
-    /// column is left to the hardware: it lies in one run). Changes no value. Its callers' loops run only with
-    /// `prefetch-blocks` on.
+    /// Hints the cache with the compliance block [`Self::kinv`]`(p, q)` reads ([`KinvSource::prefetch`]). Its
+    /// callers' loops run only with `prefetch-blocks` on.
     #[inline]
     pub(super) fn prefetch_kinv(&self, p: u32, q: u32) {
-        let c = &self.compliance;
-        match (c.row_of(p), c.row_of(q)) {
-            (Some(rp), Some(rq)) if rp < c.column_count() || rq < c.column_count() => c.prefetch_block(rp, rq),
-            _ => {}
-        }
+        self.kinv_source().prefetch(p, q);
     }
 
     /// `K^-1[p, nodes[slot]]` through the kept blocks; `base` is `p`'s row (after [`CandidateBlocks::prepare`]).

@@ -6,23 +6,32 @@ use super::*;
 use crate::fem::assembly::DofMap;
 use crate::linalg::SparseCholesky;
 
-impl ConstrainedSolver {
+/// What [`ConstrainedSolver::kinv`] reads (the compliance, the DOF map, the lazy columns), apart from the solver so
+/// that two threads reading blocks at once can share it.
+#[derive(Clone, Copy)]
+pub(super) struct KinvSource<'a> {
+    compliance: &'a Compliance,
+    dofs: &'a DofMap,
+    lazy: &'a [LazyColumn],
+}
+
+impl KinvSource<'_> {
     /// K^-1 block between two nodes (both free; lazy columns ensured). A node outside the ROI reads its lazy column
     /// (f64) even when the other is a ROI column: the compliance keeps ROI x other-surface entries only to f32 (for
     /// the product), and W must be exact.
-    pub(super) fn kinv(&self, p: u32, q: u32) -> Matrix3<f64> {
+    #[inline]
+    pub(super) fn block(&self, p: u32, q: u32) -> Matrix3<f64> {
         let (cp, cq) = (self.compliance.col_of(p), self.compliance.col_of(q));
         if let (Some(cp), Some(cq)) = (cp, cq) {
             return self.compliance.block(cp, cq);
         }
-        let dofs = &self.model.dofs;
-        let n_free = dofs.dof_count();
-        if let (Ok(l), Some(dp)) = (self.columns.lazy.binary_search_by_key(&q, |c| c.node), dofs.dof(p)) {
-            let v = &self.columns.lazy[l].values;
+        let n_free = self.dofs.dof_count();
+        if let (Ok(l), Some(dp)) = (self.lazy.binary_search_by_key(&q, |c| c.node), self.dofs.dof(p)) {
+            let v = &self.lazy[l].values;
             return Matrix3::from_fn(|r, c| v[c * n_free + dp + r]);
         }
-        if let (Ok(l), Some(dq)) = (self.columns.lazy.binary_search_by_key(&p, |c| c.node), dofs.dof(q)) {
-            let v = &self.columns.lazy[l].values;
+        if let (Ok(l), Some(dq)) = (self.lazy.binary_search_by_key(&p, |c| c.node), self.dofs.dof(q)) {
+            let v = &self.lazy[l].values;
             return Matrix3::from_fn(|r, c| v[r * n_free + dq + c]);
         }
         if let (Some(rp), Some(cq)) = (self.compliance.row_of(p), cq) {
@@ -32,6 +41,31 @@ impl ConstrainedSolver {
             return self.compliance.block(rq, cp).transpose();
         }
         Matrix3::zeros()
+    }
+
+    /// Hints the cache with the compliance block [`Self::block`]`(p, q)` reads when both nodes have ROI rows (a lazy
+    /// column is left to the hardware: it lies in one run). Changes no value.
+    #[inline]
+    pub(super) fn prefetch(&self, p: u32, q: u32) {
+        let c = self.compliance;
+        match (c.row_of(p), c.row_of(q)) {
+            (Some(rp), Some(rq)) if rp < c.column_count() || rq < c.column_count() => c.prefetch_block(rp, rq),
+            _ => {}
+        }
+    }
+}
+
+impl ConstrainedSolver {
+    /// What [`Self::kinv`] reads.
+    #[inline]
+    pub(super) fn kinv_source(&self) -> KinvSource<'_> {
+        KinvSource { compliance: &self.compliance, dofs: &self.model.dofs, lazy: &self.columns.lazy }
+    }
+
+    /// K^-1 block between two nodes ([`KinvSource::block`]).
+    #[inline]
+    pub(super) fn kinv(&self, p: u32, q: u32) -> Matrix3<f64> {
+        self.kinv_source().block(p, q)
     }
 
     /// Makes sure the listed nodes have K^-1 columns: waits for ROI columns still filling, solves the missing lazy

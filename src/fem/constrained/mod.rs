@@ -45,6 +45,7 @@ mod tethers;
 pub use tethers::{Tether, TetherEnd};
 
 use blocks::{CANDIDATE_BLOCKS_FROM_BYTES, CandidateBlocks};
+use columns::KinvSource;
 use super::FemError;
 use super::compliance::{Compliance, ProductWorkspace};
 use super::tuning::{Optimisation, Tuning};
@@ -566,6 +567,8 @@ impl ConstrainedSolver {
     #[doc(hidden)]
     pub fn keep_candidate_blocks_always(&mut self) {
         self.cands.large_compliance = true;
+        // and an evaluation pass of any size made ahead on two threads
+        self.cands.candidate_blocks.borrow_mut().ahead.from = 1;
     }
 
     /// Whether the candidates' blocks are kept between frames (a large compliance, the optimisation on).
@@ -692,6 +695,9 @@ impl ConstrainedSolver {
         let mut any_add = false;
         if self.keep_candidate_blocks() {
             self.cands.candidate_blocks.borrow_mut().expect_rows(self.cands.candidates.len());
+            if self.tuning.enabled(Optimisation::ParallelCandidates) && crate::par::available() {
+                self.displace_ahead(screening);
+            }
         }
         for ci in 0..self.cands.candidates.len() {
             let c = self.cands.candidates[ci];
@@ -711,7 +717,8 @@ impl ConstrainedSolver {
                 }
                 continue;
             }
-            let u = self.displacement_of(c.node);
+            let ahead = self.cands.candidate_blocks.borrow().ahead.get(c.node);
+            let u = ahead.unwrap_or_else(|| self.displacement_of(c.node));
             self.timings.evaluated += 1;
             if screening {
                 self.cands.screen.record(c.node, u);
@@ -729,11 +736,42 @@ impl ConstrainedSolver {
                 worst_active = worst_active.max(violation.abs());
             }
         }
+        self.cands.candidate_blocks.borrow_mut().ahead.expire();
         let (tether_added, tether_worst) = self.evaluate_tethers();
         any_add |= tether_added;
         worst_inactive = worst_inactive.max(tether_worst);
         self.timings.candidates += evaluated.elapsed().as_secs_f64();
         (any_add, worst_inactive, worst_active)
+    }
+
+    /// Makes, on two threads, the displacements of the nodes the evaluation pass is about to evaluate (decided as
+    /// [`Self::evaluate_candidates`] decides; a node listed twice is made once), when there are many
+    /// ([`blocks::AHEAD_FROM_NODES`]): the pass then reads them instead of making each in turn. The same bits.
+    fn displace_ahead(&mut self, screening: bool) {
+        let mut nodes = std::mem::take(&mut self.cands.candidate_blocks.borrow_mut().ahead.nodes);
+        nodes.clear();
+        for ci in 0..self.cands.candidates.len() {
+            let c = self.cands.candidates[ci];
+            let engaged = self.tools.engaged_sorted.binary_search(&c.node).is_ok();
+            if !engaged && (!c.active || c.limit.is_sphere()) && !(screening && !c.active && self.can_skip(c)) {
+                nodes.push(c.node);
+            }
+        }
+        nodes.sort_unstable();
+        nodes.dedup();
+        let mut kept = self.cands.candidate_blocks.borrow_mut();
+        let wanted = nodes.len() >= kept.ahead.from;
+        kept.ahead.nodes = nodes;
+        if !wanted {
+            return;
+        }
+        kept.prepare(self.frame, self.columns.lazy_generation, &self.sys.nodes, self.sys.nodes_version);
+        let blocks::Ahead { nodes, u, forced, .. } = &mut kept.ahead;
+        u.clear();
+        u.extend(nodes.iter().map(|&n| self.model.gravity_displacement(n) + self.tether_pull_at(n)));
+        forced.clear();
+        forced.extend(self.sys.direct_force.iter().enumerate().filter(|(_, f)| **f != Vec3::zeros()).map(|(slot, f)| (slot, *f)));
+        kept.displace_ahead(self.kinv_source(), &self.sys.nodes, self.tuning.enabled(Optimisation::PrefetchBlocks));
     }
 
     /// Whether the screen shows candidate `c` (inactive) cannot be violated: its violation at its node's recorded
