@@ -20,7 +20,7 @@ use fissure::fem::{Compliance, ComplianceStorage, ConstrainedSolver, Constraint,
 use fissure::math::Vec3;
 
 /// The switches documented as leaving every bit unchanged.
-const BITWISE: [Optimisation; 13] = [
+const BITWISE: [Optimisation; 14] = [
     Optimisation::Avx2Product,
     Optimisation::FusedColumns,
     Optimisation::RowChunks,
@@ -34,6 +34,7 @@ const BITWISE: [Optimisation; 13] = [
     Optimisation::ScreenAcrossFrames,
     Optimisation::PrefetchBlocks,
     Optimisation::ParallelCandidates,
+    Optimisation::ParallelGather,
 ];
 
 /// The compliance's ROI x ROI entries and the surface displacements of a

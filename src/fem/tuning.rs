@@ -64,11 +64,14 @@ pub enum Optimisation {
     /// An evaluation pass's displacements made ahead on two threads when it evaluates many nodes, each through its
     /// kept row (`src/fem/constrained/blocks.rs`, `src/par.rs`; off: one after the other, same bits).
     ParallelCandidates,
+    /// W's entries of many rows new to the step (a first contact's) gathered on two threads
+    /// (`src/fem/constrained/gather.rs`, `src/par.rs`; off: one row after the other, same bits).
+    ParallelGather,
 }
 
 impl Optimisation {
     /// Every switch with its name in `FISSURE_FEM_OFF`, in declaration order.
-    pub const ALL: [(Optimisation, &'static str); 17] = [
+    pub const ALL: [(Optimisation, &'static str); 18] = [
         (Optimisation::Avx2Product, "avx2-product"),
         (Optimisation::FusedColumns, "fused-columns"),
         (Optimisation::RowChunks, "row-chunks"),
@@ -86,6 +89,7 @@ impl Optimisation {
         (Optimisation::ScreenAcrossFrames, "screen-across-frames"),
         (Optimisation::PrefetchBlocks, "prefetch-blocks"),
         (Optimisation::ParallelCandidates, "parallel-candidates"),
+        (Optimisation::ParallelGather, "parallel-gather"),
     ];
 
     /// Its name in `FISSURE_FEM_OFF`.

@@ -66,11 +66,13 @@ pub(super) struct Ahead {
     ready: bool,
     /// From this many nodes a pass on (tests: 1).
     pub(super) from: usize,
+    /// W's gather ahead from this many entries on ([`super::gather::GATHER_AHEAD_FROM`]; tests: 1).
+    pub(super) gather_from: usize,
 }
 
 impl Default for Ahead {
     fn default() -> Self {
-        Self { nodes: Vec::new(), u: Vec::new(), forced: Vec::new(), ready: false, from: AHEAD_FROM_NODES }
+        Self { nodes: Vec::new(), u: Vec::new(), forced: Vec::new(), ready: false, from: AHEAD_FROM_NODES, gather_from: super::gather::GATHER_AHEAD_FROM }
     }
 }
 
@@ -262,7 +264,41 @@ impl CandidateBlocks {
     }
 }
 
+/// A kept row's blocks and the W nodes they belong to.
+pub(super) type RowSlices<'a> = (&'a mut [MaybeUninit<Matrix3<f64>>], &'a mut [u32]);
+
 impl CandidateBlocks {
+    /// The kept rows whose first indices are `bases` (ascending, distinct; each from [`Self::row`] this frame), each
+    /// as its slices, in that order; and the column of each slot of the solver's node list.
+    pub(super) fn rows_at<'s>(&'s mut self, bases: impl Iterator<Item = usize>, out: &mut Vec<RowSlices<'s>>) -> &'s [u32] {
+        let stride = self.stride.max(1);
+        let mut chunks = self.blocks.chunks_exact_mut(stride).zip(self.nodes.chunks_exact_mut(stride)).enumerate();
+        for base in bases {
+            let Some((_, row)) = chunks.by_ref().find(|(i, _)| *i == base / stride) else { break };
+            out.push(row);
+        }
+        &self.slot_columns
+    }
+
+    /// Reads `K^-1[p, slot_nodes[slot]]` through a kept row (`row`, from [`Self::rows_at`]), as
+    /// [`ConstrainedSolver::kept_block`] does; `reads` counts the blocks read from `src`.
+    #[inline(always)]
+    pub(super) fn read_through(row: &mut RowSlices<'_>, columns: &[u32], src: KinvSource<'_>, p: u32, q: u32, slot: usize, reads: &mut u64) -> Matrix3<f64> {
+        let c = columns[slot] as usize;
+        if row.1[c] != q {
+            row.0[c] = MaybeUninit::new(src.block(p, q));
+            row.1[c] = q;
+            *reads += 1;
+        }
+        // SAFETY: `row.1[c]` names `q`, so `row.0[c]` has been written (with `q`'s block).
+        unsafe { row.0[c].assume_init() }
+    }
+
+    /// Adds blocks read elsewhere from the compliance to the count.
+    pub(super) fn count_reads(&mut self, reads: u64) {
+        self.reads += reads;
+    }
+
     /// Makes `ahead.u` for `ahead.nodes` from the parts given there: `u += K^-1[node, slot] f` over `ahead.forced`
     /// in slot order, through the kept rows, as [`ConstrainedSolver::displacement_of`] makes it (the same bits),
     /// half the rows on a second thread ([`crate::par::join`]). A row reads from `src` the blocks it lacks (asked for

@@ -38,6 +38,7 @@
 
 mod blocks;
 mod columns;
+mod gather;
 mod pairs;
 mod screen;
 mod tethers;
@@ -567,8 +568,10 @@ impl ConstrainedSolver {
     #[doc(hidden)]
     pub fn keep_candidate_blocks_always(&mut self) {
         self.cands.large_compliance = true;
-        // and an evaluation pass of any size made ahead on two threads
-        self.cands.candidate_blocks.borrow_mut().ahead.from = 1;
+        // and an evaluation pass, and W's gather, of any size made ahead on two threads
+        let mut kept = self.cands.candidate_blocks.borrow_mut();
+        kept.ahead.from = 1;
+        kept.ahead.gather_from = 1;
     }
 
     /// Whether the candidates' blocks are kept between frames (a large compliance, the optimisation on).
@@ -1123,7 +1126,13 @@ impl ConstrainedSolver {
             kept.prepare(self.frame, self.columns.lazy_generation, &self.sys.nodes, self.sys.nodes_version);
             kept.expect_rows(self.cands.candidates.len());
         }
-        for t in 0..s_c {
+        let ahead = match kept.as_mut() {
+            Some(k) if self.tuning.enabled(Optimisation::ParallelGather) && crate::par::available() => {
+                self.gather_rows_ahead(k, e, s, s_c, pairs.as_mut(), &slots, &mut w_es, &mut w_ss)
+            }
+            _ => Vec::new(),
+        };
+        for t in (0..s_c).filter(|&t| !ahead.get(t).is_some_and(|&a| a)) {
             let ri = self.sys.rows[e + t];
             let pi = self.sys.nodes[ri.slot];
             // A sphere or face row's node is a candidate: its blocks against the W nodes are kept (K^-1[q, p] is

@@ -151,6 +151,13 @@ impl RowPairs {
         v
     }
 
+    /// The kept entry between slots `a` and `b` (in that orientation), if any.
+    #[inline]
+    pub(super) fn get(&self, a: usize, b: usize) -> Option<f64> {
+        let i = a * self.stride + b;
+        self.valid.get(i).is_some_and(|&v| v).then(|| self.values[i])
+    }
+
     /// Whether the entry between slots `a` and `b` (in that orientation) is kept.
     #[inline]
     pub(super) fn has(&self, a: usize, b: usize) -> bool {
