@@ -10,10 +10,11 @@ use crate::common::source::{code_only, line_of, paths_after, read, rust_files, w
 
 /// The code map's layers, bottom up: a module uses only modules of lower
 /// layers, or its own.
-const LAYERS: [(&str, u8); 18] = [
+const LAYERS: [(&str, u8); 19] = [
     ("math", 1),
     ("fsio", 1),
     ("meminfo", 1),
+    ("par", 1),
     ("geometry", 2),
     ("mesh", 2),
     ("linalg", 2),
