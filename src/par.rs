@@ -1,11 +1,11 @@
-//! Work split between the calling thread and one helper thread ([`join`]), for the frame's few large memory-bound
+//! Work split between the calling thread and one worker thread ([`join`]), for the frame's few large memory-bound
 //! passes (the surface product on a wide contact).
 //!
 //! Why not rayon's `join`: called from the frame's thread, which is not one of the pool's, it hands both halves to
 //! the pool and sleeps. On the 2-core VMs this project is measured on, the pool's second worker then woke too late to
 //! take its half: the halves of the surface product ran one after the other in every large frame of the default
 //! scene (9 of 9), and each call waited about 0.1 ms more for the pool to wake and to hand back. Here the caller
-//! works on its half at once while a parked helper thread is woken for the other; if the helper has not taken it by
+//! works on its half at once while a parked worker thread is woken for the other; if the worker has not taken it by
 //! the time the caller is done, the caller runs it too. So a split is never slower than running both halves in
 //! turn by more than a wake-up call, whatever the other core is doing. Measured in `docs/design-notes.md`.
 
@@ -17,8 +17,8 @@ pub fn available() -> bool {
     *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get())) > 1
 }
 
-/// A job handed to the helper: the caller's closure, its lifetime erased. Sound because the caller does not return
-/// (nor unwind) past [`Finish`] before the helper has finished it or it has been taken back.
+/// A job handed to the worker: the caller's closure, its lifetime erased. Sound because the caller does not return
+/// (nor unwind) past [`Finish`] before the worker has finished it or it has been taken back.
 struct JobPtr(*mut (dyn FnMut() + Send + 'static));
 // SAFETY: the closure behind the pointer is `Send`, and only one thread runs it (the slot hands it over).
 unsafe impl Send for JobPtr {}
@@ -26,28 +26,28 @@ unsafe impl Send for JobPtr {}
 enum Slot {
     Empty,
     Posted(JobPtr),
-    /// The helper runs the job.
+    /// The worker runs the job.
     Taken,
-    /// The helper ran the job (`Err`: it panicked, the payload for the caller).
+    /// The worker ran the job (`Err`: it panicked, the payload for the caller).
     Done(std::thread::Result<()>),
 }
 
-struct Helper {
+struct Worker {
     slot: Mutex<Slot>,
     posted: Condvar,
     done: Condvar,
 }
 
-/// The helper thread, started on first use (`None`: it could not be started).
-fn helper() -> Option<&'static Helper> {
-    static HELPER: OnceLock<Option<&'static Helper>> = OnceLock::new();
-    *HELPER.get_or_init(|| {
-        let h: &'static Helper = Box::leak(Box::new(Helper { slot: Mutex::new(Slot::Empty), posted: Condvar::new(), done: Condvar::new() }));
+/// The worker thread, started on first use (`None`: it could not be started).
+fn worker() -> Option<&'static Worker> {
+    static WORKER: OnceLock<Option<&'static Worker>> = OnceLock::new();
+    *WORKER.get_or_init(|| {
+        let h: &'static Worker = Box::leak(Box::new(Worker { slot: Mutex::new(Slot::Empty), posted: Condvar::new(), done: Condvar::new() }));
         std::thread::Builder::new().name("fissure-split".into()).spawn(move || h.serve()).ok().map(|_| h)
     })
 }
 
-impl Helper {
+impl Worker {
     fn serve(&self) {
         let Ok(mut slot) = self.slot.lock() else { return };
         loop {
@@ -71,10 +71,10 @@ impl Helper {
     }
 }
 
-/// Takes the posted job back, or waits for the helper to finish it, when the caller leaves [`join`] (returning or
-/// unwinding). Says whether the helper ran it, with its panic if any.
+/// Takes the posted job back, or waits for the worker to finish it, when the caller leaves [`join`] (returning or
+/// unwinding). Says whether the worker ran it, with its panic if any.
 struct Finish<'h> {
-    helper: &'h Helper,
+    worker: &'h Worker,
     outcome: Option<std::thread::Result<bool>>,
 }
 
@@ -83,16 +83,16 @@ impl Finish<'_> {
         if let Some(o) = self.outcome.take() {
             return o;
         }
-        let Ok(mut slot) = self.helper.slot.lock() else { return Ok(false) };
+        let Ok(mut slot) = self.worker.slot.lock() else { return Ok(false) };
         loop {
             match std::mem::replace(&mut *slot, Slot::Empty) {
                 Slot::Posted(_) => return Ok(false),
                 Slot::Done(result) => return result.map(|()| true),
                 Slot::Taken => {
                     *slot = Slot::Taken;
-                    slot = match self.helper.done.wait(slot) {
+                    slot = match self.worker.done.wait(slot) {
                         Ok(s) => s,
-                        // a poisoned lock: the helper died; abort rather than free what it may still use
+                        // a poisoned lock: the worker died; abort rather than free what it may still use
                         Err(_) => std::process::abort(),
                     };
                 }
@@ -108,8 +108,8 @@ impl Drop for Finish<'_> {
     }
 }
 
-/// Runs `a` on the calling thread and `b` on the helper thread beside it, and returns both results. `b` runs on
-/// the caller instead (after `a`) when the machine has one core, the helper is busy with another call or has not
+/// Runs `a` on the calling thread and `b` on the worker thread beside it, and returns both results. `b` runs on
+/// the caller instead (after `a`) when the machine has one core, the worker is busy with another call or has not
 /// taken `b` by the time `a` is done: the results are the same either way. A panic in `b` is resumed on the caller.
 pub fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
 where
@@ -117,7 +117,7 @@ where
     B: FnOnce() -> RB + Send,
     RB: Send,
 {
-    let Some(helper) = available().then(helper).flatten() else { return (a(), b()) };
+    let Some(worker) = available().then(worker).flatten() else { return (a(), b()) };
     let mut b = Some(b);
     let mut rb = None;
     let mut job = || {
@@ -125,20 +125,20 @@ where
             rb = Some(b());
         }
     };
-    let posted = match helper.slot.lock() {
+    let posted = match worker.slot.lock() {
         Ok(mut slot) if matches!(*slot, Slot::Empty) => {
             let ptr: *mut (dyn FnMut() + Send + '_) = &mut job;
-            // SAFETY: lifetime erasure only; `finish` below keeps `job` alive until the helper is done with it.
+            // SAFETY: lifetime erasure only; `finish` below keeps `job` alive until the worker is done with it.
             let ptr: *mut (dyn FnMut() + Send + 'static) = unsafe { std::mem::transmute(ptr) };
             *slot = Slot::Posted(JobPtr(ptr));
-            helper.posted.notify_one();
+            worker.posted.notify_one();
             true
         }
         // busy with another call: both here
         _ => false,
     };
     let ra = if posted {
-        let mut finish = Finish { helper, outcome: None };
+        let mut finish = Finish { worker, outcome: None };
         let ra = a();
         let outcome = finish.settle();
         finish.outcome = Some(Ok(true));
@@ -161,8 +161,8 @@ where
     }
 }
 
-/// Runs `f` on every item of `items`, on the calling thread and the helper ([`join`]) at once: each takes the next
-/// `chunk` items not yet taken, so a helper that starts late takes what is left and one that never starts takes
+/// Runs `f` on every item of `items`, on the calling thread and the worker ([`join`]) at once: each takes the next
+/// `chunk` items not yet taken, so a worker that starts late takes what is left and one that never starts takes
 /// nothing. Each item is given to one thread only.
 pub fn for_each_mut<T: Send>(items: &mut [T], chunk: usize, f: impl Fn(&mut T) + Sync) {
     use std::sync::atomic::{AtomicUsize, Ordering};
@@ -241,7 +241,7 @@ mod tests {
     }
 
     #[test]
-    fn a_panic_in_either_half_reaches_the_caller_and_the_helper_serves_on() {
+    fn a_panic_in_either_half_reaches_the_caller_and_the_worker_serves_on() {
         assert!(std::panic::catch_unwind(|| join(|| 1, || -> u32 { panic!("second half") })).is_err());
         assert!(std::panic::catch_unwind(|| join(|| -> u32 { panic!("first half") }, || 2)).is_err());
         assert_eq!(join(|| 3, || 4), (3, 4));

@@ -1107,7 +1107,7 @@ impl ConstrainedSolver {
         self.build_tether_rows();
     }
 
-    /// Gathers the candidate rows of W, extends the enforced factor with them, solves for lambda and the nodal forces.
+    /// Gathers the candidate rows of W, then solves the system they extend ([`Self::solve_lambda`]).
     fn solve_rows(&mut self) {
         let t = std::time::Instant::now();
         let n = self.row_count();
@@ -1193,6 +1193,11 @@ impl ConstrainedSolver {
         self.sys.row_slots = slots;
         (self.sys.w_es, self.sys.w_ss) = (w_es, w_ss);
         self.timings.gather += t.elapsed().as_secs_f64();
+        self.solve_lambda(s);
+    }
+
+    /// Extends the enforced factor with the gathered s rows, solves for lambda and the nodal forces.
+    fn solve_lambda(&mut self, s: usize) {
         let t = std::time::Instant::now();
         self.sys.factor.set_sphere_rows(s, &self.sys.w_es, &self.sys.w_ss);
         self.sys.lambda.clear();
