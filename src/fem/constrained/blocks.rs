@@ -68,11 +68,14 @@ pub(super) struct Ahead {
     pub(super) from: usize,
     /// W's gather ahead from this many entries on ([`super::gather::GATHER_AHEAD_FROM`]; tests: 1).
     pub(super) gather_from: usize,
+    /// A pass's work lists, kept for their room: each node's kept row and index, by row; the rows' parts.
+    order: Vec<(usize, usize)>,
+    parts: Vec<(RowPart<'static>, bool)>,
 }
 
 impl Default for Ahead {
     fn default() -> Self {
-        Self { nodes: Vec::new(), u: Vec::new(), forced: Vec::new(), ready: false, from: AHEAD_FROM_NODES, gather_from: super::gather::GATHER_AHEAD_FROM }
+        Self { nodes: Vec::new(), u: Vec::new(), forced: Vec::new(), ready: false, from: AHEAD_FROM_NODES, gather_from: super::gather::GATHER_AHEAD_FROM, order: Vec::new(), parts: Vec::new() }
     }
 }
 
@@ -102,6 +105,13 @@ impl Ahead {
 /// A kept row, its blocks and the W nodes they belong to, with its node's index in [`Ahead::nodes`], its
 /// displacement and the blocks it read.
 type RowPart<'a> = (&'a mut [MaybeUninit<Matrix3<f64>>], &'a mut [u32], usize, Vec3, u64);
+
+/// `v` emptied and retyped on its own allocation (an in-place collection: `T` and `U` differ only in lifetimes), so
+/// a work list of rows borrowed for one pass keeps its room from pass to pass.
+fn recycle<T, U>(mut v: Vec<T>) -> Vec<U> {
+    v.clear();
+    v.into_iter().map(|_| unreachable!("the vector is empty")).collect()
+}
 
 /// `v` lengthened to `len` (when shorter) with entries left unwritten.
 fn grow_uninit<T>(v: &mut Vec<MaybeUninit<T>>, len: usize) {
@@ -309,15 +319,16 @@ impl CandidateBlocks {
         if stride == 0 || self.ahead.u.len() != self.ahead.nodes.len() {
             return;
         }
-        let mut rows: Vec<(usize, usize)> = Vec::with_capacity(self.ahead.nodes.len());
+        let mut rows = std::mem::take(&mut self.ahead.order);
+        rows.clear();
         for k in 0..self.ahead.nodes.len() {
             let base = self.row(self.ahead.nodes[k]);
             rows.push((base / stride, k));
         }
         rows.sort_unstable();
+        let mut parts: Vec<(RowPart<'_>, bool)> = recycle(std::mem::take(&mut self.ahead.parts));
         let complete = &self.complete;
         let Ahead { nodes: ahead_nodes, u, forced, .. } = &self.ahead;
-        let mut parts: Vec<(RowPart<'_>, bool)> = Vec::with_capacity(rows.len());
         let mut chunks = self.blocks.chunks_exact_mut(stride).zip(self.nodes.chunks_exact_mut(stride)).enumerate();
         for &(r, k) in &rows {
             let Some((_, (blocks, nodes))) = chunks.by_ref().find(|(i, _)| *i == r) else { break };
@@ -351,15 +362,17 @@ impl CandidateBlocks {
             }
         };
         crate::par::for_each_mut(&mut parts, AHEAD_ROWS_A_CLAIM, run);
-        let done: Vec<(usize, Vec3, u64)> = parts.iter().map(|((_, _, k, u, reads), _)| (*k, *u, *reads)).collect();
-        for (&(r, _), &(k, u, reads)) in rows.iter().zip(&done) {
+        let made = parts.len();
+        for (&(r, _), &((_, _, k, u, reads), _)) in rows.iter().zip(&parts) {
             self.ahead.u[k] = u;
             self.reads += reads;
             if let Some(c) = self.complete.get_mut(r) {
                 *c = reads == 0;
             }
         }
-        self.ahead.ready = done.len() == rows.len();
+        self.ahead.ready = made == rows.len();
+        self.ahead.parts = recycle(parts);
+        self.ahead.order = rows;
     }
 }
 
@@ -423,6 +436,14 @@ mod tests {
                 store.blocks[i] = MaybeUninit::new(Matrix3::identity() * (p * 1000 + q) as f64);
             }
         }
+    }
+
+    #[test]
+    fn a_recycled_work_list_keeps_its_room() {
+        let v: Vec<(&mut [u32], u64, bool)> = Vec::with_capacity(40);
+        let (at, room) = (v.as_ptr() as usize, v.capacity());
+        let w: Vec<(&mut [u32], u64, bool)> = recycle(v);
+        assert_eq!((w.as_ptr() as usize, w.capacity(), w.len()), (at, room, 0));
     }
 
     #[test]

@@ -32,7 +32,8 @@
 //! adds violated candidates, else drops the most adhesive active row (lambda < 0), else re-linearizes active rows
 //! that miss the sphere, until no candidate is outside by more than `1e-9 R` and no active force pulls.
 //!
-//! Stays true: no allocation once the scratch has grown to the frame size (except lazily computed columns); fixed
+//! Stays true: no allocation once the scratch has grown to the frame size (except lazily computed columns and the
+//! work lists of a first contact's two-thread gather, `gather`); fixed
 //! iteration order everywhere. Submodules: `blocks` (candidates' K^-1 blocks kept between frames), `columns` (K^-1
 //! columns outside the ROI), `screen` (skipping candidates that cannot be violated).
 
