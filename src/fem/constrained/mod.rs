@@ -201,6 +201,19 @@ struct Candidate {
     limit: Limit,
 }
 
+/// What an evaluation pass does with a candidate ([`ConstrainedSolver::pass_of`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Pass {
+    /// Its node is held by a tool this iteration: the row is dropped.
+    Engaged,
+    /// Held on its face plane by its active row: nothing to check.
+    OnPlane,
+    /// Inactive, and the screen shows it cannot be violated.
+    Screened,
+    /// Its node's displacement is made and the row checked.
+    Evaluate,
+}
+
 /// What a candidate row keeps its node from passing.
 #[derive(Debug, Clone, Copy)]
 enum Limit {
@@ -705,21 +718,22 @@ impl ConstrainedSolver {
         }
         for ci in 0..self.cands.candidates.len() {
             let c = self.cands.candidates[ci];
-            if self.tools.engaged_sorted.binary_search(&c.node).is_ok() {
-                // Held by a tool this iteration: the enforced displacement wins.
-                self.cands.candidates[ci].active = false;
-                continue;
-            }
-            if c.active && !c.limit.is_sphere() {
-                // Held on its face plane by its row: nothing to check.
-                continue;
-            }
-            if screening && !c.active && self.can_skip(c) {
-                self.timings.screened += 1;
-                if self.keep_candidate_blocks() {
-                    self.cands.candidate_blocks.borrow_mut().touch(c.node, self.frame);
+            match self.pass_of(c, screening) {
+                Pass::Engaged => {
+                    // Held by a tool this iteration: the enforced displacement wins.
+                    self.cands.candidates[ci].active = false;
+                    continue;
                 }
-                continue;
+                // Held on its face plane by its row: nothing to check.
+                Pass::OnPlane => continue,
+                Pass::Screened => {
+                    self.timings.screened += 1;
+                    if self.keep_candidate_blocks() {
+                        self.cands.candidate_blocks.borrow_mut().touch(c.node, self.frame);
+                    }
+                    continue;
+                }
+                Pass::Evaluate => {}
             }
             let ahead = self.cands.candidate_blocks.borrow().ahead.get(c.node);
             let u = ahead.unwrap_or_else(|| self.displacement_of(c.node));
@@ -748,16 +762,15 @@ impl ConstrainedSolver {
         (any_add, worst_inactive, worst_active)
     }
 
-    /// Makes, on two threads, the displacements of the nodes the evaluation pass is about to evaluate (decided as
-    /// [`Self::evaluate_candidates`] decides; a node listed twice is made once), when there are many
+    /// Makes, on two threads, the displacements of the nodes the evaluation pass is about to evaluate (chosen by
+    /// [`Self::pass_of`], as the pass chooses them; a node listed twice is made once), when there are many
     /// ([`blocks::AHEAD_FROM_NODES`]): the pass then reads them instead of making each in turn. The same bits.
     fn displace_ahead(&mut self, screening: bool) {
         let mut nodes = std::mem::take(&mut self.cands.candidate_blocks.borrow_mut().ahead.nodes);
         nodes.clear();
         for ci in 0..self.cands.candidates.len() {
             let c = self.cands.candidates[ci];
-            let engaged = self.tools.engaged_sorted.binary_search(&c.node).is_ok();
-            if !engaged && (!c.active || c.limit.is_sphere()) && !(screening && !c.active && self.can_skip(c)) {
+            if matches!(self.pass_of(c, screening), Pass::Evaluate) {
                 nodes.push(c.node);
             }
         }
@@ -776,6 +789,22 @@ impl ConstrainedSolver {
         forced.clear();
         forced.extend(self.sys.direct_force.iter().enumerate().filter(|(_, f)| **f != Vec3::zeros()).map(|(slot, f)| (slot, *f)));
         kept.displace_ahead(self.kinv_source(), &self.sys.nodes, self.tuning.enabled(Optimisation::PrefetchBlocks));
+    }
+
+    /// What an evaluation pass does with candidate `c`, in the order the pass asks: the one choice both the pass and
+    /// [`Self::displace_ahead`] make. (A node that is a candidate twice may be chosen differently by the two: the
+    /// pass records the first one's displacement before it asks about the second, and a node the list lacks is
+    /// made one by one, the same bits.)
+    fn pass_of(&mut self, c: Candidate, screening: bool) -> Pass {
+        if self.tools.engaged_sorted.binary_search(&c.node).is_ok() {
+            Pass::Engaged
+        } else if c.active && !c.limit.is_sphere() {
+            Pass::OnPlane
+        } else if screening && !c.active && self.can_skip(c) {
+            Pass::Screened
+        } else {
+            Pass::Evaluate
+        }
     }
 
     /// Whether the screen shows candidate `c` (inactive) cannot be violated: its violation at its node's recorded
