@@ -20,7 +20,7 @@ pub mod stress;
 pub mod tuning;
 
 pub use compliance::{Compliance, ComplianceStats, ComplianceStorage, ComputeOptions, PROJECTIONS_PER_CALL, ProductWorkspace};
-pub use constrained::{ConstrainedSolver, Constraint, ConstraintKind, ConstraintRow, FrameSolution, Tether, TetherEnd};
+pub use constrained::{ConstrainedSolver, Constraint, ConstraintKind, ConstraintRow, FrameSolution, SurfaceWrites, Tether, TetherEnd};
 pub use element::{Material, RegionMaterials};
 pub use error::FemError;
 pub use model::{BodyForce, FemModel, FemOptions, FemStats};

@@ -19,6 +19,7 @@ pub mod report;
 pub mod rest_grid;
 pub mod scene_mesh;
 pub mod substeps;
+pub mod surface_sync;
 pub mod tethers;
 pub mod tissue_time;
 

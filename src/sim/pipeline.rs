@@ -32,9 +32,10 @@ pub enum StepError {
     NonFinite { frame: u64, stage: StageId, what: &'static str },
 }
 
-/// Ends a frame whose solve left a NaN or an infinity in the surface.
-fn check_finite_state(frame: u64, state: &SimState, max_displacement: f64) -> Result<(), StepError> {
-    if max_displacement.is_finite() && state.surface_displacement.iter().all(is_finite3) {
+/// Ends a frame whose solve left a NaN or an infinity in the surface (`surface_finite`: every entry of the state's
+/// surface displacement is finite, as its last copy found).
+fn check_finite_state(frame: u64, surface_finite: bool, max_displacement: f64) -> Result<(), StepError> {
+    if max_displacement.is_finite() && surface_finite {
         Ok(())
     } else {
         Err(StepError::NonFinite { frame, stage: StageId::Solve, what: "the surface displacement" })
@@ -65,6 +66,8 @@ pub struct SimState {
     pub surface_bound_m: f64,
     /// Displacement of each surface vertex from rest, m.
     pub surface_displacement: Vec<Vec3>,
+    /// The solver's write the surface holds: a pipeline that wrote it last copies only what its next step changes.
+    pub surface_mark: super::surface_sync::SurfaceMark,
     /// Displacement of every node (only with the stress stage), m.
     pub node_displacement: Vec<Vec3>,
     /// Per-tet stress and strain (only with the stress stage).
@@ -184,6 +187,9 @@ struct SubSteps {
     /// blade ([`SimState::surface_bound_m`]).
     grid: Option<super::rest_grid::RestGrid>,
     monitor_near: super::rest_grid::Near,
+    /// What the last sub-step's surface copy left, and whether every entry it holds is finite.
+    sync: super::surface_sync::SurfaceSync,
+    surface_finite: bool,
 }
 
 /// What an iteration cap puts back.
@@ -312,6 +318,8 @@ impl Pipeline {
                 allowances: vec![0.0; n],
                 grid: collision.is_some().then(|| super::rest_grid::RestGrid::new(&rest)),
                 monitor_near: Default::default(),
+                sync: Default::default(),
+                surface_finite: true,
             },
             rollback: Rollback { feasible_constraints: Vec::new(), saved_history: Default::default(), saved_claims: Vec::new() },
             far: FarTrack { near_far: Vec::new(), blade_boxes: Vec::new(), far_edge, is_far, near: Default::default() },
@@ -344,6 +352,7 @@ impl Pipeline {
             surface_positions: self.rest.clone(),
             surface_bound_m: 0.0,
             surface_displacement: vec![Vec3::zeros(); self.rest.len()],
+            surface_mark: super::surface_sync::SurfaceMark::NONE,
             node_displacement: Vec::new(),
             stress: Vec::new(),
         }
@@ -557,7 +566,7 @@ impl Pipeline {
                 Err(e) => return Err(e),
             }
         }
-        check_finite_state(frame, state, self.report.max_displacement_m)?;
+        check_finite_state(frame, self.sub.surface_finite, self.report.max_displacement_m)?;
         if over_time {
             self.note_still(still, state);
         }
@@ -775,22 +784,15 @@ impl Pipeline {
         self.track_far(state);
         self.solver.step(&self.scratch.constraints, &mut self.scratch.solution).map_err(|source| StepError::Solve { frame, source })?;
         self.rollback.feasible_constraints.clone_from(&self.scratch.constraints);
-        state.surface_displacement.clone_from(&self.scratch.solution.displacement_surface);
-        let n = state.surface_positions.len();
-        if self.sub.previous_positions.len() == n && self.rest.len() == n && state.surface_displacement.len() == n {
-            // The start's positions become the previous ones, and every entry of the buffer they leave is written below.
-            std::mem::swap(&mut self.sub.previous_positions, &mut state.surface_positions);
-        } else {
-            self.sub.previous_positions.clone_from(&state.surface_positions);
-        }
         let bound_before = state.surface_bound_m;
-        // The new positions and their bound, in one pass (the surface is read once a sub-step where it can be).
-        let mut bound = [0u64; 3];
-        for ((p, rest), u) in state.surface_positions.iter_mut().zip(&self.rest).zip(&state.surface_displacement) {
-            *p = rest + u;
-            super::rest_grid::add_to_bound(&mut bound, p, rest);
-        }
-        state.surface_bound_m = super::rest_grid::finish_bound(bound);
+        // The new displacements, positions and their bound, over the vertices the step changed where it can.
+        let target = super::surface_sync::SurfaceTarget {
+            displacement: &mut state.surface_displacement,
+            positions: &mut state.surface_positions,
+            mark: &mut state.surface_mark,
+            previous: &mut self.sub.previous_positions,
+        };
+        (state.surface_bound_m, self.sub.surface_finite) = self.sub.sync.copy(&self.scratch.solution, &self.rest, &self.far.is_far, target);
         if let Some(tethers) = &mut self.tethers {
             tethers.after_solve(&state.surface_positions, &self.scratch.solution.tether_tension, time_s, frame, &mut self.solver);
         }
@@ -929,6 +931,8 @@ impl Pipeline {
             return Ok(std::borrow::Cow::Borrowed(state));
         }
         let mut whole = state.clone();
+        // (its far vertices are not the solver's: a pipeline given it copies its next step whole)
+        whole.surface_mark = super::surface_sync::SurfaceMark::NONE;
         self.solver.whole_surface(&mut whole.surface_displacement).map_err(|source| StepError::Solve { frame: state.frame, source })?;
         let mut bound = [0u64; 3];
         for ((p, rest), u) in whole.surface_positions.iter_mut().zip(&self.rest).zip(&whole.surface_displacement) {

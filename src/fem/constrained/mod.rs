@@ -154,7 +154,45 @@ pub struct FrameSolution {
     pub lazy_solves: usize,
     /// Per tether (order of [`ConstrainedSolver::set_tethers`]): its tension, N (0 when slack or gone).
     pub tether_tension: Vec<f64>,
+    /// Which entries of `displacement_surface` the last step wrote.
+    pub surface_writes: SurfaceWrites,
 }
+
+/// Which entries of a [`FrameSolution`]'s `displacement_surface` a step wrote. A step writes every entry into a
+/// solution it did not write last (another solver's, a fresh one, or one written since); into its own last one,
+/// only the vertices whose displacement may have changed: those with a compliance row and the far vertices brought
+/// up to date this step (the others keep the bits they had). Not part of the solution's value: two solutions
+/// compare equal whatever wrote them.
+#[derive(Debug, Clone, Default)]
+pub struct SurfaceWrites {
+    /// Unique to the write (0: none yet).
+    stamp: u64,
+    /// The stamp of the write this one changed (0: every entry was written).
+    since: u64,
+    /// Otherwise the surface vertices written (the working region's, then the tracked far ones).
+    changed: Vec<u32>,
+}
+
+impl PartialEq for SurfaceWrites {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl SurfaceWrites {
+    /// The write the last step changed and the surface vertices whose entries it wrote; `None`: it wrote all.
+    pub fn changed_since(&self) -> Option<(u64, &[u32])> {
+        (self.since != 0).then_some((self.since, self.changed.as_slice()))
+    }
+
+    /// Unique to the last step's write (0 for a solution no step wrote): equal stamps, the same write.
+    pub fn stamp(&self) -> u64 {
+        self.stamp
+    }
+}
+
+/// Stamps of [`SurfaceWrites`], unique in the process.
+static NEXT_SURFACE_WRITE: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
 
 /// Seconds spent in the phases of the last [`ConstrainedSolver::step`] (and one count).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -377,6 +415,10 @@ struct SurfaceUpdate {
     product: ProductWorkspace,
     /// The compliance row of each surface vertex (`u32::MAX`: none), read when the frame's surface is written.
     vertex_rows: Vec<u32>,
+    /// The surface vertices with a compliance row, ascending: what a step writes besides the tracked far ones.
+    row_vertices: Vec<u32>,
+    /// The stamp of the last solution this solver wrote ([`SurfaceWrites`]).
+    last_write: u64,
     /// Nodal forces of the last frame (node, force) for interior displacements.
     last_forces: Vec<(u32, Vec3)>,
     /// Free surface vertices (indices into `model.surface().vertices`) without a compliance row.
@@ -405,6 +447,7 @@ impl ConstrainedSolver {
         let far: Vec<u32> = (0..vertex_rows.len() as u32)
             .filter(|&k| vertex_rows[k as usize] == u32::MAX && !model.is_fixed(model.surface.vertices[k as usize]))
             .collect();
+        let row_vertices: Vec<u32> = (0..vertex_rows.len() as u32).filter(|&k| vertex_rows[k as usize] != u32::MAX).collect();
         let held = model.surface.vertices.iter().map(|&n| model.gravity_displacement(n)).collect();
         let tuning = Tuning::current();
         Ok(Self {
@@ -434,6 +477,8 @@ impl ConstrainedSolver {
                 slot_rows: Vec::new(),
                 product: ProductWorkspace::default(),
                 vertex_rows,
+                row_vertices,
+                last_write: 0,
                 last_forces: Vec::new(),
                 far,
                 held,
@@ -1374,14 +1419,7 @@ impl ConstrainedSolver {
     }
 
     fn write_solution(&mut self, constraints: &[Constraint], out: &mut FrameSolution, iterations: usize, lazy_solves: usize) {
-        out.displacement_surface.clear();
-        out.displacement_surface.extend(self.surface.vertex_rows.iter().zip(&self.surface.held).map(|(&r, held)| {
-            match self.surface.prev_u_rows.get(r as usize) {
-                Some(u) => *u,
-                // a far vertex: as last brought up to date (a fixed one: zero)
-                None => *held,
-            }
-        }));
+        self.write_surface(out);
         // Over the working region (rows and tracked far vertices). sqrt is monotonic and correctly rounded: the
         // root of the largest squared norm is the largest norm, bit for bit.
         let tracked = self.surface.tracked.iter().map(|&k| &out.displacement_surface[k as usize]);
@@ -1429,6 +1467,40 @@ impl ConstrainedSolver {
         out.conditioning = self.sys.factor.conditioning_estimate();
         out.iterations = iterations;
         out.lazy_solves = lazy_solves;
+    }
+
+    /// The step's surface into `out.displacement_surface` ([`SurfaceWrites`]): every entry, or into the solution
+    /// this solver wrote last, the working region's and the tracked far vertices' alone (no other entry can have
+    /// changed: a far vertex's changes only when it is brought up to date, a fixed one's never).
+    fn write_surface(&mut self, out: &mut FrameSolution) {
+        let s = &mut self.surface;
+        let w = &mut out.surface_writes;
+        let d = &mut out.displacement_surface;
+        if w.stamp != 0 && w.stamp == s.last_write && d.len() == s.vertex_rows.len() {
+            w.since = w.stamp;
+            w.changed.clear();
+            for &k in &s.row_vertices {
+                d[k as usize] = s.prev_u_rows[s.vertex_rows[k as usize] as usize];
+            }
+            for &k in &s.tracked {
+                d[k as usize] = s.held[k as usize];
+            }
+            w.changed.extend_from_slice(&s.row_vertices);
+            w.changed.extend_from_slice(&s.tracked);
+        } else {
+            w.since = 0;
+            w.changed.clear();
+            d.clear();
+            d.extend(s.vertex_rows.iter().zip(&s.held).map(|(&r, held)| {
+                match s.prev_u_rows.get(r as usize) {
+                    Some(u) => *u,
+                    // a far vertex: as last brought up to date (a fixed one: zero)
+                    None => *held,
+                }
+            }));
+        }
+        w.stamp = NEXT_SURFACE_WRITE.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        s.last_write = w.stamp;
     }
 
     fn keep_last_forces(&mut self) {
