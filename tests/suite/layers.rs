@@ -119,10 +119,11 @@ fn violations(file: &str, text: &str) -> Vec<String> {
 /// root, `mod.rs`, re-exports from any). The shared error, the sub-step count,
 /// the rest positions' grid and the stages the frame runs, the frame's report, the pipeline, the poses a run plays, the
 /// scene's mesh, the preflight that checks it, the build, the replay.
-const SIM_ORDER: [&str; 17] = [
+const SIM_ORDER: [&str; 18] = [
     "error",
     "substeps",
     "rest_grid",
+    "surface_sync",
     "barrier",
     "monitor",
     "pose_filter",
